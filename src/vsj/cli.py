@@ -1,0 +1,137 @@
+"""The ``vsj`` command: a thin layer over the library (no physics here).
+
+Exit codes: 0 success, 1 a simulation or fit failed, 2 bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .errors import InputError, SimulationError
+
+
+def _params(path: str | None):
+    from . import params
+
+    return params.load(path)
+
+
+def cmd_params(args) -> int:
+    params = _params(args.check or args.file)
+    if args.check:
+        print(f"{args.check}: ok ({len(params.values)} parameters, hash {params.hash()[:12]})")
+        return 0
+    print(f"# parameter set: {params.meta.get('name', params.origin)} ({params.origin})")
+    print(f"# hash {params.hash()}")
+    rows = params.describe()
+    width = max(len(r[0]) for r in rows)
+    vwidth = max(len(r[1]) for r in rows)
+    for key, value, source, description in rows:
+        print(f"{key:<{width}}  {value:>{vwidth}}  {description}; {source}")
+    return 0
+
+
+def cmd_simulate(args) -> int:
+    from . import scenario as scenarios
+    from .output import ensure_output_dir, parameters_record, write_meta, write_trajectory
+    from .progress import progress
+    from .simulate import simulate
+
+    params = _params(args.params)
+    scen = scenarios.load(args.scenario)
+    prepared = [scenarios.prepare_case(scen, case, params) for case in scen.cases]
+    grids = {(c.duration, c.options.output_step) for c in scen.cases}
+    if len(grids) > 1:
+        raise InputError(f"{scen.origin}: all cases must share duration and output_step so "
+                         "that they fit one trajectory file")
+    out = ensure_output_dir(Path(args.out))
+    runs, records = [], []
+    for case, (resolved, structure, inputs, pivot_range) in progress(
+            list(zip(scen.cases, prepared)), desc=f"simulate {scen.name}", unit="case"):
+        result = simulate(structure, inputs, case.duration, options=case.options,
+                          initial=case.initial, pivot_range=pivot_range)
+        runs.append((case.label, result))
+        records.append({"label": case.label, "success": result.success,
+                        "message": result.message, "solver": result.solver,
+                        "ledger": result.ledger, "stick_slip_transitions": result.transitions,
+                        "parameters_hash": resolved.hash(),
+                        "parameter_overrides": dict(case.params)})
+    write_trajectory(out / "trajectory.csv", runs)
+    ok = all(r.success for _, r in runs)
+    write_meta(out / "meta.json", {
+        "scenario": {"name": scen.name, "description": scen.description, "origin": scen.origin,
+                     "definition": dict(scen.table)},
+        "parameters": parameters_record(params), "success": ok, "cases": records})
+    if not args.no_plot:
+        from .plots import trajectory_figure
+
+        trajectory_figure(runs, scen.cases[0].network, out / "trajectory.png",
+                          title=f"{scen.name}: {scen.description}")
+    for label, result in runs:
+        prefix = f"[{label}] " if len(runs) > 1 else ""
+        print(prefix + result.summary().replace("\n", "\n" + prefix))
+    print(f"wrote {out / 'trajectory.csv'}, {out / 'meta.json'}"
+          + ("" if args.no_plot else f", {out / 'trajectory.png'}"))
+    if not ok:
+        failed = [f"{label}: {r.message}" for label, r in runs if not r.success]
+        print("simulation failed:\n  " + "\n  ".join(failed), file=sys.stderr)
+        return 1
+    return 0
+
+
+def cmd_scenarios(args) -> int:
+    from . import scenario as scenarios
+
+    for name in scenarios.builtin_names():
+        scen = scenarios.load(name)
+        print(f"{name:<24} {scen.description}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="vsj", description="Model, simulate and characterise the 2-DOF variable "
+                                "stiffness joint.")
+    parser.add_argument("--version", action="version", version=f"vsj {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("params", help="print a parameter set with units and sources, or check "
+                                      "a parameter file")
+    p.add_argument("file", nargs="?", help="parameter file (default: the bundled set)")
+    p.add_argument("--check", metavar="FILE", help="validate FILE; exit 0 if valid, 2 if not")
+    p.set_defaults(func=cmd_params)
+
+    p = sub.add_parser("simulate", help="run a scenario (built-in name or TOML file)")
+    p.add_argument("scenario", help="built-in scenario name (see 'vsj scenarios') or a file")
+    p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
+    p.add_argument("--out", metavar="DIR", default="out", help="output directory (default out)")
+    p.add_argument("--no-plot", action="store_true", help="skip the PNG")
+    p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("scenarios", help="list the built-in scenarios")
+    p.set_defaults(func=cmd_scenarios)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except InputError as exc:
+        print(f"vsj: error: {exc}", file=sys.stderr)
+        return 2
+    except SimulationError as exc:
+        print(f"vsj: failed: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("vsj: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

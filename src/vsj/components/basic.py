@@ -1,0 +1,124 @@
+"""Basic one- and two-flange elements: inertia, ground, sources, ideal gear.
+
+Port convention: `vsj.ports`. Each element here is ideal; losses and inertia
+are added by composing elements (as in Modelica's Rotational library).
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..network import PRESCRIBED, Component, Constraint, Friction, Load, Parts, Source
+
+
+def _positive(name: str, value: float, *, allow_zero: bool = True) -> float:
+    value = float(value)
+    ok = value >= 0.0 if allow_zero else value > 0.0
+    if not ok or math.isnan(value):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} must be {bound}, got {value!r}")
+    return value
+
+
+class Inertia(Component):
+    """A rotational inertia ``J`` [kg m^2] on its flange."""
+
+    ports = ("flange",)
+
+    def __init__(self, name: str, inertia: float):
+        super().__init__(name)
+        self.inertia = _positive(f"inertia of {name}", inertia)
+
+    def parts(self) -> Parts:
+        f = self.port("flange")
+        return Parts(flanges=[f], inertia={f: self.inertia}, priority={f: 1})
+
+
+class Fixed(Component):
+    """The ground: its flange does not move."""
+
+    ports = ("flange",)
+
+    def parts(self) -> Parts:
+        f = self.port("flange")
+        return Parts(flanges=[f], constraints=[Constraint(f"{self.name} fixed", {f: 1.0})],
+                     priority={f: PRESCRIBED})
+
+
+class VelocitySource(Component):
+    """Ideal velocity source: the flange speed follows input ``channel`` [rad/s].
+
+    Interchangeable with `vsj.components.motor.DCMotor` at a motor port (the
+    report's final simulations use velocity sources, section 4.3).
+    """
+
+    ports = ("flange",)
+
+    def __init__(self, name: str, channel: str | None = None):
+        super().__init__(name)
+        self.channel = channel or name
+
+    def parts(self) -> Parts:
+        f = self.port("flange")
+        return Parts(flanges=[f], sources=[Source(self.name, f, self.channel)])
+
+
+class TorqueSource(Component):
+    """An applied torque from input ``channel`` [N m] (an external load)."""
+
+    ports = ("flange",)
+
+    def __init__(self, name: str, channel: str | None = None):
+        super().__init__(name)
+        self.channel = channel or name
+
+    def parts(self) -> Parts:
+        f = self.port("flange")
+        return Parts(flanges=[f], loads=[Load(self.name, f, self.channel)])
+
+
+class IdealGear(Component):
+    """Ideal gear pair: ``omega_a = ratio * omega_b`` (Modelica's IdealGear).
+
+    Kinematic map ``omega_a = ratio omega_b``; by its transpose the torques
+    satisfy ``tau_b = -ratio tau_a``, so no power is lost.
+    """
+
+    ports = ("a", "b")
+
+    def __init__(self, name: str, ratio: float):
+        super().__init__(name)
+        if not (math.isfinite(ratio) and ratio != 0.0):
+            raise ValueError(f"gear ratio of {name} must be finite and nonzero, got {ratio!r}")
+        self.ratio = float(ratio)
+
+    def speeds(self, omega_b: float) -> float:
+        """Speed of flange a for a speed of flange b."""
+        return self.ratio * omega_b
+
+    def torques(self, tau_a: float) -> float:
+        """Torque on flange b balancing a torque ``tau_a`` on flange a."""
+        return -self.ratio * tau_a
+
+    def parts(self) -> Parts:
+        a, b = self.port("a"), self.port("b")
+        return Parts(flanges=[a, b],
+                     constraints=[Constraint(f"{self.name} gear", {a: 1.0, b: -self.ratio})])
+
+
+class Bearing(Component):
+    """Friction between a flange and the ground, on the flange's absolute speed."""
+
+    ports = ("flange",)
+
+    def __init__(self, name: str, *, viscous: float = 0.0, stiction: float = 0.0,
+                 sharpness: float = 10.0):
+        super().__init__(name)
+        self.viscous = _positive(f"viscous friction of {name}", viscous)
+        self.stiction = _positive(f"stiction of {name}", stiction)
+        self.sharpness = _positive(f"arctan sharpness of {name}", sharpness, allow_zero=False)
+
+    def parts(self) -> Parts:
+        f = self.port("flange")
+        return Parts(flanges=[f], frictions=[Friction(self.name, {f: 1.0}, self.viscous,
+                                                      self.stiction, self.sharpness)])

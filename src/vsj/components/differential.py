@@ -1,0 +1,59 @@
+"""Differential: two inputs to the end-effector angles theta_x and theta_y.
+
+Report section 3.5, eq 3.30-3.31 with d1/d2 = 1:
+
+    theta_x_dot = (psi_1_dot + psi_2_dot) / 2,   theta_y_dot = (psi_1_dot - psi_2_dot) / 2
+
+(``psi`` are the differential inputs; the report calls them phi_1, phi_2, a
+name vsj keeps for the elastic deflections). The end-effector inertias sit on
+the two output speeds; the differential's own friction acts on the input speed
+difference, which is proportional to theta_y_dot, so it sits there (fig 3.14).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..network import Component, Constraint, Friction, Parts
+from .basic import _positive
+
+#: The kinematic map of eq 3.31: (theta_x, theta_y) = MAP @ (psi_1, psi_2).
+MAP = np.array([[0.5, 0.5], [0.5, -0.5]])
+
+
+class Differential(Component):
+    """The differential with end-effector inertias and its own friction."""
+
+    ports = ("input_1", "input_2", "theta_x", "theta_y")
+
+    def __init__(self, name: str, *, inertia_x: float = 0.0, inertia_y: float = 0.0,
+                 viscous: float = 0.0, stiction: float = 0.0, sharpness: float = 10.0):
+        super().__init__(name)
+        self.inertia_x = _positive(f"{name}: inertia_x", inertia_x)
+        self.inertia_y = _positive(f"{name}: inertia_y", inertia_y)
+        self.viscous = _positive(f"{name}: viscous", viscous)
+        self.stiction = _positive(f"{name}: stiction", stiction)
+        self.sharpness = _positive(f"{name}: sharpness", sharpness, allow_zero=False)
+
+    @staticmethod
+    def speeds(input_speeds):
+        """End-effector speeds (theta_x, theta_y) for input speeds (psi_1, psi_2)."""
+        return MAP @ np.asarray(input_speeds)
+
+    @staticmethod
+    def torques(output_torques):
+        """Input torques that transmit output torques (tau_x, tau_y): the transpose map."""
+        return MAP.T @ np.asarray(output_torques)
+
+    def parts(self) -> Parts:
+        p1, p2, tx, ty = (self.port(p) for p in self.ports)
+        return Parts(
+            flanges=[p1, p2, tx, ty],
+            inertia={tx: self.inertia_x, ty: self.inertia_y},
+            constraints=[
+                Constraint(f"{self.name} x", {tx: 1.0, p1: -MAP[0, 0], p2: -MAP[0, 1]}),
+                Constraint(f"{self.name} y", {ty: 1.0, p1: -MAP[1, 0], p2: -MAP[1, 1]}),
+            ],
+            frictions=[Friction(f"{self.name}.gears", {ty: 1.0}, self.viscous, self.stiction,
+                                self.sharpness)],
+        )

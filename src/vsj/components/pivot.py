@@ -1,0 +1,71 @@
+"""VSM pivot mechanism: the stiffness motor sets the pivot position q.
+
+Report section 3.4, fig 3.12: a planetary set with its ring fixed turns the
+motor's rotation into the straight motion of the pivot. The belt and the
+planetary are one transformer of ``ratio`` (motor turns per carrier turn); the
+carrier angle ``phi_C`` gives ``q = amplitude * sin(phi_C)`` where
+``amplitude`` is the gain times the ring radius of the report. The gears'
+inertia and friction load the motor; the springs do not push back on ``q``
+(non-backdrivable, section 3.1), so the mechanism is a chain of its own.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..network import Component, Constraint, Friction, Parts, Pivot
+from .basic import _positive
+
+
+class PivotMechanism(Component):
+    """Motor flange ``input`` to pivot carrier; publishes the pivot position."""
+
+    ports = ("input",)
+
+    def __init__(self, name: str, *, ratio: float, amplitude: float, inertia: float = 0.0,
+                 viscous: float = 0.0, stiction: float = 0.0, sharpness: float = 10.0):
+        super().__init__(name)
+        if not (math.isfinite(ratio) and ratio != 0.0):
+            raise ValueError(f"{name}: ratio must be finite and nonzero, got {ratio!r}")
+        self.ratio = float(ratio)
+        self.amplitude = _positive(f"{name}: amplitude", amplitude, allow_zero=False)
+        self.inertia = _positive(f"{name}: inertia", inertia)
+        self.viscous = _positive(f"{name}: viscous", viscous)
+        self.stiction = _positive(f"{name}: stiction", stiction)
+        self.sharpness = _positive(f"{name}: sharpness", sharpness, allow_zero=False)
+
+    def carrier_angle(self, q: float) -> float:
+        """Carrier angle [rad] that places the pivot at ``q`` [m] (principal branch)."""
+        if not abs(q) <= self.amplitude:
+            raise ValueError(f"{self.name}: q = {q} m is beyond the mechanism's reach "
+                             f"{self.amplitude} m")
+        return math.asin(q / self.amplitude)
+
+    def parts(self) -> Parts:
+        motor = self.port("input")
+        carrier = self.node("carrier")
+        return Parts(
+            flanges=[motor, carrier],
+            inertia={carrier: self.inertia},
+            constraints=[Constraint(f"{self.name} transmission",
+                                    {motor: 1.0, carrier: -self.ratio})],
+            frictions=[Friction(f"{self.name}.gears", {carrier: 1.0}, self.viscous,
+                                self.stiction, self.sharpness)],
+            pivots=[Pivot(carrier, self.amplitude)],
+            priority={carrier: 2},
+        )
+
+
+class FixedPivot(Component):
+    """A pivot pinned at ``q`` [m] (the elastic-element bench of section 4.2.1)."""
+
+    ports = ()
+
+    def __init__(self, name: str, q: float):
+        super().__init__(name)
+        if not math.isfinite(q):
+            raise ValueError(f"{name}: q must be finite, got {q!r}")
+        self.q = float(q)
+
+    def parts(self) -> Parts:
+        return Parts(pivots=[Pivot(None, fixed=self.q)])

@@ -1,0 +1,169 @@
+"""Planetary gear module: sun, ring and carrier with mesh and bearing friction.
+
+Report section 3.3. The ideal gear set is a three-port transformer (eq 3.9-3.11):
+
+    omega_C = r_RC omega_R + r_SC omega_S,
+    r_RC = N_R / (N_R + N_S),   r_SC = N_S / (N_R + N_S)
+
+and its torques are the transpose of that map (`IdealPlanetary.torques`).
+`PlanetaryGearModule` adds, by composition (fig 3.10):
+
+* mesh friction on the sun-carrier slip ``omega_S - omega_C`` (stiction
+  ``k_1``, arctan sharpness ``k_b1``) and on the ring-carrier slip
+  ``omega_R - omega_C`` with ``k_a2 = (N_S/N_R) k_1`` and
+  ``k_b2 = (N_R/N_S) k_b1`` (eq 3.27: equal tangential mesh forces);
+* bearing friction (viscous and stiction) on each absolute speed, the
+  stiction the report added after its measurements (section 4.1.3, table 4.1);
+* the inertias of sun, ring and carrier "and what is attached to them".
+
+With the sun fixed and the carrier driven, the module's steady friction torque
+is ``(b_C + b_R (1+x)^2) w + k_1 (1+x^2) atan(k_b1 w)`` plus the bearing
+stiction terms, ``x = N_S/N_R`` (eq 3.28 as restated in MODEL_NOTES.md; the
+extracted report text loses the fractions). `closed_form_torque` gives both
+test configurations, bearing stiction included.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..network import Component, Constraint, Friction, Parts
+from .basic import _positive
+
+
+class IdealPlanetary(Component):
+    """The kinematics of eq 3.9 only: no inertia, no friction, no losses."""
+
+    ports = ("sun", "ring", "carrier")
+
+    def __init__(self, name: str, sun_teeth: float, ring_teeth: float):
+        super().__init__(name)
+        for label, value in (("sun", sun_teeth), ("ring", ring_teeth)):
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name}: {label} tooth count must be > 0, got {value!r}")
+        self.sun_teeth = float(sun_teeth)
+        self.ring_teeth = float(ring_teeth)
+
+    @property
+    def r_RC(self) -> float:
+        """Ring-to-carrier ratio N_R / (N_R + N_S) (eq 3.11)."""
+        return self.ring_teeth / (self.ring_teeth + self.sun_teeth)
+
+    @property
+    def r_SC(self) -> float:
+        """Sun-to-carrier ratio N_S / (N_R + N_S) (eq 3.11)."""
+        return self.sun_teeth / (self.ring_teeth + self.sun_teeth)
+
+    def speeds(self, ring_speed, sun_speed):
+        """Carrier speed for given ring and sun speeds (eq 3.10)."""
+        return self.r_RC * np.asarray(ring_speed) + self.r_SC * np.asarray(sun_speed)
+
+    def torques(self, carrier_torque):
+        """``(ring, sun)`` torques that the gear set holds against ``carrier_torque``.
+
+        The transpose of `speeds`: a torque ``tau_C`` on the carrier is balanced
+        by ``-r_RC tau_C`` on the ring and ``-r_SC tau_C`` on the sun.
+        """
+        tau = np.asarray(carrier_torque)
+        return -self.r_RC * tau, -self.r_SC * tau
+
+    def parts(self) -> Parts:
+        s, r, c = (self.port(p) for p in self.ports)
+        row = {c: 1.0, r: -self.r_RC, s: -self.r_SC}
+        return Parts(flanges=[s, r, c], constraints=[Constraint(f"{self.name} gear set", row)],
+                     priority={c: 1})
+
+
+class PlanetaryGearModule(IdealPlanetary):
+    """A planetary gear set with inertias, mesh friction and bearing friction.
+
+    Parameters are SI: inertias [kg m^2], viscous coefficients [N m s/rad],
+    stiction parameters ``k`` [N m] (Coulomb level ``k pi/2``), the mesh arctan
+    sharpness ``k_b1`` [s/rad].
+    """
+
+    def __init__(self, name: str, *, sun_teeth: float, ring_teeth: float,
+                 sun_inertia: float = 0.0, ring_inertia: float = 0.0,
+                 carrier_inertia: float = 0.0,
+                 sun_bearing_viscous: float = 0.0, sun_bearing_stiction: float = 0.0,
+                 ring_bearing_viscous: float = 0.0, ring_bearing_stiction: float = 0.0,
+                 carrier_bearing_viscous: float = 0.0, carrier_bearing_stiction: float = 0.0,
+                 mesh_stiction: float = 0.0, mesh_sharpness: float = 10.0,
+                 bearing_sharpness: float | None = None):
+        super().__init__(name, sun_teeth, ring_teeth)
+        values = dict(
+            sun_inertia=sun_inertia, ring_inertia=ring_inertia, carrier_inertia=carrier_inertia,
+            sun_bearing_viscous=sun_bearing_viscous, sun_bearing_stiction=sun_bearing_stiction,
+            ring_bearing_viscous=ring_bearing_viscous,
+            ring_bearing_stiction=ring_bearing_stiction,
+            carrier_bearing_viscous=carrier_bearing_viscous,
+            carrier_bearing_stiction=carrier_bearing_stiction, mesh_stiction=mesh_stiction)
+        for key, value in values.items():
+            setattr(self, key, _positive(f"{name}: {key}", value))
+        self.mesh_sharpness = _positive(f"{name}: mesh_sharpness", mesh_sharpness,
+                                        allow_zero=False)
+        self.bearing_sharpness = (self.mesh_sharpness if bearing_sharpness is None
+                                  else _positive(f"{name}: bearing_sharpness", bearing_sharpness,
+                                                 allow_zero=False))
+
+    @property
+    def tooth_ratio(self) -> float:
+        """``x = N_S / N_R``."""
+        return self.sun_teeth / self.ring_teeth
+
+    def parts(self) -> Parts:
+        parts = super().parts()
+        s, r, c = (self.port(p) for p in self.ports)
+        x = self.tooth_ratio
+        kb = self.bearing_sharpness
+        parts.inertia.update({s: self.sun_inertia, r: self.ring_inertia, c: self.carrier_inertia})
+        parts.frictions += [
+            Friction(f"{self.name}.mesh_sun", {s: 1.0, c: -1.0}, 0.0, self.mesh_stiction,
+                     self.mesh_sharpness),
+            # eq 3.27: the ring mesh carries the same tangential force at radius R_R
+            Friction(f"{self.name}.mesh_ring", {r: 1.0, c: -1.0}, 0.0, x * self.mesh_stiction,
+                     self.mesh_sharpness / x),
+            Friction(f"{self.name}.bearing_sun", {s: 1.0}, self.sun_bearing_viscous,
+                     self.sun_bearing_stiction, kb),
+            Friction(f"{self.name}.bearing_ring", {r: 1.0}, self.ring_bearing_viscous,
+                     self.ring_bearing_stiction, kb),
+            Friction(f"{self.name}.bearing_carrier", {c: 1.0}, self.carrier_bearing_viscous,
+                     self.carrier_bearing_stiction, kb),
+        ]
+        return parts
+
+    def closed_form_torque(self, fixed: str, carrier_speed, law: str = "arctan"):
+        """Steady torque needed to drive the carrier at ``carrier_speed`` [N m].
+
+        ``fixed`` is ``"sun"`` (eq 3.28) or ``"ring"`` (eq 3.29). Every element
+        is a function of the carrier speed through the kinematics, so the torque
+        is the sum of each element's resistive torque times its speed ratio.
+        Bearing stiction terms are included; with them zero this is exactly the
+        report's ``c1 w + c2 atan(c3 w)`` form with
+        ``c1 = b_C + b_R (1+x)^2``, ``c2 = k_1 (1+x^2)``, ``c3 = k_b1`` (fixed
+        sun) and ``c1 = b_C + b_S (1+1/x)^2``, ``c2 = k_1 (x+1/x)``,
+        ``c3 = k_b1/x`` (fixed ring).
+        """
+        from .. import friction
+
+        w = np.asarray(carrier_speed, dtype=float)
+        x = self.tooth_ratio
+        if fixed == "sun":
+            ratios = {"mesh_sun": -1.0, "mesh_ring": x, "bearing_ring": 1.0 + x,
+                      "bearing_carrier": 1.0, "bearing_sun": 0.0}
+        elif fixed == "ring":
+            ratios = {"mesh_sun": 1.0 / x, "mesh_ring": -1.0, "bearing_sun": 1.0 + 1.0 / x,
+                      "bearing_carrier": 1.0, "bearing_ring": 0.0}
+        else:
+            raise ValueError(f"fixed must be 'sun' or 'ring', got {fixed!r}")
+        total = np.zeros_like(w)
+        for element in self.parts().frictions:
+            ratio = ratios[element.name.rsplit(".", 1)[1]]
+            if ratio == 0.0:
+                continue
+            total += ratio * friction.torque(law, ratio * w, viscous=element.viscous,
+                                             stiction=element.stiction,
+                                             sharpness=element.sharpness)
+        return total

@@ -1,0 +1,58 @@
+"""Transmission module: the belts and gears between a carrier and the differential.
+
+Report section 3.1 and table 4.1: one module per DOF lumps every transmission
+between a planetary carrier and a differential input, with viscous friction
+``b_T`` and stiction ``k_T`` (on the input, carrier side). Its ``ratio`` is
+input speed over output speed (Modelica's convention). Fig 4.14 adds a
+parasitic compliance in series in one DOF: with ``compliance > 0`` [rad/(N m)]
+a linear spring (and an optional parallel damper) sits between the gear and
+the output flange; with ``compliance = 0`` the module is rigid.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..network import Component, Constraint, Friction, Parts, Spring
+from .basic import _positive
+from .elastic_element import LINEAR, N_PARAMETERS
+
+
+class Transmission(Component):
+    """Carrier-side ``input`` to differential-side ``output``."""
+
+    ports = ("input", "output")
+
+    def __init__(self, name: str, *, ratio: float = 1.0, viscous: float = 0.0,
+                 stiction: float = 0.0, sharpness: float = 10.0, compliance: float = 0.0,
+                 damping: float = 0.0):
+        super().__init__(name)
+        if not (math.isfinite(ratio) and ratio != 0.0):
+            raise ValueError(f"{name}: ratio must be finite and nonzero, got {ratio!r}")
+        self.ratio = float(ratio)
+        self.viscous = _positive(f"{name}: viscous", viscous)
+        self.stiction = _positive(f"{name}: stiction", stiction)
+        self.sharpness = _positive(f"{name}: sharpness", sharpness, allow_zero=False)
+        self.compliance = _positive(f"{name}: compliance", compliance)
+        self.damping = _positive(f"{name}: damping", damping)
+
+    def parts(self) -> Parts:
+        a, b = self.port("input"), self.port("output")
+        parts = Parts(flanges=[a, b], frictions=[
+            Friction(f"{self.name}.friction", {a: 1.0}, self.viscous, self.stiction,
+                     self.sharpness)])
+        if self.compliance == 0.0:
+            parts.constraints.append(Constraint(f"{self.name} gear", {a: 1.0, b: -self.ratio}))
+            return parts
+        end = self.node("spring_end")
+        parts.flanges.append(end)
+        parts.constraints.append(Constraint(f"{self.name} gear", {a: 1.0, end: -self.ratio}))
+        stiffness = 1.0 / self.compliance
+        parts.springs.append(Spring(f"{self.name}.compliance", {end: 1.0, b: -1.0}, LINEAR,
+                                    (stiffness,) + (0.0,) * (N_PARAMETERS - 1)))
+        if self.damping > 0.0:
+            parts.frictions.append(Friction(f"{self.name}.compliance_damping",
+                                            {end: 1.0, b: -1.0}, self.damping, 0.0, 1.0,
+                                            law="viscous"))
+        parts.priority[b] = 5
+        return parts

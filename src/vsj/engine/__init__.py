@@ -1,0 +1,28 @@
+"""The compiled simulation engine (private): arrays in, trajectories out.
+
+`model.compile_model` turns a network into arrays; `core` evaluates forces and
+derivatives; `dopri` (smooth laws) and `timestep` (true stiction) integrate.
+Users call `vsj.simulate`, which drives these.
+"""
+
+from .core import (FRICTION_SOLVER, NOT_FINITE, OK, PIVOT_RANGE, STATUS_TEXT, STEP_TOO_SMALL,
+                   TOO_MANY_STEPS, make_work)
+from .model import EngineModel, Layout, compile_model
+
+__all__ = ["EngineModel", "Layout", "compile_model", "make_work", "STATUS_TEXT", "OK",
+           "NOT_FINITE", "PIVOT_RANGE", "TOO_MANY_STEPS", "STEP_TOO_SMALL", "FRICTION_SOLVER"]
+
+
+def observation_layout(layout: Layout) -> dict[str, slice]:
+    """Names of the columns `core.observe` writes, as slices."""
+    n, s, f, k = layout.n, layout.n_sources, layout.n_frictions, layout.n_springs
+    nl, nm = layout.n_loads, layout.n_motors
+    sizes = [("x", n), ("v", n), ("current", nm), ("a", n), ("sigma", s), ("u", s), ("ud", s),
+             ("q", 1), ("qdot", 1), ("fr_s", f), ("fr_f", f), ("sp_d", k), ("sp_dd", k),
+             ("sp_tau", k), ("sp_V", k), ("sp_k", k), ("src_tau", s), ("ld_tau", nl),
+             ("ld_w", nl), ("mo_w", nm), ("mo_V", nm)]
+    out, start = {}, 0
+    for name, size in sizes:
+        out[name] = slice(start, start + size)
+        start += size
+    return out

@@ -1,0 +1,208 @@
+"""The compiled form of a network: a few plain arrays the numba kernels read.
+
+`compile_model` turns an assembled `Structure`, its inputs and the run's
+options into an `EngineModel` (a named tuple of NumPy arrays) and a `Layout`
+that names every slot of the state and the accumulators.
+
+Why so few, grouped arrays: numba adjusts the reference count of every array
+held in a tuple whenever a function taking the tuple branches, which made a
+60-array model cost about 1 us per helper call. The kernels unpack these
+thirteen arrays once, at the top, and pass them on explicitly.
+
+Element rows are stacked in one matrix ``rows`` of shape ``(R, n + s)``: the
+first ``n`` columns multiply the generalised coordinates, the last ``s`` the
+source coordinates. Row order: friction elements, springs, loads, motors, and
+the pivot last. ``par`` holds each row's parameters, ``code`` its law code
+(friction, spring) or input channel (load, motor).
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import math
+from dataclasses import dataclass
+from typing import Mapping, NamedTuple
+
+import numpy as np
+
+from .. import friction as friction_laws
+from ..errors import InputError
+from ..inputs import Constant, Input
+from ..network import Structure
+
+#: Columns of ``par`` (rows are padded with zeros).
+N_PAR = 9
+
+# indices into ``dims``
+D_N, D_S, D_F, D_K, D_L, D_M, D_CH, D_R = range(8)
+
+
+class EngineModel(NamedTuple):
+    """Matrices and parameters of one model."""
+
+    dims: np.ndarray      # int64: n, s, f, k, loads, motors, channels, rows
+    mass: np.ndarray      # (n+s, n+s) kinetic energy matrix over (v, u)
+    Minv: np.ndarray      # (n, n) inverse of the free block
+    rows: np.ndarray      # (R, n+s) element rows
+    par: np.ndarray       # (R, 9) element parameters
+    code: np.ndarray      # (R,) int64 law code or input channel
+    src_ch: np.ndarray    # (s,) int64 input channel of each source
+    src_pos0: np.ndarray  # (s,) source angles at t = 0
+    knots: np.ndarray     # concatenated spline knots of all channels
+    coef: np.ndarray      # (pieces, 4) cubic coefficients
+    cum: np.ndarray       # integral from each channel's first knot to each knot
+    first: np.ndarray     # (channels,) int64 index of each channel's first piece
+    count: np.ndarray     # (channels,) int64 number of pieces
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Sizes, and where things live in the state and accumulator vectors."""
+
+    n: int
+    n_sources: int
+    n_frictions: int
+    n_springs: int
+    n_loads: int
+    n_motors: int
+
+    @property
+    def n_state(self) -> int:
+        return 2 * self.n + self.n_motors
+
+    @property
+    def n_acc(self) -> int:
+        return (self.n_sources + self.n_loads + 2 * self.n_motors + self.n_frictions
+                + 2 * self.n_springs)
+
+    def acc_slices(self) -> dict[str, slice]:
+        """Accumulated energies [J]: work done by sources, loads and motor supplies,
+        dissipation in friction and armature resistance, work done by the springs on
+        the mechanism and by the pivot on the springs."""
+        sizes = [("sources", self.n_sources), ("loads", self.n_loads),
+                 ("electric", self.n_motors), ("friction", self.n_frictions),
+                 ("resistance", self.n_motors), ("spring", self.n_springs),
+                 ("pivot", self.n_springs)]
+        out, start = {}, 0
+        for name, size in sizes:
+            out[name] = slice(start, start + size)
+            start += size
+        return out
+
+
+def _ints(values) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(values, dtype=np.int64).reshape(-1))
+
+
+def friction_laws_for(structure: Structure, default: str,
+                      overrides: Mapping[str, str] | None = None) -> list[str]:
+    """Law of each friction element: its own, else an override pattern, else ``default``.
+
+    Overrides map shell-style patterns on element names (``"pg*.bearing_*"``)
+    to law names; the last matching pattern wins.
+    """
+    friction_laws.law_code(default)
+    laws = []
+    for element in structure.frictions:
+        law = element.law or default
+        for pattern, name in (overrides or {}).items():
+            friction_laws.law_code(name)
+            if fnmatch.fnmatchcase(element.name, pattern):
+                law = name
+        laws.append(law)
+    for pattern in overrides or {}:
+        if not any(fnmatch.fnmatchcase(e.name, pattern) for e in structure.frictions):
+            names = ", ".join(e.name for e in structure.frictions)
+            raise InputError(f"friction override {pattern!r} matches no element; elements: "
+                             f"{names}")
+    return laws
+
+
+def input_bank(structure: Structure, inputs: Mapping[str, Input], t_end: float):
+    """Splines of every input channel, concatenated: (knots, coef, cum, first, count)."""
+    channels = structure.channels()
+    unknown = sorted(set(inputs) - set(channels))
+    if unknown:
+        raise InputError(f"unknown input channel(s) {', '.join(unknown)}; network "
+                         f"{structure.name!r} has {', '.join(channels) or 'none'}")
+    source_channels = {s.channel for s in structure.sources}
+    knots, coefs, cums, first, count = [np.zeros(1)], [np.zeros((0, 4))], [np.zeros(1)], [], []
+    if channels:
+        knots, coefs, cums = [], [], []
+    offset = 0
+    for ch in channels:
+        signal = inputs.get(ch, Constant(0.0))
+        if signal.is_position and ch not in source_channels:
+            raise InputError(f"input {ch!r}: only velocity sources can be driven by an angle")
+        k, c = signal.pieces(t_end)
+        k = np.asarray(k, dtype=float)
+        c = np.asarray(c, dtype=float).reshape(-1, 4)
+        dt = np.diff(k)
+        integral = (c[:, 0] * dt + c[:, 1] * dt ** 2 / 2 + c[:, 2] * dt ** 3 / 3
+                    + c[:, 3] * dt ** 4 / 4)
+        knots.append(k)
+        coefs.append(c)
+        cums.append(np.concatenate([[0.0], np.cumsum(integral)]))
+        first.append(offset)
+        count.append(len(c))
+        offset += len(c)
+    return (np.concatenate(knots), np.ascontiguousarray(np.vstack(coefs)),
+            np.concatenate(cums), _ints(first), _ints(count))
+
+
+def compile_model(structure: Structure, inputs: Mapping[str, Input], t_end: float, *,
+                  friction: str = "arctan", friction_overrides: Mapping[str, str] | None = None,
+                  slope_width: float = 0.01, pivot_range: tuple[float, float] | None = None,
+                  source_angles: np.ndarray | None = None) -> tuple[EngineModel, Layout]:
+    """Arrays for the kernels. ``t_end`` bounds the input splines; ``source_angles``
+    are the sources' angles at t = 0 (see `Structure.initial_positions`)."""
+    if not (math.isfinite(slope_width) and slope_width > 0.0):
+        raise InputError(f"slope width must be > 0 rad/s, got {slope_width!r}")
+    n, s = structure.n, len(structure.sources)
+    A, B, I = structure.A, structure.B, structure.inertia
+    AB = np.hstack([A, B])
+    mass = AB.T @ (I[:, None] * AB)
+    Minv = np.linalg.inv(mass[:n, :n]) if n else np.zeros((0, 0))
+    chan = {c: i for i, c in enumerate(structure.channels())}
+    laws = friction_laws_for(structure, friction, friction_overrides)
+
+    rows, par, code = [], [], []
+
+    def add(row, params, c):
+        rows.append(row)
+        padded = np.zeros(N_PAR)
+        padded[:len(params)] = params
+        par.append(padded)
+        code.append(c)
+
+    for element, row, law in zip(structure.frictions, structure.friction_rows, laws):
+        add(row @ AB, [element.viscous, element.stiction, element.sharpness, slope_width],
+            friction_laws.law_code(law))
+    for spring, row in zip(structure.springs, structure.spring_rows):
+        add(row @ AB, spring.parameters, spring.law)
+    for load in structure.loads:
+        add(AB[structure.index(load.flange)], [], chan[load.channel])
+    for motor in structure.motors:
+        add(AB[structure.index(motor.flange)],
+            [motor.resistance, motor.inductance, motor.torque_constant], chan[motor.channel])
+    pivot = structure.pivot
+    lo, hi = pivot_range if pivot_range is not None else (-np.inf, np.inf)
+    pivot_row = (AB[structure.index(pivot.flange)] if pivot.flange is not None
+                 else np.zeros(n + s))
+    add(pivot_row, [pivot.amplitude, pivot.fixed, 0.0 if pivot.flange is None else 1.0, lo, hi],
+        0)
+    bank = input_bank(structure, inputs, t_end)
+    dims = _ints([n, s, len(structure.frictions), len(structure.springs), len(structure.loads),
+                  len(structure.motors), len(chan), len(rows)])
+    src_pos0 = np.zeros(s) if source_angles is None else np.asarray(source_angles, dtype=float)
+    model = EngineModel(
+        dims=dims, mass=np.ascontiguousarray(mass), Minv=np.ascontiguousarray(Minv),
+        rows=np.ascontiguousarray(np.array(rows).reshape(len(rows), n + s)),
+        par=np.ascontiguousarray(np.array(par)), code=_ints(code),
+        src_ch=_ints([chan[src.channel] for src in structure.sources]),
+        src_pos0=np.ascontiguousarray(src_pos0, dtype=float),
+        knots=bank[0], coef=bank[1], cum=bank[2], first=bank[3], count=bank[4])
+    layout = Layout(n=n, n_sources=s, n_frictions=len(structure.frictions),
+                    n_springs=len(structure.springs), n_loads=len(structure.loads),
+                    n_motors=len(structure.motors))
+    return model, layout

@@ -1,0 +1,641 @@
+"""Fixed-step time stepping with exact Coulomb stiction, compiled.
+
+A velocity-level scheme in the family of Moreau and Jean, chosen for true
+stiction (see docs in `vsj.friction` and the README's "True stiction" section
+for the measurements behind the choice). Per step of length ``h``:
+
+* springs: trapezoidal rule, linearised about the start of the step with the
+  law's analytic stiffness (energy-conserving for linear springs, stable for
+  stiff ones);
+* smooth friction and viscous parts: implicit Euler, linearised (so the stiff
+  slope law of fig 4.8 stays stable);
+* DC motor armatures: implicit Euler;
+* Coulomb parts of ``stiction`` elements: impulses ``p_e``, bounded by
+  ``h k_e pi/2``, decided *together* for all elements by the box-constrained
+  problem
+
+      s = q - W p,   |p_e| <= h c_e,
+      p_e = +h c_e if s_e > 0,  p_e = -h c_e if s_e < 0,  |p_e| <= h c_e if s_e = 0,
+
+  with ``W = D H^-1 D^T`` the Delassus matrix of the elements' slip rows and
+  ``q`` their slip speeds without Coulomb friction. It is solved by projected
+  Gauss-Seidel, warm-started from the previous step, to a tolerance far below
+  any physical speed; an element with ``s_e = 0`` holds exactly (no creep), and
+  which elements hold is decided jointly through ``W`` (coupled through the
+  gears and the differential).
+
+Every force's work is booked against the mid-step speed, which is the velocity
+the scheme actually moves with, so the energy ledger closes up to the spring
+linearisation (third order in the step). Friction power sampled at step ends is
+``-f s <= 0`` by construction of the impulses.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..components.elastic_element import spring_law
+from ..friction import STICTION, coulomb_level, resistive_torque
+from .core import (FRICTION_SOLVER, NOT_FINITE, OK, SG, STATUS, TOO_MANY_STEPS, U, eval_inputs,
+                   eval_pivot)
+from .model import D_F, D_K, D_L, D_M, D_N, D_R, D_S
+
+#: Slip speed [rad/s] below which an element counts as stuck.
+STUCK_SPEED = 1e-10
+#: Impulse solver: absolute and relative (to the largest free slip) tolerance [rad/s].
+IMPULSE_ABS = 1e-14
+IMPULSE_REL = 1e-12
+IMPULSE_MAX_ITER = 500
+#: Relative Tikhonov term that makes the impulse problem strictly convex (removed by polishing).
+IMPULSE_REG = 1e-9
+
+
+@njit(cache=True)
+def _cholesky(H, L):
+    n = H.shape[0]
+    for i in range(n):
+        for j in range(i + 1):
+            acc = H[i, j]
+            for r in range(j):
+                acc -= L[i, r] * L[j, r]
+            if i == j:
+                if acc <= 0.0:
+                    return False
+                L[i, i] = math.sqrt(acc)
+            else:
+                L[i, j] = acc / L[j, j]
+    return True
+
+
+@njit(cache=True)
+def _solve(L, b, out):
+    n = L.shape[0]
+    for i in range(n):
+        acc = b[i]
+        for r in range(i):
+            acc -= L[i, r] * out[r]
+        out[i] = acc / L[i, i]
+    for i in range(n - 1, -1, -1):
+        acc = out[i]
+        for r in range(i + 1, n):
+            acc -= L[r, i] * out[r]
+        out[i] = acc / L[i, i]
+
+
+@njit(cache=True)
+def _forward(L, b, out):
+    for i in range(L.shape[0]):
+        acc = b[i]
+        for r in range(i):
+            acc -= L[i, r] * out[r]
+        out[i] = acc / L[i, i]
+
+
+@njit(cache=True)
+def _dot(a, b):
+    acc = 0.0
+    for i in range(b.shape[0]):
+        acc += a[i] * b[i]
+    return acc
+
+
+@njit(cache=True)
+def _small_cholesky_solve(G, Lg, rhs, out, k):
+    """Solve the leading k x k block of an SPD system (no allocation)."""
+    for i in range(k):
+        for j in range(i + 1):
+            acc = G[i, j]
+            for r in range(j):
+                acc -= Lg[i, r] * Lg[j, r]
+            if i == j:
+                Lg[i, i] = math.sqrt(max(acc, 1e-300))
+            else:
+                Lg[i, j] = acc / Lg[j, j]
+    for i in range(k):
+        acc = rhs[i]
+        for r in range(i):
+            acc -= Lg[i, r] * out[r]
+        out[i] = acc / Lg[i, i]
+    for i in range(k - 1, -1, -1):
+        acc = out[i]
+        for r in range(i + 1, k):
+            acc -= Lg[r, i] * out[r]
+        out[i] = acc / Lg[i, i]
+
+
+@njit(cache=True)
+def _free_newton(Y, g, free, n_free, eps, G, Lg, t, c, d):
+    """Newton step on the free set: ``d = -(eps I + Y_F Y_F^T)^-1 g_F`` by Woodbury,
+    which only needs an n x n solve (n = degrees of freedom)."""
+    n = Y.shape[1]
+    for i in range(n):
+        acc_t = 0.0
+        for k in range(n_free):
+            acc_t += Y[free[k], i] * g[free[k]]
+        t[i] = acc_t
+        for j in range(i + 1):
+            acc = 0.0
+            for k in range(n_free):
+                acc += Y[free[k], i] * Y[free[k], j]
+            G[i, j] = acc
+            G[j, i] = acc
+        G[i, i] += eps
+    _small_cholesky_solve(G, Lg, t, c, n)
+    for k in range(n_free):
+        e = free[k]
+        acc = g[e]
+        for i in range(n):
+            acc -= Y[e, i] * c[i]
+        d[k] = -acc / eps
+
+
+@njit(cache=True)
+def solve_impulses(Y, q, cap, p, state, active, free, G, Lg, t, c, d, g, z):
+    """Exact Coulomb impulses: slips ``s = q - Y Y^T p`` with ``|p_e| <= cap_e``.
+
+    ``Y`` holds one row ``L^-1 d_e`` per element (``H = L L^T``), so the
+    Delassus matrix is ``W = Y Y^T``. W has rank n (the degrees of freedom)
+    while there are many more elements, and while the sources move, the
+    elements of one chain cannot all stick, so the problem is degenerate and
+    first-order methods crawl. Two stages:
+
+    1. the box problem ``min 1/2 p^T (W + eps I) p - q.p`` with a tiny
+       ``eps = 1e-9 max W_ee`` is strictly convex; a primal active-set method
+       (free elements stuck, the others at a bound) solves it in finitely many
+       steps, each an n x n solve by Woodbury's identity;
+    2. polish: the stuck elements' remaining slips (of order eps p, a creep of
+       ~1e-12 rad/s) are removed by the minimum-norm correction of their
+       impulses, so stuck elements hold exactly (to round-off).
+
+    ``state`` (-1, 0 free, +1; 2 = not involved) and ``p`` carry the previous
+    step's solution as a warm start. Returns ``(converged, iterations)``.
+    """
+    m = q.shape[0]
+    n = Y.shape[1]
+    scale = 0.0
+    w_max = 0.0
+    for e in range(m):
+        if active[e] and cap[e] > 0.0:
+            scale = max(scale, abs(q[e]))
+            norm = 0.0
+            for i in range(n):
+                norm += Y[e, i] * Y[e, i]
+            w_max = max(w_max, norm)
+            if p[e] >= cap[e]:
+                p[e] = cap[e]
+                state[e] = 1
+            elif p[e] <= -cap[e]:
+                p[e] = -cap[e]
+                state[e] = -1
+            else:
+                state[e] = 0
+        else:
+            p[e] = 0.0
+            state[e] = 2
+    if w_max == 0.0:
+        return True, 0
+    eps = IMPULSE_REG * w_max
+    tol = IMPULSE_ABS + IMPULSE_REL * scale
+    converged = False
+    iterations = 0
+    at_optimum = False  # the free set was just minimised: check the bound set next
+    for it in range(IMPULSE_MAX_ITER):
+        iterations = it + 1
+        for i in range(n):
+            acc = 0.0
+            for e in range(m):
+                if state[e] != 2:
+                    acc += Y[e, i] * p[e]
+            z[i] = acc
+        n_free = 0
+        for e in range(m):
+            if state[e] == 2:
+                continue
+            acc = eps * p[e] - q[e]
+            for i in range(n):
+                acc += Y[e, i] * z[i]
+            g[e] = acc
+            if state[e] == 0:
+                free[n_free] = e
+                n_free += 1
+        if n_free > 0 and not at_optimum:
+            _free_newton(Y, g, free, n_free, eps, G, Lg, t, c, d)
+            alpha = 1.0
+            block = -1
+            for k in range(n_free):
+                e = free[k]
+                if d[k] > 0.0 and p[e] + d[k] > cap[e]:
+                    a = (cap[e] - p[e]) / d[k]
+                elif d[k] < 0.0 and p[e] + d[k] < -cap[e]:
+                    a = (-cap[e] - p[e]) / d[k]
+                else:
+                    continue
+                if a < alpha:
+                    alpha = a
+                    block = k
+            for k in range(n_free):
+                e = free[k]
+                p[e] = min(cap[e], max(-cap[e], p[e] + alpha * d[k]))
+            if block >= 0:
+                e = free[block]
+                p[e] = cap[e] if d[block] > 0.0 else -cap[e]
+                state[e] = 1 if d[block] > 0.0 else -1
+            else:
+                at_optimum = True
+            continue
+        at_optimum = False
+        worst = tol
+        release = -1
+        for e in range(m):
+            if state[e] == 1 and g[e] > worst:
+                worst = g[e]
+                release = e
+            elif state[e] == -1 and -g[e] > worst:
+                worst = -g[e]
+                release = e
+        if release < 0:
+            converged = True
+            break
+        state[release] = 0
+    if not converged:
+        return False, iterations
+    # polish: remove the regularisation's creep from the stuck elements with the
+    # minimum-norm correction of their impulses, delta = Y_F G^-2 Y_F^T s_F (G = Y_F^T Y_F)
+    for i in range(n):
+        acc = 0.0
+        for e in range(m):
+            if state[e] != 2:
+                acc += Y[e, i] * p[e]
+        z[i] = acc
+    n_free = 0
+    for e in range(m):
+        if state[e] == 0:
+            acc = q[e]
+            for i in range(n):
+                acc -= Y[e, i] * z[i]
+            g[e] = acc  # remaining slip
+            free[n_free] = e
+            n_free += 1
+    if n_free > 0:
+        trace = 0.0
+        for i in range(n):
+            acc_t = 0.0
+            for k in range(n_free):
+                acc_t += Y[free[k], i] * g[free[k]]
+            t[i] = acc_t
+            for j in range(i + 1):
+                acc = 0.0
+                for k in range(n_free):
+                    acc += Y[free[k], i] * Y[free[k], j]
+                G[i, j] = acc
+                G[j, i] = acc
+            trace += G[i, i]
+        for i in range(n):
+            G[i, i] += 1e-13 * trace  # G may be singular (parallel rows): a tiny ridge
+        _small_cholesky_solve(G, Lg, t, c, n)
+        _small_cholesky_solve(G, Lg, c, t, n)
+        for k in range(n_free):
+            e = free[k]
+            acc = 0.0
+            for i in range(n):
+                acc += Y[e, i] * t[i]
+            p[e] = min(cap[e], max(-cap[e], p[e] + acc))
+    return True, iterations
+
+
+@njit(cache=True, inline="always")
+def _rowx(rows, r, vec):
+    acc = 0.0
+    for i in range(vec.shape[0]):
+        acc += rows[r, i] * vec[i]
+    return acc
+
+
+@njit(cache=True, inline="always")
+def _rowu(rows, r, n, vec):
+    acc = 0.0
+    for j in range(vec.shape[0]):
+        acc += rows[r, n + j] * vec[j]
+    return acc
+
+
+@njit(cache=True)
+def run(m, w, y0, duration, h, t_out, max_steps):
+    """Integrate with fixed step ``h``; sample at ``t_out`` (multiples of ``h``).
+
+    Returns ``(status, t, y, out, coulomb, stuck, steps, transitions)``:
+    ``out`` holds the state and accumulators at each sample, ``coulomb`` the
+    Coulomb torque of each stiction element over the step ending there (the
+    resistive torque, positive against positive slip), ``stuck`` whether it
+    held. ``transitions`` counts, per element, the starts and ends of stick
+    phases; a phase starts when an element has held for two consecutive steps,
+    so a speed reversal that touches zero for a single step (the scheme's
+    resolution) is not counted as sticking.
+    """
+    dims, mass, Minv, rows, par, code, src_ch, src_pos0, knots, coef, cum, first, count = m
+    hint, chan, srcw, frw, spw, ldw, mow, gen, acc, scal = w
+    n = dims[D_N]
+    s_n = dims[D_S]
+    nf = dims[D_F]
+    nk = dims[D_K]
+    nl = dims[D_L]
+    nm = dims[D_M]
+    r_load = nf + nk
+    r_mot = r_load + nl
+    r_piv = dims[D_R] - 1
+    moving_pivot = par[r_piv, 2] > 0.0
+    ny = y0.shape[0]
+    n_state = 2 * n + nm
+    a_src = n_state
+    a_load = a_src + s_n
+    a_elec = a_load + nl
+    a_fric = a_elec + nm
+    a_res = a_fric + nf
+    a_spr = a_res + nm
+    a_piv = a_spr + nk
+
+    n_out = t_out.shape[0]
+    out = np.full((n_out, ny), np.nan)
+    coulomb = np.zeros((n_out, nf))
+    stuck = np.zeros((n_out, nf), dtype=np.bool_)
+    transitions = np.zeros(nf, dtype=np.int64)
+    held = np.zeros(nf, dtype=np.int64)
+    y = y0.copy()
+    x = y[:n].copy()
+    v = y[n:2 * n].copy()
+    cur = y[2 * n:n_state].copy()
+
+    # Coulomb impulses act on free coordinates ("active"); elements driven by
+    # sources alone ("driven") just follow their slip
+    active = np.zeros(nf, dtype=np.bool_)
+    driven = np.zeros(nf, dtype=np.bool_)
+    for e in range(nf):
+        if code[e] == STICTION:
+            norm = 0.0
+            for i in range(n):
+                norm += rows[e, i] ** 2
+            if norm > 0.0:
+                active[e] = True
+            else:
+                driven[e] = True
+
+    H = np.empty((n, n))
+    Lc = np.empty((n, n))
+    r = np.empty(n)
+    vfree = np.empty(n)
+    v1 = np.empty(n)
+    x1 = np.empty(n)
+    col = np.empty(n)
+    drow = np.empty(n)
+    Y = np.zeros((nf, n))
+    Yl = np.zeros((nf, n))
+    qv = np.zeros(nf)
+    cap = np.zeros(nf)
+    p = np.zeros(nf)
+    slip = np.zeros(nf)
+    state = np.zeros(nf, dtype=np.int64)
+    free_buf = np.zeros(nf, dtype=np.int64)
+    Gb = np.zeros((n, n))
+    Lgb = np.zeros((n, n))
+    tb = np.zeros(n)
+    cb = np.zeros(n)
+    db = np.zeros(nf)
+    gb = np.zeros(nf)
+    zb = np.zeros(n)
+    s0 = np.empty(nf)
+    f0 = np.empty(nf)
+    df0 = np.empty(nf)
+    force = np.empty(nf)
+    sp_c = np.empty(nk)
+    sp_kap = np.empty(nk)
+    u0 = np.empty(s_n)
+    sg0 = np.empty(s_n)
+    u1 = np.empty(s_n)
+    sg1 = np.empty(s_n)
+    um = np.empty(s_n)
+    ldm = np.empty(nl)
+    vm = np.empty(nm)
+    srcF = np.empty(s_n)
+    i1 = np.empty(nm)
+
+    eval_inputs(0.0, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0, srcw)
+    for j in range(s_n):
+        u0[j] = srcw[j, U]
+        sg0[j] = srcw[j, SG]
+    scal[STATUS] = OK
+    q_prev = eval_pivot(dims, rows, par, srcw, scal, x, v)
+    if scal[STATUS] != OK:
+        return int(scal[STATUS]), 0.0, y, out, coulomb, stuck, 0, transitions
+
+    steps_total = int(math.ceil(duration / h - 1e-9))
+    if steps_total > max_steps:
+        return TOO_MANY_STEPS, 0.0, y, out, coulomb, stuck, 0, transitions
+    i_out = 0
+    if n_out > 0 and t_out[0] <= 0.0:
+        out[0, :] = y
+        i_out = 1
+    t = 0.0
+    for step in range(steps_total):
+        hs = h if step < steps_total - 1 else duration - t
+        t1 = t + hs
+        # mid-step inputs (loads, voltages) and pivot position
+        eval_inputs(t + 0.5 * hs, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0,
+                    srcw)
+        for ld in range(nl):
+            ldm[ld] = chan[code[r_load + ld], 0]
+        for mo in range(nm):
+            vm[mo] = chan[code[r_mot + mo], 0]
+        for i in range(n):
+            x1[i] = x[i] + 0.5 * hs * v[i]
+        q_mid = eval_pivot(dims, rows, par, srcw, scal, x1, v)
+        eval_inputs(t1, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0, srcw)
+        for j in range(s_n):
+            u1[j] = srcw[j, U]
+            sg1[j] = srcw[j, SG]
+
+        # H v1 = r: inertia, springs (trapezoidal), smooth friction and motors (implicit)
+        for i in range(n):
+            total = 0.0
+            for c in range(n):
+                H[i, c] = mass[i, c]
+                total += mass[i, c] * v[c]
+            for j in range(s_n):
+                total -= mass[i, n + j] * (u1[j] - u0[j])
+            r[i] = total
+        for k in range(nk):
+            rr = nf + k
+            d0 = _rowx(rows, rr, x) + _rowu(rows, rr, n, sg0)
+            tau, kap, _, _ = spring_law(code[rr], par, rr, d0, q_mid)
+            dsig = 0.0
+            for j in range(s_n):
+                dsig += rows[rr, n + j] * (sg1[j] - sg0[j])
+            c_k = tau - 0.5 * kap * dsig - 0.25 * kap * hs * _rowx(rows, rr, v)
+            sp_c[k] = c_k
+            sp_kap[k] = kap
+            for i in range(n):
+                r[i] += hs * c_k * rows[rr, i]
+                for c in range(n):
+                    H[i, c] += 0.25 * hs * hs * kap * rows[rr, i] * rows[rr, c]
+        for e in range(nf):
+            se = _rowx(rows, e, v) + _rowu(rows, e, n, u0)
+            fe, dfe = resistive_torque(code[e], par, e, se)
+            s0[e] = se
+            f0[e] = fe
+            df0[e] = dfe
+            const = fe - dfe * se + dfe * _rowu(rows, e, n, u1)
+            for i in range(n):
+                r[i] -= hs * const * rows[e, i]
+                for c in range(n):
+                    H[i, c] += hs * dfe * rows[e, i] * rows[e, c]
+        for ld in range(nl):
+            for i in range(n):
+                r[i] += hs * ldm[ld] * rows[r_load + ld, i]
+        for mo in range(nm):
+            rr = r_mot + mo
+            R, Lm, kt = par[rr, 0], par[rr, 1], par[rr, 2]
+            g = 1.0 / (1.0 + hs * R / Lm)
+            const = kt * g * (cur[mo] + hs / Lm * (vm[mo] - kt * _rowu(rows, rr, n, u1)))
+            damp = kt * kt * g * hs / Lm
+            for i in range(n):
+                r[i] += hs * const * rows[rr, i]
+                for c in range(n):
+                    H[i, c] += hs * damp * rows[rr, i] * rows[rr, c]
+        if n > 0:
+            if not _cholesky(H, Lc):
+                return NOT_FINITE, t, y, out, coulomb, stuck, step, transitions
+            _solve(Lc, r, vfree)
+
+        # Coulomb impulses of the stiction elements, all together
+        any_active = False
+        for e in range(nf):
+            if active[e]:
+                any_active = True
+                for i in range(n):
+                    drow[i] = rows[e, i]
+                _solve(Lc, drow, col)  # H^-1 d_e, to update the speeds
+                for i in range(n):
+                    Y[e, i] = col[i]
+                _forward(Lc, drow, col)  # L^-1 d_e: W = Yl Yl^T
+                for i in range(n):
+                    Yl[e, i] = col[i]
+                qv[e] = _rowx(rows, e, vfree) + _rowu(rows, e, n, u1)
+                cap[e] = hs * coulomb_level(par, e)
+        if any_active:
+            ok, _ = solve_impulses(Yl, qv, cap, p, state, active, free_buf, Gb, Lgb, tb, cb, db,
+                                   gb, zb)
+            if not ok:
+                return FRICTION_SOLVER, t, y, out, coulomb, stuck, step, transitions
+        for i in range(n):
+            total = vfree[i]
+            for e in range(nf):
+                if active[e]:
+                    total -= Y[e, i] * p[e]
+            v1[i] = total
+            x1[i] = x[i] + 0.5 * hs * (v[i] + v1[i])
+        for mo in range(nm):
+            rr = r_mot + mo
+            R, Lm, kt = par[rr, 0], par[rr, 1], par[rr, 2]
+            g = 1.0 / (1.0 + hs * R / Lm)
+            omega1 = _rowx(rows, rr, v1) + _rowu(rows, rr, n, u1)
+            i1[mo] = g * (cur[mo] + hs / Lm * (vm[mo] - kt * omega1))
+
+        # energy bookkeeping against mid-step speeds
+        for j in range(s_n):
+            um[j] = 0.5 * (u0[j] + u1[j])
+            srcF[j] = 0.0
+        for e in range(nf):
+            s1 = _rowx(rows, e, v1) + _rowu(rows, e, n, u1)
+            fe = f0[e] + df0[e] * (s1 - s0[e])
+            if active[e]:
+                fe += p[e] / hs
+            elif driven[e] and s1 != 0.0:
+                fe += coulomb_level(par, e) * (1.0 if s1 > 0.0 else -1.0)
+            force[e] = fe
+            slip[e] = s1
+            y[a_fric + e] += hs * fe * 0.5 * (s0[e] + s1)
+            for j in range(s_n):
+                srcF[j] -= fe * rows[e, n + j]
+        q_end = q_prev
+        if moving_pivot:
+            q_end = eval_pivot(dims, rows, par, srcw, scal, x1, v1)  # srcw holds t1
+        for k in range(nk):
+            rr = nf + k
+            tau_avg = sp_c[k] - 0.25 * sp_kap[k] * hs * _rowx(rows, rr, v1)
+            dd = 0.0
+            for i in range(n):
+                dd += rows[rr, i] * (x1[i] - x[i])
+            for j in range(s_n):
+                dd += rows[rr, n + j] * (sg1[j] - sg0[j])
+            y[a_spr + k] += tau_avg * dd
+            for j in range(s_n):
+                srcF[j] += tau_avg * rows[rr, n + j]
+            if q_end != q_prev:
+                d1 = _rowx(rows, rr, x1) + _rowu(rows, rr, n, sg1)
+                e1 = spring_law(code[rr], par, rr, d1, q_end)[2]
+                e0 = spring_law(code[rr], par, rr, d1, q_prev)[2]
+                y[a_piv + k] += e1 - e0
+        for ld in range(nl):
+            rr = r_load + ld
+            omega = 0.0
+            for i in range(n):
+                omega += rows[rr, i] * 0.5 * (v[i] + v1[i])
+            omega += _rowu(rows, rr, n, um)
+            y[a_load + ld] += hs * ldm[ld] * omega
+            for j in range(s_n):
+                srcF[j] += ldm[ld] * rows[rr, n + j]
+        for mo in range(nm):
+            rr = r_mot + mo
+            imid = 0.5 * (cur[mo] + i1[mo])
+            y[a_elec + mo] += hs * vm[mo] * imid
+            y[a_res + mo] += hs * par[rr, 0] * i1[mo] * imid
+            for j in range(s_n):
+                srcF[j] += par[rr, 2] * i1[mo] * rows[rr, n + j]
+        for j in range(s_n):
+            impulse = -hs * srcF[j]
+            for i in range(n):
+                impulse += mass[n + j, i] * (v1[i] - v[i])
+            for c in range(s_n):
+                impulse += mass[n + j, n + c] * (u1[c] - u0[c])
+            y[a_src + j] += um[j] * impulse
+
+        # advance
+        for i in range(n):
+            x[i] = x1[i]
+            v[i] = v1[i]
+        for mo in range(nm):
+            cur[mo] = i1[mo]
+        for j in range(s_n):
+            u0[j] = u1[j]
+            sg0[j] = sg1[j]
+        t = t1
+        q_prev = q_end
+        for e in range(nf):
+            if active[e] or driven[e]:
+                if abs(slip[e]) <= STUCK_SPEED:
+                    held[e] += 1
+                    if held[e] == 2:
+                        transitions[e] += 1
+                else:
+                    if held[e] >= 2:
+                        transitions[e] += 1
+                    held[e] = 0
+        if scal[STATUS] != OK:
+            return int(scal[STATUS]), t, y, out, coulomb, stuck, step + 1, transitions
+        for i in range(n):
+            y[i] = x[i]
+            y[n + i] = v[i]
+            if not (math.isfinite(x[i]) and math.isfinite(v[i])):
+                return NOT_FINITE, t, y, out, coulomb, stuck, step + 1, transitions
+        for mo in range(nm):
+            y[2 * n + mo] = cur[mo]
+        while i_out < n_out and t_out[i_out] <= t + 1e-9 * h:
+            out[i_out, :] = y
+            for e in range(nf):
+                if active[e] or driven[e]:
+                    coulomb[i_out, e] = force[e] - (f0[e] + df0[e] * (slip[e] - s0[e]))
+                    stuck[i_out, e] = abs(slip[e]) <= STUCK_SPEED
+            i_out += 1
+    return OK, t, y, out, coulomb, stuck, steps_total, transitions

@@ -1,0 +1,120 @@
+"""Friction laws: every resistive element of the wrist uses one of these.
+
+A friction element acts on one relative speed ``s`` [rad/s] (a bearing on an
+absolute speed, a gear mesh on the speed difference of two members). It
+produces a resistive torque ``f(s)`` [N m]: the element applies ``-f(s)`` to
+the side whose speed is counted positive in ``s`` (see `vsj.ports`), so the
+power it takes from the mechanism is ``f(s) s >= 0`` for every law below.
+
+Each element carries four numbers: a viscous coefficient ``b`` [N m s/rad], a
+stiction parameter ``k`` [N m], an arctan sharpness ``k_b`` [s/rad] and a
+slope width ``w`` [rad/s] (a numerical knob, see `SimulationOptions`). ``k`` is
+read as the report reads it (section 4.1.3, fig 4.8): the first parameter of
+an equivalent arctan law, so every law saturates at the Coulomb level
+``k * pi / 2`` and the laws can be swapped without touching the parameters.
+
+=========  ===================================================  =============
+law        resistive torque f(s)                                report
+=========  ===================================================  =============
+viscous    b s  (the Coulomb part is dropped)                   eq 3.19
+arctan     b s + k atan(k_b s)                                  eq 3.17
+sign       b s + k (pi/2) sign(s)                               eq 3.18
+slope      b s + k (pi/2) clip(s / w, -1, 1)                    fig 4.8
+stiction   b s, plus a Coulomb torque of at most k pi/2 that    (vsj)
+           holds the element exactly at s = 0 (solved jointly
+           for all elements by the time-stepping solver)
+=========  ===================================================  =============
+
+The slope law is one reading of fig 4.8 (a straight line through zero inside
+``|s| < w``, the Coulomb level outside); the report gives it as a picture only.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+VISCOUS = 0
+ARCTAN = 1
+SIGN = 2
+SLOPE = 3
+STICTION = 4
+
+LAWS = {"viscous": VISCOUS, "arctan": ARCTAN, "sign": SIGN, "slope": SLOPE, "stiction": STICTION}
+LAW_NAMES = {code: name for name, code in LAWS.items()}
+
+#: Column order of a friction element's parameter row.
+PARAMETERS = ("viscous", "stiction", "sharpness", "width")
+
+
+def law_code(name: str) -> int:
+    """The engine's code of a friction law, or `ValueError` naming the choices."""
+    try:
+        return LAWS[name]
+    except KeyError:
+        raise ValueError(f"unknown friction law {name!r}; choose one of {', '.join(LAWS)}") from None
+
+
+@njit(cache=True, inline="always")
+def coulomb_level(par, r):
+    """Saturation torque k pi/2 [N m] of parameter row ``r``."""
+    return par[r, 1] * (0.5 * math.pi)
+
+
+@njit(cache=True, inline="always")
+def resistive_torque(law, par, r, s):
+    """Smooth part of the resistive torque and its slope: ``(f(s), df/ds)``.
+
+    ``par[r]`` is the element's parameter row. For the ``stiction`` law this is
+    the viscous part only; its Coulomb part is an impulse decided by the
+    time-stepping solver. For ``sign`` the slope at the jump is reported as the
+    viscous slope.
+    """
+    b = par[r, 0]
+    f = b * s
+    df = b
+    if law == ARCTAN:
+        kb = par[r, 2]
+        f += par[r, 1] * math.atan(kb * s)
+        df += par[r, 1] * kb / (1.0 + (kb * s) ** 2)
+    elif law == SIGN:
+        if s > 0.0:
+            f += coulomb_level(par, r)
+        elif s < 0.0:
+            f -= coulomb_level(par, r)
+    elif law == SLOPE:
+        w = par[r, 3]
+        level = coulomb_level(par, r)
+        if s >= w:
+            f += level
+        elif s <= -w:
+            f -= level
+        else:
+            f += level * s / w
+            df += level / w
+    return f, df
+
+
+@njit(cache=True)
+def _torque_array(law, par, speeds, out):
+    for i in range(speeds.shape[0]):
+        out[i] = resistive_torque(law, par, 0, speeds[i])[0]
+    return out
+
+
+def torque(law: str, speeds, *, viscous=0.0, stiction=0.0, sharpness=1.0, width=1e-3):
+    """Resistive torque [N m] of one law at an array of speeds [rad/s].
+
+    For ``stiction`` the element is sliding at every nonzero speed, so the
+    Coulomb torque ``k pi/2 sign(s)`` is added to the viscous part (at ``s = 0``
+    the torque is whatever holds the element and is not a function of speed).
+    """
+    code = law_code(law)
+    par = np.array([[viscous, stiction, sharpness, width]], dtype=float)
+    s = np.atleast_1d(np.asarray(speeds, dtype=float))
+    out = _torque_array(code, par, s, np.empty_like(s))
+    if code == STICTION:
+        out = out + stiction * 0.5 * np.pi * np.sign(s)
+    return out

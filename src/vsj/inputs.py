@@ -1,0 +1,227 @@
+"""Input signals: what drives the motors, the loads and the pivot over time.
+
+Every input channel of a network (a velocity source's speed [rad/s], a load
+torque [N m], a motor voltage [V]) is given one `Input`. The engine evaluates
+each as a piecewise cubic polynomial, which gives the value, its derivative and
+its integral exactly and cheaply in compiled code; analytic inputs are turned
+into such a spline on a grid fine enough that the difference is below 1e-9 of
+their amplitude.
+
+A velocity source may also be driven by its *angle*: wrap the angle signal in
+`Position`; its speed is then the spline's derivative and its initial angle the
+signal's value at time zero.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from .errors import InputError
+
+#: Coefficient rows are (c0, c1, c2, c3) of c0 + c1 tau + c2 tau^2 + c3 tau^3, tau = t - knot.
+Pieces = tuple[np.ndarray, np.ndarray]
+
+
+class Input:
+    """Base class of input signals."""
+
+    #: True if the signal is an angle whose derivative drives a velocity source.
+    is_position = False
+
+    def value(self, t):
+        raise NotImplementedError
+
+    def pieces(self, t_end: float) -> Pieces:
+        """Knots and cubic coefficients covering ``[0, t_end]``."""
+        raise NotImplementedError
+
+    def describe(self) -> str:
+        return repr(self)
+
+
+def _spline_pieces(spline: CubicSpline) -> Pieces:
+    knots = np.asarray(spline.x, dtype=float)
+    c = np.asarray(spline.c, dtype=float)  # descending powers, shape (4, K)
+    return knots, np.ascontiguousarray(c[::-1].T)
+
+
+def _sampled(fun, t_end: float, step: float) -> Pieces:
+    n = max(int(math.ceil(t_end / step)), 4)
+    t = np.linspace(0.0, max(t_end, 1e-9), n + 1)
+    return _spline_pieces(CubicSpline(t, fun(t), bc_type="not-a-knot"))
+
+
+@dataclass(frozen=True)
+class Constant(Input):
+    """A constant value."""
+
+    level: float = 0.0
+
+    def value(self, t):
+        return np.full_like(np.asarray(t, dtype=float), self.level)
+
+    def pieces(self, t_end: float) -> Pieces:
+        return np.array([0.0, max(t_end, 1e-9)]), np.array([[self.level, 0.0, 0.0, 0.0]])
+
+    def describe(self) -> str:
+        return f"constant {self.level:g}"
+
+
+@dataclass(frozen=True)
+class Sine(Input):
+    """``offset + amplitude * envelope(t) * sin(2 pi f (t - start) + phase)`` from ``start``.
+
+    Before ``start`` only ``offset`` remains. ``fade_in`` [s] raises the
+    envelope smoothly (a quintic smoothstep) from 0 to 1, so a velocity source
+    can start from rest without a jump in speed or acceleration.
+    """
+
+    amplitude: float
+    frequency: float
+    phase: float = 0.0
+    offset: float = 0.0
+    start: float = 0.0
+    fade_in: float = 0.0
+
+    def __post_init__(self):
+        if not (math.isfinite(self.frequency) and self.frequency > 0.0):
+            raise InputError(f"sine input: frequency must be > 0 Hz, got {self.frequency!r}")
+        if not self.fade_in >= 0.0:
+            raise InputError(f"sine input: fade_in must be >= 0 s, got {self.fade_in!r}")
+
+    def value(self, t):
+        t = np.asarray(t, dtype=float)
+        tau = t - self.start
+        env = np.ones_like(tau)
+        if self.fade_in > 0.0:
+            z = np.clip(tau / self.fade_in, 0.0, 1.0)
+            env = z ** 3 * (10.0 - 15.0 * z + 6.0 * z * z)
+        wave = self.amplitude * env * np.sin(2 * np.pi * self.frequency * tau + self.phase)
+        return self.offset + np.where(tau >= 0.0, wave, 0.0)
+
+    def pieces(self, t_end: float) -> Pieces:
+        step = 1.0 / (400.0 * self.frequency)
+        if self.fade_in > 0.0:
+            step = min(step, self.fade_in / 100.0)
+        if self.start > 0.0 and self.start < t_end:
+            # keep the onset on a knot so the spline does not smear it
+            before = Constant(self.offset).pieces(self.start)
+            k2, c2 = _sampled(lambda t: self.value(t + self.start), t_end - self.start, step)
+            return np.concatenate([before[0][:-1], k2 + self.start]), np.vstack([before[1], c2])
+        return _sampled(self.value, t_end, step)
+
+    def describe(self) -> str:
+        return (f"sine amplitude {self.amplitude:g}, {self.frequency:g} Hz, phase "
+                f"{self.phase:g} rad, offset {self.offset:g}, start {self.start:g} s, "
+                f"fade-in {self.fade_in:g} s")
+
+
+@dataclass(frozen=True)
+class Table(Input):
+    """Values at given times, interpolated linearly or with a cubic spline.
+
+    Outside the table the first and last values are held.
+    """
+
+    times: tuple[float, ...]
+    values: tuple[float, ...]
+    interpolation: str = "linear"
+
+    def __post_init__(self):
+        t = np.asarray(self.times, dtype=float)
+        v = np.asarray(self.values, dtype=float)
+        if t.ndim != 1 or t.shape != v.shape or t.size < 2:
+            raise InputError("table input: times and values must be two lists of the same "
+                             f"length >= 2 (got {t.size} and {v.size})")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))):
+            raise InputError("table input: times and values must be finite numbers")
+        if np.any(np.diff(t) <= 0.0):
+            i = int(np.flatnonzero(np.diff(t) <= 0.0)[0])
+            raise InputError(f"table input: times must increase strictly (entry {i + 1}: "
+                             f"{t[i]} then {t[i + 1]})")
+        if self.interpolation not in ("linear", "cubic"):
+            raise InputError(f"table input: interpolation must be 'linear' or 'cubic', got "
+                             f"{self.interpolation!r}")
+
+    def value(self, t):
+        if self.interpolation == "linear":
+            return np.interp(t, self.times, self.values)
+        t = np.clip(np.asarray(t, dtype=float), self.times[0], self.times[-1])
+        return CubicSpline(self.times, self.values)(t)
+
+    def pieces(self, t_end: float) -> Pieces:
+        t = np.asarray(self.times, dtype=float)
+        v = np.asarray(self.values, dtype=float)
+        if self.interpolation == "cubic":
+            knots, coef = _spline_pieces(CubicSpline(t, v))
+        else:
+            slope = np.diff(v) / np.diff(t)
+            coef = np.column_stack([v[:-1], slope, np.zeros_like(slope), np.zeros_like(slope)])
+            knots = t
+        return knots, coef
+
+    def describe(self) -> str:
+        return f"table of {len(self.times)} points ({self.interpolation})"
+
+
+@dataclass(frozen=True)
+class Position(Input):
+    """Drive a velocity source by its angle: the speed is ``d angle / dt``."""
+
+    angle: Input
+    is_position = True
+
+    def value(self, t):
+        return self.angle.value(t)
+
+    def initial_angle(self) -> float:
+        return float(self.angle.value(np.array([0.0]))[0])
+
+    def pieces(self, t_end: float) -> Pieces:
+        knots, coef = self.angle.pieces(t_end)
+        derivative = np.column_stack([coef[:, 1], 2 * coef[:, 2], 3 * coef[:, 3],
+                                      np.zeros(len(coef))])
+        return knots, derivative
+
+    def describe(self) -> str:
+        return f"angle given by {self.angle.describe()}"
+
+
+def circle(radius: float, period: float, *, fade_in: float, cos_axis: bool) -> Input:
+    """One coordinate of a circle of ``radius`` traversed with ``period`` [s].
+
+    The radius grows smoothly over ``fade_in`` (a spiral out from the centre),
+    so a motion started from rest has continuous speed and acceleration.
+    ``cos_axis`` selects ``r cos`` (else ``r sin``). Returned as a `Position`.
+    """
+    omega = 2 * np.pi / period
+
+    def angle(t):
+        t = np.asarray(t, dtype=float)
+        z = np.clip(t / fade_in, 0.0, 1.0) if fade_in > 0 else np.ones_like(t)
+        env = z ** 3 * (10.0 - 15.0 * z + 6.0 * z * z)
+        trig = np.cos if cos_axis else np.sin
+        return radius * env * trig(omega * t)
+
+    return Position(_Sampled(angle, min(period / 400.0, max(fade_in, period) / 400.0),
+                             f"circle radius {radius:g}, period {period:g} s"))
+
+
+@dataclass(frozen=True)
+class _Sampled(Input):
+    fun: object
+    step: float
+    label: str
+
+    def value(self, t):
+        return self.fun(np.asarray(t, dtype=float))
+
+    def pieces(self, t_end: float) -> Pieces:
+        return _sampled(self.fun, t_end, self.step)
+
+    def describe(self) -> str:
+        return self.label

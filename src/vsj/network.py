@@ -1,0 +1,491 @@
+"""Assembly: components connected through flanges become one linear structure.
+
+Components (see `vsj.components`) describe themselves as `Parts`: the flanges
+they own, the inertia on each, the kinematic constraints between flange speeds,
+and the elements acting on them (friction, springs, prescribed speeds, applied
+torques, DC motors, the pivot position). `Network.assemble` collects the parts
+of every component and every connection, and eliminates the rigid constraints
+once, symbolically in the linear-algebra sense:
+
+    omega = A v + B u
+
+where ``v`` are the speeds of the *free* flanges (the generalised coordinates
+the simulator integrates) and ``u`` the prescribed speeds of the velocity
+sources. Everything the engine needs is then a constant matrix: the mass matrix
+``A^T diag(I) A``, each element's relative speed as a row over ``(v, u)``, and
+so on. This is how 20-sim resolves inertias in derivative causality (MODEL_NOTES
+"Things that bite"): no stiff artificial springs, one degree of freedom per
+independent chain.
+
+Which flanges become free is decided by a priority each component may give its
+flanges (an elastic element prefers its ring angle as a state, a compliance its
+far side), so states carry physical names such as ``pg1.ring``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+
+from .errors import InputError
+from .ports import SEPARATOR
+
+#: Priority of flanges driven by a source or fixed to the ground: never free.
+PRESCRIBED = -1_000_000
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """A kinematic relation ``sum(c_i omega_i) = 0`` between flange speeds."""
+
+    name: str
+    coefficients: Mapping[str, float]
+
+
+@dataclass(frozen=True)
+class Friction:
+    """A resistive element on the relative speed ``s = sum(c_i omega_i)``.
+
+    ``viscous`` [N m s/rad], ``stiction`` (the report's ``k``, saturation level
+    ``k pi/2``) [N m] and ``sharpness`` (arctan ``k_b``) [s/rad] are physical;
+    the law is chosen per run (`vsj.friction`), unless ``law`` fixes it here.
+    """
+
+    name: str
+    speed: Mapping[str, float]
+    viscous: float = 0.0
+    stiction: float = 0.0
+    sharpness: float = 10.0
+    law: str | None = None
+
+
+@dataclass(frozen=True)
+class Spring:
+    """An elastic element on the deflection ``d = sum(c_i phi_i)``.
+
+    ``law`` and ``parameters`` select a law of
+    `vsj.components.elastic_element`; laws that depend on the pivot position
+    read the network's `Pivot`.
+    """
+
+    name: str
+    deflection: Mapping[str, float]
+    law: int
+    parameters: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Source:
+    """A velocity source: the speed of ``flange`` follows input ``channel``."""
+
+    name: str
+    flange: str
+    channel: str
+
+
+@dataclass(frozen=True)
+class Load:
+    """An applied torque from input ``channel`` on ``flange``."""
+
+    name: str
+    flange: str
+    channel: str
+
+
+@dataclass(frozen=True)
+class Motor:
+    """Armature circuit of a DC motor driving the rotor ``flange``.
+
+    ``L di/dt = V - R i - k omega`` and the torque ``k i`` on the rotor, with
+    the voltage ``V`` from input ``channel`` (SI: ``k`` in N m/A = V s/rad).
+    """
+
+    name: str
+    flange: str
+    channel: str
+    resistance: float
+    inductance: float
+    torque_constant: float
+
+
+@dataclass(frozen=True)
+class Pivot:
+    """The pivot position ``q`` [m] that the elastic elements read.
+
+    ``q = amplitude * sin(angle of flange)`` (report section 3.4: the sine of
+    the pivot planetary's carrier angle times the ring radius and a gain), or a
+    constant ``fixed`` when ``flange`` is None (a bench with a pinned pivot).
+    """
+
+    flange: str | None
+    amplitude: float = 0.0
+    fixed: float = 0.0
+
+
+@dataclass(frozen=True)
+class Signal:
+    """A named output: the angle and speed of a flange."""
+
+    name: str
+    flange: str
+    description: str = ""
+
+
+@dataclass
+class Parts:
+    """What a component contributes to a network."""
+
+    flanges: list[str] = field(default_factory=list)
+    inertia: dict[str, float] = field(default_factory=dict)
+    constraints: list[Constraint] = field(default_factory=list)
+    frictions: list[Friction] = field(default_factory=list)
+    springs: list[Spring] = field(default_factory=list)
+    sources: list[Source] = field(default_factory=list)
+    loads: list[Load] = field(default_factory=list)
+    motors: list[Motor] = field(default_factory=list)
+    pivots: list[Pivot] = field(default_factory=list)
+    signals: list[Signal] = field(default_factory=list)
+    priority: dict[str, int] = field(default_factory=dict)
+
+    def merge(self, other: "Parts") -> "Parts":
+        for f in dataclasses.fields(self):
+            mine = getattr(self, f.name)
+            theirs = getattr(other, f.name)
+            if isinstance(mine, dict):
+                for key, value in theirs.items():
+                    mine[key] = mine.get(key, 0.0) + value if f.name == "inertia" else value
+            else:
+                mine.extend(theirs)
+        return self
+
+
+class Component:
+    """Base class: a named sub-model with flanges ``<name>.<port>``."""
+
+    #: The ports other components may connect to.
+    ports: tuple[str, ...] = ()
+
+    def __init__(self, name: str):
+        if not name or SEPARATOR in name:
+            raise ValueError(f"component name {name!r} must be non-empty and contain no "
+                             f"{SEPARATOR!r}")
+        self.name = name
+
+    def port(self, port: str) -> str:
+        """Full flange name of one of this component's ports."""
+        if port not in self.ports:
+            raise ValueError(f"{type(self).__name__} {self.name!r} has no port {port!r}; "
+                             f"ports: {', '.join(self.ports)}")
+        return f"{self.name}{SEPARATOR}{port}"
+
+    def node(self, local: str) -> str:
+        """Full name of a flange of this component (a port or an internal one)."""
+        return f"{self.name}{SEPARATOR}{local}"
+
+    def parts(self) -> Parts:
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.name!r})"
+
+
+class Network:
+    """Components and the rigid connections between their flanges."""
+
+    def __init__(self, name: str = "network"):
+        self.name = name
+        self.components: list[Component] = []
+        self.connections: list[tuple[str, str]] = []
+        self.signals: list[Signal] = []
+
+    def add(self, *components: Component) -> "Network":
+        names = {c.name for c in self.components}
+        for c in components:
+            if c.name in names:
+                raise ValueError(f"network {self.name!r} already has a component {c.name!r}")
+            names.add(c.name)
+            self.components.append(c)
+        return self
+
+    def connect(self, a: str, b: str) -> "Network":
+        """Join two flanges rigidly (common speed, report section 3.1)."""
+        self.connections.append((a, b))
+        return self
+
+    def signal(self, signal: Signal) -> "Network":
+        """Publish the angle and speed of a flange under a name of its own."""
+        self.signals.append(signal)
+        return self
+
+    def parts(self) -> Parts:
+        total = Parts()
+        for c in self.components:
+            total.merge(c.parts())
+        total.signals.extend(self.signals)
+        return total
+
+    def assemble(self) -> "Structure":
+        return Structure.build(self.name, self.parts(), self.connections)
+
+
+def _row(coefficients: Mapping[str, float], index: Mapping[str, int], what: str) -> np.ndarray:
+    row = np.zeros(len(index))
+    for name, c in coefficients.items():
+        if name not in index:
+            raise InputError(f"{what} refers to unknown flange {name!r}")
+        row[index[name]] += c
+    return row
+
+
+def eliminate(equations: np.ndarray, prescribed: np.ndarray, order: np.ndarray,
+              tol: float = 1e-10):
+    """Solve ``equations @ omega = prescribed @ u`` for omega = A v + B u.
+
+    ``order`` lists node indices from most to least eager to be dependent; the
+    reduced row echelon form picks pivots in that order, so the nodes left
+    free (the generalised coordinates) are the last ones that can be.
+    Returns ``(A, B, free, inconsistent)`` where ``inconsistent`` lists the rows
+    whose equations reduce to ``0 = (combination of u)``: over-determined sources.
+    """
+    E = equations.astype(float).copy()
+    F = prescribed.astype(float).copy()
+    n_rows, n_nodes = E.shape
+    scale = np.max(np.abs(E)) if E.size else 1.0
+    pivots: list[tuple[int, int]] = []
+    row = 0
+    for col in order:
+        if row >= n_rows:
+            break
+        candidates = np.abs(E[row:, col])
+        best = int(np.argmax(candidates)) + row if candidates.size else row
+        if candidates.size == 0 or abs(E[best, col]) <= tol * scale:
+            continue
+        E[[row, best]] = E[[best, row]]
+        F[[row, best]] = F[[best, row]]
+        factor = E[row, col]
+        E[row] /= factor
+        F[row] /= factor
+        for other in range(n_rows):
+            if other != row and E[other, col] != 0.0:
+                g = E[other, col]
+                E[other] -= g * E[row]
+                F[other] -= g * F[row]
+        pivots.append((row, col))
+        row += 1
+    E[np.abs(E) < tol * scale] = 0.0
+    dependent = {col for _, col in pivots}
+    free = [col for col in order if col not in dependent]
+    free.sort()
+    inconsistent = [r for r in range(row, n_rows) if np.any(np.abs(F[r]) > tol)]
+    A = np.zeros((n_nodes, len(free)))
+    B = np.zeros((n_nodes, F.shape[1]))
+    for j, col in enumerate(free):
+        A[col, j] = 1.0
+    for r, col in pivots:
+        A[col] = -E[r, free]
+        B[col] = F[r]
+    return A, B, free, inconsistent
+
+
+@dataclass
+class Structure:
+    """A network after elimination: everything the engine needs, as matrices.
+
+    Speeds of all flanges are ``A v + B u``; angles are ``A x + B sigma`` with
+    ``sigma`` the integrals of the source speeds. Row vectors named ``*_x``
+    multiply ``v`` (or ``x``), ``*_u`` multiply ``u`` (or ``sigma``).
+    """
+
+    name: str
+    nodes: tuple[str, ...]
+    inertia: np.ndarray
+    free: tuple[str, ...]
+    A: np.ndarray
+    B: np.ndarray
+    sources: tuple[Source, ...]
+    frictions: tuple[Friction, ...]
+    springs: tuple[Spring, ...]
+    loads: tuple[Load, ...]
+    motors: tuple[Motor, ...]
+    pivot: Pivot
+    signals: tuple[Signal, ...]
+    friction_rows: np.ndarray
+    spring_rows: np.ndarray
+    constraint_names: tuple[str, ...]
+    constraint_rows: np.ndarray
+
+    @classmethod
+    def build(cls, name: str, parts: Parts, connections) -> "Structure":
+        nodes = list(dict.fromkeys(parts.flanges))
+        index = {n: i for i, n in enumerate(nodes)}
+        for a, b in connections:
+            for f in (a, b):
+                if f not in index:
+                    raise InputError(f"connection {a} -- {b}: unknown flange {f!r}; "
+                                     f"known flanges: {', '.join(nodes)}")
+        constraints = list(parts.constraints) + [
+            Constraint(f"connection {a} -- {b}", {a: 1.0, b: -1.0}) for a, b in connections]
+        rows = [_row(c.coefficients, index, c.name) for c in constraints]
+        driven = {}
+        for s in parts.sources:
+            if s.flange not in index:
+                raise InputError(f"source {s.name!r} drives unknown flange {s.flange!r}")
+            if s.flange in driven:
+                raise InputError(f"flange {s.flange!r} is driven by two sources: "
+                                 f"{driven[s.flange]!r} and {s.name!r}")
+            driven[s.flange] = s.name
+        n_nodes, n_src = len(nodes), len(parts.sources)
+        source_rows = np.zeros((n_src, n_nodes))
+        for j, s in enumerate(parts.sources):
+            source_rows[j, index[s.flange]] = 1.0
+        equations = np.vstack([np.array(rows).reshape(len(rows), n_nodes), source_rows])
+        prescribed = np.vstack([np.zeros((len(rows), n_src)), np.eye(n_src)])
+
+        priority = {n: parts.priority.get(n, 0) for n in nodes}
+        for s in parts.sources:
+            priority[s.flange] = PRESCRIBED
+        order = np.array(sorted(range(n_nodes), key=lambda i: (priority[nodes[i]], i)), dtype=int)
+        A, B, free, inconsistent = eliminate(equations, prescribed, order)
+        if inconsistent:
+            names = sorted({parts.sources[j].name for r in inconsistent
+                            for j in np.flatnonzero(np.abs(prescribed[r]) > 0)} or {"?"})
+            raise InputError(
+                f"network {name!r} is over-determined: the velocity sources "
+                f"{', '.join(names)} prescribe speeds that the rigid connections do not allow "
+                f"independently (remove a source or add a compliance)")
+        inertia = np.array([parts.inertia.get(n, 0.0) for n in nodes])
+        for n, value in parts.inertia.items():
+            if n not in index:
+                raise InputError(f"inertia given for unknown flange {n!r}")
+            if not value >= 0.0:
+                raise InputError(f"inertia of flange {n!r} must be >= 0, got {value!r}")
+        pivots = parts.pivots or [Pivot(None, 0.0, 0.0)]
+        if len(pivots) > 1:
+            raise InputError(f"network {name!r} has {len(pivots)} pivot mechanisms; "
+                             "the elastic elements share one pivot position")
+        pivot = pivots[0]
+        if pivot.flange is not None and pivot.flange not in index:
+            raise InputError(f"pivot refers to unknown flange {pivot.flange!r}")
+        friction_rows = np.array([_row(f.speed, index, f"friction {f.name!r}")
+                                  for f in parts.frictions]).reshape(len(parts.frictions), n_nodes)
+        spring_rows = np.array([_row(s.deflection, index, f"spring {s.name!r}")
+                                for s in parts.springs]).reshape(len(parts.springs), n_nodes)
+        for element in list(parts.loads) + list(parts.motors):
+            if element.flange not in index:
+                raise InputError(f"{element.name!r} acts on unknown flange {element.flange!r}")
+        for sig in parts.signals:
+            if sig.flange not in index:
+                raise InputError(f"signal {sig.name!r} refers to unknown flange {sig.flange!r}")
+        structure = cls(
+            name=name, nodes=tuple(nodes), inertia=inertia,
+            free=tuple(nodes[i] for i in free), A=A, B=B,
+            sources=tuple(parts.sources), frictions=tuple(parts.frictions),
+            springs=tuple(parts.springs), loads=tuple(parts.loads),
+            motors=tuple(parts.motors), pivot=pivot, signals=tuple(parts.signals),
+            friction_rows=friction_rows, spring_rows=spring_rows,
+            constraint_names=tuple([c.name for c in constraints]
+                                   + [f"source {s.name}" for s in parts.sources]),
+            constraint_rows=equations,
+        )
+        structure._check_inertia()
+        return structure
+
+    # -- derived matrices ---------------------------------------------------
+    @property
+    def n(self) -> int:
+        return len(self.free)
+
+    def index(self, flange: str) -> int:
+        try:
+            return self.nodes.index(flange)
+        except ValueError:
+            raise InputError(f"unknown flange {flange!r} in network {self.name!r}") from None
+
+    def mass_matrix(self) -> np.ndarray:
+        return self.A.T @ (self.inertia[:, None] * self.A)
+
+    def _check_inertia(self) -> None:
+        M = self.mass_matrix()
+        if M.size == 0:
+            return
+        w, V = np.linalg.eigh(M)
+        scale = max(float(np.max(np.abs(M))), 1e-300)
+        massless = [j for j in range(len(w)) if w[j] <= 1e-12 * scale]
+        if massless:
+            names = sorted({self.free[i] for j in massless
+                            for i in np.flatnonzero(np.abs(V[:, j]) > 1e-6)})
+            raise InputError(
+                f"network {self.name!r}: a degree of freedom has no inertia; it involves "
+                f"{', '.join(names)}. Give one of these flanges an inertia, or remove the "
+                f"compliance or connection that frees it")
+
+    def rows(self, flange: str) -> tuple[np.ndarray, np.ndarray]:
+        """``(row_x, row_u)`` of one flange's speed (and angle)."""
+        i = self.index(flange)
+        return self.A[i].copy(), self.B[i].copy()
+
+    def channels(self) -> tuple[str, ...]:
+        """Input channels in the order the engine stores them (sources first)."""
+        names = [s.channel for s in self.sources]
+        names += [ld.channel for ld in self.loads] + [m.channel for m in self.motors]
+        return tuple(dict.fromkeys(names))
+
+    def describe(self) -> str:
+        lines = [f"network {self.name}: {len(self.nodes)} flanges, {self.n} degrees of "
+                 f"freedom ({', '.join(self.free) or 'none'})"]
+        lines.append(f"  sources: {', '.join(s.name for s in self.sources) or 'none'}")
+        lines.append(f"  friction elements: {len(self.frictions)}, springs: {len(self.springs)},"
+                     f" loads: {len(self.loads)}, motors: {len(self.motors)}")
+        return "\n".join(lines)
+
+    def initial_positions(self, angles: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
+        """Generalised positions ``x0`` and source angles ``sigma0`` for given flange angles.
+
+        Flanges not named keep the smallest motion consistent with the named
+        ones (least-norm solution); contradictory requests raise `InputError`.
+        """
+        n, s = self.n, len(self.sources)
+        if not angles:
+            return np.zeros(n), np.zeros(s)
+        names = list(angles)
+        rows = np.array([np.concatenate(self.rows(f)) for f in names])
+        target = np.array([angles[f] for f in names], dtype=float)
+        sol, *_ = np.linalg.lstsq(rows, target, rcond=None)
+        residual = rows @ sol - target
+        bad = [names[i] for i in np.flatnonzero(np.abs(residual) > 1e-9 * (1 + np.abs(target)))]
+        if bad:
+            raise InputError(f"initial angles of {', '.join(bad)} contradict the kinematic "
+                             f"constraints of network {self.name!r}")
+        return sol[:n], sol[n:]
+
+    def initial_speeds(self, speeds: Mapping[str, float], u0: np.ndarray) -> np.ndarray:
+        """Generalised speeds ``v0`` for given flange speeds, given source speeds ``u0``."""
+        if not speeds:
+            return np.zeros(self.n)
+        names = list(speeds)
+        rows = np.array([self.rows(f)[0] for f in names])
+        target = np.array([speeds[f] - self.rows(f)[1] @ u0 for f in names], dtype=float)
+        sol, *_ = np.linalg.lstsq(rows, target, rcond=None)
+        residual = rows @ sol - target
+        bad = [names[i] for i in np.flatnonzero(np.abs(residual) > 1e-9 * (1 + np.abs(target)))]
+        if bad:
+            raise InputError(f"initial speeds of {', '.join(bad)} contradict the constraints or "
+                             f"the source speeds of network {self.name!r}")
+        return sol
+
+    def pivot_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.pivot.flange is None:
+            return np.zeros(self.n), np.zeros(len(self.sources))
+        return self.rows(self.pivot.flange)
+
+    def pivot_angle_for(self, q: float) -> float:
+        """Angle of the pivot flange that puts the pivot at ``q`` [m]."""
+        amp = self.pivot.amplitude
+        if not abs(q) <= amp:
+            raise InputError(f"pivot position {q!r} m is outside the mechanism's reach "
+                             f"(|q| <= {amp} m)")
+        return math.asin(q / amp)

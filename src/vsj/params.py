@@ -1,0 +1,363 @@
+"""Parameter sets: TOML files where every value carries its unit and its source.
+
+A parameter file has one table per sub-model; each key is written as
+
+    ring_inertia = { value = "6.47e-5 kg m^2", source = "report table 4.1 (I_R)" }
+
+Values are parsed with their units and converted to SI on load (`vsj.units`),
+so ``"-1.45 1/cm"`` or ``"-0.4 cm"`` work as the report writes them. Loading
+checks everything against `SCHEMA` and reports *all* problems at once, each
+naming the file, the key, the value and what is allowed: unknown or missing
+keys, missing or wrong units, NaN, values outside physical bounds, and the
+relations between keys (the pivot range inside the ring, the lever longer than
+the pivot's reach).
+
+Physical parameters live here; numerical knobs (tolerances, the slope width of
+the slope friction law) belong to `vsj.simulate.SimulationOptions`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Mapping
+
+from .errors import InputError
+from .units import format_quantity, to_si
+
+
+@dataclass(frozen=True)
+class Spec:
+    """One parameter: SI unit, unit to show, bounds and a one-line description."""
+
+    unit: str
+    display: str
+    description: str
+    minimum: float | None = 0.0
+    maximum: float | None = None
+    strict: bool = False  # minimum excluded
+    nonzero: bool = False
+
+    def check(self, value: float) -> str | None:
+        """Why ``value`` is not allowed, or None."""
+        if not math.isfinite(value):
+            return "must be finite"
+        if self.minimum is not None:
+            if self.strict and not value > self.minimum:
+                return f"must be > {self._show(self.minimum)}"
+            if not self.strict and not value >= self.minimum:
+                return f"must be >= {self._show(self.minimum)}"
+        if self.maximum is not None and not value <= self.maximum:
+            return f"must be <= {self._show(self.maximum)}"
+        if self.nonzero and value == 0.0:
+            return "must be nonzero"
+        return None
+
+    def _show(self, value: float) -> str:
+        return format_quantity(value, self.display)
+
+
+_I = "kg*m**2"
+_B = "N*m*s"
+_K = "N*m"
+SCHEMA: dict[str, dict[str, Spec]] = {
+    "planetary": {
+        "sun_teeth": Spec("1", "1", "teeth of the sun gear, N_S", 0.0, strict=True),
+        "ring_teeth": Spec("1", "1", "teeth of the ring gear, N_R", 0.0, strict=True),
+        "sun_inertia": Spec(_I, "kg m^2", "inertia of the sun and what is attached, I_S"),
+        "ring_inertia": Spec(_I, "kg m^2", "inertia of the ring and what is attached, I_R"),
+        "carrier_inertia": Spec(_I, "kg m^2", "inertia of the carrier and what is attached, I_C"),
+        "sun_bearing_viscous": Spec(_B, "N m s/rad", "sun bearing viscous friction, b_S"),
+        "sun_bearing_stiction": Spec(_K, "N m", "sun bearing stiction parameter"),
+        "ring_bearing_viscous": Spec(_B, "N m s/rad", "ring bearing viscous friction, b_R"),
+        "ring_bearing_stiction": Spec(_K, "N m", "ring bearing stiction parameter, k_R"),
+        "carrier_bearing_viscous": Spec(_B, "N m s/rad", "carrier bearing viscous friction, b_C"),
+        "carrier_bearing_stiction": Spec(_K, "N m", "carrier bearing stiction parameter, k_C"),
+        "mesh_stiction": Spec(_K, "N m", "sun-carrier gear mesh stiction parameter, k_1 = k_a1"),
+        "mesh_sharpness": Spec("s", "s/rad", "sun-carrier mesh arctan sharpness, k_b1", 0.0,
+                               strict=True),
+    },
+    "elastic_element": {
+        "ring_radius": Spec("m", "cm", "radius of the lever pin on the ring, R", 0.0, strict=True),
+        "lever_length": Spec("m", "cm", "lever length from pin to spring end, L", 0.0,
+                             strict=True),
+        "lever_width": Spec("m", "cm", "half-width of the lever at the springs, W"),
+        "anchor_x": Spec("m", "cm", "spring anchor, horizontal offset x0", 0.0, strict=True),
+        "anchor_y": Spec("m", "cm", "spring anchor, height y0", None),
+        "rest_length": Spec("m", "cm", "spring rest length, s0"),
+        "spring_stiffness": Spec("N/m", "N/m", "stiffness of each spring, k", 0.0, strict=True),
+        "end_stop": Spec("rad", "rad", "deflection of the physical end stop", 0.0, strict=True),
+        "end_stop_stiffness": Spec("N*m", "N m/rad", "stiffness of the end stop", 0.0,
+                                   strict=True),
+        "a1": Spec("N*m", "N m/rad", "simplified model K = a1 exp(a2 q) + a3: a1"),
+        "a2": Spec("1/m", "1/cm", "simplified model: a2", None),
+        "a3": Spec("N*m", "N m/rad", "simplified model: a3"),
+        "lever_stiction": Spec(_K, "N m", "lever and pivot friction, stiction parameter"),
+        "lever_viscous": Spec(_B, "N m s/rad", "lever and pivot friction, viscous"),
+    },
+    "pivot": {
+        "amplitude": Spec("m", "cm", "pivot travel: gain times ring radius, q = amplitude "
+                          "sin(phi_C)", 0.0, strict=True),
+        "ratio": Spec("1", "1", "motor turns per pivot carrier turn (belt and planetary)", None,
+                      nonzero=True),
+        "inertia": Spec(_I, "kg m^2", "inertia of the pivot gears, at the carrier"),
+        "viscous": Spec(_B, "N m s/rad", "pivot gear viscous friction, at the carrier"),
+        "stiction": Spec(_K, "N m", "pivot gear stiction parameter, at the carrier"),
+        "q_min": Spec("m", "cm", "lowest (stiffest) pivot position allowed", None),
+        "q_max": Spec("m", "cm", "highest (most compliant) pivot position allowed", None),
+    },
+    "transmission": {
+        "ratio": Spec("1", "1", "carrier speed over differential input speed", None,
+                      nonzero=True),
+        "viscous": Spec(_B, "N m s/rad", "transmission viscous friction, b_T (carrier side)"),
+        "stiction": Spec(_K, "N m", "transmission stiction parameter, k_T (carrier side)"),
+        "series_compliance_1": Spec("rad/(N*m)", "rad/(N m)",
+                                    "parasitic series compliance in DOF 1 (0: rigid)"),
+        "series_compliance_2": Spec("rad/(N*m)", "rad/(N m)",
+                                    "parasitic series compliance in DOF 2 (0: rigid)"),
+        "series_damping": Spec(_B, "N m s/rad", "damping in parallel with a series compliance"),
+    },
+    "differential": {
+        "stiction": Spec(_K, "N m", "differential gear stiction parameter, k_D"),
+        "viscous": Spec(_B, "N m s/rad", "differential gear viscous friction"),
+        "inertia_x": Spec(_I, "kg m^2", "end-effector inertia about theta_x"),
+        "inertia_y": Spec(_I, "kg m^2", "end-effector inertia about theta_y"),
+    },
+    "motor": {
+        "resistance": Spec("ohm", "ohm", "armature resistance", 0.0, strict=True),
+        "inductance": Spec("H", "mH", "armature inductance", 0.0, strict=True),
+        "torque_constant": Spec("N*m/A", "N m/A", "torque (= back-EMF) constant", 0.0,
+                                strict=True),
+        "rotor_inertia": Spec(_I, "kg m^2", "rotor inertia", 0.0, strict=True),
+        "gear_ratio": Spec("1", "1", "rotor turns per output turn (gearhead)", None,
+                           nonzero=True),
+        "viscous": Spec(_B, "N m s/rad", "rotor viscous friction"),
+        "voltage_limit": Spec("V", "V", "supply voltage (largest command)", 0.0, strict=True),
+    },
+    "friction": {
+        "arctan_sharpness": Spec("s", "s/rad", "arctan sharpness k_b of bearings, transmissions, "
+                                 "differential, lever and pivot", 0.0, strict=True),
+    },
+}
+
+#: Optional table with free text about the set.
+META_KEYS = ("name", "description")
+
+
+def _bundled(name: str) -> Path:
+    return Path(str(resources.files("vsj") / "data" / "params" / name))
+
+
+DEFAULT_FILE = "second_prototype.toml"
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """A validated parameter set: SI values, their texts and sources."""
+
+    values: Mapping[str, float]
+    sources: Mapping[str, str]
+    texts: Mapping[str, str]
+    origin: str
+    meta: Mapping[str, str]
+
+    def __getitem__(self, key: str) -> float:
+        try:
+            return self.values[key]
+        except KeyError:
+            raise KeyError(f"no parameter {key!r}") from None
+
+    def section(self, name: str) -> "_Section":
+        if name not in SCHEMA:
+            raise KeyError(f"no parameter section {name!r}")
+        return _Section(self, name)
+
+    def __getattr__(self, name: str) -> "_Section":
+        if name in SCHEMA:
+            return _Section(self, name)
+        raise AttributeError(name)
+
+    def hash(self) -> str:
+        """SHA-256 of the SI values (independent of formatting and sources)."""
+        canonical = json.dumps({k: repr(v) for k, v in sorted(self.values.items())})
+        return hashlib.sha256(canonical.encode()).hexdigest()
+
+    def with_overrides(self, overrides: Mapping[str, object], *, origin: str,
+                       source: str | None = None) -> "Parameters":
+        """A new validated set with some values replaced (``"section.key": text``)."""
+        table: dict[str, dict] = {}
+        for key in self.values:
+            section, name = key.split(".", 1)
+            table.setdefault(section, {})[name] = {"value": self.texts[key],
+                                                   "source": self.sources[key]}
+        for key, value in overrides.items():
+            if "." not in key:
+                raise InputError(f"{origin}: parameter override {key!r} must be written "
+                                 f"'section.key'")
+            section, name = key.split(".", 1)
+            entry = dict(value) if isinstance(value, Mapping) else {"value": value}
+            entry.setdefault("source", source or f"override in {origin}")
+            table.setdefault(section, {})[name] = entry
+        table["meta"] = dict(self.meta)
+        return _from_table(table, origin)
+
+    def describe(self) -> list[tuple[str, str, str, str]]:
+        """Rows (key, value with unit, source, description) in schema order."""
+        rows = []
+        for section, specs in SCHEMA.items():
+            for name, spec in specs.items():
+                key = f"{section}.{name}"
+                rows.append((key, format_quantity(self.values[key], spec.display),
+                             self.sources[key], spec.description))
+        return rows
+
+    def to_toml(self) -> str:
+        """The set as a parameter file (values in their display units)."""
+        import tomli_w
+
+        doc: dict = {"meta": dict(self.meta)} if self.meta else {}
+        for section, specs in SCHEMA.items():
+            doc[section] = {}
+            for name, spec in specs.items():
+                key = f"{section}.{name}"
+                doc[section][name] = {"value": format_quantity(self.values[key], spec.display,
+                                                               digits=10),
+                                      "source": self.sources[key]}
+        return tomli_w.dumps(doc)
+
+
+class _Section:
+    def __init__(self, params: Parameters, name: str):
+        self._params = params
+        self._name = name
+
+    def __getattr__(self, key: str) -> float:
+        full = f"{self._name}.{key}"
+        if full not in self._params.values:
+            raise AttributeError(f"parameter section {self._name!r} has no {key!r}")
+        return self._params.values[full]
+
+
+def _from_table(table: Mapping, origin: str) -> Parameters:
+    problems: list[str] = []
+    values: dict[str, float] = {}
+    sources: dict[str, str] = {}
+    texts: dict[str, str] = {}
+    meta = {}
+    for section, body in table.items():
+        if section == "meta":
+            if not isinstance(body, Mapping):
+                problems.append(f"{origin}: [meta] must be a table")
+                continue
+            for key, text in body.items():
+                if key not in META_KEYS:
+                    problems.append(f"{origin}: meta.{key}: unknown key; allowed: "
+                                    f"{', '.join(META_KEYS)}")
+                else:
+                    meta[key] = str(text)
+            continue
+        if section not in SCHEMA:
+            problems.append(f"{origin}: unknown section [{section}]; sections: "
+                            f"{', '.join(SCHEMA)}")
+            continue
+        if not isinstance(body, Mapping):
+            problems.append(f"{origin}: [{section}] must be a table")
+            continue
+        for name, entry in body.items():
+            key = f"{section}.{name}"
+            spec = SCHEMA[section].get(name)
+            if spec is None:
+                problems.append(f"{origin}: {key}: unknown key; [{section}] has "
+                                f"{', '.join(SCHEMA[section])}")
+                continue
+            if not isinstance(entry, Mapping) or "value" not in entry:
+                problems.append(f"{origin}: {key}: write it as {{ value = \"<number> <unit>\", "
+                                f"source = \"<where it comes from>\" }}")
+                continue
+            extra = set(entry) - {"value", "source"}
+            if extra:
+                problems.append(f"{origin}: {key}: unknown field(s) {', '.join(sorted(extra))}; "
+                                "allowed: value, source")
+            source = entry.get("source")
+            if not isinstance(source, str) or not source.strip():
+                problems.append(f"{origin}: {key}: missing source (say where the value comes "
+                                "from, e.g. \"report table 4.1\" or \"estimated: <how>\")")
+                source = ""
+            try:
+                value = to_si(entry["value"], spec.unit, where=f"{origin}: {key}")
+            except InputError as exc:
+                problems.append(str(exc))
+                continue
+            why = spec.check(value)
+            if why:
+                problems.append(f"{origin}: {key} = {entry['value']!r}: {why} "
+                                f"({spec.description})")
+                continue
+            values[key] = value
+            sources[key] = source
+            texts[key] = str(entry["value"])
+    for section, specs in SCHEMA.items():
+        for name in specs:
+            key = f"{section}.{name}"
+            if key not in values and not any(p.startswith(f"{origin}: {key}") for p in problems):
+                problems.append(f"{origin}: {key}: missing ({specs[name].description}, "
+                                f"unit {specs[name].display})")
+    if not problems:
+        problems += _relations(values, origin)
+    if problems:
+        raise InputError("\n".join(problems))
+    return Parameters(values=values, sources=sources, texts=texts, origin=origin, meta=meta)
+
+
+def _relations(v: Mapping[str, float], origin: str) -> list[str]:
+    """Checks that involve several keys."""
+    out = []
+    R = v["elastic_element.ring_radius"]
+    q_min, q_max, amp = v["pivot.q_min"], v["pivot.q_max"], v["pivot.amplitude"]
+    if not q_min < q_max:
+        out.append(f"{origin}: pivot.q_min ({q_min * 100:g} cm) must be below pivot.q_max "
+                   f"({q_max * 100:g} cm)")
+    if not (abs(q_min) <= amp and abs(q_max) <= amp):
+        out.append(f"{origin}: the pivot range [{q_min * 100:g}, {q_max * 100:g}] cm must lie "
+                   f"within the mechanism's reach +-{amp * 100:g} cm (pivot.amplitude)")
+    if not q_min + R > 0.0:
+        out.append(f"{origin}: pivot.q_min = {q_min * 100:g} cm must stay above the ring's "
+                   f"bottom pin: q_min + ring_radius > 0 (ring_radius = {R * 100:g} cm)")
+    if not v["elastic_element.lever_length"] > R + q_max:
+        out.append(f"{origin}: elastic_element.lever_length must exceed ring_radius + "
+                   f"pivot.q_max so the lever reaches past the pivot")
+    return out
+
+
+def load(path: str | Path | None = None) -> Parameters:
+    """Load and validate a parameter file (the bundled default when ``path`` is None)."""
+    if path is None:
+        file = _bundled(DEFAULT_FILE)
+        origin = f"vsj default ({DEFAULT_FILE})"
+    else:
+        file = Path(path)
+        origin = str(path)
+    try:
+        text = file.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"{origin}: cannot read parameter file ({exc.strerror})") from None
+    return loads(text, origin)
+
+
+def loads(text: str, origin: str = "<string>") -> Parameters:
+    """Parse parameter-file text; ``origin`` names it in messages."""
+    try:
+        table = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{origin}: not valid TOML: {exc}") from None
+    return _from_table(table, origin)
+
+
+def default() -> Parameters:
+    """The bundled second-prototype set: table 4.1 plus documented estimates."""
+    return load(None)

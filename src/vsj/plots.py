@@ -1,0 +1,73 @@
+"""Figures of simulation results (matplotlib, drawn off-screen).
+
+One function per figure; each takes results and a path and writes a PNG (and
+an SVG when asked). The report's figures live in `vsj.reproduce`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .simulate import Result
+
+#: Signals shown by `trajectory_figure`, per network, with their display units.
+MAIN_SIGNALS = {
+    "wrist": [("theta_x", "rad", "end-effector angle theta_x"),
+              ("theta_y", "rad", "end-effector angle theta_y"),
+              ("phi_1", "rad", "elastic deflection phi_1"),
+              ("phi_2", "rad", "elastic deflection phi_2")],
+    "planetary-bench": [("source.motor.speed", "rad/s", "carrier drive speed"),
+                        ("spring.sensor.compliance.torque", "N m", "measured torque")],
+    "elastic-bench": [("phi", "rad", "deflection phi"),
+                      ("spring.sensor.compliance.torque", "N m", "measured torque")],
+}
+
+
+def pyplot():
+    """matplotlib's pyplot on the off-screen Agg backend (imported on first use)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save(fig, path: Path, *, svg: bool = False) -> None:
+    from .output import atomic_write
+
+    path = Path(path)
+    with atomic_write(path, "wb") as handle:
+        fig.savefig(handle, format="png", dpi=120, bbox_inches="tight")
+    if svg:
+        with atomic_write(path.with_suffix(".svg"), "wb") as handle:
+            fig.savefig(handle, format="svg", bbox_inches="tight")
+    pyplot().close(fig)
+
+
+def trajectory_figure(runs: Sequence[tuple[str, Result]], network: str, path: Path, *,
+                      title: str = "") -> None:
+    """Main signals of every case over time, one panel per signal."""
+    plt = pyplot()
+    signals = [s for s in MAIN_SIGNALS.get(network, []) if s[0] in runs[0][1].signals]
+    if not signals:
+        signals = [(name, runs[0][1].units[name], name) for name in runs[0][1].columns()[:4]]
+    fig, axes = plt.subplots(len(signals), 1, figsize=(8, 2.2 * len(signals) + 0.6),
+                             sharex=True, squeeze=False)
+    alphas = np.linspace(0.35, 1.0, len(runs)) if len(runs) > 1 else [1.0]
+    for ax, (name, unit, text) in zip(axes[:, 0], signals):
+        for (label, result), alpha in zip(runs, alphas):
+            ax.plot(result.time, result.signals[name], alpha=alpha, lw=1.2,
+                    label=label if len(runs) > 1 else None)
+        ax.set_ylabel(f"{text}\n[{unit}]")
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("time [s]")
+    if len(runs) > 1:
+        axes[0, 0].legend(fontsize=8, ncol=min(len(runs), 5))
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    save(fig, path)

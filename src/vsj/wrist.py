@@ -1,0 +1,170 @@
+"""The whole wrist, assembled from its sub-models as in report fig 3.1.
+
+Per output DOF ``i = 1, 2``::
+
+    motor_i --- pg_i.sun          pg_i.ring --- vsm_i.ring          (elastic element)
+                pg_i.carrier --- tr_i.input   tr_i.output --- diff.input_i
+    diff.theta_x --- ee_x         diff.theta_y --- ee_y              (loads or drives)
+    motor_s --- pivot.input       pivot -> q for vsm_1 and vsm_2    (non-backdrivable)
+
+Every connection is rigid (a common speed). Any sub-model can be swapped for
+another with the same ports through `WristOptions` without touching the rest:
+the elastic model, DC motors or velocity sources at each motor port, external
+torques or prescribed angles at the end-effector, and (per run) the friction
+law.
+
+Input channels: ``motor_1``, ``motor_2``, ``motor_s`` (speed [rad/s] of the
+sun or of the pivot input, with velocity sources) or ``voltage_1``,
+``voltage_2``, ``voltage_s`` [V] (DC motors); ``tau_x``, ``tau_y`` [N m]
+(external torques) or ``theta_x``, ``theta_y`` (end-effector speeds, when
+``end_effector="driven"``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .components import (DCMotor, Differential, ElasticElement, FixedPivot, PivotMechanism,
+                         PlanetaryGearModule, TorqueSource, Transmission, VelocitySource)
+from .components.elastic_element import EXPONENTIAL_FIELDS, GEOMETRY_FIELDS
+from .errors import InputError
+from .network import Network, Signal
+from .params import Parameters
+
+ELASTIC_MODELS = ("geometric", "geometric-report", "exponential", "linear")
+DRIVES = ("velocity", "dc")
+
+
+@dataclass(frozen=True)
+class WristOptions:
+    """Which sub-model sits at each swappable place.
+
+    ``elastic``: ``geometric`` (potential form of eq 3.1-3.7), ``geometric-report``
+    (eq 3.8), ``exponential`` (eq 4.5) or ``linear`` (needs ``linear_stiffness``
+    [N m/rad]). ``motors`` and ``pivot_drive``: ``velocity`` or ``dc``;
+    ``pivot_drive`` may also be ``fixed`` (pivot pinned at ``fixed_q`` [m]).
+    ``end_effector``: ``loaded`` (external torques) or ``driven`` (prescribed
+    end-effector speeds, as in fig 4.14).
+    """
+
+    elastic: str = "geometric"
+    motors: str = "velocity"
+    pivot_drive: str = "velocity"
+    end_effector: str = "loaded"
+    linear_stiffness: float | None = None
+    fixed_q: float = 0.0
+
+    def validate(self) -> None:
+        if self.elastic not in ELASTIC_MODELS:
+            raise InputError(f"elastic model must be one of {', '.join(ELASTIC_MODELS)}, "
+                             f"got {self.elastic!r}")
+        if self.elastic == "linear" and not (self.linear_stiffness and self.linear_stiffness > 0):
+            raise InputError("the linear elastic model needs linear_stiffness > 0 N m/rad")
+        if self.motors not in DRIVES:
+            raise InputError(f"motors must be one of {', '.join(DRIVES)}, got {self.motors!r}")
+        if self.pivot_drive not in DRIVES + ("fixed",):
+            raise InputError(f"pivot_drive must be velocity, dc or fixed, got "
+                             f"{self.pivot_drive!r}")
+        if self.end_effector not in ("loaded", "driven"):
+            raise InputError(f"end_effector must be 'loaded' or 'driven', got "
+                             f"{self.end_effector!r}")
+
+
+def geometry(params: Parameters) -> tuple[float, ...]:
+    """Parameter row of the geometric elastic models (SI)."""
+    return tuple(params[f"elastic_element.{name}"] for name in GEOMETRY_FIELDS)
+
+
+def exponential(params: Parameters) -> tuple[float, ...]:
+    """Parameter row of the simplified elastic model, eq 4.5 (SI)."""
+    return tuple(params[f"elastic_element.{name}"] for name in EXPONENTIAL_FIELDS)
+
+
+def elastic_element(name: str, params: Parameters, model: str,
+                    linear_stiffness: float | None = None) -> ElasticElement:
+    ee = params.elastic_element
+    return ElasticElement(name, model=model, geometry=geometry(params),
+                          exponential=exponential(params), stiffness=linear_stiffness,
+                          friction_viscous=ee.lever_viscous, friction_stiction=ee.lever_stiction,
+                          friction_sharpness=params.friction.arctan_sharpness)
+
+
+def planetary(name: str, params: Parameters) -> PlanetaryGearModule:
+    pg = params.planetary
+    return PlanetaryGearModule(
+        name, sun_teeth=pg.sun_teeth, ring_teeth=pg.ring_teeth, sun_inertia=pg.sun_inertia,
+        ring_inertia=pg.ring_inertia, carrier_inertia=pg.carrier_inertia,
+        sun_bearing_viscous=pg.sun_bearing_viscous, sun_bearing_stiction=pg.sun_bearing_stiction,
+        ring_bearing_viscous=pg.ring_bearing_viscous,
+        ring_bearing_stiction=pg.ring_bearing_stiction,
+        carrier_bearing_viscous=pg.carrier_bearing_viscous,
+        carrier_bearing_stiction=pg.carrier_bearing_stiction, mesh_stiction=pg.mesh_stiction,
+        mesh_sharpness=pg.mesh_sharpness, bearing_sharpness=params.friction.arctan_sharpness)
+
+
+def motor(name: str, params: Parameters, drive: str, channel: str):
+    """A motor port: velocity source or DC motor with gearhead."""
+    if drive == "velocity":
+        return VelocitySource(name, channel=f"motor_{channel}")
+    mo = params.motor
+    return DCMotor(name, resistance=mo.resistance, inductance=mo.inductance,
+                   torque_constant=mo.torque_constant, rotor_inertia=mo.rotor_inertia,
+                   gear_ratio=mo.gear_ratio, viscous=mo.viscous, channel=f"voltage_{channel}")
+
+
+def build_wrist(params: Parameters, options: WristOptions | None = None) -> Network:
+    """The wrist network for a parameter set."""
+    options = options or WristOptions()
+    options.validate()
+    net = Network("wrist")
+    tr = params.transmission
+    sharp = params.friction.arctan_sharpness
+    dif = params.differential
+    net.add(Differential("diff", inertia_x=dif.inertia_x, inertia_y=dif.inertia_y,
+                         viscous=dif.viscous, stiction=dif.stiction, sharpness=sharp))
+    for i in (1, 2):
+        net.add(motor(f"motor_{i}", params, options.motors, str(i)),
+                planetary(f"pg_{i}", params),
+                elastic_element(f"vsm_{i}", params, options.elastic, options.linear_stiffness),
+                Transmission(f"tr_{i}", ratio=tr.ratio, viscous=tr.viscous, stiction=tr.stiction,
+                             sharpness=sharp,
+                             compliance=params[f"transmission.series_compliance_{i}"],
+                             damping=tr.series_damping))
+        net.connect(f"motor_{i}.flange", f"pg_{i}.sun")
+        net.connect(f"pg_{i}.ring", f"vsm_{i}.ring")
+        net.connect(f"pg_{i}.carrier", f"tr_{i}.input")
+        net.connect(f"tr_{i}.output", f"diff.input_{i}")
+    if options.end_effector == "loaded":
+        net.add(TorqueSource("ee_x", "tau_x"), TorqueSource("ee_y", "tau_y"))
+    else:
+        net.add(VelocitySource("ee_x", "theta_x"), VelocitySource("ee_y", "theta_y"))
+    net.connect("diff.theta_x", "ee_x.flange").connect("diff.theta_y", "ee_y.flange")
+    pv = params.pivot
+    if options.pivot_drive == "fixed":
+        net.add(FixedPivot("pivot", options.fixed_q))
+    else:
+        net.add(motor("motor_s", params, options.pivot_drive, "s"),
+                PivotMechanism("pivot", ratio=pv.ratio, amplitude=pv.amplitude,
+                               inertia=pv.inertia, viscous=pv.viscous, stiction=pv.stiction,
+                               sharpness=sharp))
+        net.connect("motor_s.flange", "pivot.input")
+    for name, flange, text in [
+        ("theta_x", "diff.theta_x", "end-effector angle about x"),
+        ("theta_y", "diff.theta_y", "end-effector angle about y"),
+        ("phi_1", "vsm_1.ring", "elastic deflection 1 (ring angle)"),
+        ("phi_2", "vsm_2.ring", "elastic deflection 2 (ring angle)"),
+        ("psi_1", "diff.input_1", "differential input 1"),
+        ("psi_2", "diff.input_2", "differential input 2"),
+        ("carrier_1", "pg_1.carrier", "planetary carrier 1"),
+        ("carrier_2", "pg_2.carrier", "planetary carrier 2"),
+        ("motor_1", "pg_1.sun", "motor 1 output (sun 1)"),
+        ("motor_2", "pg_2.sun", "motor 2 output (sun 2)"),
+    ]:
+        net.signal(Signal(name, flange, text))
+    if options.pivot_drive != "fixed":
+        net.signal(Signal("motor_s", "pivot.input", "stiffness motor output"))
+    return net
+
+
+def pivot_range(params: Parameters) -> tuple[float, float]:
+    return params.pivot.q_min, params.pivot.q_max
