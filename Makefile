@@ -16,7 +16,8 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 reproduce: $(STAMP)
-	$(BIN)/vsj reproduce
+	for s in $$($(BIN)/vsj scenarios | cut -d' ' -f1); do \
+		$(BIN)/vsj simulate $$s --out reproduction/$$s || exit $$?; done
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -24,17 +24,23 @@ from .wrist import elastic_element, planetary
 #: Torsional stiffness of the benches' torque sensor [N m/rad] (estimated: a
 #: compact six-axis force/torque sensor with its adapters).
 SENSOR_STIFFNESS = 200.0
+#: Damping in parallel with the sensor [N m s/rad] (estimated: about 10% of
+#: critical damping with the carrier's inertia, from the adapters and couplings;
+#: without it the fixed-ring bench rings for seconds, its friction being so low).
+SENSOR_DAMPING = 0.02
 
 
 def planetary_bench(params: Parameters, *, fixed: str = "sun", drive: str = "speed",
-                    sensor_stiffness: float | None = SENSOR_STIFFNESS) -> Network:
+                    sensor_stiffness: float | None = SENSOR_STIFFNESS,
+                    sensor_damping: float = SENSOR_DAMPING) -> Network:
     """Fixed-sun or fixed-ring measurement of the planetary module's friction.
 
     ``drive="speed"``: the motor's speed follows channel ``drive``; with
     ``sensor_stiffness=None`` it drives the carrier rigidly, otherwise through
     the sensor. ``drive="torque"``: channel ``drive`` is a torque on the carrier.
-    The measured torque is signal ``spring.sensor.compliance.torque`` (sensor),
-    ``source.motor.torque`` (rigid drive) or ``load.motor.torque``.
+    The measured torque, transmitted to the carrier, is signal
+    ``spring.sensor.compliance.torque`` (sensor), ``source.motor.torque``
+    (rigid drive) or ``load.motor.torque``.
     """
     if fixed not in ("sun", "ring"):
         raise InputError(f"planetary bench: fixed must be 'sun' or 'ring', got {fixed!r}")
@@ -53,7 +59,8 @@ def planetary_bench(params: Parameters, *, fixed: str = "sun", drive: str = "spe
         if not sensor_stiffness > 0.0:
             raise InputError(f"sensor stiffness must be > 0 N m/rad, got {sensor_stiffness!r}")
         net.add(VelocitySource("motor", "drive"),
-                Transmission("sensor", ratio=1.0, compliance=1.0 / sensor_stiffness))
+                Transmission("sensor", ratio=1.0, compliance=1.0 / sensor_stiffness,
+                             damping=sensor_damping))
         net.connect("motor.flange", "sensor.input").connect("sensor.output", "pg.carrier")
     net.signal(Signal("carrier", "pg.carrier", "carrier angle"))
     other = "ring" if fixed == "sun" else "sun"
@@ -63,6 +70,7 @@ def planetary_bench(params: Parameters, *, fixed: str = "sun", drive: str = "spe
 
 def elastic_bench(params: Parameters, *, q: float, model: str = "geometric",
                   sensor_stiffness: float = SENSOR_STIFFNESS,
+                  sensor_damping: float = SENSOR_DAMPING,
                   lever_inertia: float | None = None) -> Network:
     """Torque-deflection measurement of one elastic element at pivot position ``q`` [m].
 
@@ -81,7 +89,8 @@ def elastic_bench(params: Parameters, *, q: float, model: str = "geometric",
     net = Network(f"elastic bench, q = {q * 100:g} cm")
     net.add(elastic_element("vsm", params, model), FixedPivot("pivot", q),
             Inertia("lever", inertia), VelocitySource("hand", "drive"),
-            Transmission("sensor", ratio=1.0, compliance=1.0 / sensor_stiffness))
+            Transmission("sensor", ratio=1.0, compliance=1.0 / sensor_stiffness,
+                         damping=sensor_damping))
     net.connect("vsm.ring", "lever.flange")
     net.connect("hand.flange", "sensor.input").connect("sensor.output", "vsm.ring")
     net.signal(Signal("phi", "vsm.ring", "elastic deflection"))

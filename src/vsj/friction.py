@@ -36,6 +36,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .errors import InputError
+
 VISCOUS = 0
 ARCTAN = 1
 SIGN = 2
@@ -50,11 +52,12 @@ PARAMETERS = ("viscous", "stiction", "sharpness", "width")
 
 
 def law_code(name: str) -> int:
-    """The engine's code of a friction law, or `ValueError` naming the choices."""
+    """The engine's code of a friction law; `InputError` names the choices."""
     try:
         return LAWS[name]
-    except KeyError:
-        raise ValueError(f"unknown friction law {name!r}; choose one of {', '.join(LAWS)}") from None
+    except (KeyError, TypeError):
+        raise InputError(f"unknown friction law {name!r}; choose one of "
+                         f"{', '.join(LAWS)}") from None
 
 
 @njit(cache=True, inline="always")

@@ -248,8 +248,9 @@ def eliminate(equations: np.ndarray, prescribed: np.ndarray, order: np.ndarray,
     ``order`` lists node indices from most to least eager to be dependent; the
     reduced row echelon form picks pivots in that order, so the nodes left
     free (the generalised coordinates) are the last ones that can be.
-    Returns ``(A, B, free, inconsistent)`` where ``inconsistent`` lists the rows
-    whose equations reduce to ``0 = (combination of u)``: over-determined sources.
+    Returns ``(A, B, free, conflicts)`` where ``conflicts`` lists, for each
+    equation that reduces to ``0 = (combination of u)``, the sources in it:
+    sources that over-determine the mechanism.
     """
     E = equations.astype(float).copy()
     F = prescribed.astype(float).copy()
@@ -280,7 +281,8 @@ def eliminate(equations: np.ndarray, prescribed: np.ndarray, order: np.ndarray,
     dependent = {col for _, col in pivots}
     free = [col for col in order if col not in dependent]
     free.sort()
-    inconsistent = [r for r in range(row, n_rows) if np.any(np.abs(F[r]) > tol)]
+    conflicts = [[int(j) for j in np.flatnonzero(np.abs(F[r]) > tol)]
+                 for r in range(row, n_rows) if np.any(np.abs(F[r]) > tol)]
     A = np.zeros((n_nodes, len(free)))
     B = np.zeros((n_nodes, F.shape[1]))
     for j, col in enumerate(free):
@@ -288,7 +290,43 @@ def eliminate(equations: np.ndarray, prescribed: np.ndarray, order: np.ndarray,
     for r, col in pivots:
         A[col] = -E[r, free]
         B[col] = F[r]
-    return A, B, free, inconsistent
+    return A, B, free, conflicts
+
+
+def _rigid_motion(Sx: np.ndarray, Su: np.ndarray, springs, pivot) -> np.ndarray:
+    """How the free coordinates follow the sources when every spring stays undeflected.
+
+    Returns ``E`` (n x s) such that measuring the free coordinates relative to
+    ``E sigma`` keeps them as small as the springs' deflections (the
+    stiffness-weighted least-squares solution of ``Sx E = -Su``). Modelica
+    prefers springs' relative angles as states for the same reason: a
+    carrier turning 100 rad must not cost the accuracy of a 1e-5 rad twist.
+    """
+    n, s = Sx.shape[1], Su.shape[1]
+    if n == 0 or s == 0 or not len(springs) or not np.any(Su):
+        return np.zeros((n, s))
+    from .components.elastic_element import spring_law
+
+    q = pivot.fixed
+    weights = np.array([max(spring_law(sp.law, np.array([sp.parameters]), 0, 0.0, q)[1], 1e-12)
+                        for sp in springs])
+    Wsx = Sx * weights[:, None]
+    return -np.linalg.pinv(Sx.T @ Wsx, rcond=1e-12) @ (Wsx.T @ Su)
+
+
+def kinematics(parts: Parts, connections) -> tuple[list[str], list[Constraint], np.ndarray]:
+    """Flanges, constraints and the constraint matrix ``C`` (``C omega = 0``)."""
+    nodes = list(dict.fromkeys(parts.flanges))
+    index = {n: i for i, n in enumerate(nodes)}
+    for a, b in connections:
+        for f in (a, b):
+            if f not in index:
+                raise InputError(f"connection {a} -- {b}: unknown flange {f!r}; "
+                                 f"known flanges: {', '.join(nodes)}")
+    constraints = list(parts.constraints) + [
+        Constraint(f"connection {a} -- {b}", {a: 1.0, b: -1.0}) for a, b in connections]
+    C = np.array([_row(c.coefficients, index, c.name) for c in constraints])
+    return nodes, constraints, C.reshape(len(constraints), len(nodes))
 
 
 @dataclass
@@ -320,16 +358,9 @@ class Structure:
 
     @classmethod
     def build(cls, name: str, parts: Parts, connections) -> "Structure":
-        nodes = list(dict.fromkeys(parts.flanges))
+        nodes, constraints, C = kinematics(parts, connections)
         index = {n: i for i, n in enumerate(nodes)}
-        for a, b in connections:
-            for f in (a, b):
-                if f not in index:
-                    raise InputError(f"connection {a} -- {b}: unknown flange {f!r}; "
-                                     f"known flanges: {', '.join(nodes)}")
-        constraints = list(parts.constraints) + [
-            Constraint(f"connection {a} -- {b}", {a: 1.0, b: -1.0}) for a, b in connections]
-        rows = [_row(c.coefficients, index, c.name) for c in constraints]
+        rows = list(C)
         driven = {}
         for s in parts.sources:
             if s.flange not in index:
@@ -349,10 +380,9 @@ class Structure:
         for s in parts.sources:
             priority[s.flange] = PRESCRIBED
         order = np.array(sorted(range(n_nodes), key=lambda i: (priority[nodes[i]], i)), dtype=int)
-        A, B, free, inconsistent = eliminate(equations, prescribed, order)
-        if inconsistent:
-            names = sorted({parts.sources[j].name for r in inconsistent
-                            for j in np.flatnonzero(np.abs(prescribed[r]) > 0)} or {"?"})
+        A, B, free, conflicts = eliminate(equations, prescribed, order)
+        if conflicts:
+            names = sorted({parts.sources[j].name for group in conflicts for j in group})
             raise InputError(
                 f"network {name!r} is over-determined: the velocity sources "
                 f"{', '.join(names)} prescribe speeds that the rigid connections do not allow "
@@ -374,6 +404,7 @@ class Structure:
                                   for f in parts.frictions]).reshape(len(parts.frictions), n_nodes)
         spring_rows = np.array([_row(s.deflection, index, f"spring {s.name!r}")
                                 for s in parts.springs]).reshape(len(parts.springs), n_nodes)
+        B = B + A @ _rigid_motion(spring_rows @ A, spring_rows @ B, parts.springs, pivots[0])
         for element in list(parts.loads) + list(parts.motors):
             if element.flange not in index:
                 raise InputError(f"{element.name!r} acts on unknown flange {element.flange!r}")

@@ -85,6 +85,33 @@ def _lever(phi, q, R):
 
 
 @njit(cache=True, inline="always")
+def _lever_end(R, L, W, sa, ca, sp, cp, side):
+    """Position of the lever end where spring ``side`` (+1: a, -1: b) attaches (eq 3.4)."""
+    return R * sp - L * sa + side * W * ca, -R * cp + L * ca + side * W * sa
+
+
+@njit(cache=True)
+def extensions(phi, q, par, r):
+    """Extensions ``l - s0`` [m] of springs a and b (negative: slack)."""
+    R, L, W, x0, y0, s0 = par[r, 0], par[r, 1], par[r, 2], par[r, 3], par[r, 4], par[r, 5]
+    sp, cp, sa, ca, _, _, _, _ = _lever(phi, q, R)
+    Xa, Ya = _lever_end(R, L, W, sa, ca, sp, cp, 1.0)
+    Xb, Yb = _lever_end(R, L, W, sa, ca, sp, cp, -1.0)
+    return (math.sqrt((Xa - x0) ** 2 + (Ya - y0) ** 2) - s0,
+            math.sqrt((Xb + x0) ** 2 + (Yb - y0) ** 2) - s0)
+
+
+@njit(cache=True)
+def shortest_extension(phis, q, par, r):
+    """Smaller of the two springs' extensions at each deflection in ``phis``."""
+    out = np.empty(phis.shape[0])
+    for i in range(phis.shape[0]):
+        ea, eb = extensions(phis[i], q, par, r)
+        out[i] = min(ea, eb)
+    return out
+
+
+@njit(cache=True, inline="always")
 def geometry(phi, q, par, r):
     """Both geometric models at one point (parameter row ``par[r]``).
 
@@ -107,8 +134,7 @@ def geometry(phi, q, par, r):
         ly = -L * sa + side * W * ca      # (-L u_W + side W u_L), y
         mx = L * sa - side * W * ca       # (-L u_L - side W u_W), x
         my = -L * ca - side * W * sa      # (-L u_L - side W u_W), y
-        X = R * sp - L * sa + side * W * ca
-        Y = -R * cp + L * ca + side * W * sa
+        X, Y = _lever_end(R, L, W, sa, ca, sp, cp, side)
         Xp = R * cp + lx * a_phi
         Yp = R * sp + ly * a_phi
         Xpp = -R * sp + mx * a_phi * a_phi + lx * a_pp

@@ -148,7 +148,7 @@ class PlanetaryGearModule(IdealPlanetary):
         """
         from .. import friction
 
-        w = np.asarray(carrier_speed, dtype=float)
+        w = np.atleast_1d(np.asarray(carrier_speed, dtype=float))
         x = self.tooth_ratio
         if fixed == "sun":
             ratios = {"mesh_sun": -1.0, "mesh_ring": x, "bearing_ring": 1.0 + x,
@@ -166,4 +166,4 @@ class PlanetaryGearModule(IdealPlanetary):
             total += ratio * friction.torque(law, ratio * w, viscous=element.viscous,
                                              stiction=element.stiction,
                                              sharpness=element.sharpness)
-        return total
+        return total if np.ndim(carrier_speed) else float(total[0])

@@ -6,7 +6,9 @@ between a planetary carrier and a differential input, with viscous friction
 input speed over output speed (Modelica's convention). Fig 4.14 adds a
 parasitic compliance in series in one DOF: with ``compliance > 0`` [rad/(N m)]
 a linear spring (and an optional parallel damper) sits between the gear and
-the output flange; with ``compliance = 0`` the module is rigid.
+the output flange; with ``compliance = 0`` the module is rigid. The spring's
+deflection is the twist ``phi_gear_side - phi_output`` and its reported torque
+is the torque it applies to the output: the torque transmitted.
 """
 
 from __future__ import annotations
@@ -48,11 +50,12 @@ class Transmission(Component):
         parts.flanges.append(end)
         parts.constraints.append(Constraint(f"{self.name} gear", {a: 1.0, end: -self.ratio}))
         stiffness = 1.0 / self.compliance
-        parts.springs.append(Spring(f"{self.name}.compliance", {end: 1.0, b: -1.0}, LINEAR,
+        # deflection output - gear side: the spring's torque acts on the output flange
+        parts.springs.append(Spring(f"{self.name}.compliance", {b: 1.0, end: -1.0}, LINEAR,
                                     (stiffness,) + (0.0,) * (N_PARAMETERS - 1)))
         if self.damping > 0.0:
             parts.frictions.append(Friction(f"{self.name}.compliance_damping",
-                                            {end: 1.0, b: -1.0}, self.damping, 0.0, 1.0,
+                                            {b: 1.0, end: -1.0}, self.damping, 0.0, 1.0,
                                             law="viscous"))
         parts.priority[b] = 5
         return parts

@@ -1,0 +1,96 @@
+"""The vsj command end to end: outputs, exit codes, messages."""
+
+import json
+
+import numpy as np
+import pytest
+
+from vsj.cli import main
+from vsj.output import read_trajectory
+
+SHORT = """
+name = "short"
+description = "a short wrist run"
+network = "wrist"
+duration = "0.3 s"
+[solver]
+friction = "arctan"
+output_step = "10 ms"
+[initial]
+q = "-0.4 cm"
+[inputs.motor_1]
+kind = "sine"
+amplitude = "2 rad/s"
+frequency = "2 Hz"
+"""
+
+
+def write(tmp_path, text, name="scen.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_simulate_writes_trajectory_meta_and_plot(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["simulate", str(write(tmp_path, SHORT)), "--out", str(out)]) == 0
+    header, data = read_trajectory(out / "trajectory.csv")
+    assert header[0] == "time [s]"
+    assert all(h.endswith("]") and " [" in h for h in header)
+    assert "theta_x [rad]" in header and "friction.pg_1.mesh_sun.power [W]" in header
+    assert data.shape == (31, len(header)) and np.all(np.isfinite(data))
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["success"] is True and meta["vsj_version"]
+    assert meta["cases"][0]["ledger"]["relative_residual"] < 1e-6
+    assert meta["parameters"]["values"]["planetary.ring_inertia"]["source"]
+    assert meta["scenario"]["definition"]["duration"] == "0.3 s"
+    assert (out / "trajectory.png").stat().st_size > 1000
+    assert "success" in capsys.readouterr().out
+
+
+def test_failed_simulation_exits_1_with_time_and_state(tmp_path, capsys):
+    text = SHORT.replace('output_step = "10 ms"', 'output_step = "10 ms"\nmax_steps = 5')
+    out = tmp_path / "out"
+    assert main(["simulate", str(write(tmp_path, text)), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "maximum number of steps at t =" in err and "vsm_1.ring.angle=" in err
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["success"] is False and not meta["cases"][0]["success"]
+
+
+def test_pivot_leaving_its_range_fails(tmp_path, capsys):
+    text = SHORT + '[inputs.motor_s]\nkind = "constant"\nvalue = "500 rad/s"\n'
+    assert main(["simulate", str(write(tmp_path, text)), "--out", str(tmp_path / "o")]) == 1
+    assert "pivot position left its allowed range" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("edit,message", [
+    (('duration = "0.3 s"', 'duration = "0.3 kg"'), "duration"),
+    (('kind = "sine"', 'kind = "square"'), "unknown input kind 'square'"),
+    (("[inputs.motor_1]", "[inputs.motor_9]"), "no input 'motor_9'"),
+    (('friction = "arctan"', 'friction = "coulomb"'), "unknown friction law"),
+    (('q = "-0.4 cm"', 'q = "-3 cm"'), "outside the pivot range"),
+    (('network = "wrist"', 'network = "wrist"\ncolour = "red"'), "unknown key(s) colour"),
+])
+def test_bad_scenarios_exit_2_and_write_nothing(tmp_path, capsys, edit, message):
+    out = tmp_path / "out"
+    assert main(["simulate", str(write(tmp_path, SHORT.replace(*edit))), "--out", str(out)]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_unknown_scenario_lists_the_built_ins(capsys):
+    assert main(["simulate", "fig-9.9"]) == 2
+    err = capsys.readouterr().err
+    assert "fig-4.15" in err and "planetary-fixed-sun" in err
+
+
+def test_multi_case_columns_carry_the_case_label(tmp_path):
+    text = SHORT + '[[cases]]\nlabel = "stiff"\ninitial = { q = "-2 cm" }\n' \
+                   '[[cases]]\nlabel = "soft"\ninitial = { q = "1 cm" }\n'
+    out = tmp_path / "out"
+    assert main(["simulate", str(write(tmp_path, text)), "--out", str(out), "--no-plot"]) == 0
+    header, data = read_trajectory(out / "trajectory.csv")
+    stiff = data[:, header.index("phi_1@stiff [rad]")]
+    soft = data[:, header.index("phi_1@soft [rad]")]
+    assert np.max(np.abs(soft)) > 2 * np.max(np.abs(stiff))  # softer deflects more

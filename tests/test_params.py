@@ -1,0 +1,93 @@
+"""Parameter files: every kind of error is named, and the CLI exits with 2."""
+
+from pathlib import Path
+
+import pytest
+
+from vsj import params as params_module
+from vsj.cli import main
+
+DEFAULT = Path(params_module._bundled(params_module.DEFAULT_FILE)).read_text()
+
+
+def broken(tmp_path, old, new, name="bad.toml"):
+    assert old in DEFAULT, old
+    path = tmp_path / name
+    path.write_text(DEFAULT.replace(old, new, 1))
+    return path
+
+
+def check(path, capsys):
+    code = main(["params", "--check", str(path)])
+    return code, capsys.readouterr().err
+
+
+def test_default_set_is_valid_and_sourced(params, capsys):
+    assert main(["params"]) == 0
+    out = capsys.readouterr().out
+    assert "report table 4.1 (I_R)" in out and "6.47e-05 kg m^2" in out
+    assert all(params.sources[k] for k in params.values)
+
+
+CASES = [
+    ("unknown key", 'mesh_sharpness = {', 'mesh_sharpnes = {', "planetary.mesh_sharpnes: unknown key"),
+    ("missing key", 'ring_inertia = { value = "6.47e-5 kg m^2", source = "report table 4.1 (I_R)" }\n',
+     "", "planetary.ring_inertia: missing"),
+    ("missing unit", '"6.47e-5 kg m^2"', '"6.47e-5"', "has no unit"),
+    ("wrong unit", '"6.47e-5 kg m^2"', '"6.47e-5 N m"', "cannot be converted"),
+    ("negative inertia", '"6.47e-5 kg m^2"', '"-6.47e-5 kg m^2"', "must be >= 0"),
+    ("negative friction", '"0.00080 N m s/rad"', '"-0.0008 N m s/rad"', "must be >= 0"),
+    ("zero tooth count", 'value = "16"', 'value = "0"', "sun_teeth = '0': must be > 0"),
+    ("nan", '"0.00125 N m"', '"nan N m"', "NaN"),
+    ("q beyond the pivot's reach", 'q_min = { value = "-2.2 cm"', 'q_min = { value = "-2.8 cm"',
+     "within the mechanism's reach"),
+    ("unknown field", 'ring_radius = { value = "', 'ring_radius = { value = "1.5 cm", x = "',
+     "unknown field"),
+    ("missing source", ', source = "report table 4.1 (k_1)"', "", "missing source"),
+    ("not toml", "[planetary]", "[planetary", "not valid TOML"),
+]
+
+
+@pytest.mark.parametrize("what,old,new,message", CASES, ids=[c[0] for c in CASES])
+def test_each_error_is_named_with_exit_code_2(tmp_path, capsys, what, old, new, message):
+    code, err = check(broken(tmp_path, old, new), capsys)
+    assert code == 2
+    assert message in err
+    assert "bad.toml" in err
+
+
+def test_pivot_range_must_stay_above_the_ring_pin(tmp_path, capsys):
+    text = DEFAULT
+    start = text.index('ring_radius = { value = "') + len('ring_radius = { value = "')
+    end = text.index('"', start)
+    path = tmp_path / "bad.toml"
+    path.write_text(text[:start] + "2.0 cm" + text[end:])
+    code, err = check(path, capsys)
+    assert code == 2 and "q_min + ring_radius > 0" in err
+
+
+def test_all_problems_are_reported_at_once(tmp_path, capsys):
+    path = broken(tmp_path, '"6.47e-5 kg m^2"', '"-1 kg m^2"')
+    path.write_text(path.read_text().replace('"0.00125 N m"', '"x N m"'))
+    code, err = check(path, capsys)
+    assert code == 2 and "ring_inertia" in err and "mesh_stiction" in err
+
+
+def test_unreadable_file(tmp_path, capsys):
+    code, err = check(tmp_path / "absent.toml", capsys)
+    assert code == 2 and "cannot read parameter file" in err
+
+
+def test_simulate_rejects_a_bad_parameter_file_before_writing(tmp_path, capsys):
+    bad = broken(tmp_path, '"6.47e-5 kg m^2"', '"-6.47e-5 kg m^2"')
+    out = tmp_path / "out"
+    assert main(["simulate", "fig-4.15", "--params", str(bad), "--out", str(out)]) == 2
+    assert not out.exists()
+    assert "ring_inertia" in capsys.readouterr().err
+
+
+def test_round_trip_through_toml(params):
+    again = params_module.loads(params.to_toml(), "round trip")
+    for key, value in params.values.items():
+        assert again[key] == pytest.approx(value, rel=1e-9)
+        assert again.sources[key] == params.sources[key]
