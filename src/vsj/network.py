@@ -485,12 +485,7 @@ class Structure:
         names = list(angles)
         rows = np.array([np.concatenate(self.rows(f)) for f in names])
         target = np.array([angles[f] for f in names], dtype=float)
-        sol, *_ = np.linalg.lstsq(rows, target, rcond=None)
-        residual = rows @ sol - target
-        bad = [names[i] for i in np.flatnonzero(np.abs(residual) > 1e-9 * (1 + np.abs(target)))]
-        if bad:
-            raise InputError(f"initial angles of {', '.join(bad)} contradict the kinematic "
-                             f"constraints of network {self.name!r}")
+        sol = self._least_norm(rows, target, names, "initial angles", "kinematic constraints")
         return sol[:n], sol[n:]
 
     def initial_speeds(self, speeds: Mapping[str, float], u0: np.ndarray) -> np.ndarray:
@@ -500,12 +495,16 @@ class Structure:
         names = list(speeds)
         rows = np.array([self.rows(f)[0] for f in names])
         target = np.array([speeds[f] - self.rows(f)[1] @ u0 for f in names], dtype=float)
+        return self._least_norm(rows, target, names, "initial speeds",
+                                "constraints or the source speeds")
+
+    def _least_norm(self, rows, target, names, what: str, against: str) -> np.ndarray:
         sol, *_ = np.linalg.lstsq(rows, target, rcond=None)
         residual = rows @ sol - target
         bad = [names[i] for i in np.flatnonzero(np.abs(residual) > 1e-9 * (1 + np.abs(target)))]
         if bad:
-            raise InputError(f"initial speeds of {', '.join(bad)} contradict the constraints or "
-                             f"the source speeds of network {self.name!r}")
+            raise InputError(f"{what} of {', '.join(bad)} contradict the {against} of network "
+                             f"{self.name!r}")
         return sol
 
     def pivot_rows(self) -> tuple[np.ndarray, np.ndarray]:

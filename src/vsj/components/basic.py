@@ -45,32 +45,30 @@ class Fixed(Component):
                      priority={f: PRESCRIBED})
 
 
-class VelocitySource(Component):
+class _Driven(Component):
+    """A one-flange element driven by an input channel (named after it by default)."""
+
+    ports = ("flange",)
+
+    def __init__(self, name: str, channel: str | None = None):
+        super().__init__(name)
+        self.channel = channel or name
+
+
+class VelocitySource(_Driven):
     """Ideal velocity source: the flange speed follows input ``channel`` [rad/s].
 
     Interchangeable with `vsj.components.motor.DCMotor` at a motor port (the
     report's final simulations use velocity sources, section 4.3).
     """
 
-    ports = ("flange",)
-
-    def __init__(self, name: str, channel: str | None = None):
-        super().__init__(name)
-        self.channel = channel or name
-
     def parts(self) -> Parts:
         f = self.port("flange")
         return Parts(flanges=[f], sources=[Source(self.name, f, self.channel)])
 
 
-class TorqueSource(Component):
+class TorqueSource(_Driven):
     """An applied torque from input ``channel`` [N m] (an external load)."""
-
-    ports = ("flange",)
-
-    def __init__(self, name: str, channel: str | None = None):
-        super().__init__(name)
-        self.channel = channel or name
 
     def parts(self) -> Parts:
         f = self.port("flange")

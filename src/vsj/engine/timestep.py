@@ -54,16 +54,22 @@ IMPULSE_REG = 1e-9
 
 
 @njit(cache=True)
-def _cholesky(H, L):
-    n = H.shape[0]
-    for i in range(n):
+def _cholesky(H, L, k, floor):
+    """Cholesky factor of the leading k x k block of ``H`` into ``L``.
+
+    With ``floor`` a non-positive pivot is clamped (for Gram matrices that may
+    be singular); without, it returns False.
+    """
+    for i in range(k):
         for j in range(i + 1):
             acc = H[i, j]
             for r in range(j):
                 acc -= L[i, r] * L[j, r]
             if i == j:
                 if acc <= 0.0:
-                    return False
+                    if not floor:
+                        return False
+                    acc = 1e-300
                 L[i, i] = math.sqrt(acc)
             else:
                 L[i, j] = acc / L[j, j]
@@ -71,23 +77,9 @@ def _cholesky(H, L):
 
 
 @njit(cache=True)
-def _solve(L, b, out):
-    n = L.shape[0]
-    for i in range(n):
-        acc = b[i]
-        for r in range(i):
-            acc -= L[i, r] * out[r]
-        out[i] = acc / L[i, i]
-    for i in range(n - 1, -1, -1):
-        acc = out[i]
-        for r in range(i + 1, n):
-            acc -= L[r, i] * out[r]
-        out[i] = acc / L[i, i]
-
-
-@njit(cache=True)
-def _forward(L, b, out):
-    for i in range(L.shape[0]):
+def _forward(L, b, out, k):
+    """Solve ``L out = b`` (lower triangular, leading k x k block)."""
+    for i in range(k):
         acc = b[i]
         for r in range(i):
             acc -= L[i, r] * out[r]
@@ -95,35 +87,14 @@ def _forward(L, b, out):
 
 
 @njit(cache=True)
-def _dot(a, b):
-    acc = 0.0
-    for i in range(b.shape[0]):
-        acc += a[i] * b[i]
-    return acc
-
-
-@njit(cache=True)
-def _small_cholesky_solve(G, Lg, rhs, out, k):
-    """Solve the leading k x k block of an SPD system (no allocation)."""
-    for i in range(k):
-        for j in range(i + 1):
-            acc = G[i, j]
-            for r in range(j):
-                acc -= Lg[i, r] * Lg[j, r]
-            if i == j:
-                Lg[i, i] = math.sqrt(max(acc, 1e-300))
-            else:
-                Lg[i, j] = acc / Lg[j, j]
-    for i in range(k):
-        acc = rhs[i]
-        for r in range(i):
-            acc -= Lg[i, r] * out[r]
-        out[i] = acc / Lg[i, i]
+def _solve(L, b, out, k):
+    """Solve ``L L^T out = b`` given the Cholesky factor."""
+    _forward(L, b, out, k)
     for i in range(k - 1, -1, -1):
         acc = out[i]
         for r in range(i + 1, k):
-            acc -= Lg[r, i] * out[r]
-        out[i] = acc / Lg[i, i]
+            acc -= L[r, i] * out[r]
+        out[i] = acc / L[i, i]
 
 
 @njit(cache=True)
@@ -143,7 +114,8 @@ def _free_newton(Y, g, free, n_free, eps, G, Lg, t, c, d):
             G[i, j] = acc
             G[j, i] = acc
         G[i, i] += eps
-    _small_cholesky_solve(G, Lg, t, c, n)
+    _cholesky(G, Lg, n, True)
+    _solve(Lg, t, c, n)
     for k in range(n_free):
         e = free[k]
         acc = g[e]
@@ -295,8 +267,9 @@ def solve_impulses(Y, q, cap, p, state, active, free, G, Lg, t, c, d, g, z):
             trace += G[i, i]
         for i in range(n):
             G[i, i] += 1e-13 * trace  # G may be singular (parallel rows): a tiny ridge
-        _small_cholesky_solve(G, Lg, t, c, n)
-        _small_cholesky_solve(G, Lg, c, t, n)
+        _cholesky(G, Lg, n, True)
+        _solve(Lg, t, c, n)
+        _solve(Lg, c, t, n)
         for k in range(n_free):
             e = free[k]
             acc = 0.0
@@ -439,8 +412,9 @@ def run(m, w, y0, duration, h, t_out, max_steps):
         i_out = 1
     t = 0.0
     for step in range(steps_total):
-        hs = h if step < steps_total - 1 else duration - t
-        t1 = t + hs
+        # time from the step count: summing h would drift by ~1e-11 s over a long run
+        t1 = (step + 1) * h if step < steps_total - 1 else duration
+        hs = t1 - t
         # mid-step inputs (loads, voltages) and pivot position
         eval_inputs(t + 0.5 * hs, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0,
                     srcw)
@@ -504,9 +478,9 @@ def run(m, w, y0, duration, h, t_out, max_steps):
                 for c in range(n):
                     H[i, c] += hs * damp * rows[rr, i] * rows[rr, c]
         if n > 0:
-            if not _cholesky(H, Lc):
+            if not _cholesky(H, Lc, n, False):
                 return NOT_FINITE, t, y, out, coulomb, stuck, step, transitions
-            _solve(Lc, r, vfree)
+            _solve(Lc, r, vfree, n)
 
         # Coulomb impulses of the stiction elements, all together
         any_active = False
@@ -515,10 +489,10 @@ def run(m, w, y0, duration, h, t_out, max_steps):
                 any_active = True
                 for i in range(n):
                     drow[i] = rows[e, i]
-                _solve(Lc, drow, col)  # H^-1 d_e, to update the speeds
+                _solve(Lc, drow, col, n)  # H^-1 d_e, to update the speeds
                 for i in range(n):
                     Y[e, i] = col[i]
-                _forward(Lc, drow, col)  # L^-1 d_e: W = Yl Yl^T
+                _forward(Lc, drow, col, n)  # L^-1 d_e: W = Yl Yl^T
                 for i in range(n):
                     Yl[e, i] = col[i]
                 qv[e] = _rowx(rows, e, vfree) + _rowu(rows, e, n, u1)
@@ -631,7 +605,7 @@ def run(m, w, y0, duration, h, t_out, max_steps):
                 return NOT_FINITE, t, y, out, coulomb, stuck, step + 1, transitions
         for mo in range(nm):
             y[2 * n + mo] = cur[mo]
-        while i_out < n_out and t_out[i_out] <= t + 1e-9 * h:
+        while i_out < n_out and t_out[i_out] <= t + 0.5 * h:
             out[i_out, :] = y
             for e in range(nf):
                 if active[e] or driven[e]:
