@@ -382,3 +382,110 @@ def _spring_energies(model, t, y):
     core.stored_energy(model, w, t, y)
     return w.spw[:, core.ENERGY].copy()
 
+
+
+@dataclass
+class BatchResult:
+    """States of many runs of one model, sampled on a common grid.
+
+    ``states[r, k]`` is the state vector (angles, speeds, currents; see
+    ``state_names``) of run ``r`` at ``time[k]``; `angle` and `speed` give any
+    flange of the network for all runs.
+    """
+
+    time: np.ndarray
+    states: np.ndarray
+    state_names: list[str]
+    success: np.ndarray
+    messages: list[str]
+    stop_time: np.ndarray
+    steps: np.ndarray
+    transitions: np.ndarray
+    wall_time: float
+    solver: str
+    structure: Structure = field(repr=False)
+    source_angles: np.ndarray = field(repr=False)
+    source_speeds: np.ndarray = field(repr=False)
+
+    def angle(self, flange: str) -> np.ndarray:
+        """Angle [rad] of a flange, shape (runs, samples)."""
+        rx, ru = self.structure.rows(flange)
+        n = self.structure.n
+        return self.states[:, :, :n] @ rx + self.source_angles @ ru
+
+    def speed(self, flange: str) -> np.ndarray:
+        """Speed [rad/s] of a flange, shape (runs, samples)."""
+        rx, ru = self.structure.rows(flange)
+        n = self.structure.n
+        return self.states[:, :, n:2 * n] @ rx + (self.source_speeds @ ru)[None, :]
+
+
+def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: float, *,
+                   initials: list[InitialState], options: SimulationOptions | None = None,
+                   structures: list[Structure] | None = None,
+                   pivot_range: tuple[float, float] | None = None) -> BatchResult:
+    """Run one model many times in parallel, on every core.
+
+    Each run starts from its own `InitialState` (a sweep over the pivot
+    position, say); with ``structures`` (one per run, same topology) the runs
+    may also differ in every parameter. All runs share inputs, duration and
+    options. Only the states are sampled; use `BatchResult.angle` and `speed`.
+    """
+    from .engine import batch
+
+    options = options or SimulationOptions()
+    if not initials:
+        raise InputError("simulate_batch needs at least one initial state")
+    if structures is not None and len(structures) != len(initials):
+        raise InputError(f"simulate_batch: {len(structures)} structures for {len(initials)} runs")
+    solver = choose_solver(structure, options)
+    base, layout, _ = prepare(structure, inputs, duration, options, InitialState(), pivot_range)
+    u0 = core.source_speeds(base, make_work(base), 0.0)
+    runs = len(initials)
+    n_state = layout.n_state
+    y0s = np.zeros((runs, n_state + layout.n_acc))
+    src0s = np.zeros((runs, layout.n_sources))
+    masses = np.repeat(base.mass[None], runs, axis=0)
+    Minvs = np.repeat(base.Minv[None], runs, axis=0)
+    pars = np.repeat(base.par[None], runs, axis=0)
+    for r, initial in enumerate(initials):
+        struct_r = structure if structures is None else structures[r]
+        if structures is not None:
+            m_r, layout_r = compile_model(struct_r, inputs, duration, friction=options.friction,
+                                          friction_overrides=options.friction_overrides,
+                                          slope_width=options.slope_width,
+                                          pivot_range=pivot_range)
+            if layout_r != layout or m_r.rows.shape != base.rows.shape:
+                raise InputError(f"simulate_batch: structure {r} differs in topology")
+            masses[r], Minvs[r], pars[r] = m_r.mass, m_r.Minv, m_r.par
+        x0, v0, sigma0, currents = _initial(struct_r, inputs, initial, u0)
+        y0s[r, :n_state] = np.concatenate([x0, v0, currents])
+        src0s[r] = sigma0
+    step = options.output_step
+    n_out = int(math.floor(duration / step + 1e-9)) + 1
+    t_out = np.arange(n_out) * step
+    outs = np.full((runs, n_out, n_state), np.nan)
+    y_end = np.zeros_like(y0s)
+    status = np.zeros(runs, dtype=np.int64)
+    t_stop = np.zeros(runs)
+    steps = np.zeros(runs, dtype=np.int64)
+    flips = np.zeros(runs, dtype=np.int64)
+    started = _time.perf_counter()
+    if solver == "dopri":
+        batch.dopri_batch(base, masses, Minvs, pars, src0s, y0s, duration, t_out, options.rtol,
+                          options.atol, options.max_step, options.max_steps,
+                          n_state if n_state else y0s.shape[1], outs, y_end, status, t_stop,
+                          steps)
+    else:
+        batch.timestep_batch(base, masses, Minvs, pars, src0s, y0s, duration, options.step, t_out,
+                             options.max_steps, outs, y_end, status, t_stop, steps, flips)
+    wall = _time.perf_counter() - started
+    messages = [STATUS_TEXT[int(s)] if s == core.OK else
+                f"{STATUS_TEXT[int(s)]} at t = {t_stop[r]:.6g} s" for r, s in enumerate(status)]
+    sigma, speeds = core.source_signals(base, t_out)
+    return BatchResult(time=t_out, states=outs, state_names=state_names(structure),
+                       success=status == core.OK, messages=messages, stop_time=t_stop,
+                       steps=steps, transitions=flips, wall_time=wall, solver=solver,
+                       structure=structure,
+                       source_angles=sigma[None, :, :] + (src0s - base.src_pos0)[:, None, :],
+                       source_speeds=speeds)

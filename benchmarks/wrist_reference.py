@@ -1,0 +1,164 @@
+"""The fig 4.15 wrist written out by hand: the benchmarks' baselines.
+
+Velocity sources drive the suns, the pivot is fixed, the elastic elements are
+the exponential model of eq 4.5, every friction element follows the arctan law.
+States: the two ring angles (elastic deflections) and their speeds. The
+equations are derived here from the kinematics, independently of vsj's network
+elimination:
+
+    carrier speed        w_C = r_RC w + r_SC u
+    differential input   psi' = w_C / ratio
+    end-effector         theta' = J psi',  J = [[1, 1], [1, -1]] / 2
+
+Two integrators use them: `python_rhs` (a plain Python right-hand side, the
+way one would write it for scipy's `solve_ivp`) and `compiled_rk4` (a
+hand-written, numba-compiled fixed-step Runge-Kutta loop).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+def constants(params, q: float, amplitude: float, frequency: float, fade: float):
+    """Every number the equations need, in one array (SI)."""
+    pg, tr, d, ee = params.planetary, params.transmission, params.differential, params.elastic_element
+    sharp = params.friction.arctan_sharpness
+    x = pg.sun_teeth / pg.ring_teeth
+    r_rc = 1.0 / (1.0 + x)
+    r_sc = x / (1.0 + x)
+    g = r_rc / tr.ratio  # psi' per ring speed
+    h = r_sc / tr.ratio  # psi' per sun speed
+    J = np.array([[0.5, 0.5], [0.5, -0.5]])
+    JIJ = J.T @ np.diag([d.inertia_x, d.inertia_y]) @ J
+    M = (pg.ring_inertia + pg.carrier_inertia * r_rc ** 2) * np.eye(2) + g * g * JIJ
+    Mu = pg.carrier_inertia * r_rc * r_sc * np.eye(2) + g * h * JIJ
+    K = ee.a1 * math.exp(ee.a2 * q) + ee.a3
+    return np.array([
+        r_rc, r_sc, g, h, K, *np.linalg.inv(M).ravel(), *Mu.ravel(),
+        pg.mesh_stiction, pg.mesh_sharpness, x,
+        pg.ring_bearing_viscous, pg.ring_bearing_stiction,
+        pg.carrier_bearing_viscous, pg.carrier_bearing_stiction,
+        ee.lever_viscous, ee.lever_stiction, tr.viscous, tr.stiction,
+        d.viscous, d.stiction, sharp, amplitude, 2 * math.pi * frequency, fade,
+    ])
+
+
+def _fade(t, T):
+    """Quintic smoothstep and its first two derivatives."""
+    if t >= T:
+        return 1.0, 0.0, 0.0
+    z = t / T
+    return (z ** 3 * (10 - 15 * z + 6 * z * z), 30 * z * z * (1 - z) ** 2 / T,
+            60 * z * (1 - z) * (1 - 2 * z) / (T * T))
+
+
+def _arctan(b, k, kb, s):
+    return b * s + k * math.atan(kb * s)
+
+
+def _body(t, y, c, dy, _fade, _arctan):
+    r_rc, r_sc, g, h, K = c[0], c[1], c[2], c[3], c[4]
+    Minv = c[5:9]
+    Mu = c[9:13]
+    k1, kb1, x = c[13], c[14], c[15]
+    bR, kR, bC, kC, bL, kL, bT, kT, bD, kD, sharp = c[16:27]
+    A, om, T = c[27], c[28], c[29]
+    e, de, dde = _fade(t, T)
+    u = np.empty(2)
+    du = np.empty(2)
+    for i in range(2):
+        phase = om * t + (0.25 * math.pi if i == 0 else -0.25 * math.pi)
+        sn, cs = math.sin(phase), math.cos(phase)
+        u[i] = A * (de * sn + e * om * cs)
+        du[i] = A * (dde * sn + 2 * de * om * cs - e * om * om * sn)
+    F = np.zeros(2)
+    theta_y = 0.5 * (g * (y[2] - y[3]) + h * (u[0] - u[1]))
+    f_diff = _arctan(bD, kD, sharp, theta_y)
+    for i in range(2):
+        w = y[2 + i]
+        wc = r_rc * w + r_sc * u[i]
+        F[i] -= K * y[i]
+        F[i] += _arctan(0.0, k1, kb1, u[i] - wc) * r_rc          # mesh, sun - carrier
+        F[i] -= _arctan(0.0, x * k1, kb1 / x, w - wc) * (1 - r_rc)  # mesh, ring - carrier
+        F[i] -= _arctan(bR, kR, sharp, w)                       # ring bearing
+        F[i] -= _arctan(bC, kC, sharp, wc) * r_rc               # carrier bearing
+        F[i] -= _arctan(bL, kL, sharp, w)                       # lever and pivot
+        F[i] -= _arctan(bT, kT, sharp, wc) * r_rc               # transmission
+        F[i] -= f_diff * g * (0.5 if i == 0 else -0.5)          # differential
+        F[i] -= Mu[2 * i] * du[0] + Mu[2 * i + 1] * du[1]
+    dy[0] = y[2]
+    dy[1] = y[3]
+    dy[2] = Minv[0] * F[0] + Minv[1] * F[1]
+    dy[3] = Minv[2] * F[0] + Minv[3] * F[1]
+
+
+_compiled_body = njit(_body)
+_compiled_fade = njit(_fade)
+_compiled_arctan = njit(_arctan)
+
+
+@njit
+def derivatives(t, y, c, dy):
+    _compiled_body(t, y, c, dy, _compiled_fade, _compiled_arctan)
+
+
+def python_rhs(c):
+    """A plain Python right-hand side for scipy (the same equations, interpreted)."""
+
+    def rhs(t, y):
+        dy = np.empty(4)
+        _body(t, y, c, dy, _fade, _arctan)
+        return dy
+
+    return rhs
+
+
+@njit
+def compiled_rk4(c, h, t_end, every):
+    """Classical RK4 with fixed step ``h``; returns the states every ``every`` steps."""
+    steps = int(round(t_end / h))
+    out = np.empty((steps // every + 1, 4))
+    y = np.zeros(4)
+    k1 = np.empty(4)
+    k2 = np.empty(4)
+    k3 = np.empty(4)
+    k4 = np.empty(4)
+    yt = np.empty(4)
+    out[0] = y
+    for n in range(steps):
+        t = n * h
+        derivatives(t, y, c, k1)
+        for i in range(4):
+            yt[i] = y[i] + 0.5 * h * k1[i]
+        derivatives(t + 0.5 * h, yt, c, k2)
+        for i in range(4):
+            yt[i] = y[i] + 0.5 * h * k2[i]
+        derivatives(t + 0.5 * h, yt, c, k3)
+        for i in range(4):
+            yt[i] = y[i] + h * k3[i]
+        derivatives(t + h, yt, c, k4)
+        for i in range(4):
+            y[i] += h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i])
+        if (n + 1) % every == 0:
+            out[(n + 1) // every] = y
+    return out
+
+
+def sun_angles(t, c):
+    """Sun angles of the scenario (for end-effector angles from ring angles)."""
+    A, om, T = c[27], c[28], c[29]
+    z = np.clip(t / T, 0.0, 1.0)
+    env = z ** 3 * (10 - 15 * z + 6 * z * z)
+    return np.stack([A * env * np.sin(om * t + math.pi / 4), A * env * np.sin(om * t - math.pi / 4)])
+
+
+def theta_x(ring, t, c):
+    """End-effector angle theta_x from ring angles (runs x 2) and time."""
+    g, h = c[2], c[3]
+    s = sun_angles(t, c)
+    psi = g * ring + h * s.T
+    return 0.5 * (psi[:, 0] + psi[:, 1])
