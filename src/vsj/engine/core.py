@@ -310,6 +310,22 @@ def source_speeds(m, w, t):
 
 
 @njit(cache=True)
+def source_signals(m, t_out):
+    """Source angles and speeds at each sample time, shape (samples, sources) each."""
+    dims, mass, Minv, rows, par, code, src_ch, src_pos0, knots, coef, cum, first, count = m
+    w = make_work(m)
+    hint, chan, srcw, frw, spw, ldw, mow, gen, acc, scal = w
+    angles = np.empty((t_out.shape[0], src_ch.shape[0]))
+    speeds = np.empty((t_out.shape[0], src_ch.shape[0]))
+    for i in range(t_out.shape[0]):
+        eval_inputs(t_out[i], knots, coef, cum, first, count, hint, chan, src_ch, src_pos0, srcw)
+        for j in range(src_ch.shape[0]):
+            angles[i, j] = srcw[j, SG]
+            speeds[i, j] = srcw[j, U]
+    return angles, speeds
+
+
+@njit(cache=True)
 def kinetic_energy(mass, v, u):
     """Kinetic energy [J] of all flanges, free (speeds ``v``) and driven (``u``)."""
     n = v.shape[0]

@@ -54,11 +54,13 @@ def integrate(m, w, y0, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, o
     """Integrate from ``t0`` to ``t_end``; write ``y`` at each ``t_out`` into ``out``.
 
     Returns ``(status, t, n_steps, n_rejected)``; ``y0`` is overwritten with the
-    final state (the last good state on failure).
+    final state (the last good state on failure). ``out`` may be narrower than
+    the state: its columns receive the leading components.
     """
     dims, mass, Minv, rows, par, code, src_ch, src_pos0, knots, coef, cum, first, count = m
     hint, chan, srcw, frw, spw, ldw, mow, gen, acc, scal = w
     ny = y0.shape[0]
+    n_keep = min(ny, out.shape[1])
     K = np.empty((7, ny))
     yt = np.empty(ny)
     y1 = np.empty(ny)
@@ -71,7 +73,7 @@ def integrate(m, w, y0, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, o
     n_out = t_out.shape[0]
     i_out = 0
     while i_out < n_out and t_out[i_out] <= t0:
-        for i in range(ny):
+        for i in range(n_keep):
             out[i_out, i] = y[i]
         i_out += 1
     scal[STATUS] = OK
@@ -159,7 +161,7 @@ def integrate(m, w, y0, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, o
             while i_out < n_out and t_out[i_out] <= t_new:
                 th = (t_out[i_out] - t) / h
                 th1 = 1.0 - th
-                for i in range(ny):
+                for i in range(n_keep):
                     out[i_out, i] = y[i] + th * ((y1[i] - y[i]) + th1 * (r3[i] + th * (
                         r4[i] + th1 * r5[i])))
                 i_out += 1
