@@ -35,7 +35,7 @@ def spring_extensions(par, q: float, phi: float) -> tuple[float, float]:
     """Extensions ``l - s0`` [m] of the two springs (negative: slack)."""
     row = np.zeros((1, N_PARAMETERS))
     row[0, :len(par)] = par
-    return extensions(phi, q, row, 0)
+    return extensions(phi, q, tuple(row[0]))
 
 
 def pretension_loss(par, q: float, limit: float = 1.40) -> float:
@@ -99,7 +99,7 @@ def eq38_mismatch(par, q: float, phi: float) -> float:
     """Relative difference of eq 3.8's ring torque from the potential model's."""
     row = np.zeros((1, N_PARAMETERS))
     row[0, :len(par)] = par
-    _, dV, _, _, T_phi, _ = geometry(phi, q, row, 0)
+    _, dV, _, _, T_phi, _ = geometry(phi, q, tuple(row[0]))
     return float((T_phi - dV) / dV) if dV != 0 else 0.0
 
 

@@ -34,9 +34,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from .errors import InputError
+from .jit import inline, kernel
 
 VISCOUS = 0
 ARCTAN = 1
@@ -60,36 +60,35 @@ def law_code(name: str) -> int:
                          f"{', '.join(LAWS)}") from None
 
 
-@njit(cache=True, inline="always")
+@inline
 def coulomb_level(par, r):
     """Saturation torque k pi/2 [N m] of parameter row ``r``."""
     return par[r, 1] * (0.5 * math.pi)
 
 
-@njit(cache=True, inline="always")
-def resistive_torque(law, par, r, s):
+@inline
+def resistive_torque(law, b, k, kb, w, s):
     """Smooth part of the resistive torque and its slope: ``(f(s), df/ds)``.
 
-    ``par[r]`` is the element's parameter row. For the ``stiction`` law this is
+    ``b, k, kb, w`` are the element's parameters (viscous, stiction, arctan
+    sharpness, slope width); scalars, so that the compiled callers stay free of
+    array bookkeeping in this branchy code. For the ``stiction`` law this is
     the viscous part only; its Coulomb part is an impulse decided by the
     time-stepping solver. For ``sign`` the slope at the jump is reported as the
     viscous slope.
     """
-    b = par[r, 0]
     f = b * s
     df = b
     if law == ARCTAN:
-        kb = par[r, 2]
-        f += par[r, 1] * math.atan(kb * s)
-        df += par[r, 1] * kb / (1.0 + (kb * s) ** 2)
+        f += k * math.atan(kb * s)
+        df += k * kb / (1.0 + (kb * s) ** 2)
     elif law == SIGN:
         if s > 0.0:
-            f += coulomb_level(par, r)
+            f += k * (0.5 * math.pi)
         elif s < 0.0:
-            f -= coulomb_level(par, r)
+            f -= k * (0.5 * math.pi)
     elif law == SLOPE:
-        w = par[r, 3]
-        level = coulomb_level(par, r)
+        level = k * (0.5 * math.pi)
         if s >= w:
             f += level
         elif s <= -w:
@@ -100,10 +99,10 @@ def resistive_torque(law, par, r, s):
     return f, df
 
 
-@njit(cache=True)
+@kernel
 def _torque_array(law, par, speeds, out):
     for i in range(speeds.shape[0]):
-        out[i] = resistive_torque(law, par, 0, speeds[i])[0]
+        out[i] = resistive_torque(law, par[0, 0], par[0, 1], par[0, 2], par[0, 3], speeds[i])[0]
     return out
 
 

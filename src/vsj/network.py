@@ -308,7 +308,7 @@ def _rigid_motion(Sx: np.ndarray, Su: np.ndarray, springs, pivot) -> np.ndarray:
     from .components.elastic_element import spring_law
 
     q = pivot.fixed
-    weights = np.array([max(spring_law(sp.law, np.array([sp.parameters]), 0, 0.0, q)[1], 1e-12)
+    weights = np.array([max(spring_law(sp.law, tuple(sp.parameters), 0.0, q)[1], 1e-12)
                         for sp in springs])
     Wsx = Sx * weights[:, None]
     return -np.linalg.pinv(Sx.T @ Wsx, rcond=1e-12) @ (Wsx.T @ Su)

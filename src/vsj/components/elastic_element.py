@@ -44,8 +44,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from ..jit import inline, kernel
 from ..network import Component, Friction, Parts, Spring
 
 LINEAR = 0
@@ -67,7 +67,7 @@ GEOMETRY_FIELDS = ("ring_radius", "lever_length", "lever_width", "anchor_x", "an
 EXPONENTIAL_FIELDS = ("a1", "a2", "a3", "end_stop", "end_stop_stiffness")
 
 
-@njit(cache=True, inline="always")
+@inline
 def _lever(phi, q, R):
     """Lever angle alpha and its derivatives (eq 3.1) and the pin-pivot distance."""
     sp = math.sin(phi)
@@ -84,16 +84,23 @@ def _lever(phi, q, R):
     return sp, cp, sa, ca, a_phi, a_q, a_pp, r2
 
 
-@njit(cache=True, inline="always")
+@inline
 def _lever_end(R, L, W, sa, ca, sp, cp, side):
     """Position of the lever end where spring ``side`` (+1: a, -1: b) attaches (eq 3.4)."""
     return R * sp - L * sa + side * W * ca, -R * cp + L * ca + side * W * sa
 
 
-@njit(cache=True)
-def extensions(phi, q, par, r):
-    """Extensions ``l - s0`` [m] of springs a and b (negative: slack)."""
-    R, L, W, x0, y0, s0 = par[r, 0], par[r, 1], par[r, 2], par[r, 3], par[r, 4], par[r, 5]
+@inline
+def row(par, r):
+    """Parameter row ``r`` as a tuple of nine floats (values, not an array view)."""
+    return (par[r, 0], par[r, 1], par[r, 2], par[r, 3], par[r, 4], par[r, 5], par[r, 6],
+            par[r, 7], par[r, 8])
+
+
+@kernel
+def extensions(phi, q, p):
+    """Extensions ``l - s0`` [m] of springs a and b (negative: slack); ``p`` as `row`."""
+    R, L, W, x0, y0, s0 = p[0], p[1], p[2], p[3], p[4], p[5]
     sp, cp, sa, ca, _, _, _, _ = _lever(phi, q, R)
     Xa, Ya = _lever_end(R, L, W, sa, ca, sp, cp, 1.0)
     Xb, Yb = _lever_end(R, L, W, sa, ca, sp, cp, -1.0)
@@ -101,26 +108,26 @@ def extensions(phi, q, par, r):
             math.sqrt((Xb + x0) ** 2 + (Yb - y0) ** 2) - s0)
 
 
-@njit(cache=True)
+@kernel
 def shortest_extension(phis, q, par, r):
     """Smaller of the two springs' extensions at each deflection in ``phis``."""
     out = np.empty(phis.shape[0])
+    p = row(par, r)
     for i in range(phis.shape[0]):
-        ea, eb = extensions(phis[i], q, par, r)
+        ea, eb = extensions(phis[i], q, p)
         out[i] = min(ea, eb)
     return out
 
 
-@njit(cache=True, inline="always")
-def geometry(phi, q, par, r):
-    """Both geometric models at one point (parameter row ``par[r]``).
+@inline
+def geometry(phi, q, p):
+    """Both geometric models at one point (parameters ``p`` as `row`).
 
     Returns ``(V, dV/dphi, d2V/dphi2, dV/dq, T_phi, dT_phi/dphi)`` where the
     first four belong to the potential model and ``T_phi`` is eq 3.8 (the
     report's reaction torque, applied to the ring as ``-T_phi``).
     """
-    R, L, W, x0, y0 = par[r, 0], par[r, 1], par[r, 2], par[r, 3], par[r, 4]
-    s0, k = par[r, 5], par[r, 6]
+    R, L, W, x0, y0, s0, k = p[0], p[1], p[2], p[3], p[4], p[5], p[6]
     sp, cp, sa, ca, a_phi, a_q, a_pp, r2 = _lever(phi, q, R)
     V = 0.0
     dV = 0.0
@@ -128,7 +135,8 @@ def geometry(phi, q, par, r):
     dVq = 0.0
     t_sum = 0.0
     dt_sum = 0.0
-    for side in (1.0, -1.0):
+    for half in range(2):
+        side = 1.0 - 2.0 * half  # spring a (+1), then spring b (-1)
         # lever end point X and its derivatives (eq 3.4), u_L = (-sa, ca), u_W = (ca, sa)
         lx = -L * ca + side * W * (-sa)   # (-L u_W + side W u_L), x
         ly = -L * sa + side * W * ca      # (-L u_W + side W u_L), y
@@ -168,26 +176,27 @@ def geometry(phi, q, par, r):
     return V, dV, d2V, dVq, T_phi, dT_phi
 
 
-@njit(cache=True, inline="always")
-def spring_law(law, par, r, phi, q):
+@inline
+def spring_law(law, p, phi, q):
     """``(torque, stiffness, energy, dV/dq)`` of a spring law at deflection ``phi``.
 
-    ``par[r]`` is the spring's parameter row, ``q`` the pivot position [m]
+    ``p`` is the spring's parameter row as a tuple (`row`; a value, so this
+    inlined code needs no array bookkeeping), ``q`` the pivot position [m]
     (ignored by ``LINEAR``). A non-finite result means the geometry broke down
     (the pin reached the pivot, ``q + R <= 0``).
     """
     if law == LINEAR:
-        k = par[r, 0]
+        k = p[0]
         return -k * phi, k, 0.5 * k * phi * phi, 0.0
     if law == EXPONENTIAL:
-        growth = par[r, 0] * math.exp(par[r, 1] * q)
-        stiff = growth + par[r, 2]
+        growth = p[0] * math.exp(p[1] * q)
+        stiff = growth + p[2]
         tau = -stiff * phi
         energy = 0.5 * stiff * phi * phi
-        dvq = 0.5 * growth * par[r, 1] * phi * phi
-        stop, k_stop = par[r, 3], par[r, 4]
+        dvq = 0.5 * growth * p[1] * phi * phi
+        stop, k_stop = p[3], p[4]
     else:
-        V, dV, d2V, dVq, T_phi, dT_phi = geometry(phi, q, par, r)
+        V, dV, d2V, dVq, T_phi, dT_phi = geometry(phi, q, p)
         if law == GEOMETRIC:
             tau = -dV
             stiff = d2V
@@ -196,7 +205,7 @@ def spring_law(law, par, r, phi, q):
             stiff = dT_phi
         energy = V
         dvq = dVq
-        stop, k_stop = par[r, 7], par[r, 8]
+        stop, k_stop = p[7], p[8]
     excess = abs(phi) - stop
     if excess > 0.0:
         sign = 1.0 if phi > 0.0 else -1.0
@@ -206,10 +215,10 @@ def spring_law(law, par, r, phi, q):
     return tau, stiff, energy, dvq
 
 
-@njit(cache=True)
+@kernel
 def _law_arrays(law, par, phis, q, out):
     for i in range(phis.shape[0]):
-        res = spring_law(law, par, 0, phis[i], q)
+        res = spring_law(law, row(par, 0), phis[i], q)
         out[i, 0] = res[0]
         out[i, 1] = res[1]
         out[i, 2] = res[2]

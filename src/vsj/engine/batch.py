@@ -9,20 +9,22 @@ the final state, accumulators included, is kept for each run's ledger.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
+from ..jit import parallel
 from .core import OK, make_work
 from .dopri import integrate
 from .model import EngineModel
 from .timestep import run as timestep_run
 
 
-@njit(cache=True, parallel=True)
+@parallel
 def dopri_batch(m, masses, Minvs, pars, src0s, y0s, t_end, t_out, rtol, atol, h_max, max_steps,
                 n_err, outs, y_end, status, t_stop, steps):
     for r in prange(y0s.shape[0]):
-        mr = EngineModel(m.dims, masses[r], Minvs[r], m.rows, pars[r], m.code, m.src_ch, src0s[r],
-                         m.knots, m.coef, m.cum, m.first, m.count)
+        mr = EngineModel(m.dims, masses[r], Minvs[r], m.rows, m.xp, m.xc, m.xv, m.up, m.uc, m.uv,
+                         pars[r], m.code, m.src_ch, src0s[r], m.knots, m.coef, m.cum, m.first,
+                         m.count)
         w = make_work(mr)
         y = y0s[r].copy()
         st, ts, ns, _ = integrate(mr, w, y, 0.0, t_end, t_out, rtol, atol, h_max, max_steps,
@@ -33,13 +35,14 @@ def dopri_batch(m, masses, Minvs, pars, src0s, y0s, t_end, t_out, rtol, atol, h_
         steps[r] = ns
 
 
-@njit(cache=True, parallel=True)
+@parallel
 def timestep_batch(m, masses, Minvs, pars, src0s, y0s, t_end, h, t_out, max_steps, outs, y_end,
                    status, t_stop, steps, transitions):
     n_keep = outs.shape[2]
     for r in prange(y0s.shape[0]):
-        mr = EngineModel(m.dims, masses[r], Minvs[r], m.rows, pars[r], m.code, m.src_ch, src0s[r],
-                         m.knots, m.coef, m.cum, m.first, m.count)
+        mr = EngineModel(m.dims, masses[r], Minvs[r], m.rows, m.xp, m.xc, m.xv, m.up, m.uc, m.uv,
+                         pars[r], m.code, m.src_ch, src0s[r], m.knots, m.coef, m.cum, m.first,
+                         m.count)
         w = make_work(mr)
         st, ts, y, out, _, _, ns, flips = timestep_run(mr, w, y0s[r], t_end, h, t_out,
                                                        max_steps)

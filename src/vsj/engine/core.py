@@ -2,7 +2,7 @@
 
 State vector ``y = [x (n), v (n), i (motors)]``: generalised angles and speeds
 (the free flanges of the network) and the armature currents. When the smooth
-solver integrates, the accumulators of `Layout.acc_slices` follow (``with_energy``).
+solver integrates, the accumulators of `Layout.acc_slices` follow.
 
 Equations of motion (see `vsj.network`): with flange speeds ``A v + B u`` and
 the kinetic energy matrix ``[[M, Msu], [Mus, Mss]]`` over ``(v, u)``,
@@ -22,10 +22,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from ..components.elastic_element import spring_law
+from ..components.elastic_element import row, spring_law
 from ..friction import STICTION, resistive_torque
+from ..jit import inline, kernel
 from .model import D_CH, D_F, D_K, D_L, D_M, D_N, D_R, D_S
 
 OK = 0
@@ -63,19 +63,18 @@ class Work(NamedTuple):
     ldw: np.ndarray   # (loads, 2) torque, speed
     mow: np.ndarray   # (motors, 2) rotor speed, voltage
     gen: np.ndarray   # (n,) generalised force
-    acc: np.ndarray   # (n,) generalised acceleration
     scal: np.ndarray  # (3,) q, dq/dt, status
 
 
-@njit(cache=True)
+@kernel
 def make_work(m):
     d = m.dims
     return Work(np.zeros(d[D_CH], np.int64), np.zeros((d[D_CH], 3)), np.zeros((d[D_S], 5)),
                 np.zeros((d[D_F], 4)), np.zeros((d[D_K], 6)), np.zeros((d[D_L], 2)),
-                np.zeros((d[D_M], 2)), np.zeros(d[D_N]), np.zeros(d[D_N]), np.zeros(3))
+                np.zeros((d[D_M], 2)), np.zeros(d[D_N]), np.zeros(3))
 
 
-@njit(cache=True, inline="always")
+@inline
 def eval_inputs(t, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0, srcw):
     """Value, derivative and integral of every input channel at ``t``; then the
     sources' speeds, accelerations and angles."""
@@ -121,60 +120,92 @@ def eval_inputs(t, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0,
         srcw[j, SG] = src_pos0[j] + chan[c, 2]
 
 
-@njit(cache=True, inline="always")
-def row_dot(rows, r, x, srcw, col):
-    """``rows[r] . (x, srcw[:, col])``: an element's coordinate or speed."""
-    n = x.shape[0]
+@inline
+def xdot(xp, xc, xv, r, vec, off):
+    """Free-coordinate part of row ``r`` dotted with ``vec[off:off + n]`` (sparse).
+
+    Offsets instead of slices: a slice is a new array, and its reference
+    counting does not get pruned in the hot loops.
+    """
     acc = 0.0
-    for i in range(n):
-        acc += rows[r, i] * x[i]
-    for j in range(srcw.shape[0]):
-        acc += rows[r, n + j] * srcw[j, col]
+    for k in range(xp[r], xp[r + 1]):
+        acc += xv[k] * vec[off + xc[k]]
     return acc
 
 
-@njit(cache=True, inline="always")
-def eval_pivot(dims, rows, par, srcw, scal, x, v):
-    """Pivot position q [m] and its rate (the last row), with the range check."""
+@inline
+def udot(up, uc, uv, r, srcw, col):
+    """Source part of row ``r`` dotted with column ``col`` of the source work array."""
+    acc = 0.0
+    for k in range(up[r], up[r + 1]):
+        acc += uv[k] * srcw[uc[k], col]
+    return acc
+
+
+@inline
+def xadd(xp, xc, xv, r, vec, scale):
+    """``vec += scale * (free-coordinate part of row r)``."""
+    for k in range(xp[r], xp[r + 1]):
+        vec[xc[k]] += scale * xv[k]
+
+
+@inline
+def uadd(up, uc, uv, r, srcw, col, scale):
+    """``srcw[:, col] += scale * (source part of row r)``."""
+    for k in range(up[r], up[r + 1]):
+        srcw[uc[k], col] += scale * uv[k]
+
+
+@inline
+def eval_pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, y):
+    """Pivot position q [m] and its rate (the last row), with the range check.
+
+    ``y`` holds the generalised angles and then their speeds (offset n).
+
+    Written without branches: numba's reference counting of the array
+    arguments does not get pruned in branchy inlined code (it cost ~100 ns).
+    """
     r = dims[D_R] - 1
-    if par[r, 2] > 0.0:
-        angle = row_dot(rows, r, x, srcw, SG)
-        rate = row_dot(rows, r, v, srcw, U)
-        q = par[r, 0] * math.sin(angle)
-        qdot = par[r, 0] * math.cos(angle) * rate
-    else:
-        q = par[r, 1]
-        qdot = 0.0
+    moving = par[r, 2]  # 1 with a pivot mechanism, 0 for a fixed pivot (row of zeros)
+    n = dims[D_N]
+    angle = xdot(xp, xc, xv, r, y, 0) + udot(up, uc, uv, r, srcw, SG)
+    rate = xdot(xp, xc, xv, r, y, n) + udot(up, uc, uv, r, srcw, U)
+    q = moving * par[r, 0] * math.sin(angle) + (1.0 - moving) * par[r, 1]
     scal[Q] = q
-    scal[QDOT] = qdot
-    if q < par[r, 3] - 1e-12 or q > par[r, 4] + 1e-12:
-        scal[STATUS] = PIVOT_RANGE
+    scal[QDOT] = moving * par[r, 0] * math.cos(angle) * rate
+    outside = (q < par[r, 3] - 1e-12) + (q > par[r, 4] + 1e-12)
+    scal[STATUS] = max(scal[STATUS], PIVOT_RANGE * min(outside, 1))
     return q
 
 
-@njit(cache=True, inline="always")
-def eval_springs(dims, rows, par, code, srcw, spw, scal, x, v):
-    """Spring deflections, torques, stiffness and energy."""
-    q = eval_pivot(dims, rows, par, srcw, scal, x, v)
+@inline
+def eval_springs(dims, xp, xc, xv, up, uc, uv, par, code, srcw, spw, scal, y):
+    """Spring deflections, torques, stiffness and energy (``y`` as in `eval_pivot`)."""
+    q = eval_pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, y)
+    n = dims[D_N]
     f = dims[D_F]
     for kk in range(dims[D_K]):
         r = f + kk
-        d = row_dot(rows, r, x, srcw, SG)
-        tau, stiff, energy, dvq = spring_law(code[r], par, r, d, q)
+        d = xdot(xp, xc, xv, r, y, 0) + udot(up, uc, uv, r, srcw, SG)
+        tau, stiff, energy, dvq = spring_law(code[r], row(par, r), d, q)
         spw[kk, DEFL] = d
-        spw[kk, RATE] = row_dot(rows, r, v, srcw, U)
+        spw[kk, RATE] = xdot(xp, xc, xv, r, y, n) + udot(up, uc, uv, r, srcw, U)
         spw[kk, SPTAU] = tau
         spw[kk, STIFF] = stiff
         spw[kk, ENERGY] = energy
         spw[kk, DVDQ] = dvq
 
 
-@njit(cache=True, inline="always")
-def eval_forces(dims, rows, par, code, chan, srcw, frw, spw, ldw, mow, gen, scal, x, v, cur):
-    """All element torques at ``(x, v, i)``, gathered as generalised forces.
+@inline
+def eval_forces(dims, xp, xc, xv, up, uc, uv, par, code, chan, srcw, frw, spw, ldw, mow, gen,
+                scal, y, full):
+    """All element torques at the state ``y``, gathered as generalised forces.
 
-    ``gen`` receives the sum on the free coordinates, ``srcw[:, SRCF]`` the sum
-    on the source coordinates. Inputs must already be evaluated.
+    ``gen`` receives the sum on the free coordinates and, with ``full``,
+    ``srcw[:, SRCF]`` the sum on the source coordinates. Without ``full`` the
+    elements that only the sources feel are skipped: the dynamics do not need
+    them, only the ledger and the source torques do. Inputs must already be
+    evaluated.
     """
     n = dims[D_N]
     s = dims[D_S]
@@ -185,84 +216,83 @@ def eval_forces(dims, rows, par, code, chan, srcw, frw, spw, ldw, mow, gen, scal
         gen[i] = 0.0
     for j in range(s):
         srcw[j, SRCF] = 0.0
-    eval_springs(dims, rows, par, code, srcw, spw, scal, x, v)
+    eval_springs(dims, xp, xc, xv, up, uc, uv, par, code, srcw, spw, scal, y)
     for kk in range(k):
         r = f + kk
         tau = spw[kk, SPTAU]
-        for i in range(n):
-            gen[i] += tau * rows[r, i]
-        for j in range(s):
-            srcw[j, SRCF] += tau * rows[r, n + j]
+        xadd(xp, xc, xv, r, gen, tau)
+        if full:
+            uadd(up, uc, uv, r, srcw, SRCF, tau)
     for e in range(f):
-        slip = row_dot(rows, e, v, srcw, U)
-        torque, slope = resistive_torque(code[e], par, e, slip)
+        if not full and xp[e + 1] == xp[e]:
+            continue
+        slip = xdot(xp, xc, xv, e, y, n) + udot(up, uc, uv, e, srcw, U)
+        torque, slope = resistive_torque(code[e], par[e, 0], par[e, 1], par[e, 2], par[e, 3],
+                                         slip)
         if code[e] == STICTION:
             torque += frw[e, EXTRA]
         frw[e, SLIP] = slip
         frw[e, TORQUE] = torque
         frw[e, SLOPE] = slope
-        for i in range(n):
-            gen[i] -= torque * rows[e, i]
-        for j in range(s):
-            srcw[j, SRCF] -= torque * rows[e, n + j]
+        xadd(xp, xc, xv, e, gen, -torque)
+        if full:
+            uadd(up, uc, uv, e, srcw, SRCF, -torque)
     for ld in range(nl):
         r = f + k + ld
         tau = chan[code[r], 0]
         ldw[ld, 0] = tau
-        ldw[ld, 1] = row_dot(rows, r, v, srcw, U)
-        for i in range(n):
-            gen[i] += tau * rows[r, i]
-        for j in range(s):
-            srcw[j, SRCF] += tau * rows[r, n + j]
+        ldw[ld, 1] = xdot(xp, xc, xv, r, y, n) + udot(up, uc, uv, r, srcw, U)
+        xadd(xp, xc, xv, r, gen, tau)
+        if full:
+            uadd(up, uc, uv, r, srcw, SRCF, tau)
     for mo in range(dims[D_M]):
         r = f + k + nl + mo
-        torque = par[r, 2] * cur[mo]
-        mow[mo, 0] = row_dot(rows, r, v, srcw, U)
+        torque = par[r, 2] * y[2 * n + mo]
+        mow[mo, 0] = xdot(xp, xc, xv, r, y, n) + udot(up, uc, uv, r, srcw, U)
         mow[mo, 1] = chan[code[r], 0]
-        for i in range(n):
-            gen[i] += torque * rows[r, i]
-        for j in range(s):
-            srcw[j, SRCF] += torque * rows[r, n + j]
+        xadd(xp, xc, xv, r, gen, torque)
+        if full:
+            uadd(up, uc, uv, r, srcw, SRCF, torque)
 
 
-@njit(cache=True, inline="always")
-def eval_derivatives(t, y, dy, with_energy, dims, mass, Minv, rows, par, code, src_ch,
-                     src_pos0, knots, coef, cum, first, count, hint, chan, srcw, frw, spw, ldw,
-                     mow, gen, acc, scal):
-    """``dy/dt`` of the state, and of the energy accumulators if ``with_energy``."""
+@inline
+def eval_derivatives(t, y, dy, dims, mass, Minv, xp, xc, xv, up, uc, uv, par, code, src_ch,
+                     src_pos0, knots, coef, cum, first, count, hint, chan, srcw, frw, spw, ldw, mow,
+                     gen, scal):
+    """``dy/dt`` of the state and, if ``dy`` is long enough, of the energy accumulators
+    and the source torques (see `eval_forces`).
+
+    (At most 30 parameters: numba's inliner refuses more.)
+    """
     n = dims[D_N]
     s = dims[D_S]
     nm = dims[D_M]
-    x = y[:n]
-    v = y[n:2 * n]
-    cur = y[2 * n:2 * n + nm]
     eval_inputs(t, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0, srcw)
-    eval_forces(dims, rows, par, code, chan, srcw, frw, spw, ldw, mow, gen, scal, x, v, cur)
+    full = dy.shape[0] > 2 * n + nm
+    eval_forces(dims, xp, xc, xv, up, uc, uv, par, code, chan, srcw, frw, spw, ldw, mow, gen, scal,
+                y, full)
     for i in range(n):
-        rhs = gen[i]
         for j in range(s):
-            rhs -= mass[i, n + j] * srcw[j, UD]
-        acc[i] = rhs
+            gen[i] -= mass[i, n + j] * srcw[j, UD]
     for i in range(n):
         total = 0.0
         for r in range(n):
-            total += Minv[i, r] * acc[r]
+            total += Minv[i, r] * gen[r]
         dy[n + i] = total
-        dy[i] = v[i]
-    for i in range(n):
-        acc[i] = dy[n + i]
-    for j in range(s):
-        tau = -srcw[j, SRCF]
-        for i in range(n):
-            tau += mass[n + j, i] * acc[i]
-        for r in range(s):
-            tau += mass[n + j, n + r] * srcw[r, UD]
-        srcw[j, SRCTAU] = tau
+        dy[i] = y[n + i]
+    if full:
+        for j in range(s):
+            tau = -srcw[j, SRCF]
+            for i in range(n):
+                tau += mass[n + j, i] * dy[n + i]
+            for r in range(s):
+                tau += mass[n + j, n + r] * srcw[r, UD]
+            srcw[j, SRCTAU] = tau
     base_m = dims[D_F] + dims[D_K] + dims[D_L]
     for mo in range(nm):
         r = base_m + mo
-        dy[2 * n + mo] = (mow[mo, 1] - par[r, 0] * cur[mo] - par[r, 2] * mow[mo, 0]) / par[r, 1]
-    if with_energy:
+        dy[2 * n + mo] = (mow[mo, 1] - par[r, 0] * y[2 * n + mo] - par[r, 2] * mow[mo, 0]) / par[r, 1]
+    if full:
         p = 2 * n + nm
         for j in range(s):
             dy[p] = srcw[j, U] * srcw[j, SRCTAU]
@@ -271,13 +301,13 @@ def eval_derivatives(t, y, dy, with_energy, dims, mass, Minv, rows, par, code, s
             dy[p] = ldw[ld, 0] * ldw[ld, 1]
             p += 1
         for mo in range(nm):
-            dy[p] = mow[mo, 1] * cur[mo]
+            dy[p] = mow[mo, 1] * y[2 * n + mo]
             p += 1
         for e in range(dims[D_F]):
             dy[p] = frw[e, TORQUE] * frw[e, SLIP]
             p += 1
         for mo in range(nm):
-            dy[p] = par[base_m + mo, 0] * cur[mo] * cur[mo]
+            dy[p] = par[base_m + mo, 0] * y[2 * n + mo] ** 2
             p += 1
         for kk in range(dims[D_K]):
             dy[p] = spw[kk, SPTAU] * spw[kk, RATE]
@@ -290,31 +320,34 @@ def eval_derivatives(t, y, dy, with_energy, dims, mass, Minv, rows, par, code, s
             scal[STATUS] = NOT_FINITE
 
 
-@njit(cache=True)
-def derivatives(m, w, t, y, dy, with_energy):
+@kernel
+def derivatives(m, w, t, y, dy):
     """`eval_derivatives` for callers holding the model and work tuples."""
-    dims, mass, Minv, rows, par, code, src_ch, src_pos0, knots, coef, cum, first, count = m
-    hint, chan, srcw, frw, spw, ldw, mow, gen, acc, scal = w
-    eval_derivatives(t, y, dy, with_energy, dims, mass, Minv, rows, par, code, src_ch,
-                     src_pos0, knots, coef, cum, first, count, hint, chan, srcw, frw, spw, ldw,
-                     mow, gen, acc, scal)
+    dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, first, \
+        count = m
+    hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
+    eval_derivatives(t, y, dy, dims, mass, Minv, xp, xc, xv, up, uc, uv, par, code, src_ch,
+                     src_pos0, knots, coef, cum, first, count, hint, chan, srcw, frw, spw, ldw, mow,
+                     gen, scal)
 
 
-@njit(cache=True)
+@kernel
 def source_speeds(m, w, t):
     """Speeds of the velocity sources at ``t``."""
-    dims, mass, Minv, rows, par, code, src_ch, src_pos0, knots, coef, cum, first, count = m
-    hint, chan, srcw, frw, spw, ldw, mow, gen, acc, scal = w
+    dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, first, \
+        count = m
+    hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
     eval_inputs(t, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0, srcw)
     return srcw[:, U].copy()
 
 
-@njit(cache=True)
+@kernel
 def source_signals(m, t_out):
     """Source angles and speeds at each sample time, shape (samples, sources) each."""
-    dims, mass, Minv, rows, par, code, src_ch, src_pos0, knots, coef, cum, first, count = m
+    dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, first, \
+        count = m
     w = make_work(m)
-    hint, chan, srcw, frw, spw, ldw, mow, gen, acc, scal = w
+    hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
     angles = np.empty((t_out.shape[0], src_ch.shape[0]))
     speeds = np.empty((t_out.shape[0], src_ch.shape[0]))
     for i in range(t_out.shape[0]):
@@ -325,7 +358,7 @@ def source_signals(m, t_out):
     return angles, speeds
 
 
-@njit(cache=True)
+@kernel
 def kinetic_energy(mass, v, u):
     """Kinetic energy [J] of all flanges, free (speeds ``v``) and driven (``u``)."""
     n = v.shape[0]
@@ -339,18 +372,17 @@ def kinetic_energy(mass, v, u):
     return e
 
 
-@njit(cache=True)
+@kernel
 def stored_energy(m, w, t, y):
     """``(kinetic, spring, inductor)`` energy [J] at ``(t, y)``; fills the spring buffer."""
-    dims, mass, Minv, rows, par, code, src_ch, src_pos0, knots, coef, cum, first, count = m
-    hint, chan, srcw, frw, spw, ldw, mow, gen, acc, scal = w
+    dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, first, \
+        count = m
+    hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
     n = dims[D_N]
     nm = dims[D_M]
     eval_inputs(t, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0, srcw)
-    x = y[:n]
-    v = y[n:2 * n]
-    eval_springs(dims, rows, par, code, srcw, spw, scal, x, v)
-    kin = kinetic_energy(mass, v, srcw[:, U].copy())
+    eval_springs(dims, xp, xc, xv, up, uc, uv, par, code, srcw, spw, scal, y)
+    kin = kinetic_energy(mass, y[n:2 * n].copy(), srcw[:, U].copy())
     pot = 0.0
     for kk in range(dims[D_K]):
         pot += spw[kk, ENERGY]
@@ -365,32 +397,33 @@ def observation_width(n: int, s: int, f: int, k: int, nl: int, nm: int) -> int:
     return 3 * n + nm + 3 * s + 2 + 2 * f + 5 * k + s + 2 * nl + 2 * nm
 
 
-@njit(cache=True)
+@kernel
 def observe_all(m, t_out, out, coulomb, width):
     """Raw observations at every sample (`vsj.engine.observation_layout` names the
     columns); ``coulomb`` holds the stiction torques of each sample."""
-    dims, mass, Minv, rows, par, code, src_ch, src_pos0, knots, coef, cum, first, count = m
+    dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, first, \
+        count = m
     w = make_work(m)
-    hint, chan, srcw, frw, spw, ldw, mow, gen, acc, scal = w
+    hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
     n = dims[D_N]
     nm = dims[D_M]
     ns = 2 * n + nm
     raw = np.empty((t_out.shape[0], width))
-    dy = np.empty(ns)
+    dy = np.empty(out.shape[1])  # full length: source torques and every element
     for i in range(t_out.shape[0]):
         for e in range(coulomb.shape[1]):
             frw[e, EXTRA] = coulomb[i, e]
-        y = out[i, :ns]
-        eval_derivatives(t_out[i], y, dy, False, dims, mass, Minv, rows, par, code, src_ch,
-                         src_pos0, knots, coef, cum, first, count, hint, chan, srcw, frw, spw,
-                         ldw, mow, gen, acc, scal)
+        y = out[i]
+        eval_derivatives(t_out[i], y, dy, dims, mass, Minv, xp, xc, xv, up, uc, uv, par, code,
+                         src_ch, src_pos0, knots, coef, cum, first, count, hint, chan, srcw, frw,
+                         spw, ldw, mow, gen, scal)
         row = raw[i]
         p = 0
         for j in range(ns):
             row[p] = y[j]
             p += 1
         for j in range(n):
-            row[p] = acc[j]
+            row[p] = dy[n + j]
             p += 1
         for col in (SG, U, UD):
             for j in range(srcw.shape[0]):

@@ -16,8 +16,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from ..jit import inline, kernel
 from .core import NOT_FINITE, OK, STATUS, STEP_TOO_SMALL, TOO_MANY_STEPS, eval_derivatives
 
 #: Butcher tableau: nodes and coefficients of stages 2-7 (stage 7 is the solution).
@@ -40,7 +40,7 @@ D = np.array([-12715105075.0 / 11282082432.0, 0.0, 87487479700.0 / 32700410799.0
               -1453857185.0 / 822651844.0, 69997945.0 / 29380423.0])
 
 
-@njit(cache=True, inline="always")
+@inline
 def _norm(e, y, y2, rtol, atol, n_err):
     acc = 0.0
     for i in range(n_err):
@@ -49,7 +49,7 @@ def _norm(e, y, y2, rtol, atol, n_err):
     return math.sqrt(acc / max(n_err, 1))
 
 
-@njit(cache=True)
+@kernel
 def integrate(m, w, y0, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, out):
     """Integrate from ``t0`` to ``t_end``; write ``y`` at each ``t_out`` into ``out``.
 
@@ -57,8 +57,9 @@ def integrate(m, w, y0, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, o
     final state (the last good state on failure). ``out`` may be narrower than
     the state: its columns receive the leading components.
     """
-    dims, mass, Minv, rows, par, code, src_ch, src_pos0, knots, coef, cum, first, count = m
-    hint, chan, srcw, frw, spw, ldw, mow, gen, acc, scal = w
+    dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, first, \
+        count = m
+    hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
     ny = y0.shape[0]
     n_keep = min(ny, out.shape[1])
     K = np.empty((7, ny))
@@ -77,9 +78,9 @@ def integrate(m, w, y0, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, o
             out[i_out, i] = y[i]
         i_out += 1
     scal[STATUS] = OK
-    eval_derivatives(t, y, K[0], True, dims, mass, Minv, rows, par, code, src_ch, src_pos0,
-                     knots, coef, cum, first, count, hint, chan, srcw, frw, spw, ldw, mow, gen,
-                     acc, scal)
+    eval_derivatives(t, y, K[0], dims, mass, Minv, xp, xc, xv, up, uc, uv, par, code, src_ch,
+                     src_pos0, knots, coef, cum, first, count, hint, chan, srcw, frw, spw, ldw, mow,
+                     gen, scal)
     if scal[STATUS] != OK:
         return int(scal[STATUS]), t, 0, 0
     # initial step (Hairer's estimate)
@@ -89,9 +90,9 @@ def integrate(m, w, y0, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, o
     h = min(h, h_max, t_end - t)
     for i in range(ny):
         yt[i] = y[i] + h * K[0, i]
-    eval_derivatives(t + h, yt, K[1], True, dims, mass, Minv, rows, par, code, src_ch, src_pos0,
-                     knots, coef, cum, first, count, hint, chan, srcw, frw, spw, ldw, mow, gen,
-                     acc, scal)
+    eval_derivatives(t + h, yt, K[1], dims, mass, Minv, xp, xc, xv, up, uc, uv, par, code, src_ch,
+                     src_pos0, knots, coef, cum, first, count, hint, chan, srcw, frw, spw, ldw, mow,
+                     gen, scal)
     for i in range(ny):
         err[i] = K[1, i] - K[0, i]
     d2 = _norm(err, y, y, rtol, atol, n_err) / h
@@ -128,9 +129,9 @@ def integrate(m, w, y0, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, o
                 if scal[STATUS] == NOT_FINITE:
                     stage_bad = True
                 scal[STATUS] = OK  # only the end point's physical limits count
-            eval_derivatives(t + C[st] * h, yt, K[st], True, dims, mass, Minv, rows, par, code,
-                             src_ch, src_pos0, knots, coef, cum, first, count, hint, chan, srcw,
-                             frw, spw, ldw, mow, gen, acc, scal)
+            eval_derivatives(t + C[st] * h, yt, K[st], dims, mass, Minv, xp, xc, xv, up, uc, uv,
+                             par, code, src_ch, src_pos0, knots, coef, cum, first, count, hint,
+                             chan, srcw, frw, spw, ldw, mow, gen, scal)
         for i in range(ny):
             total = 0.0
             for j in range(7):

@@ -11,7 +11,8 @@ thirteen arrays once, at the top, and pass them on explicitly.
 
 Element rows are stacked in one matrix ``rows`` of shape ``(R, n + s)``: the
 first ``n`` columns multiply the generalised coordinates, the last ``s`` the
-source coordinates. Row order: friction elements, springs, loads, motors, and
+source coordinates. The kernels read them in compressed sparse row form (most
+rows hold one or two nonzeros), split into the two parts. Row order: friction elements, springs, loads, motors, and
 the pivot last. ``par`` holds each row's parameters, ``code`` its law code
 (friction, spring) or input channel (load, motor).
 """
@@ -44,6 +45,12 @@ class EngineModel(NamedTuple):
     mass: np.ndarray      # (n+s, n+s) kinetic energy matrix over (v, u)
     Minv: np.ndarray      # (n, n) inverse of the free block
     rows: np.ndarray      # (R, n+s) element rows
+    xp: np.ndarray        # CSR of the rows' free-coordinate part: pointers (R+1,) int64,
+    xc: np.ndarray        # ... column indices int64,
+    xv: np.ndarray        # ... values
+    up: np.ndarray        # CSR of the rows' source part: pointers, columns, values
+    uc: np.ndarray
+    uv: np.ndarray
     par: np.ndarray       # (R, 9) element parameters
     code: np.ndarray      # (R,) int64 law code or input channel
     src_ch: np.ndarray    # (s,) int64 input channel of each source
@@ -92,6 +99,17 @@ class Layout:
 
 def _ints(values) -> np.ndarray:
     return np.ascontiguousarray(np.asarray(values, dtype=np.int64).reshape(-1))
+
+
+def _csr(matrix: np.ndarray):
+    """Compressed sparse rows of a dense matrix: (pointers, columns, values)."""
+    ptr, cols, vals = [0], [], []
+    for row in matrix:
+        nz = np.flatnonzero(row)
+        cols.extend(nz.tolist())
+        vals.extend(row[nz].tolist())
+        ptr.append(len(cols))
+    return _ints(ptr), _ints(cols), np.ascontiguousarray(vals, dtype=float)
 
 
 def friction_laws_for(structure: Structure, default: str,
@@ -192,12 +210,15 @@ def compile_model(structure: Structure, inputs: Mapping[str, Input], t_end: floa
     add(pivot_row, [pivot.amplitude, pivot.fixed, 0.0 if pivot.flange is None else 1.0, lo, hi],
         0)
     bank = input_bank(structure, inputs, t_end)
+    dense = np.array(rows).reshape(len(rows), n + s)
+    xp, xc, xv = _csr(dense[:, :n])
+    up, uc, uv = _csr(dense[:, n:])
     dims = _ints([n, s, len(structure.frictions), len(structure.springs), len(structure.loads),
                   len(structure.motors), len(chan), len(rows)])
     src_pos0 = np.zeros(s) if source_angles is None else np.asarray(source_angles, dtype=float)
     model = EngineModel(
         dims=dims, mass=np.ascontiguousarray(mass), Minv=np.ascontiguousarray(Minv),
-        rows=np.ascontiguousarray(np.array(rows).reshape(len(rows), n + s)),
+        rows=np.ascontiguousarray(dense), xp=xp, xc=xc, xv=xv, up=up, uc=uc, uv=uv,
         par=np.ascontiguousarray(np.array(par)), code=_ints(code),
         src_ch=_ints([chan[src.channel] for src in structure.sources]),
         src_pos0=np.ascontiguousarray(src_pos0, dtype=float),

@@ -35,12 +35,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from ..components.elastic_element import spring_law
+from ..components.elastic_element import row, spring_law
 from ..friction import STICTION, coulomb_level, resistive_torque
+from ..jit import inline, kernel
 from .core import (FRICTION_SOLVER, NOT_FINITE, OK, SG, STATUS, TOO_MANY_STEPS, U, eval_inputs,
-                   eval_pivot)
+                   eval_pivot, xadd, xdot)
 from .model import D_F, D_K, D_L, D_M, D_N, D_R, D_S
 
 #: Slip speed [rad/s] below which an element counts as stuck.
@@ -53,7 +53,7 @@ IMPULSE_MAX_ITER = 500
 IMPULSE_REG = 1e-9
 
 
-@njit(cache=True)
+@inline
 def _cholesky(H, L, k, floor):
     """Cholesky factor of the leading k x k block of ``H`` into ``L``.
 
@@ -76,7 +76,7 @@ def _cholesky(H, L, k, floor):
     return True
 
 
-@njit(cache=True)
+@inline
 def _forward(L, b, out, k):
     """Solve ``L out = b`` (lower triangular, leading k x k block)."""
     for i in range(k):
@@ -86,7 +86,7 @@ def _forward(L, b, out, k):
         out[i] = acc / L[i, i]
 
 
-@njit(cache=True)
+@inline
 def _solve(L, b, out, k):
     """Solve ``L L^T out = b`` given the Cholesky factor."""
     _forward(L, b, out, k)
@@ -97,7 +97,7 @@ def _solve(L, b, out, k):
         out[i] = acc / L[i, i]
 
 
-@njit(cache=True)
+@inline
 def _free_newton(Y, g, free, n_free, eps, G, Lg, t, c, d):
     """Newton step on the free set: ``d = -(eps I + Y_F Y_F^T)^-1 g_F`` by Woodbury,
     which only needs an n x n solve (n = degrees of freedom)."""
@@ -124,7 +124,7 @@ def _free_newton(Y, g, free, n_free, eps, G, Lg, t, c, d):
         d[k] = -acc / eps
 
 
-@njit(cache=True)
+@inline
 def solve_impulses(Y, q, cap, p, state, active, free, G, Lg, t, c, d, g, z):
     """Exact Coulomb impulses: slips ``s = q - Y Y^T p`` with ``|p_e| <= cap_e``.
 
@@ -156,10 +156,12 @@ def solve_impulses(Y, q, cap, p, state, active, free, G, Lg, t, c, d, g, z):
             for i in range(n):
                 norm += Y[e, i] * Y[e, i]
             w_max = max(w_max, norm)
-            if p[e] >= cap[e]:
+            # the cap varies in its last bits from step to step (the step length does):
+            # an impulse at last step's bound is at this step's bound
+            if p[e] >= cap[e] * (1.0 - 1e-9):
                 p[e] = cap[e]
                 state[e] = 1
-            elif p[e] <= -cap[e]:
+            elif p[e] <= -cap[e] * (1.0 - 1e-9):
                 p[e] = -cap[e]
                 state[e] = -1
             else:
@@ -279,23 +281,41 @@ def solve_impulses(Y, q, cap, p, state, active, free, G, Lg, t, c, d, g, z):
     return True, iterations
 
 
-@njit(cache=True, inline="always")
-def _rowx(rows, r, vec):
+@inline
+def _udot(up, uc, uv, r, vec):
+    """Source part of row ``r`` dotted with a source vector (sparse)."""
     acc = 0.0
-    for i in range(vec.shape[0]):
-        acc += rows[r, i] * vec[i]
+    for k in range(up[r], up[r + 1]):
+        acc += uv[k] * vec[uc[k]]
     return acc
 
 
-@njit(cache=True, inline="always")
-def _rowu(rows, r, n, vec):
-    acc = 0.0
-    for j in range(vec.shape[0]):
-        acc += rows[r, n + j] * vec[j]
-    return acc
+@inline
+def _uadd(up, uc, uv, r, vec, scale):
+    """``vec += scale * (source part of row r)``."""
+    for k in range(up[r], up[r + 1]):
+        vec[uc[k]] += scale * uv[k]
 
 
-@njit(cache=True)
+@inline
+def _outer(xp, xc, xv, r, H, scale):
+    """``H += scale * d d^T`` with ``d`` the free-coordinate part of row ``r``."""
+    for a in range(xp[r], xp[r + 1]):
+        for b in range(xp[r], xp[r + 1]):
+            H[xc[a], xc[b]] += scale * xv[a] * xv[b]
+
+
+@inline
+def _pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x, v, buf):
+    """`eval_pivot` for angles ``x`` and speeds ``v`` held apart."""
+    n = x.shape[0]
+    for i in range(n):
+        buf[i] = x[i]
+        buf[n + i] = v[i]
+    return eval_pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, buf)
+
+
+@kernel
 def run(m, w, y0, duration, h, t_out, max_steps):
     """Integrate with fixed step ``h``; sample at ``t_out`` (multiples of ``h``).
 
@@ -308,8 +328,9 @@ def run(m, w, y0, duration, h, t_out, max_steps):
     so a speed reversal that touches zero for a single step (the scheme's
     resolution) is not counted as sticking.
     """
-    dims, mass, Minv, rows, par, code, src_ch, src_pos0, knots, coef, cum, first, count = m
-    hint, chan, srcw, frw, spw, ldw, mow, gen, acc, scal = w
+    dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, \
+        first, count = m
+    hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
     n = dims[D_N]
     s_n = dims[D_S]
     nf = dims[D_F]
@@ -347,10 +368,7 @@ def run(m, w, y0, duration, h, t_out, max_steps):
     driven = np.zeros(nf, dtype=np.bool_)
     for e in range(nf):
         if code[e] == STICTION:
-            norm = 0.0
-            for i in range(n):
-                norm += rows[e, i] ** 2
-            if norm > 0.0:
+            if xp[e + 1] > xp[e]:
                 active[e] = True
             else:
                 driven[e] = True
@@ -393,19 +411,25 @@ def run(m, w, y0, duration, h, t_out, max_steps):
     vm = np.empty(nm)
     srcF = np.empty(s_n)
     i1 = np.empty(nm)
+    ypiv = np.empty(2 * n)
 
     eval_inputs(0.0, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0, srcw)
     for j in range(s_n):
         u0[j] = srcw[j, U]
         sg0[j] = srcw[j, SG]
+    # one exit at the end: early returns of arrays from inside the loop would make
+    # numba count references of every live array on every step
+    status = OK
     scal[STATUS] = OK
-    q_prev = eval_pivot(dims, rows, par, srcw, scal, x, v)
-    if scal[STATUS] != OK:
-        return int(scal[STATUS]), 0.0, y, out, coulomb, stuck, 0, transitions
-
+    q_prev = _pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x, v, ypiv)
     steps_total = int(math.ceil(duration / h - 1e-9))
-    if steps_total > max_steps:
-        return TOO_MANY_STEPS, 0.0, y, out, coulomb, stuck, 0, transitions
+    if scal[STATUS] != OK:
+        status = int(scal[STATUS])
+        steps_total = 0
+    elif steps_total > max_steps:
+        status = TOO_MANY_STEPS
+        steps_total = 0
+    steps_done = 0
     i_out = 0
     if n_out > 0 and t_out[0] <= 0.0:
         out[0, :] = y
@@ -424,7 +448,7 @@ def run(m, w, y0, duration, h, t_out, max_steps):
             vm[mo] = chan[code[r_mot + mo], 0]
         for i in range(n):
             x1[i] = x[i] + 0.5 * hs * v[i]
-        q_mid = eval_pivot(dims, rows, par, srcw, scal, x1, v)
+        q_mid = _pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x1, v, ypiv)
         eval_inputs(t1, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0, srcw)
         for j in range(s_n):
             u1[j] = srcw[j, U]
@@ -441,45 +465,37 @@ def run(m, w, y0, duration, h, t_out, max_steps):
             r[i] = total
         for k in range(nk):
             rr = nf + k
-            d0 = _rowx(rows, rr, x) + _rowu(rows, rr, n, sg0)
-            tau, kap, _, _ = spring_law(code[rr], par, rr, d0, q_mid)
-            dsig = 0.0
-            for j in range(s_n):
-                dsig += rows[rr, n + j] * (sg1[j] - sg0[j])
-            c_k = tau - 0.5 * kap * dsig - 0.25 * kap * hs * _rowx(rows, rr, v)
+            d0 = xdot(xp, xc, xv, rr, x, 0) + _udot(up, uc, uv, rr, sg0)
+            tau, kap, _, _ = spring_law(code[rr], row(par, rr), d0, q_mid)
+            dsig = _udot(up, uc, uv, rr, sg1) - _udot(up, uc, uv, rr, sg0)
+            c_k = tau - 0.5 * kap * dsig - 0.25 * kap * hs * xdot(xp, xc, xv, rr, v, 0)
             sp_c[k] = c_k
             sp_kap[k] = kap
-            for i in range(n):
-                r[i] += hs * c_k * rows[rr, i]
-                for c in range(n):
-                    H[i, c] += 0.25 * hs * hs * kap * rows[rr, i] * rows[rr, c]
+            xadd(xp, xc, xv, rr, r, hs * c_k)
+            _outer(xp, xc, xv, rr, H, 0.25 * hs * hs * kap)
         for e in range(nf):
-            se = _rowx(rows, e, v) + _rowu(rows, e, n, u0)
-            fe, dfe = resistive_torque(code[e], par, e, se)
+            se = xdot(xp, xc, xv, e, v, 0) + _udot(up, uc, uv, e, u0)
+            fe, dfe = resistive_torque(code[e], par[e, 0], par[e, 1], par[e, 2], par[e, 3], se)
             s0[e] = se
             f0[e] = fe
             df0[e] = dfe
-            const = fe - dfe * se + dfe * _rowu(rows, e, n, u1)
-            for i in range(n):
-                r[i] -= hs * const * rows[e, i]
-                for c in range(n):
-                    H[i, c] += hs * dfe * rows[e, i] * rows[e, c]
+            const = fe - dfe * se + dfe * _udot(up, uc, uv, e, u1)
+            xadd(xp, xc, xv, e, r, -hs * const)
+            _outer(xp, xc, xv, e, H, hs * dfe)
         for ld in range(nl):
-            for i in range(n):
-                r[i] += hs * ldm[ld] * rows[r_load + ld, i]
+            xadd(xp, xc, xv, r_load + ld, r, hs * ldm[ld])
         for mo in range(nm):
             rr = r_mot + mo
             R, Lm, kt = par[rr, 0], par[rr, 1], par[rr, 2]
             g = 1.0 / (1.0 + hs * R / Lm)
-            const = kt * g * (cur[mo] + hs / Lm * (vm[mo] - kt * _rowu(rows, rr, n, u1)))
+            const = kt * g * (cur[mo] + hs / Lm * (vm[mo] - kt * _udot(up, uc, uv, rr, u1)))
             damp = kt * kt * g * hs / Lm
-            for i in range(n):
-                r[i] += hs * const * rows[rr, i]
-                for c in range(n):
-                    H[i, c] += hs * damp * rows[rr, i] * rows[rr, c]
+            xadd(xp, xc, xv, rr, r, hs * const)
+            _outer(xp, xc, xv, rr, H, hs * damp)
         if n > 0:
             if not _cholesky(H, Lc, n, False):
-                return NOT_FINITE, t, y, out, coulomb, stuck, step, transitions
+                status = NOT_FINITE
+                break
             _solve(Lc, r, vfree, n)
 
         # Coulomb impulses of the stiction elements, all together
@@ -488,20 +504,22 @@ def run(m, w, y0, duration, h, t_out, max_steps):
             if active[e]:
                 any_active = True
                 for i in range(n):
-                    drow[i] = rows[e, i]
+                    drow[i] = 0.0
+                xadd(xp, xc, xv, e, drow, 1.0)
                 _solve(Lc, drow, col, n)  # H^-1 d_e, to update the speeds
                 for i in range(n):
                     Y[e, i] = col[i]
                 _forward(Lc, drow, col, n)  # L^-1 d_e: W = Yl Yl^T
                 for i in range(n):
                     Yl[e, i] = col[i]
-                qv[e] = _rowx(rows, e, vfree) + _rowu(rows, e, n, u1)
+                qv[e] = xdot(xp, xc, xv, e, vfree, 0) + _udot(up, uc, uv, e, u1)
                 cap[e] = hs * coulomb_level(par, e)
         if any_active:
             ok, _ = solve_impulses(Yl, qv, cap, p, state, active, free_buf, Gb, Lgb, tb, cb, db,
                                    gb, zb)
             if not ok:
-                return FRICTION_SOLVER, t, y, out, coulomb, stuck, step, transitions
+                status = FRICTION_SOLVER
+                break
         for i in range(n):
             total = vfree[i]
             for e in range(nf):
@@ -513,7 +531,7 @@ def run(m, w, y0, duration, h, t_out, max_steps):
             rr = r_mot + mo
             R, Lm, kt = par[rr, 0], par[rr, 1], par[rr, 2]
             g = 1.0 / (1.0 + hs * R / Lm)
-            omega1 = _rowx(rows, rr, v1) + _rowu(rows, rr, n, u1)
+            omega1 = xdot(xp, xc, xv, rr, v1, 0) + _udot(up, uc, uv, rr, u1)
             i1[mo] = g * (cur[mo] + hs / Lm * (vm[mo] - kt * omega1))
 
         # energy bookkeeping against mid-step speeds
@@ -521,7 +539,7 @@ def run(m, w, y0, duration, h, t_out, max_steps):
             um[j] = 0.5 * (u0[j] + u1[j])
             srcF[j] = 0.0
         for e in range(nf):
-            s1 = _rowx(rows, e, v1) + _rowu(rows, e, n, u1)
+            s1 = xdot(xp, xc, xv, e, v1, 0) + _udot(up, uc, uv, e, u1)
             fe = f0[e] + df0[e] * (s1 - s0[e])
             if active[e]:
                 fe += p[e] / hs
@@ -530,43 +548,34 @@ def run(m, w, y0, duration, h, t_out, max_steps):
             force[e] = fe
             slip[e] = s1
             y[a_fric + e] += hs * fe * 0.5 * (s0[e] + s1)
-            for j in range(s_n):
-                srcF[j] -= fe * rows[e, n + j]
+            _uadd(up, uc, uv, e, srcF, -fe)
         q_end = q_prev
         if moving_pivot:
-            q_end = eval_pivot(dims, rows, par, srcw, scal, x1, v1)  # srcw holds t1
+            q_end = _pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x1, v1, ypiv)  # at t1
         for k in range(nk):
             rr = nf + k
-            tau_avg = sp_c[k] - 0.25 * sp_kap[k] * hs * _rowx(rows, rr, v1)
-            dd = 0.0
-            for i in range(n):
-                dd += rows[rr, i] * (x1[i] - x[i])
-            for j in range(s_n):
-                dd += rows[rr, n + j] * (sg1[j] - sg0[j])
+            tau_avg = sp_c[k] - 0.25 * sp_kap[k] * hs * xdot(xp, xc, xv, rr, v1, 0)
+            dd = (xdot(xp, xc, xv, rr, x1, 0) - xdot(xp, xc, xv, rr, x, 0)
+                  + _udot(up, uc, uv, rr, sg1) - _udot(up, uc, uv, rr, sg0))
             y[a_spr + k] += tau_avg * dd
-            for j in range(s_n):
-                srcF[j] += tau_avg * rows[rr, n + j]
+            _uadd(up, uc, uv, rr, srcF, tau_avg)
             if q_end != q_prev:
-                d1 = _rowx(rows, rr, x1) + _rowu(rows, rr, n, sg1)
-                e1 = spring_law(code[rr], par, rr, d1, q_end)[2]
-                e0 = spring_law(code[rr], par, rr, d1, q_prev)[2]
+                d1 = xdot(xp, xc, xv, rr, x1, 0) + _udot(up, uc, uv, rr, sg1)
+                e1 = spring_law(code[rr], row(par, rr), d1, q_end)[2]
+                e0 = spring_law(code[rr], row(par, rr), d1, q_prev)[2]
                 y[a_piv + k] += e1 - e0
         for ld in range(nl):
             rr = r_load + ld
-            omega = 0.0
-            for i in range(n):
-                omega += rows[rr, i] * 0.5 * (v[i] + v1[i])
-            omega += _rowu(rows, rr, n, um)
+            omega = 0.5 * (xdot(xp, xc, xv, rr, v, 0) + xdot(xp, xc, xv, rr, v1, 0))
+            omega += _udot(up, uc, uv, rr, um)
             y[a_load + ld] += hs * ldm[ld] * omega
-            for j in range(s_n):
-                srcF[j] += ldm[ld] * rows[rr, n + j]
+            _uadd(up, uc, uv, rr, srcF, ldm[ld])
         for mo in range(nm):
             rr = r_mot + mo
             imid = 0.5 * (cur[mo] + i1[mo])
             y[a_elec + mo] += hs * vm[mo] * imid
             y[a_res + mo] += hs * par[rr, 0] * i1[mo] * imid
-            for j in range(s_n):
-                srcF[j] += par[rr, 2] * i1[mo] * rows[rr, n + j]
+            _uadd(up, uc, uv, rr, srcF, par[rr, 2] * i1[mo])
         for j in range(s_n):
             impulse = -hs * srcF[j]
             for i in range(n):
@@ -596,13 +605,18 @@ def run(m, w, y0, duration, h, t_out, max_steps):
                     if held[e] >= 2:
                         transitions[e] += 1
                     held[e] = 0
+        steps_done = step + 1
         if scal[STATUS] != OK:
-            return int(scal[STATUS]), t, y, out, coulomb, stuck, step + 1, transitions
+            status = int(scal[STATUS])
+            break
+        finite = True
         for i in range(n):
             y[i] = x[i]
             y[n + i] = v[i]
-            if not (math.isfinite(x[i]) and math.isfinite(v[i])):
-                return NOT_FINITE, t, y, out, coulomb, stuck, step + 1, transitions
+            finite = finite and math.isfinite(x[i]) and math.isfinite(v[i])
+        if not finite:
+            status = NOT_FINITE
+            break
         for mo in range(nm):
             y[2 * n + mo] = cur[mo]
         while i_out < n_out and t_out[i_out] <= t + 0.5 * h:
@@ -612,4 +626,4 @@ def run(m, w, y0, duration, h, t_out, max_steps):
                     coulomb[i_out, e] = force[e] - (f0[e] + df0[e] * (slip[e] - s0[e]))
                     stuck[i_out, e] = abs(slip[e]) <= STUCK_SPEED
             i_out += 1
-    return OK, t, y, out, coulomb, stuck, steps_total, transitions
+    return status, t, y, out, coulomb, stuck, steps_done, transitions

@@ -1,0 +1,16 @@
+"""How vsj compiles its numerical kernels (one place for the numba flags).
+
+``kernel`` compiles a function once and caches it on disk; ``inline`` does the
+same for small helpers that are inlined into their callers.
+
+``error_model="numpy"`` makes a division by zero give inf or NaN instead of
+raising: the engine checks for non-finite states and reports them with time
+and state, and the raising paths (with the reference counting they drag into
+every hot loop) cost up to a microsecond per evaluation.
+"""
+
+from numba import njit
+
+kernel = njit(cache=True, error_model="numpy")
+inline = njit(cache=True, error_model="numpy", inline="always")
+parallel = njit(cache=True, error_model="numpy", parallel=True)
