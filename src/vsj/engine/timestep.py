@@ -374,6 +374,7 @@ def run(m, w, y0, duration, h, t_out, max_steps):
                 driven[e] = True
 
     H = np.empty((n, n))
+    H_last = np.zeros((n, n))
     Lc = np.empty((n, n))
     r = np.empty(n)
     vfree = np.empty(n)
@@ -492,10 +493,29 @@ def run(m, w, y0, duration, h, t_out, max_steps):
             damp = kt * kt * g * hs / Lm
             xadd(xp, xc, xv, rr, r, hs * const)
             _outer(xp, xc, xv, rr, H, hs * damp)
-        if n > 0:
+        # H changes only with non-linear springs, smooth friction slopes or a moving
+        # pivot; when it is the same as last step, so are its factor and Y, Yl
+        same = step > 0
+        for i in range(n):
+            for c in range(n):
+                same = same and H[i, c] == H_last[i, c]
+                H_last[i, c] = H[i, c]
+        if n > 0 and not same:
             if not _cholesky(H, Lc, n, False):
                 status = NOT_FINITE
                 break
+            for e in range(nf):
+                if active[e]:
+                    for i in range(n):
+                        drow[i] = 0.0
+                    xadd(xp, xc, xv, e, drow, 1.0)
+                    _solve(Lc, drow, col, n)  # H^-1 d_e, to update the speeds
+                    for i in range(n):
+                        Y[e, i] = col[i]
+                    _forward(Lc, drow, col, n)  # L^-1 d_e: W = Yl Yl^T
+                    for i in range(n):
+                        Yl[e, i] = col[i]
+        if n > 0:
             _solve(Lc, r, vfree, n)
 
         # Coulomb impulses of the stiction elements, all together
@@ -503,15 +523,6 @@ def run(m, w, y0, duration, h, t_out, max_steps):
         for e in range(nf):
             if active[e]:
                 any_active = True
-                for i in range(n):
-                    drow[i] = 0.0
-                xadd(xp, xc, xv, e, drow, 1.0)
-                _solve(Lc, drow, col, n)  # H^-1 d_e, to update the speeds
-                for i in range(n):
-                    Y[e, i] = col[i]
-                _forward(Lc, drow, col, n)  # L^-1 d_e: W = Yl Yl^T
-                for i in range(n):
-                    Yl[e, i] = col[i]
                 qv[e] = xdot(xp, xc, xv, e, vfree, 0) + _udot(up, uc, uv, e, u1)
                 cap[e] = hs * coulomb_level(par, e)
         if any_active:

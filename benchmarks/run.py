@@ -1,0 +1,211 @@
+"""vsj's speed, measured against baselines timed in the same run (`make bench`).
+
+The workload is the fig 4.15 scenario (velocity-driven suns, exponential
+elastic elements, arctan friction on every element, q = -1.5 cm), 10 s
+simulated. Baselines:
+
+* scipy: `solve_ivp(method="LSODA")` with a plain Python right-hand side of the
+  same equations (`wrist_reference.python_rhs`);
+* compiled loop: a hand-written, numba-compiled fixed-step RK4 loop of the same
+  equations (`wrist_reference.compiled_rk4`).
+
+Each method runs at the loosest setting (tolerance or step) that keeps the
+end-effector angle within 1e-6 rad of a tight reference, found in this run.
+Times are the minimum of several repetitions (this machine is a shared VM whose
+timings scatter by tens of percent). Prints a table of figures, ratios and the
+issue's targets.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+sys.path.insert(0, str(Path(__file__).parent))
+import wrist_reference as ref  # noqa: E402
+
+from vsj import params as params_module  # noqa: E402
+from vsj import scenario as scenarios  # noqa: E402
+from vsj.engine import dopri, make_work, timestep  # noqa: E402
+from vsj.simulate import (InitialState, SimulationOptions, prepare, simulate,  # noqa: E402
+                          simulate_batch)
+
+ACCURACY = 1e-6  # rad, on theta_x
+DURATION = 10.0
+SAMPLE = 0.01
+
+
+def best_time(fun, repeat=7):
+    best = math.inf
+    result = None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = fun()
+        best = min(best, time.perf_counter() - start)
+    return best, result
+
+
+def setup():
+    p = params_module.default()
+    scen = scenarios.load("fig-4.15")
+    case = scen.cases[0]
+    _, structure, inputs, rng = scenarios.prepare_case(scen, case, p)
+    consts = ref.constants(p, case.initial.q, 1.4584, 0.5, 2.0)
+    return p, case, structure, inputs, rng, consts
+
+
+def vsj_core(structure, inputs, case, rng, rtol, atol, ledger):
+    """vsj's integrator alone (no sampling of derived signals), states every 10 ms."""
+    model, layout, y0 = prepare(structure, inputs, DURATION, SimulationOptions(), case.initial, rng)
+    t_out = np.arange(int(round(DURATION / SAMPLE)) + 1) * SAMPLE
+    y_start = y0 if ledger else y0[:layout.n_state]
+
+    def run():
+        out = np.zeros((len(t_out), layout.n_state))
+        y = y_start.copy()
+        dopri.integrate(model, make_work(model), y, 0.0, DURATION, t_out, rtol, atol, np.inf,
+                        10 ** 8, layout.n_state, out)
+        return out
+
+    return run, t_out
+
+
+def theta_x_of(structure, states, t_out, inputs, case, rng):
+    model, layout, _ = prepare(structure, inputs, DURATION, SimulationOptions(), case.initial, rng)
+    from vsj.engine import core
+
+    sigma, _ = core.source_signals(model, t_out)
+    rx, ru = structure.rows("diff.theta_x")
+    return states[:, :structure.n] @ rx + sigma @ ru
+
+
+def main() -> int:
+    p, case, structure, inputs, rng, consts = setup()
+    print("vsj benchmarks: fig 4.15 wrist, q = -1.5 cm, 10 s simulated; times are the best of "
+          "several runs\n")
+    rows = []
+
+    # reference
+    run, t_out = vsj_core(structure, inputs, case, rng, 1e-12, 1e-14, False)
+    theta_ref = theta_x_of(structure, run(), t_out, inputs, case, rng)
+
+    # vsj dopri at the loosest tolerance that meets the accuracy
+    chosen = None
+    for rtol, atol in ((1e-3, 1e-6), (1e-4, 1e-7), (1e-5, 1e-8), (1e-6, 1e-9), (1e-7, 1e-10)):
+        run, _ = vsj_core(structure, inputs, case, rng, rtol, atol, False)
+        err = np.max(np.abs(theta_x_of(structure, run(), t_out, inputs, case, rng) - theta_ref))
+        if err <= ACCURACY:
+            chosen = (rtol, atol, err)
+            break
+    rtol, atol, err_vsj = chosen
+    t_vsj, _ = best_time(vsj_core(structure, inputs, case, rng, rtol, atol, False)[0])
+    t_vsj_ledger, _ = best_time(vsj_core(structure, inputs, case, rng, rtol, atol, True)[0])
+    opts = SimulationOptions(rtol=rtol, atol=atol, output_step=SAMPLE)
+    t_full, _ = best_time(lambda: simulate(structure, inputs, DURATION, options=opts,
+                                           initial=case.initial, pivot_range=rng), repeat=3)
+
+    # compiled fixed-step loop at the largest step that meets the accuracy
+    for h in (0.01, 0.005, 0.0025, 0.002, 0.001, 0.0005):
+        every = int(round(SAMPLE / h))
+        out = ref.compiled_rk4(consts, h, DURATION, every)
+        err_rk4 = np.max(np.abs(ref.theta_x(out[:, :2], t_out, consts) - theta_ref))
+        if err_rk4 <= ACCURACY:
+            break
+    t_rk4, _ = best_time(lambda: ref.compiled_rk4(consts, h, DURATION, every))
+    h_rk4 = h
+
+    # scipy LSODA with a Python right-hand side
+    rhs = ref.python_rhs(consts)
+    for srtol in (1e-6, 1e-7, 1e-8, 1e-9):
+        sol = solve_ivp(rhs, (0, DURATION), np.zeros(4), method="LSODA", rtol=srtol,
+                        atol=srtol * 1e-2, t_eval=t_out)
+        err_scipy = np.max(np.abs(ref.theta_x(sol.y[:2].T, t_out, consts) - theta_ref))
+        if err_scipy <= ACCURACY:
+            break
+    t_scipy, _ = best_time(lambda: solve_ivp(rhs, (0, DURATION), np.zeros(4), method="LSODA",
+                                             rtol=srtol, atol=srtol * 1e-2, t_eval=t_out),
+                           repeat=2)
+
+    rows.append(("scipy LSODA, Python RHS", f"rtol {srtol:g}", err_scipy, t_scipy))
+    rows.append(("compiled RK4 loop (hand-written)", f"h {h_rk4 * 1e3:g} ms", err_rk4, t_rk4))
+    rows.append(("vsj dopri, integration only", f"rtol {rtol:g}", err_vsj, t_vsj))
+    rows.append(("vsj dopri, with energy ledger", f"rtol {rtol:g}", err_vsj, t_vsj_ledger))
+    rows.append(("vsj simulate(): ledger, all signals, ports", f"rtol {rtol:g}", err_vsj,
+                 t_full))
+
+    # true stiction
+    sopts = SimulationOptions(friction="stiction")
+    model, layout, y0 = prepare(structure, inputs, DURATION, sopts, case.initial, rng)
+    stick_ref = timestep.run(model, make_work(model), y0, DURATION, 1e-4, t_out, 10 ** 8)
+    theta_stick_ref = theta_x_of(structure, stick_ref[3][:, :layout.n_state], t_out, inputs,
+                                 case, rng)
+    stick_rows = []
+    for h in (1e-3, 2e-3):
+        t_stick, res = best_time(lambda: timestep.run(model, make_work(model), y0, DURATION, h,
+                                                      t_out, 10 ** 8), repeat=5)
+        err = np.max(np.abs(theta_x_of(structure, res[3][:, :layout.n_state], t_out, inputs,
+                                       case, rng) - theta_stick_ref))
+        stick_rows.append((f"vsj true stiction, step {h * 1e3:g} ms", f"{res[7].sum()} "
+                           "transitions", err, t_stick))
+
+    print(f"{'method':<45} {'setting':<18} {'error [rad]':>12} {'time [ms]':>10}")
+    for name, setting, err, t in rows + stick_rows:
+        print(f"{name:<45} {setting:<18} {err:12.2e} {t * 1e3:10.2f}")
+    print("  (stiction errors against the same solver at 0.1 ms)")
+
+    # batches: a sweep over the pivot position on both cores
+    qs = np.linspace(-0.022, 0.020, 1000)
+    initials = [InitialState(q=q) for q in qs]
+    batch_rows = []
+    for label, options in (("smooth", SimulationOptions(rtol=rtol, atol=atol, output_step=SAMPLE)),
+                           ("true stiction", SimulationOptions(friction="stiction",
+                                                               output_step=SAMPLE))):
+        simulate_batch(structure, inputs, DURATION, initials=initials[:4], options=options,
+                       pivot_range=rng)
+        b = simulate_batch(structure, inputs, DURATION, initials=initials, options=options,
+                           pivot_range=rng)
+        assert b.success.all()
+        batch_rows.append((label, len(qs) / b.wall_time))
+    print()
+    for label, rate in batch_rows:
+        print(f"batch of 1000 runs (q from -2.2 to 2.0 cm), {label}: {rate:.0f} runs/s "
+              f"({os.cpu_count()} cores)")
+
+    # first simulation in a fresh process (compiled code cached on disk)
+    code = ("import time; t0 = time.perf_counter(); import vsj; from vsj import scenario as s;"
+            "p = vsj.params.default(); sc = s.load('fig-4.15'); c = sc.cases[0];"
+            "_, st, i, r = s.prepare_case(sc, c, p); t1 = time.perf_counter();"
+            "vsj.simulate(st, i, 10.0, initial=c.initial, pivot_range=r);"
+            "t2 = time.perf_counter(); print(t1 - t0, t2 - t1)")
+    started = time.perf_counter()
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    total = time.perf_counter() - started
+    setup_s, first_sim = (float(v) for v in out.stdout.split())
+    print(f"fresh process: {total:.2f} s in all, of which imports and set-up {setup_s:.2f} s and "
+          f"the first simulation {first_sim:.2f} s")
+
+    print("\nratios (measured in this run) and the targets of issue 3:")
+    checks = [
+        ("scipy time / vsj time (integration)", t_scipy / t_vsj, ">= 30"),
+        ("vsj time / compiled loop time", t_vsj / t_rk4, "<= 2"),
+        ("true stiction, 10 s simulated [ms]", stick_rows[0][3] * 1e3, "<= 15"),
+        ("batch, smooth [runs/s]", batch_rows[0][1], ">= 500"),
+        ("batch, true stiction [runs/s]", batch_rows[1][1], ">= 250"),
+        ("first simulation in a fresh process [s]", first_sim, "<= 1"),
+    ]
+    for name, value, target in checks:
+        op, bound = target.split()
+        met = value >= float(bound) if op == ">=" else value <= float(bound)
+        print(f"  {name:<45} {value:10.2f}   target {target:<8} {'met' if met else 'NOT met'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
