@@ -24,6 +24,7 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
+	$(BIN)/python benchmarks/friction_laws.py
 
 clean:
 	rm -rf $(VENV) reproduction out build src/vsj.egg-info
