@@ -114,6 +114,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("scenarios", help="list the built-in scenarios")
     p.set_defaults(func=cmd_scenarios)
+
+    from . import cli_fit
+
+    cli_fit.register(sub)
     return parser
 
 

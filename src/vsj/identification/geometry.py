@@ -155,3 +155,80 @@ def calibrate_to_report(targets: ReportTargets | None = None, *, seed: int = 0,
     row = parameter_row(R, L, W, x0, y0, s0, k, targets)
     dims = dict(zip(GEOMETRY_FIELDS, row.tolist()))
     return {"dimensions": dims, "cost": float(result.fun), "assessment": assess(row, targets)}
+
+
+@dataclass
+class CurveCalibration:
+    """The geometry fitted to measured torque-deflection curves."""
+
+    dimensions: dict            # GEOMETRY_FIELDS -> SI value
+    start: dict                 # the geometry it started from
+    rms_before: float           # relative RMS deviation (of each curve's torque range)
+    rms_after: float
+    per_curve: list[dict]       # q, rms before and after, K of the calibrated model
+
+    def to_json(self) -> dict:
+        return {"dimensions": {k: {"value": v, "unit": _UNITS[k]}
+                               for k, v in self.dimensions.items()},
+                "relative_rms_before": self.rms_before, "relative_rms_after": self.rms_after,
+                "curves": self.per_curve}
+
+
+_UNITS = {"ring_radius": "m", "lever_length": "m", "lever_width": "m", "anchor_x": "m",
+          "anchor_y": "m", "rest_length": "m", "spring_stiffness": "N/m", "end_stop": "rad",
+          "end_stop_stiffness": "N m/rad"}
+#: Samples per curve used by the calibration (evenly spread over the loop).
+CALIBRATION_SAMPLES = 200
+
+
+def calibrate_to_curves(curves, start: dict) -> CurveCalibration:
+    """Fit the seven unknown dimensions to measured curves (`stiffness.CurveFit` list).
+
+    Each curve's friction hysteresis, offset and play (from its linear fit) are
+    taken out, leaving the elastic torque; the geometric model (eq 3.1-3.7) is
+    fitted to it by least squares on relative deviations (each curve counts in
+    proportion to its torque range, so soft and stiff settings weigh alike),
+    starting from ``start`` (for example the bundled estimate).
+    """
+    from scipy.optimize import least_squares
+
+    if len(curves) < 2:
+        raise ValueError("the geometry needs curves at two or more pivot positions")
+    data = []
+    for c in curves:
+        idx = np.linspace(0, len(c.deflection) - 1, min(CALIBRATION_SAMPLES,
+                                                       len(c.deflection))).astype(int)
+        phi = c.deflection[idx] - (0.5 * c.play.value * np.sign(c.torque[idx])
+                                   if c.play_detected else 0.0)
+        elastic = c.torque[idx] - c.hysteresis.value * c.direction[idx] - c.offset.value
+        data.append((c.q, phi, elastic, max(float(np.ptp(elastic)), 1e-9)))
+    names = GEOMETRY_FIELDS[:7]
+    x0 = np.log([start[n] if start[n] > 0 else 1e-4 for n in names])
+    tail = [start.get("end_stop", 1.40), start.get("end_stop_stiffness", 50.0)]
+
+    def row(x):
+        return np.concatenate([np.exp(x), tail])
+
+    def residual(x):
+        r = row(x)
+        out = []
+        for q, phi, elastic, scale in data:
+            model = ch.torque_curve(GEOMETRIC, r, q, phi)
+            out.append((model - elastic) / scale)
+        return np.concatenate(out) / math.sqrt(len(data))
+
+    before = residual(x0)
+    result = least_squares(residual, x0, x_scale=1.0, max_nfev=400)
+    after = result.fun
+    n = [len(d[1]) for d in data]
+    splits = np.cumsum(n)[:-1]
+    per = []
+    for (q, *_), b, a in zip(data, np.split(before, splits), np.split(after, splits)):
+        k = math.sqrt(len(data))
+        per.append({"q": q, "relative_rms_before": float(np.sqrt(np.mean((b * k) ** 2))),
+                    "relative_rms_after": float(np.sqrt(np.mean((a * k) ** 2))),
+                    "K_model": ch.stiffness(GEOMETRIC, row(result.x), q)})
+    dims = dict(zip(names, np.exp(result.x).tolist()))
+    return CurveCalibration(dims, {n: start[n] for n in names},
+                            float(np.sqrt(np.mean(before ** 2) * len(data))),
+                            float(np.sqrt(np.mean(after ** 2) * len(data))), per)

@@ -1,0 +1,322 @@
+"""``vsj synth`` and ``vsj fit``: the characterisation commands (section 4 of the report).
+
+Only argument handling and output here; the work is in `vsj.synth` and
+`vsj.identification`. With ``--json`` the result object is the only thing on
+standard output (messages go to standard error), so it can be piped.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from .errors import InputError
+
+
+def _floats(text: str, count: int, what: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise InputError(f"{what}: {text!r} is not a comma-separated list of numbers") from None
+    if len(values) != count:
+        raise InputError(f"{what}: expected {count} numbers, got {len(values)}")
+    return values
+
+
+def _params(path):
+    from . import params
+
+    return params.load(path)
+
+
+def _say(args, text: str) -> None:
+    """Human-readable output: stdout, or stderr when stdout carries JSON."""
+    print(text, file=sys.stderr if getattr(args, "json", False) else sys.stdout)
+
+
+def _emit_json(args, record: dict, out: Path | None, name: str) -> None:
+    from .output import write_meta
+
+    if out is not None:
+        write_meta(out / name, record)
+    if args.json:
+        from .output import _jsonable
+
+        print(json.dumps(_jsonable(record), indent=2))
+
+
+def cmd_synth_friction(args) -> int:
+    from . import measurements, synth
+
+    if args.report:
+        proto, _, fixed = args.report.partition("-")
+        if (proto, args.fixed) not in synth.REPORT_CONSTANTS:
+            raise InputError(f"--report must be 'old' or 'second', got {args.report!r}")
+        constants, params = synth.REPORT_CONSTANTS[(proto, args.fixed)], None
+    elif args.constants:
+        constants, params = _floats(args.constants, 3, "--constants c1,c2,c3"), None
+    else:
+        constants, params = None, _params(args.params)
+    data = synth.friction(fixed=args.fixed, constants=constants, params=params, form=args.form,
+                          noise=args.noise, ripple_fraction=args.ripple, angle=not args.no_angle,
+                          seed=args.seed)
+    measurements.write(args.out, data.columns, data.comments)
+    print(f"wrote {args.out} (synthetic, {len(next(iter(data.columns.values()))[0])} rows)")
+    return 0
+
+
+def cmd_synth_stiffness(args) -> int:
+    from . import measurements, synth
+
+    params = _params(args.params)
+    qs = [q / 100 for q in args.q]
+    out = Path(args.out)
+    for q in qs:
+        data = synth.stiffness(q=q, params=params, noise=args.noise, play=args.play,
+                               seed=args.seed + int(round(q * 1e4)) % 1000, model=args.model)
+        target = out if len(qs) == 1 and out.suffix == ".csv" else \
+            out / f"stiffness_q{q * 100:+.1f}cm.csv"
+        measurements.write(target, data.columns, data.comments)
+        print(f"wrote {target} (synthetic, q = {q * 100:g} cm)")
+    return 0
+
+
+def _out(args) -> Path | None:
+    return None if args.out is None else Path(args.out)
+
+
+def cmd_fit_friction(args) -> int:
+    from . import measurements
+    from .identification.friction import fit_curve
+    from .identification.plots import friction_figure
+    from .plots import save
+
+    m = measurements.read(args.file, required=("velocity", "torque"))
+    fit = fit_curve(m)
+    record = fit.to_json()
+    out = _out(args)
+    _emit_json(args, record, out, Path(args.file).stem + "-friction.json")
+    lines = [f"{args.file}: {fit.form}, {len(fit.velocity)} points"
+             + (" [synthetic data]" if fit.synthetic else "")]
+    for e in (fit.c1, fit.c2, fit.c3):
+        lines.append(f"  {e.name} = {e.value:.5g} +- {e.stderr:.2g} {e.unit}  "
+                     f"(95 %: {e.ci95[0]:.4g} .. {e.ci95[1]:.4g})")
+    if fit.ripple is not None:
+        lines.append(f"  ripple: rms {fit.ripple.rms * 1e3:.3g} mN m, peak-to-peak "
+                     f"{fit.ripple.peak_to_peak * 1e3:.3g} mN m ({fit.ripple.method})")
+    lines += [f"  note: {n}" for n in fit.notes]
+    if out is not None:
+        path = out / (Path(args.file).stem + "-friction.png")
+        save(friction_figure(fit), path)
+        lines.append(f"wrote {path}, {out / (Path(args.file).stem + '-friction.json')}")
+    _say(args, "\n".join(lines))
+    return 0
+
+
+def _write_params(path: str, overrides: dict, base: str | None) -> None:
+    from .output import atomic_write
+
+    params = _params(base)
+    identified = params.with_overrides(overrides, origin=str(path))
+    with atomic_write(Path(path)) as handle:
+        handle.write(identified.to_toml())
+
+
+def cmd_fit_planetary(args) -> int:
+    from . import measurements
+    from .identification.friction import fit_curve
+    from .identification.planetary import fit_planetary
+    from .identification.plots import planetary_figure
+    from .plots import save
+
+    sun = fit_curve(measurements.read(args.fixed_sun, required=("velocity", "torque")))
+    ring = fit_curve(measurements.read(args.fixed_ring, required=("velocity", "torque")))
+    result = fit_planetary(sun, ring, tooth_ratio=args.tooth_ratio,
+                           significance=args.significance)
+    out = _out(args)
+    _emit_json(args, result.to_json(), out, "planetary.json")
+    lines = [result.verdict]
+    for name, s in result.fits.items():
+        lines.append(f"{name} model: {'explains both curves' if s.explains else 'rejected'} "
+                     f"(chi2 {s.chi2:.3g} on {s.dof} dof, p = {s.p_value:.2g}; rms deviation "
+                     + ", ".join(f"{k} {v * 1e3:.3g} mN m" for k, v in s.misfit.items()) + ")")
+    chosen = result.chosen
+    if chosen is not None:
+        lines.append(f"parameters ({chosen.structure} model):")
+        for e in chosen.parameters:
+            err = (f"+- {e.stderr:.2g}" if e.stderr == e.stderr and e.stderr != float("inf")
+                   else "(at a bound)" if e.name in chosen.at_bound else "(not determined)")
+            lines.append(f"  {e.name:<5} = {e.value:.5g} {err} {e.unit}")
+        if chosen.undetermined:
+            lines.append("  not determined by these data: " + ", ".join(chosen.undetermined))
+        for c in chosen.combinations:
+            lines.append(f"  determined: {c}")
+        if chosen.at_bound:
+            lines.append("  at a bound: " + ", ".join(chosen.at_bound))
+    if out is not None:
+        save(planetary_figure(result), out / "planetary.png")
+        lines.append(f"wrote {out / 'planetary.png'}, {out / 'planetary.json'}")
+    if args.write_params:
+        files = f"{args.fixed_sun} and {args.fixed_ring}"
+        _write_params(args.write_params, result.parameter_overrides(files), args.params)
+        lines.append(f"wrote {args.write_params}")
+    _say(args, "\n".join(lines))
+    if chosen is None:
+        print("vsj: no parameter set explains both curves", file=sys.stderr)
+        return 1
+    return 0
+
+
+def cmd_fit_stiffness(args) -> int:
+    from . import measurements
+    from .identification.plots import geometry_figure, stiffness_figure
+    from .identification.stiffness import fit_stiffness
+    from .plots import save
+
+    data = [measurements.read(f, required=("deflection", "torque")) for f in args.files]
+    fit = fit_stiffness(data)
+    record = fit.to_json()
+    out = _out(args)
+    lines = []
+    for c in fit.curves:
+        extra = []
+        if c.play_detected:
+            extra.append(f"play {c.play.value * 1e3:.3g} mrad")
+        if c.pretension_loss is not None:
+            extra.append(f"stiffness drops beyond {c.pretension_loss:.3g} rad")
+        lines.append(f"q = {c.q * 100:6.3g} cm: K = {c.K.value:.4g} +- {c.K.stderr:.2g} N m/rad, "
+                     f"hysteresis {c.hysteresis.value * 1e3:.3g} mN m, linear to "
+                     f"{c.linear_limit:.3g} rad" + ("; " + ", ".join(extra) if extra else ""))
+    e = fit.exponential
+    if e is not None:
+        lines.append(f"K(q) = a1 exp(a2 q) + a3: a1 = {e.a1.value:.4g} +- {e.a1.stderr:.2g} N m/rad, "
+                     f"a2 = {e.a2.value / 100:.4g} +- {e.a2.stderr / 100:.2g} 1/cm, "
+                     f"a3 = {e.a3.value:.4g} +- {e.a3.stderr:.2g} N m/rad "
+                     f"(relative rms {e.relative_rms:.2g})")
+    else:
+        lines.append("K(q) not fitted: curves at 4 or more pivot positions are needed")
+    calibration = None
+    overrides = {}
+    if args.calibrate_geometry:
+        from .components.elastic_element import GEOMETRY_FIELDS
+        from .identification.geometry import calibrate_to_curves
+        from .wrist import geometry
+
+        base = _params(args.params)
+        start = dict(zip(GEOMETRY_FIELDS, geometry(base)))
+        calibration = calibrate_to_curves(fit.curves, start)
+        record["geometry"] = calibration.to_json()
+        lines.append(f"geometry calibrated: relative rms {calibration.rms_before:.3g} -> "
+                     f"{calibration.rms_after:.3g}")
+        units = {"spring_stiffness": "N/m"}
+        for k, v in calibration.dimensions.items():
+            unit = units.get(k, "cm")
+            value = v * 100 if unit == "cm" else v
+            overrides[f"elastic_element.{k}"] = {"value": f"{value:.6g} {unit}"}
+            lines.append(f"  {k} = {value:.5g} {unit}")
+    _emit_json(args, record, out, "stiffness.json")
+    if out is not None:
+        from .components.elastic_element import GEOMETRIC
+        from . import characteristics as ch
+
+        model_K = None
+        if calibration is not None:
+            row = _row(calibration.dimensions, start)
+            model_K = lambda q: ch.stiffness(GEOMETRIC, row, q)  # noqa: E731
+        save(stiffness_figure(fit, model_K), out / "stiffness.png")
+        lines.append(f"wrote {out / 'stiffness.png'}, {out / 'stiffness.json'}")
+        if calibration is not None:
+            save(geometry_figure(calibration, fit.curves, _row(start, start),
+                                 _row(calibration.dimensions, start)), out / "geometry.png")
+            lines.append(f"wrote {out / 'geometry.png'}")
+    if args.write_params:
+        if e is not None:
+            for name, unit, scale in (("a1", "N m/rad", 1), ("a2", "1/cm", 0.01),
+                                      ("a3", "N m/rad", 1)):
+                overrides[f"elastic_element.{name}"] = {
+                    "value": f"{getattr(e, name).value * scale:.6g} {unit}"}
+        if not overrides:
+            raise InputError("nothing to write: no K(q) fit and no --calibrate-geometry")
+        source = "identified from " + ", ".join(args.files)
+        for v in overrides.values():
+            v["source"] = source
+        _write_params(args.write_params, overrides, args.params)
+        lines.append(f"wrote {args.write_params}")
+    _say(args, "\n".join(lines))
+    return 0
+
+
+def _row(dims: dict, start: dict):
+    import numpy as np
+
+    from .components.elastic_element import GEOMETRY_FIELDS
+
+    return np.array([dims.get(k, start.get(k)) for k in GEOMETRY_FIELDS])
+
+
+def register(sub) -> None:
+    """Add ``synth`` and ``fit`` with their sub-commands to an argparse sub-parser set."""
+    p = sub.add_parser("synth", help="write synthetic measurement files (labelled synthetic)")
+    kinds = p.add_subparsers(dest="kind", required=True)
+    f = kinds.add_parser("friction", help="a fixed-sun or fixed-ring torque-velocity curve")
+    f.add_argument("--fixed", choices=("sun", "ring"), required=True)
+    source = f.add_mutually_exclusive_group()
+    source.add_argument("--report", choices=("old", "second"),
+                        help="use the report's fitted constants (fig 4.2-4.5)")
+    source.add_argument("--constants", metavar="C1,C2,C3",
+                        help="T = c1 w + c2 atan(c3 w) with these constants (SI)")
+    source.add_argument("--params", metavar="FILE",
+                        help="simulate the bench with this parameter set (default: bundled)")
+    f.add_argument("--form", choices=("segments", "points", "sweep"), default="segments")
+    f.add_argument("--noise", type=float, default=0.02,
+                   help="torque noise sd, relative to the largest torque (default 0.02)")
+    f.add_argument("--ripple", type=float, default=0.15,
+                   help="angle-dependent ripple rms, relative to the largest torque")
+    f.add_argument("--no-angle", action="store_true", help="leave out the angle column")
+    f.add_argument("--seed", type=int, default=1)
+    f.add_argument("--out", required=True, metavar="FILE")
+    f.set_defaults(func=cmd_synth_friction)
+    s = kinds.add_parser("stiffness", help="torque-deflection curves of the elastic bench")
+    s.add_argument("--q", type=float, action="append", required=True, metavar="CM",
+                   help="pivot position in cm (repeat for several curves)")
+    s.add_argument("--params", metavar="FILE", help="parameter file (default: bundled)")
+    s.add_argument("--model", choices=("geometric", "exponential"), default="geometric")
+    s.add_argument("--noise", type=float, default=0.01)
+    s.add_argument("--play", type=float, default=None,
+                   help="pivot play [rad] (default 0.02 at q <= -1.6 cm, else 0)")
+    s.add_argument("--seed", type=int, default=1)
+    s.add_argument("--out", required=True,
+                   help="a .csv file for one curve, else a directory")
+    s.set_defaults(func=cmd_synth_stiffness)
+
+    p = sub.add_parser("fit", help="fit the report's models to measurement files")
+    kinds = p.add_subparsers(dest="kind", required=True)
+    f = kinds.add_parser("friction", help="T = c1 w + c2 atan(c3 w) to one curve (eq 4.2)")
+    f.add_argument("file")
+    f.add_argument("--json", action="store_true", help="print the result as JSON")
+    f.add_argument("--out", metavar="DIR", help="write the plot and JSON here")
+    f.set_defaults(func=cmd_fit_friction)
+    g = kinds.add_parser("planetary", help="the planetary module's parameters from both tests")
+    g.add_argument("--fixed-sun", required=True, metavar="FILE")
+    g.add_argument("--fixed-ring", required=True, metavar="FILE")
+    g.add_argument("--tooth-ratio", type=float, metavar="X",
+                   help="N_S/N_R when known (otherwise fitted)")
+    g.add_argument("--significance", type=float, default=1e-3,
+                   help="chi-square level below which a model is rejected (default 1e-3)")
+    g.add_argument("--json", action="store_true")
+    g.add_argument("--out", metavar="DIR", help="write the plot and JSON here")
+    g.add_argument("--params", metavar="FILE", help="base parameter set for --write-params")
+    g.add_argument("--write-params", metavar="FILE",
+                   help="write the base set with the identified planetary parameters")
+    g.set_defaults(func=cmd_fit_planetary)
+    k = kinds.add_parser("stiffness", help="K per curve and K(q) (eq 4.5) from several curves")
+    k.add_argument("files", nargs="+")
+    k.add_argument("--json", action="store_true")
+    k.add_argument("--out", metavar="DIR", help="write plots and JSON here")
+    k.add_argument("--calibrate-geometry", action="store_true",
+                   help="also fit the geometric model's dimensions to the curves")
+    k.add_argument("--params", metavar="FILE", help="base parameter set")
+    k.add_argument("--write-params", metavar="FILE",
+                   help="write the base set with a1..a3 (and the calibrated geometry)")
+    k.set_defaults(func=cmd_fit_stiffness)

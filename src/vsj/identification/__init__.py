@@ -1,0 +1,1 @@
+"""Characterisation: fitting the report's models to measurement files (section 4)."""

@@ -1,0 +1,253 @@
+"""Torque-velocity curves of the planetary module: T(w) = c1 w + c2 atan(c3 w).
+
+Report section 4.1 (eq 4.2, 4.4): with the sun or the ring fixed, the torque
+needed to drive the carrier at a constant speed follows this form. A
+measurement comes in one of three forms, recognised automatically:
+
+* ``points``: velocity and torque only, one row per speed (already averaged);
+* ``segments``: a time series with the carrier held at a series of constant
+  speeds; each plateau is averaged after its transient;
+* ``sweep``: a time series with slowly varying speed; every sample is fitted.
+
+With an angle column the angle-dependent ripple of fig 4.6 is separated from
+the friction and reported (the report could not): every sample of the
+plateaus (or of the sweep) is fitted at once with the curve plus a Fourier
+series in the carrier angle, mirrored with the direction of motion as fig 4.6
+shows, so the ripple's own uncertainty enters the constants'. Uncertainties are
+the usual least-squares ones: standard errors from the residual variance and
+the Jacobian, 95 % confidence intervals from Student's t.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+from scipy.optimize import least_squares
+
+from ..errors import InputError, SimulationError
+from ..measurements import Measurement
+
+#: Harmonics of the carrier angle used for the ripple.
+RIPPLE_HARMONICS = 4
+#: A plateau: speed within this fraction (plus 5 mrad/s) of its start...
+PLATEAU_TOLERANCE = 0.01
+#: ... for at least this long [s] (a slow sweep never stays that long); its first
+#: part is discarded as transient.
+PLATEAU_MIN_DURATION = 1.0
+TRANSIENT_FRACTION = 0.25
+TAIL_FRACTION = 0.05
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A fitted parameter: value, unit, standard error and 95 % confidence interval."""
+
+    name: str
+    value: float
+    unit: str
+    stderr: float
+    ci95: tuple[float, float]
+
+    def to_json(self) -> dict:
+        """JSON form; a standard error that does not exist (parameter at a bound, or not
+        determined by the data) is null, and so is its interval."""
+        finite = math.isfinite(self.stderr)
+        return {"value": self.value, "unit": self.unit,
+                "stderr": self.stderr if finite else None,
+                "ci95": list(self.ci95) if finite else None}
+
+
+@dataclass
+class Ripple:
+    """Angle-dependent torque ripple separated from the friction curve."""
+
+    method: str
+    rms: float          # N m
+    peak_to_peak: float  # N m
+    angle: np.ndarray   # rad, a grid over one revolution
+    torque: np.ndarray  # N m, ripple at positive speed on that grid
+
+    def to_json(self) -> dict:
+        return {"method": self.method, "rms": self.rms, "peak_to_peak": self.peak_to_peak,
+                "unit": "N m"}
+
+
+@dataclass
+class FrictionFit:
+    """Result of `fit_curve`: c1, c2, c3 with uncertainties and the data used."""
+
+    c1: Estimate
+    c2: Estimate
+    c3: Estimate
+    form: str
+    velocity: np.ndarray      # the fitted points (segment means, points or samples)
+    torque: np.ndarray
+    residual_rms: float
+    dof: int
+    ripple: Ripple | None = None
+    raw: tuple[np.ndarray, np.ndarray] | None = None
+    source: str = ""
+    synthetic: bool = False
+    notes: list[str] = field(default_factory=list)
+
+    def predict(self, velocity) -> np.ndarray:
+        w = np.asarray(velocity, dtype=float)
+        return self.c1.value * w + self.c2.value * np.arctan(self.c3.value * w)
+
+    @property
+    def values(self) -> np.ndarray:
+        return np.array([self.c1.value, self.c2.value, self.c3.value])
+
+    def to_json(self) -> dict:
+        return {"file": self.source, "synthetic": self.synthetic, "form": self.form,
+                "model": "T = c1 w + c2 atan(c3 w)",
+                "c1": self.c1.to_json(), "c2": self.c2.to_json(), "c3": self.c3.to_json(),
+                "points": int(len(self.velocity)), "residual_rms": self.residual_rms,
+                "ripple": None if self.ripple is None else self.ripple.to_json(),
+                "notes": self.notes}
+
+
+def curve(c, w):
+    return c[0] * w + c[1] * np.arctan(c[2] * w)
+
+
+def estimates(result, names, units, dof, scale=1.0) -> list[Estimate]:
+    """Standard errors and 95 % intervals from a least-squares result."""
+    J = result.jac
+    rss = float(np.sum(result.fun ** 2))
+    s2 = rss / max(dof, 1) * scale
+    try:
+        cov = np.linalg.inv(J.T @ J) * s2
+        err = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    except np.linalg.LinAlgError:
+        err = np.full(len(names), math.inf)
+    t = stats.t.ppf(0.975, max(dof, 1))
+    return [Estimate(n, float(v), u, float(e), (float(v - t * e), float(v + t * e)))
+            for n, v, u, e in zip(names, result.x, units, err)]
+
+
+def plateaus(time: np.ndarray, velocity: np.ndarray) -> list[slice]:
+    """Index ranges where the speed stays constant long enough (transient removed)."""
+    out = []
+    n = len(time)
+    start = 0
+    while start < n:
+        ref = velocity[start]
+        tol = PLATEAU_TOLERANCE * abs(ref) + 0.005
+        end = start + 1
+        while end < n and abs(velocity[end] - ref) <= tol:
+            end += 1
+        if time[end - 1] - time[start] >= PLATEAU_MIN_DURATION and abs(ref) > 1e-9:
+            skip = int(math.ceil(TRANSIENT_FRACTION * (end - start)))
+            tail = int(math.ceil(TAIL_FRACTION * (end - start)))  # the next ramp's start
+            out.append(slice(start + skip, end - tail))
+        start = end
+    return out
+
+
+def _ripple(coef, method: str) -> Ripple:
+    grid = np.linspace(0, 2 * math.pi, 181)
+    shape = _fourier(grid) @ coef
+    return Ripple(method, float(np.sqrt(np.mean(shape ** 2))), float(np.ptp(shape)), grid, shape)
+
+
+def _fourier(angle: np.ndarray) -> np.ndarray:
+    cols = [np.ones_like(angle)]
+    for k in range(1, RIPPLE_HARMONICS + 1):
+        cols += [np.cos(k * angle), np.sin(k * angle)]
+    return np.column_stack(cols)
+
+
+def _profile_c3(w, T, extra=None):
+    """The best c3 on a log grid, with c1, c2 >= 0 (and any extra linear columns) solved
+    exactly for each: the model is linear in everything but c3."""
+    from scipy.optimize import lsq_linear
+
+    n_extra = 0 if extra is None else extra.shape[1]
+    lower = np.concatenate([[0.0, 0.0], np.full(n_extra, -np.inf)])
+    best = (math.inf, None, None)
+    for c3 in np.logspace(-2, 4, 121):
+        cols = [w, np.arctan(c3 * w)] + ([] if extra is None else [extra])
+        A = np.column_stack(cols)
+        sol = lsq_linear(A, T, bounds=(lower, np.inf))
+        if sol.cost < best[0]:
+            best = (sol.cost, c3, sol.x)
+    _, c3, lin = best
+    return np.concatenate([[lin[0], lin[1], c3], lin[2:]])
+
+
+def fit_curve(m: Measurement) -> FrictionFit:
+    """Fit T = c1 w + c2 atan(c3 w) to one torque-velocity measurement."""
+    if "velocity" not in m or "torque" not in m:
+        raise InputError(f"{m.path}: a friction fit needs velocity and torque columns")
+    notes: list[str] = []
+    angle = m.columns.get("angle")
+    w, T = m["velocity"], m["torque"]
+    raw = (w, T)
+    if "time" not in m:
+        form, keep = "points", np.arange(len(w))
+    else:
+        segments = plateaus(m["time"], w)
+        covered = sum(s.stop - s.start for s in segments) / len(m)
+        if len(segments) >= 4 and covered >= 0.3:
+            form = "segments"
+            keep = np.concatenate([np.arange(s.start, s.stop) for s in segments])
+        else:
+            form, keep = "sweep", np.arange(len(w))
+    ripple = None
+    if form != "points" and angle is not None:
+        # every kept sample, friction and ripple together: T = curve(w) + sign(w) F(angle),
+        # F a Fourier series in the carrier angle, mirrored with the direction (fig 4.6)
+        w, T = w[keep], T[keep]
+        A = _fourier(np.mod(angle[keep], 2 * math.pi))[:, 1:] * np.sign(w)[:, None]
+
+        def residual(p):
+            return curve(p[:3], w) + A @ p[3:] - T
+
+        p0 = _profile_c3(w, T, A)
+        lower = [0.0, 0.0, 1e-6] + [-np.inf] * A.shape[1]
+        result = least_squares(residual, p0, bounds=(lower, np.inf), x_scale="jac")
+        ripple = _ripple(np.concatenate([[0.0], result.x[3:]]), "Fourier series in the carrier "
+                         "angle, fitted with the curve to every sample" +
+                         (" of the plateaus" if form == "segments" else ""))
+        # the points shown are the plateau means with the fitted ripple taken out
+        if form == "segments":
+            rip = A @ result.x[3:]
+            w, T = _means(segments, m["velocity"], m["torque"], keep, rip)
+    else:
+        if form == "segments":
+            w, T = _means(segments, m["velocity"], m["torque"], keep, None)
+        elif form == "sweep":
+            w, T = w[keep], T[keep]
+        result = least_squares(lambda p: curve(p, w) - T, _profile_c3(w, T),
+                               bounds=([0, 0, 1e-6], np.inf), x_scale="jac")
+    if len(result.fun) < 4:
+        raise InputError(f"{m.path}: {len(result.fun)} usable points ({form}); at least 4 speeds "
+                         "are needed to fit three constants")
+    if not result.success:
+        raise SimulationError(f"{m.path}: the friction fit did not converge ({result.message})")
+    if np.all(raw[0] >= 0) or np.all(raw[0] <= 0):
+        notes.append("all speeds have one sign: the fit assumes the curve is odd")
+    dof = len(result.fun) - len(result.x)
+    names = ["c1", "c2", "c3"] + [f"ripple{i}" for i in range(len(result.x) - 3)]
+    units = ["N m s/rad", "N m", "s/rad"] + ["N m"] * (len(result.x) - 3)
+    est = estimates(result, names, units, dof)
+    return FrictionFit(c1=est[0], c2=est[1], c3=est[2], form=form, velocity=np.asarray(w),
+                       torque=np.asarray(T), residual_rms=float(np.sqrt(np.mean(result.fun ** 2))),
+                       dof=dof, ripple=ripple, raw=raw, source=m.path, synthetic=m.synthetic,
+                       notes=notes)
+
+
+def _means(segments, velocity, torque, keep, ripple):
+    """Mean speed and torque of each plateau (less the fitted ripple, if given)."""
+    corrected = torque[keep] - (0.0 if ripple is None else ripple)
+    speeds, torques, start = [], [], 0
+    for seg in segments:
+        n = seg.stop - seg.start
+        speeds.append(float(np.mean(velocity[keep][start:start + n])))
+        torques.append(float(np.mean(corrected[start:start + n])))
+        start += n
+    return np.array(speeds), np.array(torques)
