@@ -16,8 +16,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 reproduce: $(STAMP)
-	for s in $$($(BIN)/vsj scenarios | cut -d' ' -f1); do \
-		$(BIN)/vsj simulate $$s --out reproduction/$$s || exit $$?; done
+	$(BIN)/vsj reproduce --out reproduction
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -90,6 +90,27 @@ def cmd_scenarios(args) -> int:
     return 0
 
 
+def cmd_reproduce(args) -> int:
+    import time
+
+    from .reproduce import run
+
+    params = _params(args.params)
+    start = time.perf_counter()
+    result = run(Path(args.out), params, reduced=args.reduced, only=args.only)
+    for o in result.outcomes:
+        status = "ok" if o.error is None else f"FAILED: {o.error}"
+        print(f"{o.name:<9} {status}")
+    print(f"{len(result.rows())} numbers compared; wrote {len(result.outcomes) - len(result.failed)}"
+          f" figures, {Path(args.out) / 'report.html'} and {Path(args.out) / 'results.json'} in "
+          f"{time.perf_counter() - start:.0f} s")
+    if result.failed:
+        for o in result.failed:
+            print(f"vsj: {o.name} failed:\n{o.traceback}", file=sys.stderr)
+        return 1
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
@@ -114,6 +135,16 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("scenarios", help="list the built-in scenarios")
     p.set_defaults(func=cmd_scenarios)
+
+    p = sub.add_parser("reproduce", help="regenerate every figure of the report with the "
+                                         "report's numbers beside vsj's")
+    p.add_argument("--out", metavar="DIR", default="reproduction",
+                   help="output directory (default reproduction)")
+    p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
+    p.add_argument("--reduced", action="store_true",
+                   help="cheaper runs (fewer cases, shorter simulations), same figures and rows")
+    p.add_argument("--only", nargs="+", metavar="FIG", help="only these figures (fig-4.13 ...)")
+    p.set_defaults(func=cmd_reproduce)
 
     from . import cli_fit
 

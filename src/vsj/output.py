@@ -31,6 +31,9 @@ def atomic_write(path: Path, mode: str = "w"):
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; results are ordinary files
     try:
         with os.fdopen(fd, mode, encoding=None if "b" in mode else "utf-8",
                        newline="" if "b" not in mode else None) as handle:

@@ -1,0 +1,653 @@
+"""Model-side figures of the report: elastic element (fig 3.5-3.7), wrist (fig 4.14, 4.15).
+
+One function per figure, each ``fig_X_Y(ctx) -> Figure`` (`vsj.reproduce.base`):
+it computes with the library (`vsj.characteristics` for the elastic element's
+static curves, the built-in scenarios ``fig-4.14`` and ``fig-4.15`` for the
+whole wrist), draws the report's axes on a `matplotlib.figure.Figure` (no
+pyplot state), and returns one `Row` per number or statement the report gives
+for that figure beside vsj's value. The report's figures are images; what the
+report *states* is its text (section 3.2.2, 4.2.2, 4.3), so where a figure
+carries only a curve the row says so and vsj's value stands alone.
+
+The elastic element is shown in three forms (`vsj.components.elastic_element`):
+the physical potential model (``geometric``), eq 3.8 as printed
+(``geometric-report``) and the simplified linear spring of eq 4.5
+(``exponential``). Deflections are in rad, torques in N m, and pivot positions
+in cm, as the report plots them.
+
+None of these figures contains synthetic measurement data.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.figure import Figure as MplFigure
+from scipy.optimize import brentq
+
+from .. import characteristics as ch
+from .. import scenario as scenarios
+from ..components.elastic_element import (EXPONENTIAL, GEOMETRIC, GEOMETRIC_REPORT,
+                                          GEOMETRY_FIELDS)
+from ..errors import SimulationError
+from ..identification.geometry import TESTED_Q, ReportTargets
+from ..params import Parameters
+from ..simulate import simulate
+from ..units import to_si
+from ..wrist import exponential, geometry
+from .base import Context, Figure, Row
+
+#: Load of report fig 3.5 [N m] (section 3.2.2: "a load of 1 N m").
+LOAD = 1.0
+#: Pretension left in the springs for the "not properly pretensioned" panel of fig 3.7,
+#: as a fraction of the calibrated pretension (the report gives no value).
+LOW_PRETENSION = 0.25
+#: Deflection at which fig 3.7 compares the curves of different pivot positions [rad].
+COMPARE_AT = 0.5
+#: Pivot grid step of the fig 3.5/3.6 sweeps [m]: full and reduced mode.
+Q_STEP = 0.0005
+Q_STEP_REDUCED = 0.002
+#: Report's statements, kept with the calibration that uses them.
+TARGETS = ReportTargets()
+
+#: Elastic models drawn in fig 3.5 and 3.6: law, label, line style.
+MODELS = (
+    (GEOMETRIC, "geometric model, potential form (physical)", "-"),
+    (GEOMETRIC_REPORT, "geometric model, eq 3.8 as printed", "--"),
+    (EXPONENTIAL, "simplified model, eq 4.5 (linear spring)", ":"),
+)
+SHORT = {GEOMETRIC: "potential model", GEOMETRIC_REPORT: "eq 3.8 model",
+         EXPONENTIAL: "eq 4.5 model"}
+
+
+def _parameter_set(params: Parameters) -> str:
+    return f"parameter set '{params.meta.get('name', params.origin)}' (hash {params.hash()[:12]})"
+
+
+def _law_row(params: Parameters, law: int) -> tuple[float, ...]:
+    return exponential(params) if law == EXPONENTIAL else geometry(params)
+
+
+def _cm(q: float) -> str:
+    return f"{q * 100:+.1f} cm"
+
+
+def _q_grid(ctx: Context, lo: float, hi: float) -> np.ndarray:
+    step = Q_STEP_REDUCED if ctx.reduced else Q_STEP
+    return np.linspace(lo, hi, int(round((hi - lo) / step)) + 1)
+
+
+def _largest_torque(law: int, par, q: float, stop: float) -> float:
+    """Largest restoring torque [N m] the element gives before the end stop."""
+    phis = np.linspace(0.0, stop, int(round(stop / ch.GRID)) + 1)
+    return float(np.max(ch.torque_curve(law, par, q, phis)))
+
+
+def _largest_q_holding(law: int, par, load: float, stop: float, q_lo: float,
+                       q_hi: float) -> float:
+    """Most compliant pivot position [m] at which ``load`` is held before the end stop.
+
+    ``-inf`` when no position in ``[q_lo, q_hi]`` holds it, ``q_hi`` when all do.
+    """
+    def margin(q):
+        return _largest_torque(law, par, q, stop) - load
+
+    if margin(q_lo) < 0.0:
+        return -math.inf
+    if margin(q_hi) >= 0.0:
+        return q_hi
+    return brentq(margin, q_lo, q_hi, xtol=1e-6)
+
+
+def _slack_range(ctx: Context, params: Parameters) -> tuple[list[float], float]:
+    """Pivot positions [m] of the sweep where a spring goes slack within the tested range.
+
+    The tested range is modelled on fig 4.10-4.12 (`ReportTargets.tested_range`).
+    Returns the positions and the sweep's step.
+    """
+    stop = params.elastic_element.end_stop
+    par = geometry(params)
+    qs = _q_grid(ctx, params.pivot.q_min, params.pivot.q_max)
+    seen = [float(q) for q in qs
+            if ch.pretension_loss(par, q, limit=stop) < TARGETS.tested_range(q)]
+    return seen, float(qs[1] - qs[0])
+
+
+def _range_text(seen: list[float]) -> str:
+    return f"{max(seen) * 100:.2f} to {min(seen) * 100:.2f} cm" if seen else "none"
+
+
+# -- fig 3.5 -----------------------------------------------------------------
+
+
+def fig_3_5(ctx: Context) -> Figure:
+    """Equilibrium deflection under 1 N m against the pivot position (report fig 3.5)."""
+    params = ctx.params
+    stop = params.elastic_element.end_stop
+    q_lo, q_hi = params.pivot.q_min, params.pivot.q_max
+    qs = _q_grid(ctx, q_lo, 0.0)  # the report shows q <= 0 only
+    fig = MplFigure(figsize=(11, 4.2), layout="constrained")
+    ax_phi, ax_tau = fig.subplots(1, 2)
+    largest = {}
+    for law, label, style in MODELS:
+        par = _law_row(params, law)
+        phi = [ch.deflection_under(law, par, q, LOAD, limit=stop) for q in qs]
+        torque = [_largest_torque(law, par, q, stop) for q in qs]
+        ax_phi.plot(qs * 100, phi, style, lw=1.6, label=label)
+        ax_tau.plot(qs * 100, torque, style, lw=1.6, label=label)
+        largest[law] = {q: _largest_torque(law, par, q, stop) for q in TESTED_Q if q <= 0.0}
+    ax_phi.axhline(stop, color="k", lw=0.8, ls="-.", label=f"end stop {stop:.2f} rad")
+    ax_phi.set(xlabel="pivot position q [cm]", ylabel="deflection φ under 1 N m [rad]",
+               title="equilibrium deflection under a 1 N m load", ylim=(0, stop * 1.12))
+    ax_tau.axhline(LOAD, color="k", lw=0.8, ls="-.", label="load 1 N m")
+    ax_tau.set(xlabel="pivot position q [cm]",
+               ylabel="largest restoring torque before the stop [N m]",
+               title="why: the element's torque capacity", yscale="log")
+    for ax in (ax_phi, ax_tau):
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+
+    K_needed = LOAD / stop
+    a1, a2, a3 = params.elastic_element.a1, params.elastic_element.a2, params.elastic_element.a3
+    K0 = a1 + a3
+    rows = [Row("physical end stop |φ|", 1.40, stop, "rad", "section 3.2.2",
+                "the report's value, used as the parameter elastic_element.end_stop")]
+    for law, _, _ in MODELS:
+        par = _law_row(params, law)
+        q_max = _largest_q_holding(law, par, LOAD, stop, q_lo, q_hi)
+        if q_max >= 0.0:
+            note = "agrees: 1 N m is held up to q = 0."
+        elif law == EXPONENTIAL:
+            note = (f"a linear spring of the measured stiffness K(q) (eq 4.5) holds 1 N m "
+                    f"within {stop:.2f} rad only where K >= {K_needed:.2f} N m/rad; at q = 0 "
+                    f"the measured K is {K0:.2f} N m/rad, a 1 N m load would need "
+                    f"{LOAD / K0:.1f} rad. The report's statement is inconsistent with its own "
+                    "measurements (fig 4.13); its fig 3.5 used unpublished dimensions.")
+        else:
+            peak = largest[law]
+            note = ("vsj's geometry is calibrated to the measured stiffness (fig 4.10-4.13), "
+                    "which is too compliant to hold 1 N m near q = 0 (see the eq 4.5 row), and "
+                    "the lever's swing makes the torque peak and fall: largest torque before "
+                    "the stop " + ", ".join(f"{peak[q]:.2f} N m at {_cm(q)}"
+                                            for q in sorted(peak)) + ".")
+        rows.append(Row(f"largest q holding 1 N m before the end stop ({SHORT[law]})", 0.0,
+                        round(q_max * 100, 2) if math.isfinite(q_max) else "none", "cm",
+                        "section 3.2.2, fig 3.5",
+                        "report: 'values of q higher than 0 have not been displayed, because "
+                        "... the physical limit is reached'. " + note))
+    par = _law_row(params, GEOMETRIC)
+    for q in sorted(q for q in TESTED_Q if q <= 0.0):
+        phi = ch.deflection_under(GEOMETRIC, par, q, LOAD, limit=stop)
+        at_stop = phi >= stop
+        rows.append(Row(f"deflection under 1 N m at q = {_cm(q)} (potential model)",
+                        "curve only (fig 3.5)", round(phi, 4), "rad", "fig 3.5",
+                        (f"at the end stop: the largest torque before it is "
+                         f"{largest[GEOMETRIC][q]:.2f} N m" if at_stop else
+                         "held before the end stop")))
+    caption = (f"Report fig 3.5: static deflection of one VSM elastic element under a {LOAD:g} N m "
+               f"load, for pivot positions q = {q_lo * 100:.1f} ... 0 cm (step "
+               f"{(qs[1] - qs[0]) * 100:.2f} cm), end stop at {stop:.2f} rad; left the "
+               "deflection, right the largest torque the element gives before the stop. Static "
+               "curves of the three elastic models (no friction, no dynamics), "
+               f"{_parameter_set(params)}: geometry calibrated to the measured stiffness, eq 4.5 "
+               f"with a1 = {a1:g} N m/rad, a2 = {a2 / 100:g} 1/cm, a3 = {a3:g} N m/rad.")
+    return Figure("fig-3.5", fig, caption, rows)
+
+
+# -- fig 3.6 -----------------------------------------------------------------
+
+
+def fig_3_6(ctx: Context) -> Figure:
+    """Non-linearity of the elastic element against the pivot position (report fig 3.6)."""
+    params = ctx.params
+    stop = params.elastic_element.end_stop
+    q_lo, q_hi = params.pivot.q_min, params.pivot.q_max
+    qs = _q_grid(ctx, q_lo, q_hi)
+    report_lo, report_hi = TARGETS.nonlinearity_peak
+    fig = MplFigure(figsize=(11, 4.2), layout="constrained")
+    ax_rel, ax_abs = fig.subplots(1, 2)
+    peaks = {}
+    for law, label, style in MODELS[:2]:  # eq 4.5 is linear by definition
+        par = _law_row(params, law)
+        rel = np.array([ch.nonlinearity(law, par, q, max_torque=LOAD, limit=stop) for q in qs])
+        absolute = rel * np.array([ch.stiffness(law, par, q)
+                                   * ch.deflection_under(law, par, q, LOAD, limit=stop)
+                                   for q in qs])
+        ax_rel.plot(qs * 100, rel, style, lw=1.6, label=label)
+        ax_abs.plot(qs * 100, absolute, style, lw=1.6, label=label)
+        peaks[law] = (float(qs[int(np.argmax(rel))]), float(rel.max()),
+                      float(qs[int(np.argmax(absolute))]))
+    for ax in (ax_rel, ax_abs):
+        ax.axvspan(report_lo * 100, report_hi * 100, color="tab:orange", alpha=0.15,
+                   label="report: highest non-linearity")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    ax_rel.set(xlabel="pivot position q [cm]",
+               ylabel="RMS(curve - tangent) / tangent torque at φ_max [-]",
+               title="relative non-linearity")
+    ax_abs.set(xlabel="pivot position q [cm]", ylabel="RMS(curve - tangent) [N m]",
+               title="absolute non-linearity")
+    slack = _range_text(_slack_range(ctx, params)[0])
+    why = ("The curves are evaluated, as the report does, up to the deflection under 1 N m or "
+           "the end stop; vsj's element holds 1 N m only at the stiffest settings (fig 3.5), so "
+           "elsewhere the curve runs to 1.40 rad, past its torque maximum, and is least linear "
+           "where the lever swings fastest (stiff end). The pretension loss that the report "
+           f"blames lies at q = {slack} in vsj (fig 3.7) but is outweighed. The calibration "
+           "(vsj.identification.geometry) found the peak cannot be moved into the report's "
+           "range while keeping the measured K.")
+    rows = []
+    for law in (GEOMETRIC, GEOMETRIC_REPORT):
+        q_peak, value, q_peak_abs = peaks[law]
+        inside = report_lo <= q_peak <= report_hi
+        rows.append(Row(f"pivot position of highest non-linearity ({SHORT[law]})",
+                        f"{report_hi * 100:.1f} to {report_lo * 100:.1f} cm",
+                        round(q_peak * 100, 2), "cm", "section 4.2.2 (on fig 3.6)",
+                        f"vsj's relative RMS peaks at {value:.2f} (absolute RMS at "
+                        f"{q_peak_abs * 100:.2f} cm). "
+                        + ("Inside the report's range." if inside else why)))
+    caption = (f"Report fig 3.6: non-linearity of one VSM elastic element for q = "
+               f"{q_lo * 100:.1f} ... {q_hi * 100:.1f} cm (step {(qs[1] - qs[0]) * 100:.2f} cm): "
+               "RMS difference between the static torque-deflection curve and its tangent at "
+               "φ = 0, over 0 ... φ_max with φ_max the deflection under 1 N m or the "
+               f"{stop:.2f} rad end stop (the report's 'respective maximum deflection'); left "
+               "divided by the tangent's torque at φ_max, right in N m (the report does not say "
+               "which). Shaded: the range where the report's model peaks (q = "
+               f"{report_hi * 100:.1f} ... {report_lo * 100:.1f} cm). Static curves, no "
+               f"friction, {_parameter_set(params)}.")
+    return Figure("fig-3.6", fig, caption, rows)
+
+
+# -- fig 3.7 -----------------------------------------------------------------
+
+
+def _with_pretension(par, fraction: float) -> tuple[float, ...]:
+    """Geometry row with the springs' pretension at ``fraction`` of its value.
+
+    At φ = 0 the lever is upright whatever q is, so the spring length there,
+    ``l0 = s0 + extension``, is one number; raising s0 towards it lowers the
+    pretension without moving anything else.
+    """
+    s = GEOMETRY_FIELDS.index("rest_length")
+    l0 = par[s] + ch.spring_extensions(par, 0.0, 0.0)[0]
+    out = list(par)
+    out[s] = l0 - fraction * (l0 - par[s])
+    return tuple(out)
+
+
+def _slack_switches(par, q: float, phis: np.ndarray) -> list[float]:
+    """Deflections [rad] in ``phis``' span where either spring goes slack or taut again."""
+    ext = np.array([ch.spring_extensions(par, q, phi) for phi in phis])
+    out = []
+    for spring in (0, 1):
+        for i in np.flatnonzero(np.diff(np.sign(ext[:, spring])) != 0):
+            out.append(brentq(lambda p, k=spring: ch.spring_extensions(par, q, p)[k],
+                              phis[i], phis[i + 1], xtol=1e-9))
+    return sorted(out)
+
+
+def fig_3_7(ctx: Context) -> Figure:
+    """Torque-deflection curves with loss of spring pretension (report fig 3.7, sec 4.2.2)."""
+    params = ctx.params
+    stop = params.elastic_element.end_stop
+    par = geometry(params)
+    low = _with_pretension(par, LOW_PRETENSION)
+    shown = sorted(TARGETS.loss_seen, reverse=True)
+    phis = np.linspace(-stop, stop, 141 if ctx.reduced else 561)
+    fig = MplFigure(figsize=(11, 4.8), layout="constrained")
+    axes = fig.subplots(1, 2, sharey=True)
+    colours = ("tab:blue", "tab:green", "tab:red")
+    for ax, row, title in ((axes[0], par, "springs as calibrated"),
+                           (axes[1], low, f"pretension cut to {LOW_PRETENSION:.0%}")):
+        for q, colour in zip(shown, colours):
+            ax.plot(phis, ch.torque_curve(GEOMETRIC, row, q, phis), color=colour, lw=1.6,
+                    label=f"q = {_cm(q)}")
+            switches = _slack_switches(row, q, phis)
+            if switches:
+                ax.plot(switches, ch.torque_curve(GEOMETRIC, row, q, switches), "o",
+                        color=colour, mfc="none", ms=7)
+        ax.axvline(-stop, color="k", lw=0.8, ls="-.")
+        ax.axvline(stop, color="k", lw=0.8, ls="-.")
+        ax.set(xlabel="deflection φ [rad]", ylabel="restoring torque [N m]", title=title)
+        ax.grid(alpha=0.3)
+    axes[0].plot([], [], "ko", mfc="none", label="a spring goes slack or taut again")
+    axes[0].plot([], [], "k-.", lw=0.8, label=f"end stop ±{stop:.2f} rad")
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncol=5,
+               fontsize=8)
+
+    rows = []
+    for q in TESTED_Q:
+        tested = TARGETS.tested_range(q)
+        slack = ch.pretension_loss(par, q, limit=stop)
+        seen_vsj = slack < tested
+        seen_report = any(abs(q - s) < 1e-9 for s in TARGETS.loss_seen)
+        where = (f"at {slack:.3f} rad" if math.isfinite(slack)
+                 else f"none before {stop:.2f} rad")
+        rows.append(Row(f"spring loses pretension within the tested range, q = {_cm(q)}",
+                        "yes" if seen_report else "no",
+                        f"{'yes' if seen_vsj else 'no'} ({where}; tested to {tested:.2f} rad)",
+                        "", "section 4.2.2",
+                        "agrees" if seen_vsj == seen_report else
+                        "disagrees: the calibration (vsj.identification.geometry) did not meet "
+                        "this statement"))
+    seen, step = _slack_range(ctx, params)
+    report_range = f"{max(TARGETS.loss_seen) * 100:.1f} to {min(TARGETS.loss_seen) * 100:.1f} cm"
+    if seen:
+        hi, lo = max(seen), min(seen)
+        contiguous = len(seen) == int(round((hi - lo) / step)) + 1
+        vsj_range = _range_text(seen)
+        # the report's edges lie between its last position with and first without the loss
+        top = (max(TARGETS.loss_seen), min(q for q in TESTED_Q if q > max(TARGETS.loss_seen)))
+        bottom = (max(q for q in TESTED_Q if q < min(TARGETS.loss_seen)),
+                  min(TARGETS.loss_seen))
+        inside = top[0] <= hi < top[1] and bottom[0] < lo <= bottom[1]
+        note = (f"the report's edges lie between {top[1] * 100:.1f} and {top[0] * 100:.1f} cm "
+                f"and between {bottom[1] * 100:.1f} and {bottom[0] * 100:.1f} cm (the positions "
+                "it tested); vsj's edges "
+                + ("fall inside those gaps." if inside else "do not both fall inside them.")
+                + ("" if contiguous else " (not one contiguous range)"))
+    else:
+        vsj_range, note = "none", "vsj's springs keep their pretension at every tested range"
+    rows.append(Row("pivot positions where a spring goes slack within the tested range",
+                    report_range, vsj_range, "", "section 4.2.2", note
+                    + f" Tested range modelled as fig 4.10-4.12: up to "
+                      f"{TARGETS.range_deflection:g} rad or {TARGETS.range_torque:g} N m."))
+    q_kink = -0.004  # fig 4.11
+    slack = ch.pretension_loss(par, q_kink, limit=stop)
+    tau = ch.torque_curve(GEOMETRIC, par, q_kink, [slack - 1e-4, slack + 1e-4])
+    k_before = ch.stiffness(GEOMETRIC, par, q_kink, slack - 1e-4)
+    k_after = ch.stiffness(GEOMETRIC, par, q_kink, slack + 1e-4)
+    rows.append(Row(f"curve where a spring goes slack (q = {_cm(q_kink)})",
+                    "non-linear and even non-continuous",
+                    f"kink at {slack:.3f} rad: torque continuous ({tau[0]:.4f} -> "
+                    f"{tau[1]:.4f} N m), stiffness {k_before:.3f} -> {k_after:.3f} N m/rad "
+                    f"({k_after / k_before - 1:+.0%})",
+                    "", "section 3.2, 4.2.2 (fig 3.7, 4.11)",
+                    "a spring going slack stops pulling as its extension reaches zero, so the "
+                    "torque stays continuous and only the slope changes, by the slack spring's "
+                    "share k (dl/dφ)^2"
+                    + (". In vsj's calibrated geometry that spring's length changes slowly "
+                       "there, so the kink is mild, milder than the 'very sudden deviation' of "
+                       "fig 4.11" if abs(k_after / k_before - 1.0) < 0.2 else "")
+                    + "; the report's 'non-continuous' may be how a hand-driven measurement "
+                      "shows a sharp kink."))
+    tau_low = {q: float(ch.torque_curve(GEOMETRIC, low, q, [COMPARE_AT])[0]) for q in shown}
+    tau_cal = {q: float(ch.torque_curve(GEOMETRIC, par, q, [COMPARE_AT])[0]) for q in shown}
+    spread_low = max(tau_low.values()) / min(tau_low.values())
+    spread_cal = max(tau_cal.values()) / min(tau_cal.values())
+    rows.append(Row(f"spread of the curves over q = {shown[0] * 100:.1f} ... "
+                    f"{shown[-1] * 100:.1f} cm with poorly pretensioned springs "
+                    f"(largest / smallest torque at {COMPARE_AT} rad)",
+                    "roughly the same curves", round(spread_low, 2), "", "section 3.2.2, fig 3.7",
+                    f"{spread_cal:.2f} with the calibrated pretension, {spread_low:.2f} with "
+                    f"{LOW_PRETENSION:.0%} of it: lowering the pretension moves the kink to "
+                    "smaller deflections but does not make the settings alike. The report fitted "
+                    "its model to the old prototype's measurements [2] with unpublished "
+                    "dimensions; vsj's geometry must span the measured factor of about 100 in "
+                    "K(q), which keeps the curves apart."))
+    s = GEOMETRY_FIELDS.index("rest_length")
+    caption = ("Report fig 3.7 (left part, simulated) and section 4.2.2: static torque-deflection "
+               "curves of one VSM elastic element (potential form of the geometric model, no "
+               "friction) at the pivot positions where the report saw a spring lose its "
+               "pretension, q = " + ", ".join(_cm(q) for q in shown) + "; circles where a spring "
+               "goes slack (or taut again). Left with the calibrated springs (rest length "
+               f"{par[s] * 100:.3f} cm), right with the pretension cut to "
+               f"{LOW_PRETENSION:.0%} (rest length {low[s] * 100:.3f} cm), as in the report's "
+               f"'not properly pre-tensioned' springs. {_parameter_set(params)}. The "
+               "measurements of [2] (right part of the report's figure) are not published.")
+    return Figure("fig-3.7", fig, caption, rows)
+
+
+# -- whole-wrist scenarios ---------------------------------------------------
+
+#: How captions name the elastic models and friction laws (report equation or figure).
+ELASTIC_TEXT = {"exponential": "eq 4.5", "geometric": "potential form of eq 3.1-3.7",
+                "geometric-report": "eq 3.8", "linear": "linear spring"}
+FRICTION_TEXT = {"arctan": "eq 3.17", "sign": "eq 3.18", "viscous": "viscous",
+                 "slope": "fig 4.8", "stiction": "true stiction"}
+
+
+def _run(scen: scenarios.Scenario, params: Parameters, duration: float | None):
+    """Every case of a scenario, run for ``duration`` (default: the scenario's).
+
+    Returns (case, resolved parameters, result) per case.
+    """
+    runs = []
+    for case in scen.cases:
+        resolved, structure, inputs, pivot_range = scenarios.prepare_case(scen, case, params)
+        result = simulate(structure, inputs, duration or case.duration, options=case.options,
+                          initial=case.initial, pivot_range=pivot_range, ports=False)
+        if not result.success:
+            raise SimulationError(f"{scen.origin} [{case.label}]: {result.message}")
+        runs.append((case, resolved, result))
+    return runs
+
+
+def _model_text(scen: scenarios.Scenario, case) -> str:
+    elastic = scen.table.get("model", {}).get("elastic", "geometric")
+    opt = case.options
+    if opt.friction == "stiction" or opt.solver == "timestep":
+        solver = f"time-stepper with {opt.step * 1e3:g} ms steps"
+    else:
+        solver = f"adaptive Dormand-Prince 5(4), rtol {opt.rtol:g}"
+    return (f"whole-wrist model, elastic elements '{elastic}' ({ELASTIC_TEXT.get(elastic, '')}), "
+            f"friction law '{opt.friction}' ({FRICTION_TEXT.get(opt.friction, '')}), {solver}")
+
+
+def _quantity(table, key: str, unit: str, where: str) -> float:
+    return to_si(table[key], unit, where=f"{where}.{key}")
+
+
+# -- fig 4.14 ----------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Loop:
+    """The torque loop of one fig 4.14 case over the last full circle."""
+
+    label: str
+    parameters_hash: str
+    compliance: float  # parasitic compliance in DOF 1 [rad/(N m)]
+    major: float       # semi-axes [N m]
+    minor: float
+    angle: float       # direction of the major axis in the (tau_x, tau_y) plane [deg]
+    displacement: float  # mean |theta| [rad]
+
+
+def _ellipse(tx: np.ndarray, ty: np.ndarray) -> tuple[float, float, float]:
+    """Semi-axes (major, minor) [N m] and major-axis direction [deg] of a closed loop.
+
+    For a point going once round an ellipse at a uniform phase rate the
+    covariance of its coordinates is diag(a^2, b^2)/2 in the principal frame.
+    """
+    pts = np.column_stack([tx, ty])
+    lam, vec = np.linalg.eigh(np.cov((pts - pts.mean(axis=0)).T))
+    major, minor = np.sqrt(2.0 * lam[::-1])
+    angle = math.degrees(math.atan2(vec[1, -1], vec[0, -1])) % 180.0
+    return float(major), float(minor), angle
+
+
+def fig_4_14(ctx: Context) -> Figure:
+    """2D stiffness characteristic at a 1.1 rad displacement, motors held (report fig 4.14)."""
+    scen = scenarios.load("fig-4.14")
+    circle = scen.table["inputs"]["theta_x"]
+    where = f"{scen.origin}: inputs.theta_x"
+    radius = _quantity(circle, "radius", "rad", where)
+    period = _quantity(circle, "period", "s", where)
+    fade = _quantity(circle, "fade_in", "s", where)
+    # reduced: one circle after the spiral-out instead of the scenario's two
+    runs = _run(scen, ctx.params, fade + period if ctx.reduced else None)
+    fig = MplFigure(figsize=(11, 5), layout="constrained")
+    ax_tau, ax_mag = fig.subplots(1, 2)
+    loops = []
+    for (case, resolved, result), alpha in zip(runs, np.linspace(0.35, 1.0, len(runs))):
+        t = result.time
+        last = t >= t[-1] - period + 0.5 * (t[1] - t[0])  # the last full circle
+        tx, ty = result["source.ee_x.torque"][last], result["source.ee_y.torque"][last]
+        th_x, th_y = result["theta_x"][last], result["theta_y"][last]
+        compliance = resolved.transmission.series_compliance_1
+        label = "rigid" if compliance == 0.0 else f"parasitic compliance {compliance:g} rad/(N m)"
+        line, = ax_tau.plot(tx, ty, lw=1.8, alpha=alpha, label=label)
+        direction = np.degrees(np.arctan2(th_y, th_x)) % 360.0
+        order = np.argsort(direction)
+        ax_mag.plot(direction[order], np.hypot(tx, ty)[order], lw=1.8, alpha=alpha,
+                    color=line.get_color())
+        loops.append(_Loop(case.label, resolved.hash()[:12], compliance, *_ellipse(tx, ty),
+                           float(np.mean(np.hypot(th_x, th_y)))))
+    ax_tau.set_aspect("equal", adjustable="datalim")
+    ax_tau.set(xlabel="end-effector torque τx [N m]", ylabel="end-effector torque τy [N m]",
+               title=f"torque to hold the end-effector {radius:g} rad off centre")
+    ax_mag.set(xlabel="direction of the displacement atan2(θy, θx) [deg]",
+               ylabel="|τ| [N m]", title="torque magnitude around the circle", xlim=(0, 360))
+    ax_mag.set_xticks(range(0, 361, 45))
+    for ax in (ax_tau, ax_mag):
+        ax.grid(alpha=0.3)
+    fig.legend(*ax_tau.get_legend_handles_labels(), loc="outside lower center", ncol=4,
+               fontsize=8)
+
+    rows = [Row("end-effector displacement", 1.1, round(loops[0].displacement, 4), "rad",
+                "fig 4.14", "prescribed by the scenario (mean |θ| over the last circle)")]
+    for loop in loops:
+        ratio = round(loop.minor / loop.major, 3)
+        axes_text = f"semi-axes {loop.major:.3f} and {loop.minor:.3f} N m"
+        if loop.compliance == 0.0:
+            rows.append(Row(
+                "axis ratio of the 2D stiffness characteristic, no parasitic compliance", 1.0,
+                ratio, "", "section 4.3, fig 4.14",
+                f"the report says 'a circular shape', axis ratio 1. vsj: {axes_text}, their "
+                "small difference from the differential's stiction (k_D), which acts on θy "
+                "alone; the steps along the circle are stick-slip of the friction elements."))
+        else:
+            rows.append(Row(
+                f"axis ratio with a parasitic compliance of {loop.compliance:g} rad/(N m) in "
+                "DOF 1", "ellipse (ratio not stated)", ratio, "", "section 4.3, fig 4.14",
+                f"{axes_text}, major axis at {loop.angle:.0f} deg in the (τx, τy) plane: the "
+                "compliance softens DOF 1 only (differential input 1, the θx + θy direction). "
+                "The report states neither its compliance values nor the axis ratio of the data "
+                "of [2] it matched ('slightly scaled')."))
+    case0 = runs[0][0]
+    caption = (f"Report fig 4.14 (left part): primary motors held (suns fixed), end-effector "
+               f"driven along a circle of {radius:g} rad (spiralling out over {fade:g} s, then "
+               f"{period:g} s per turn); the torque this takes (τx, τy) over the last full "
+               f"circle of a {runs[0][2].time[-1]:.0f} s run, without and with a parasitic "
+               "series compliance in transmission 1 ("
+               + ", ".join(f"{loop.compliance:g}" for loop in loops) + " rad/(N m)). "
+               f"{_model_text(scen, case0).capitalize()}, q = {case0.initial.q * 100:.1f} cm; "
+               f"{_parameter_set(ctx.params)}; per-case hashes "
+               + ", ".join(f"{loop.label}: {loop.parameters_hash}" for loop in loops)
+               + ". The older measurements of [2] (right part of the report's figure) are not "
+                 "published.")
+    return Figure("fig-4.14", fig, caption, rows)
+
+
+# -- fig 4.15 ----------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Following:
+    """How one fig 4.15 case follows the motors after the transient."""
+
+    q: float          # pivot position [m]
+    lag_x: float      # phase lag of theta_x, theta_y behind the rigid-spring path [s]
+    lag_y: float
+    deflection: float  # largest |phi_1|, |phi_2| [rad]
+
+    @property
+    def lag(self) -> float:
+        return 0.5 * (self.lag_x + self.lag_y)
+
+
+def _phase_lag(signal: np.ndarray, reference: np.ndarray, t: np.ndarray,
+               frequency: float) -> float:
+    """Time [s] by which ``signal`` lags ``reference`` at ``frequency`` (whole periods in t)."""
+    basis = np.exp(-2j * math.pi * frequency * t)
+    return float(np.angle(np.sum(reference * basis) / np.sum(signal * basis))
+                 / (2.0 * math.pi * frequency))
+
+
+def fig_4_15(ctx: Context) -> Figure:
+    """Circular motion driven by the primary motors at five stiffness settings (fig 4.15)."""
+    params = ctx.params
+    scen = scenarios.load("fig-4.15")
+    drive = scen.table["inputs"]["motor_1"]["signal"]
+    where = f"{scen.origin}: inputs.motor_1.signal"
+    frequency = _quantity(drive, "frequency", "Hz", where)
+    fade = _quantity(drive, "fade_in", "s", where)
+    settle = fade + 1.0 / frequency  # the fade-in and one period for the transient
+    # reduced: two periods after the transient instead of the scenario's three
+    runs = _run(scen, params, settle + 2.0 / frequency if ctx.reduced else None)
+    pg = params.planetary
+    # rigid springs (ring fixed): carrier = r_SC sun (eq 3.9), differential input =
+    # carrier / ratio, theta_x, theta_y = (psi_1 +- psi_2) / 2 (eq 3.30-3.31)
+    gain = pg.sun_teeth / (pg.sun_teeth + pg.ring_teeth) / params.transmission.ratio
+    fig = MplFigure(figsize=(12, 7), layout="constrained")
+    axes = fig.subplots(2, 2)
+    panels = (("theta_x", "end-effector θx [rad]"), ("theta_y", "end-effector θy [rad]"),
+              ("phi_1", "elastic deflection φ1 [rad]"), ("phi_2", "elastic deflection φ2 [rad]"))
+    alphas = np.linspace(0.3, 1.0, len(runs))  # as the report: stiff transparent, soft solid
+    cases = []
+    for i, ((case, resolved, result), alpha) in enumerate(zip(runs, alphas)):
+        t = result.time
+        sun_1, sun_2 = result["motor_1"], result["motor_2"]
+        reference = {"theta_x": gain * (sun_1 + sun_2) / 2.0,
+                     "theta_y": gain * (sun_1 - sun_2) / 2.0}
+        periods = math.floor((t[-1] + (t[1] - t[0]) - settle) * frequency + 1e-9)
+        window = (t >= settle - 1e-9) & (t < settle + periods / frequency - 1e-9)
+        lag_x, lag_y = (_phase_lag(result[k][window], reference[k][window], t[window],
+                                   frequency) for k in ("theta_x", "theta_y"))
+        cases.append(_Following(float(result["q"][0]), lag_x, lag_y,
+                                max(float(np.max(np.abs(result[k][window])))
+                                    for k in ("phi_1", "phi_2"))))
+        for ax, (signal, _) in zip(axes.flat, panels):
+            ax.plot(t, result[signal], color=f"C{i}", alpha=alpha, lw=1.4,
+                    label=f"q = {cases[-1].q * 100:+.1f} cm")
+    for ax, key in zip(axes[0], ("theta_x", "theta_y")):
+        ax.plot(t, reference[key], "k--", lw=0.9, label="rigid springs (motor command)")
+    for ax, (_, label) in zip(axes.flat, panels):
+        ax.set(xlabel="time [s]", ylabel=label, xlim=(t[0], t[-1]))
+        ax.grid(alpha=0.3)
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside lower center",
+               ncol=len(runs) + 1, fontsize=8)
+
+    first, last = cases[0], cases[-1]
+    ordered = all(b.lag > a.lag for a, b in zip(cases, cases[1:]))
+    rows = [Row("stiffness settings shown", "q = -1.5 to 0.5 cm",
+                f"q = {first.q * 100:.1f} to {last.q * 100:.1f} cm ({len(cases)} settings)", "",
+                "fig 4.15", "the scenario's settings"),
+            Row("stiffer settings follow the motors faster, softer ones lag more", "yes",
+                "yes" if ordered else "no", "", "section 4.3, fig 4.15",
+                f"lag from {first.lag * 1e3:.1f} ms at q = {first.q * 100:+.1f} cm to "
+                f"{last.lag * 1e3:.1f} ms at q = {last.q * 100:+.1f} cm. The lag is mostly the "
+                "springs' deflection under the friction downstream of them (transmissions b_T, "
+                "k_T; differential k_D), so it grows roughly as 1/K(q).")]
+    for c in cases:
+        rows.append(Row(
+            f"lag of the end-effector behind the motors, q = {c.q * 100:+.1f} cm",
+            "not stated (curves only)", round(c.lag * 1e3, 2), "ms", "fig 4.15",
+            f"phase lag at {frequency:g} Hz behind the rigid-spring path, mean of θx "
+            f"({c.lag_x * 1e3:.2f} ms) and θy ({c.lag_y * 1e3:.2f} ms)"
+            + ("; θy lags more: the differential's stiction (k_D) acts on it alone."
+               if c.lag_y > c.lag_x else ".")))
+    for c in cases:
+        rows.append(Row(f"largest elastic deflection |φ1|, |φ2|, q = {c.q * 100:+.1f} cm",
+                        "not stated (curves only)", round(c.deflection, 4), "rad", "fig 4.15",
+                        "after the transient"))
+    caption = (f"Report fig 4.15: the primary motors (velocity sources at the suns) drive the "
+               f"end-effector around a circle at {frequency:g} Hz (faded in over {fade:g} s), "
+               f"{t[-1]:.0f} s simulated, at q = "
+               + ", ".join(f"{c.q * 100:+.1f}" for c in cases) + " cm (light: stiff, solid: "
+               "soft); top the end-effector angles with the path rigid springs would give "
+               "(dashed), bottom the elastic deflections. Lags are phase lags at the drive "
+               f"frequency from {settle:g} s on. {_model_text(scen, runs[0][0]).capitalize()}; "
+               f"{_parameter_set(params)}.")
+    return Figure("fig-4.15", fig, caption, rows)
+
+
+FIGURES = {
+    "fig-3.5": fig_3_5,
+    "fig-3.6": fig_3_6,
+    "fig-3.7": fig_3_7,
+    "fig-4.14": fig_4_14,
+    "fig-4.15": fig_4_15,
+}
