@@ -13,6 +13,8 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
+	@echo 'compiling the engine once (numba cache, about 2-3 minutes)...'
+	$(BIN)/vsj reproduce --reduced --out $(VENV)/warmup > /dev/null
 	touch $(STAMP)
 
 reproduce: $(STAMP)
