@@ -26,6 +26,7 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
 	$(BIN)/python benchmarks/friction_laws.py
+	$(BIN)/python benchmarks/step_cost.py
 
 clean:
 	rm -rf $(VENV) reproduction out build src/vsj.egg-info

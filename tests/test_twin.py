@@ -16,11 +16,12 @@ U = (Sine(2.0, 0.7), Sine(-1.5, 1.1, phase=0.0))
 TAU = (Sine(0.05, 1.3), Sine(-0.03, 0.4))
 
 
-def hand_model(p):
+def hand_matrices(p):
     """M phi'' + Mu u' = -K phi - D phi' - Du u + G tau, derived by hand.
 
     Ring speeds w, sun speeds u: carrier w_C = r_RC w + r_SC u; differential
     inputs psi' = w_C / ratio; theta' = J psi' with J = [[1, 1], [1, -1]] / 2.
+    Returns the matrices M, Mu, D, Du, G (shared with tests/test_linear.py).
     """
     pg, tr, d, ee = p.planetary, p.transmission, p.differential, p.elastic_element
     r_rc = pg.ring_teeth / (pg.ring_teeth + pg.sun_teeth)
@@ -38,6 +39,13 @@ def hand_model(p):
     D = (b_ring + b_carrier * r_rc ** 2) * I2 + d.viscous * g ** 2 * r_rc ** 2 * np.outer(e, e)
     Du = b_carrier * r_rc * r_sc * I2 + d.viscous * g ** 2 * r_rc * r_sc * np.outer(e, e)
     G = g * r_rc * J.T
+    return {"M": M, "Mu": Mu, "D": D, "Du": Du, "G": G}
+
+
+def hand_model(p):
+    """Right-hand side of the hand-derived model (`hand_matrices`) driven by U and TAU."""
+    m = hand_matrices(p)
+    M, Mu, D, Du, G = m["M"], m["Mu"], m["D"], m["Du"], m["G"]
     Minv = np.linalg.inv(M)
 
     def rhs(t, y):

@@ -146,9 +146,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--only", nargs="+", metavar="FIG", help="only these figures (fig-4.13 ...)")
     p.set_defaults(func=cmd_reproduce)
 
-    from . import cli_fit
+    from . import cli_control, cli_fit
 
     cli_fit.register(sub)
+    cli_control.register(sub)
     return parser
 
 

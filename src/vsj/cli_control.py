@@ -1,0 +1,166 @@
+"""The ``vsj linearize`` and ``vsj datasheet`` commands (a thin layer, no physics).
+
+`register` adds both to the ``vsj`` command's subparsers; each handler returns
+the exit code (0) and raises `vsj.errors.InputError` for bad input (exit 2) or
+`vsj.errors.SimulationError` when a computation fails (exit 1).
+
+Values with units are written as in parameter files: ``--q=-0.4cm`` (the
+``=`` keeps argparse from reading a negative value as an option),
+``--tau-x "0.05 N m"``, ``--motor-1 "0.1 rad"``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from .errors import InputError, SimulationError
+
+
+def _params(path: str | None):
+    from . import params
+
+    return params.load(path)
+
+
+def _quantity(text: str, unit: str, option: str) -> float:
+    from .units import to_si
+
+    value = to_si(text, unit, where=f"option {option}")
+    if not math.isfinite(value):
+        raise InputError(f"option {option}: {text!r} is not finite")
+    return value
+
+
+def _names(text: str | None) -> list[str] | None:
+    if text is None:
+        return None
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        raise InputError(f"expected a comma-separated list of names, got {text!r}")
+    return names
+
+
+def _wrist_options(args):
+    from .wrist import WristOptions
+
+    options = WristOptions(elastic=args.elastic, motors=args.motor_model,
+                           linear_stiffness=(_quantity(args.linear_stiffness, "N*m",
+                                                       "--linear-stiffness")
+                                             if args.linear_stiffness else None))
+    options.validate()
+    return options
+
+
+def cmd_linearize(args) -> int:
+    from . import linear
+
+    if args.out is not None and Path(args.out).suffix not in (".json", ".npz"):
+        raise InputError(f"--out {args.out}: a linear model is written to a .json or .npz file")
+    params = _params(args.params)
+    model = linear.linearize(
+        params, _quantity(args.q, "m", "--q"),
+        motors=(_quantity(args.motor_1, "rad", "--motor-1"),
+                _quantity(args.motor_2, "rad", "--motor-2")),
+        load=(_quantity(args.tau_x, "N*m", "--tau-x"), _quantity(args.tau_y, "N*m", "--tau-y")),
+        wrist_options=_wrist_options(args), friction=args.friction, inputs=_names(args.inputs),
+        outputs=_names(args.outputs))
+    if args.out is not None:
+        linear.save(model, Path(args.out))
+    if args.json:
+        from .output import _jsonable
+
+        print(json.dumps(_jsonable(linear.to_dict(model)), indent=1))
+        return 0
+    print(model.describe())
+    print("operating point:")
+    for name, value in model.operating_point["outputs"].items():
+        if not name.endswith("_speed"):
+            print(f"  {name} = {value:.6g}")
+    freqs = linear.natural_frequencies(model)
+    print("natural frequencies (undamped): "
+          + ", ".join(f"{w / (2 * math.pi):.4g} Hz" for w in freqs))
+    names = set(model.output_labels) & {"theta_x", "theta_y"}
+    if names == {"theta_x", "theta_y"} and {"tau_x", "tau_y"} <= set(model.input_labels):
+        try:
+            k = linear.output_stiffness(model)
+            print(f"end-effector stiffness, motors held: K_xx = {k[0, 0]:.4g}, "
+                  f"K_yy = {k[1, 1]:.4g}, K_xy = {k[0, 1]:.4g} N m/rad")
+        except SimulationError as exc:  # a rigid-body mode: the model is still valid
+            print(f"end-effector stiffness: none ({exc})")
+    if args.out is not None:
+        print(f"wrote {args.out}")
+    return 0
+
+
+def cmd_datasheet(args) -> int:
+    from . import datasheet
+
+    params = _params(args.params)
+    sheet = datasheet.compute(params, q_points=args.points, friction=args.friction,
+                              elastic=args.elastic)
+    html_path, json_path = datasheet.write(sheet, Path(args.out))
+    for key, rating in sheet["ratings"].items():
+        print(f"{key.replace('_', ' '):<26} {rating['value']:>10.4g} {rating['unit']:<8} "
+              f"{rating['note']}")
+    print(f"wrote {html_path}, {json_path}")
+    return 0
+
+
+def register(sub) -> None:
+    """Add ``linearize`` and ``datasheet`` to the ``vsj`` command's subparsers."""
+    from .linear import FRICTION_TREATMENTS
+    from .wrist import DRIVES, ELASTIC_MODELS
+
+    p = sub.add_parser(
+        "linearize", help="linear state-space model of the wrist around an operating point",
+        description="Linearise the wrist at a pivot position, motor positions and a static "
+                    "load; print a summary, or the model as JSON, and write it to .json or "
+                    ".npz. Friction: " + "; ".join(f"{k}: {v}" for k, v in
+                                                   FRICTION_TREATMENTS.items()))
+    p.add_argument("--q", default="0 cm", metavar="LENGTH",
+                   help="pivot position with unit, e.g. --q=-0.4cm (default 0 cm)")
+    p.add_argument("--motor-1", default="0 rad", metavar="ANGLE",
+                   help="position of motor 1's output (default 0 rad)")
+    p.add_argument("--motor-2", default="0 rad", metavar="ANGLE",
+                   help="position of motor 2's output (default 0 rad)")
+    p.add_argument("--tau-x", default="0 N m", metavar="TORQUE",
+                   help="static external torque about theta_x (default 0 N m)")
+    p.add_argument("--tau-y", default="0 N m", metavar="TORQUE",
+                   help="static external torque about theta_y (default 0 N m)")
+    p.add_argument("--friction", default="linearised", choices=list(FRICTION_TREATMENTS),
+                   help="friction treatment (default linearised)")
+    p.add_argument("--elastic", default="geometric", choices=list(ELASTIC_MODELS),
+                   help="elastic element model (default geometric)")
+    p.add_argument("--linear-stiffness", metavar="STIFFNESS",
+                   help="stiffness of the 'linear' elastic model, e.g. '0.8 N m/rad'")
+    p.add_argument("--motor-model", default="velocity", choices=list(DRIVES),
+                   help="primary motors: velocity sources or DC motors (default velocity)")
+    p.add_argument("--inputs", metavar="NAMES", help="comma-separated inputs to keep")
+    p.add_argument("--outputs", metavar="NAMES", help="comma-separated outputs to keep")
+    p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
+    p.add_argument("--out", metavar="FILE", help="write the model to FILE (.json or .npz)")
+    p.add_argument("--json", action="store_true", help="print the model as JSON")
+    p.set_defaults(func=cmd_linearize)
+
+    p = sub.add_parser(
+        "datasheet", help="VSA datasheet of the wrist (HTML with plots, and JSON)",
+        description="Stiffness range, torque-deflection curves, maximum deflection and "
+                    "torque, stored energy, stiffness-change time and energy, output "
+                    "inertia, natural frequencies, Bode plots and bandwidth, from the model.")
+    p.add_argument("--out", metavar="DIR", default="out",
+                   help="output directory (default out): datasheet.html, datasheet.json")
+    p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
+    p.add_argument("--points", type=int, default=9,
+                   help="pivot positions in the tables (default 9)")
+    p.add_argument("--friction", default="linearised", choices=list(FRICTION_TREATMENTS),
+                   help="friction treatment of the dynamics (default linearised)")
+    p.add_argument("--elastic", default="geometric",
+                   choices=[m for m in ELASTIC_MODELS if m != "linear"],
+                   help="elastic element model (default geometric)")
+    p.set_defaults(func=cmd_datasheet)
+
+
+__all__ = ["register", "cmd_linearize", "cmd_datasheet"]
+

@@ -1,0 +1,525 @@
+"""A datasheet of the wrist as a variable stiffness actuator, from the model.
+
+In the spirit of Grioli et al. 2015, "Variable stiffness actuators: the
+user's point of view" (Int. J. Robotics Research 34(6)): the quantities a user
+needs to choose and control a VSA, computed from a parameter set rather than
+measured. Everything is given at the end-effector about ``theta_x`` (the
+motion that deflects both elastic elements equally, motors held) and, where
+useful, at one elastic element (the ring deflection ``phi``):
+
+* stiffness range and its dependence on the pivot position ``q``;
+* torque-deflection curves and tangent stiffness at several ``q``;
+* maximum deflection (the elastic elements' end stop) and the torque there;
+* elastic energy stored at that deflection;
+* stiffness-change time and electric energy, from the softest to the
+  stiffest setting and back, through the pivot mechanism driven by its DC
+  motor at the supply voltage (`vsj.components.pivot`, `vsj.components.motor`);
+* output inertia with the motors held;
+* natural frequencies and damping against ``q``, Bode plots of the
+  end-effector compliance and of the motor-to-output transfer, and the
+  position bandwidth, from `vsj.linear`.
+
+`compute` returns plain data (the JSON file); `write` adds the figures and
+writes a self-contained HTML page (images embedded as base64 PNG) and the
+JSON next to it. The numbers are the model's: where parameters are estimates
+(the DC motors, the pivot drive, the spring geometry calibrated to the
+report's three measured stiffnesses) the datasheet says so in its notes.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+import math
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from . import __version__
+from . import linear as linear_models
+from .errors import InputError, SimulationError
+
+#: Points on each torque-deflection curve.
+CURVE_POINTS = 241
+#: Frequency grid of the Bode plots [rad/s].
+BODE_OMEGA = np.logspace(-1, 3.5, 300)
+#: Friction treatment of the linear models (see `vsj.linear.FRICTION_TREATMENTS`).
+DEFAULT_FRICTION = "linearised"
+
+
+def _kinematics(params, elastic: str):
+    """The wrist's static map with the motors held: ``theta = T x`` (x: ring angles).
+
+    Returns ``(T, M, element)``: ``T`` (2 x 2), the mass matrix of the ring
+    angles and one elastic element (both are identical, report section 3.1).
+    """
+    from .wrist import WristOptions, build_wrist, elastic_element
+
+    structure = build_wrist(params, WristOptions(elastic=elastic, pivot_drive="fixed",
+                                                 fixed_q=0.0)).assemble()
+    if structure.free != ("vsm_1.ring", "vsm_2.ring"):
+        raise InputError(f"datasheet: expected the ring angles as the only free coordinates, "
+                         f"got {', '.join(structure.free)} (a series compliance adds states; "
+                         "set transmission.series_compliance_* to 0)")
+    T = np.array([structure.rows("diff.theta_x")[0], structure.rows("diff.theta_y")[0]])
+    return T, structure.mass_matrix(), elastic_element("vsm", params, elastic)
+
+
+def _output_curve(element, T, q: float, theta: np.ndarray) -> dict[str, np.ndarray]:
+    """Torque, tangent stiffness and stored energy about theta_x at deflections ``theta``."""
+    from .components.elastic_element import evaluate
+
+    c = np.linalg.solve(T, np.array([1.0, 0.0]))  # ring deflection per unit theta_x
+    torque = np.zeros_like(theta)
+    stiffness = np.zeros_like(theta)
+    energy = np.zeros_like(theta)
+    for ci in c:
+        tau, k, V, _ = evaluate(element.law, element.parameters, ci * theta, q)
+        V0 = evaluate(element.law, element.parameters, 0.0, q)[2][0]
+        torque += -tau * ci          # restoring torque the end-effector must supply
+        stiffness += k * ci * ci
+        energy += V - V0
+    return {"deflection": theta, "torque": torque, "stiffness": stiffness, "energy": energy,
+            "ring_per_output": c}
+
+
+def _stiffness_change(params, q_from: float, q_to: float) -> dict:
+    """Drive the pivot from ``q_from`` to ``q_to`` at the supply voltage (DC motor model).
+
+    A network of the stiffness motor and the pivot mechanism alone: the springs
+    do not back-drive the pivot (report section 3.1), so the rest of the wrist
+    does not load it. Returns the time to reach ``q_to``, the electric energy
+    drawn until then and the trajectory.
+    """
+    from .components import PivotMechanism
+    from .inputs import Constant
+    from .network import Network
+    from .simulate import InitialState, SimulationOptions, simulate
+    from .wrist import motor
+
+    pv, mo = params.pivot, params.motor
+    net = Network("pivot-drive")
+    net.add(motor("motor_s", params, "dc", "s"),
+            PivotMechanism("pivot", ratio=pv.ratio, amplitude=pv.amplitude, inertia=pv.inertia,
+                           viscous=pv.viscous, stiction=pv.stiction,
+                           sharpness=params.friction.arctan_sharpness))
+    net.connect("motor_s.flange", "pivot.input")
+    structure = net.assemble()
+    start = math.asin(q_from / pv.amplitude)
+    end = math.asin(q_to / pv.amplitude)
+    voltage = math.copysign(mo.voltage_limit, (end - start) * pv.ratio * mo.gear_ratio)
+    no_load = mo.voltage_limit / mo.torque_constant  # rotor speed [rad/s]
+    travel = abs(end - start) * abs(pv.ratio * mo.gear_ratio)
+    duration = 2.0 * travel / no_load + 0.5
+    result = simulate(structure, {"voltage_s": Constant(voltage)}, duration,
+                      initial=InitialState(q=q_from),
+                      options=SimulationOptions(rtol=1e-7, atol=1e-9, output_step=1e-3),
+                      ports=False)
+    if not result.success:
+        raise SimulationError(f"datasheet: stiffness change {q_from} -> {q_to} m: "
+                              f"{result.message}")
+    q = result["q"]
+    passed = np.flatnonzero((q - q_to) * np.sign(q_to - q_from) >= 0.0)
+    if passed.size == 0:
+        raise SimulationError(f"datasheet: the pivot did not reach q = {q_to} m within "
+                              f"{duration:.3g} s at {voltage:g} V")
+    from scipy.integrate import cumulative_trapezoid
+
+    k = int(passed[0])
+    t = result.time
+    t_cross = float(t[0]) if k == 0 else float(
+        t[k - 1] + (q_to - q[k - 1]) / (q[k] - q[k - 1]) * (t[k] - t[k - 1]))
+    power = result["motor.motor_s.power"]
+    energy = float(np.interp(t_cross, t, cumulative_trapezoid(power, t, initial=0.0)))
+    # every sample of the electrical start-up (0.1 s), every tenth after it
+    end = min(k + 50, len(t))
+    keep = np.union1d(np.arange(min(100, end)), np.arange(0, end, 10))
+    return {"from_q": q_from, "to_q": q_to, "voltage": voltage, "time": float(t_cross),
+            "electric_energy": energy,
+            "trajectory": {"time": t[keep], "q": q[keep], "power": power[keep]}}
+
+
+def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = None,
+            friction: str = DEFAULT_FRICTION, elastic: str = "geometric") -> dict:
+    """Every datasheet quantity as plain data (SI units; see the module docstring)."""
+    from .wrist import pivot_range
+
+    if not (isinstance(q_points, int) and q_points >= 2):
+        raise InputError(f"datasheet: q_points must be an integer >= 2, got {q_points!r}")
+    q_min, q_max = pivot_range(params)
+    qs = np.linspace(q_max, q_min, q_points)
+    curve_qs = list(np.linspace(q_max, q_min, 5) if curve_qs is None else curve_qs)
+    for q in curve_qs:
+        if not q_min - 1e-12 <= q <= q_max + 1e-12:
+            raise InputError(f"datasheet: curve pivot position {q} m is outside the pivot "
+                             f"range {q_min} ... {q_max} m")
+    T, M, element = _kinematics(params, elastic)
+    Tinv = np.linalg.inv(T)
+    end_stop = params.elastic_element.end_stop
+    c = Tinv @ np.array([1.0, 0.0])
+    theta_max = end_stop / float(np.max(np.abs(c)))
+    output_inertia = Tinv.T @ M @ Tinv
+
+    from .characteristics import pretension_loss, stiffness
+
+    per_q = []
+    models = {}
+    dense = np.linspace(0.0, theta_max, CURVE_POINTS)
+    for q in qs:
+        curve = _output_curve(element, T, q, dense)
+        peak = int(np.argmax(curve["torque"]))
+        lin = linear_models.linearize(params, float(q), friction=friction,
+                                      wrist_options=_options(elastic))
+        models[float(q)] = lin
+        modes = linear_models.modes(lin)
+        slack = (pretension_loss(element.parameters, q, end_stop)
+                 if elastic.startswith("geometric") else math.inf)
+        per_q.append({
+            "q": float(q),
+            "ring_stiffness": stiffness(element.law, element.parameters, q),
+            "output_stiffness": float(curve["stiffness"][0]),
+            "output_stiffness_linear_model": float(
+                linear_models.output_stiffness(lin)[0, 0]),
+            "peak_torque": float(curve["torque"][peak]),
+            "peak_torque_deflection": float(dense[peak]),
+            "max_energy": float(np.max(curve["energy"])),
+            "pretension_loss_deflection": float(slack / np.max(np.abs(c))),
+            "natural_frequencies": linear_models.natural_frequencies(lin).tolist(),
+            "modes": [{"frequency": m["frequency"], "damping": m["damping"]} for m in modes],
+            "modes_viscous": [{"frequency": m["frequency"], "damping": m["damping"]} for m in
+                              linear_models.modes(linear_models.linearize(
+                                  params, float(q), friction="viscous",
+                                  wrist_options=_options(elastic)))],
+            "position_bandwidth": linear_models.bandwidth(
+                lin, "theta_x", {"motor_1": 1.0, "motor_2": 1.0}, input_angle=True),
+        })
+
+    curves = []
+    theta = np.linspace(0.0, theta_max, CURVE_POINTS)
+    for q in curve_qs:
+        curve = _output_curve(element, T, float(q), theta)
+        curves.append({"q": float(q), "deflection": theta.tolist(),
+                       "torque": curve["torque"].tolist(),
+                       "stiffness": curve["stiffness"].tolist(),
+                       "energy": curve["energy"].tolist()})
+
+    bode = {"omega": BODE_OMEGA.tolist(), "compliance": [], "motor_to_output": []}
+    for q in curve_qs:
+        lin = models.get(float(q)) or linear_models.linearize(params, float(q),
+                                                              friction=friction,
+                                                              wrist_options=_options(elastic))
+        h = linear_models.transfer(lin, "theta_x", "tau_x", BODE_OMEGA)
+        g = linear_models.transfer(lin, "theta_x", {"motor_1": 1.0, "motor_2": 1.0},
+                                   BODE_OMEGA, input_angle=True)
+        for key, resp in (("compliance", h), ("motor_to_output", g)):
+            bode[key].append({"q": float(q), "magnitude": np.abs(resp).tolist(),
+                              "phase": np.unwrap(np.angle(resp)).tolist()})
+    kinematic_ratio = abs(linear_models.transfer(
+        models[float(qs[0])], "theta_x", {"motor_1": 1.0, "motor_2": 1.0}, [1e-6],
+        input_angle=True)[0])
+
+    stiffen = _stiffness_change(params, q_max, q_min)
+    soften = _stiffness_change(params, q_min, q_max)
+    k_out = [row["output_stiffness"] for row in per_q]
+    strongest = max(per_q, key=lambda r: r["peak_torque"])
+    richest = max(per_q, key=lambda r: r["max_energy"])
+    ratings = {
+        "output_stiffness_min": _rating(min(k_out), "N m/rad", f"theta_x at q = "
+                                        f"{q_max * 100:.3g} cm, zero deflection"),
+        "output_stiffness_max": _rating(max(k_out), "N m/rad", f"theta_x at q = "
+                                        f"{q_min * 100:.3g} cm, zero deflection"),
+        "stiffness_ratio": _rating(max(k_out) / min(k_out), "1", "max / min"),
+        "ring_stiffness_min": _rating(min(r["ring_stiffness"] for r in per_q), "N m/rad",
+                                      "one elastic element, at the ring"),
+        "ring_stiffness_max": _rating(max(r["ring_stiffness"] for r in per_q), "N m/rad",
+                                      "one elastic element, at the ring"),
+        "max_deflection": _rating(theta_max, "rad", f"theta_x where a ring reaches the end "
+                                  f"stop ({end_stop:g} rad)"),
+        "peak_torque": _rating(strongest["peak_torque"], "N m",
+                               f"largest elastic torque about theta_x (q = "
+                               f"{strongest['q'] * 100:.3g} cm, at "
+                               f"{strongest['peak_torque_deflection']:.3g} rad)"),
+        "max_energy": _rating(richest["max_energy"], "J",
+                              f"largest elastic energy up to the maximum deflection (q = "
+                              f"{richest['q'] * 100:.3g} cm)"),
+        "stiffening_time": _rating(stiffen["time"], "s", f"q {q_max * 100:.3g} -> "
+                                   f"{q_min * 100:.3g} cm at {stiffen['voltage']:g} V"),
+        "softening_time": _rating(soften["time"], "s", f"q {q_min * 100:.3g} -> "
+                                  f"{q_max * 100:.3g} cm at {soften['voltage']:g} V"),
+        "stiffening_energy": _rating(stiffen["electric_energy"], "J",
+                                     "electric energy drawn by the stiffness motor"),
+        "softening_energy": _rating(soften["electric_energy"], "J",
+                                    "electric energy drawn by the stiffness motor"),
+        "holding_power": _rating(0.0, "W", "the pivot is not back-driven: holding a "
+                                 "stiffness costs nothing"),
+        "output_inertia_x": _rating(float(output_inertia[0, 0]), "kg m^2",
+                                    "about theta_x, motors held"),
+        "output_inertia_y": _rating(float(output_inertia[1, 1]), "kg m^2",
+                                    "about theta_y, motors held"),
+        "natural_frequency_min": _rating(min(r["natural_frequencies"][0] for r in per_q)
+                                         / (2 * math.pi), "Hz", "undamped, softest q"),
+        "natural_frequency_max": _rating(max(r["natural_frequencies"][0] for r in per_q)
+                                         / (2 * math.pi), "Hz", "undamped, stiffest q"),
+        "position_bandwidth_min": _rating(min(r["position_bandwidth"] for r in per_q)
+                                          / (2 * math.pi), "Hz",
+                                          "-3 dB, theta_x per motor angle, softest q"),
+        "position_bandwidth_max": _rating(max(r["position_bandwidth"] for r in per_q)
+                                          / (2 * math.pi), "Hz",
+                                          "-3 dB, theta_x per motor angle, stiffest q"),
+        "motor_to_output_ratio": _rating(kinematic_ratio, "1",
+                                         "theta_x per motor angle (both motors), static"),
+    }
+    return {
+        "title": "VSA datasheet: 2-DOF variable stiffness wrist (model)",
+        "vsj_version": __version__,
+        "parameters": {"origin": params.origin, "hash": params.hash(),
+                       "name": params.meta.get("name", "")},
+        "elastic_model": elastic,
+        "friction": {"treatment": friction,
+                     "description": linear_models.FRICTION_TREATMENTS[friction]},
+        "notes": _notes(params, elastic, friction),
+        "ratings": ratings,
+        "per_q": per_q,
+        "torque_deflection": curves,
+        "frequency_response": bode,
+        "stiffness_change": {"stiffening": _plain(stiffen), "softening": _plain(soften)},
+        "output_inertia": output_inertia.tolist(),
+        "ring_per_output": c.tolist(),
+    }
+
+
+def _options(elastic: str):
+    from .wrist import WristOptions
+
+    return WristOptions(elastic=elastic)
+
+
+def _rating(value: float, unit: str, note: str) -> dict:
+    return {"value": float(value), "unit": unit, "note": note}
+
+
+def _plain(change: dict) -> dict:
+    out = dict(change)
+    out["trajectory"] = {k: np.asarray(v).tolist() for k, v in change["trajectory"].items()}
+    return out
+
+
+def _notes(params, elastic: str, friction: str) -> list[str]:
+    return [
+        "Computed from the model, not measured. Parameter set: "
+        f"{params.meta.get('name', params.origin)} (hash {params.hash()[:12]}).",
+        f"Elastic element: the {elastic} model; the geometric model's spring geometry is "
+        "calibrated to the report's three measured stiffnesses (fig 4.10-4.12).",
+        "Output quantities are about theta_x with both primary motors held (ideal "
+        "position control): both elastic elements deflect equally.",
+        "Maximum deflection is where a ring reaches its end stop. Peak torque and maximum "
+        "energy are the largest values up to it (the hard stop excluded); at stiff settings "
+        "the geometric torque falls again at large deflections, so the peak lies inside.",
+        "Stiffness-change time and energy: the pivot mechanism driven by the DC motor model "
+        "at the supply voltage, from rest; the motor and pivot-drive parameters are "
+        "estimates (the report leaves them uncharacterised).",
+        f"Dynamics: linear models with friction {friction} "
+        f"({linear_models.FRICTION_TREATMENTS[friction]}). The linearised arctan friction "
+        "damps small motions strongly; large motions see less damping.",
+        "Position bandwidth: -3 dB frequency of theta_x per motor angle with both motors "
+        "moving together.",
+    ]
+
+
+# -- figures ----------------------------------------------------------------------------
+
+
+def figures(sheet: dict) -> dict[str, tuple[str, bytes]]:
+    """Each figure as ``name: (caption, PNG bytes)``."""
+    from .plots import pyplot
+
+    plt = pyplot()
+    out = {}
+    per_q = sheet["per_q"]
+    q_cm = np.array([r["q"] for r in per_q]) * 100
+    curves = sheet["torque_deflection"]
+    colours = plt.cm.viridis(np.linspace(0.0, 0.9, len(curves)))
+
+    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    ax.semilogy(q_cm, [r["output_stiffness"] for r in per_q], "o-", label="end-effector (theta_x)")
+    ax.semilogy(q_cm, [r["ring_stiffness"] for r in per_q], "s--", label="one elastic element")
+    ax.set_xlabel("pivot position q [cm]")
+    ax.set_ylabel("stiffness [N m/rad]")
+    ax.invert_xaxis()
+    ax.grid(alpha=0.3, which="both")
+    ax.legend()
+    out["stiffness_vs_q"] = ("Stiffness at zero deflection against the pivot position "
+                             "(stiffer to the right).", _png(fig, plt))
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
+    for colour, curve in zip(colours, curves):
+        label = f"q = {curve['q'] * 100:.3g} cm"
+        axes[0].plot(curve["deflection"], curve["torque"], color=colour, label=label)
+        axes[1].plot(curve["deflection"], curve["stiffness"], color=colour, label=label)
+    axes[0].set_xlabel("deflection theta_x [rad]")
+    axes[0].set_ylabel("torque [N m]")
+    axes[1].set_xlabel("deflection theta_x [rad]")
+    axes[1].set_ylabel("tangent stiffness [N m/rad]")
+    axes[1].set_yscale("symlog", linthresh=0.01)  # negative beyond the torque peak
+    for ax in axes:
+        ax.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=8)
+    out["torque_deflection"] = ("Torque-deflection curves and tangent stiffness at several "
+                                "pivot positions (kinks: a spring loses its pretension).",
+                                _png(fig, plt))
+
+    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    for colour, curve in zip(colours, curves):
+        ax.plot(curve["deflection"], curve["energy"], color=colour,
+                label=f"q = {curve['q'] * 100:.3g} cm")
+    ax.set_xlabel("deflection theta_x [rad]")
+    ax.set_ylabel("stored elastic energy [J]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    out["energy"] = ("Elastic energy stored against deflection.", _png(fig, plt))
+
+    bode = sheet["frequency_response"]
+    omega = np.array(bode["omega"])
+    for key, ylabel, caption in (
+            ("compliance", "|theta_x / tau_x| [rad/(N m)]",
+             "End-effector compliance theta_x/tau_x, motors held (Bode plot)."),
+            ("motor_to_output", "|theta_x / motor angle| [1]",
+             "Motor-to-output transfer: theta_x per motor angle, both motors together "
+             "(Bode plot).")):
+        fig, (ax_m, ax_p) = plt.subplots(2, 1, figsize=(6.4, 5.2), sharex=True)
+        for colour, resp in zip(colours, bode[key]):
+            ax_m.loglog(omega / (2 * math.pi), resp["magnitude"], color=colour,
+                        label=f"q = {resp['q'] * 100:.3g} cm")
+            ax_p.semilogx(omega / (2 * math.pi), np.degrees(resp["phase"]), color=colour)
+        ax_m.set_ylabel(ylabel)
+        ax_p.set_ylabel("phase [deg]")
+        ax_p.set_xlabel("frequency [Hz]")
+        for ax in (ax_m, ax_p):
+            ax.grid(alpha=0.3, which="both")
+        ax_m.legend(fontsize=8)
+        out[f"bode_{key}"] = (caption, _png(fig, plt))
+
+    fig, (ax_f, ax_z) = plt.subplots(2, 1, figsize=(6.4, 5.2), sharex=True)
+    ax_f.semilogy(q_cm, [r["natural_frequencies"][0] / (2 * math.pi) for r in per_q], "o-",
+                  label="undamped natural frequency")
+    for r, q in zip(per_q, q_cm):
+        for m in r["modes"]:
+            ax_f.semilogy(q, m["frequency"] / (2 * math.pi), "kx", ms=4)
+            ax_z.plot(q, m["damping"], "kx", ms=4)
+        for m in r["modes_viscous"]:
+            ax_f.semilogy(q, m["frequency"] / (2 * math.pi), "o", color="C1", mfc="none", ms=5)
+            ax_z.plot(q, m["damping"], "o", color="C1", mfc="none", ms=5)
+    ax_f.semilogy([], [], "kx", label="modes (|pole|), friction " + sheet["friction"]["treatment"])
+    ax_f.semilogy([], [], "o", color="C1", mfc="none", label="modes, viscous friction only")
+    ax_f.set_ylabel("frequency [Hz]")
+    ax_z.set_ylabel("damping ratio [1]")
+    ax_z.set_xlabel("pivot position q [cm]")
+    ax_z.invert_xaxis()
+    for ax in (ax_f, ax_z):
+        ax.grid(alpha=0.3, which="both")
+    ax_f.legend(fontsize=8)
+    out["modes"] = ("Natural frequencies and damping against the pivot position, with the "
+                    "linearised arctan friction (small motions) and with its viscous part "
+                    "only (large motions see about that much damping). Real poles have "
+                    "damping ratio 1.", _png(fig, plt))
+
+    fig, (ax_q, ax_p) = plt.subplots(2, 1, figsize=(6.4, 5.2), sharex=True)
+    for key, style in (("stiffening", "-"), ("softening", "--")):
+        tr = sheet["stiffness_change"][key]["trajectory"]
+        ax_q.plot(tr["time"], np.array(tr["q"]) * 100, style, label=key)
+        ax_p.plot(tr["time"], tr["power"], style, label=key)
+    ax_q.set_ylabel("pivot position q [cm]")
+    ax_p.set_ylabel("electric power [W]")
+    ax_p.set_xlabel("time [s]")
+    for ax in (ax_q, ax_p):
+        ax.grid(alpha=0.3)
+    ax_q.legend(fontsize=8)
+    out["stiffness_change"] = ("Stiffness change at the supply voltage: pivot position and "
+                               "the stiffness motor's electric power.", _png(fig, plt))
+    return out
+
+
+def _png(fig, plt) -> bytes:
+    buffer = io.BytesIO()
+    fig.tight_layout()
+    fig.savefig(buffer, format="png", dpi=96)
+    plt.close(fig)
+    return buffer.getvalue()
+
+
+# -- the page ---------------------------------------------------------------------------
+
+
+_CSS = """body{font-family:sans-serif;max-width:60em;margin:2em auto;color:#222}
+table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:.25em .6em;
+text-align:right}th{background:#eee}td.l,th.l{text-align:left}figure{margin:1.5em 0}
+figcaption{font-size:.9em;color:#444}img{max-width:100%}"""
+
+
+def html_page(sheet: dict, figs: dict[str, tuple[str, bytes]]) -> str:
+    """The datasheet as one self-contained HTML page."""
+    esc = html.escape
+    rows = []
+    for key, r in sheet["ratings"].items():
+        rows.append(f"<tr><td class=l>{esc(key.replace('_', ' '))}</td><td>{r['value']:.4g}</td>"
+                    f"<td class=l>{esc(r['unit'])}</td><td class=l>{esc(r['note'])}</td></tr>")
+    per_q = []
+    for r in sheet["per_q"]:
+        slow = r["modes"][0] if r["modes"] else {"frequency": math.nan, "damping": math.nan}
+        per_q.append(
+            f"<tr><td>{r['q'] * 100:.3g}</td><td>{r['ring_stiffness']:.4g}</td>"
+            f"<td>{r['output_stiffness']:.4g}</td><td>{r['peak_torque']:.4g}</td>"
+            f"<td>{r['max_energy']:.4g}</td><td>{_finite(r['pretension_loss_deflection'])}</td>"
+            f"<td>{r['natural_frequencies'][0] / (2 * math.pi):.4g}</td>"
+            f"<td>{slow['frequency'] / (2 * math.pi):.4g}</td><td>{slow['damping']:.3g}</td>"
+            f"<td>{r['position_bandwidth'] / (2 * math.pi):.4g}</td></tr>")
+    parts = [
+        "<!DOCTYPE html>", "<html lang=en><head><meta charset=utf-8>",
+        f"<title>{esc(sheet['title'])}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{esc(sheet['title'])}</h1>",
+        f"<p>vsj {esc(sheet['vsj_version'])}, parameters {esc(sheet['parameters']['origin'])} "
+        f"(hash {esc(sheet['parameters']['hash'][:12])}), elastic model "
+        f"{esc(sheet['elastic_model'])}. In the spirit of Grioli et al. 2015, \"Variable "
+        "stiffness actuators: the user's point of view\".</p>",
+        "<h2>Ratings</h2><table><tr><th class=l>quantity</th><th>value</th>"
+        "<th class=l>unit</th><th class=l>condition</th></tr>", *rows, "</table>",
+        "<h2>Against the pivot position</h2><table><tr><th>q [cm]</th>"
+        "<th>element stiffness [N m/rad]</th><th>output stiffness [N m/rad]</th>"
+        "<th>peak torque [N m]</th><th>max energy [J]</th><th>pretension lost at [rad]</th>"
+        "<th>natural freq. [Hz]</th><th>slowest pole, |p| [Hz]</th><th>its damping</th>"
+        "<th>position bandwidth [Hz]</th></tr>", *per_q, "</table>",
+        "<h2>Figures</h2>",
+    ]
+    for name, (caption, png) in figs.items():
+        data = base64.b64encode(png).decode("ascii")
+        parts.append(f"<figure id={esc(name)}><img alt=\"{esc(caption)}\" "
+                     f"src=\"data:image/png;base64,{data}\"><figcaption>{esc(caption)}"
+                     "</figcaption></figure>")
+    parts.append("<h2>Notes</h2><ul>")
+    parts += [f"<li>{esc(note)}</li>" for note in sheet["notes"]]
+    parts.append("</ul></body></html>")
+    return "\n".join(parts) + "\n"
+
+
+def _finite(value: float) -> str:
+    return f"{value:.3g}" if math.isfinite(value) else "none"
+
+
+def write(sheet: dict, out_dir: Path) -> tuple[Path, Path]:
+    """Write ``datasheet.html`` (with figures) and ``datasheet.json`` into ``out_dir``."""
+    from .output import _jsonable, atomic_write, ensure_output_dir
+
+    out = ensure_output_dir(Path(out_dir))
+    page = html_page(sheet, figures(sheet))
+    html_path, json_path = out / "datasheet.html", out / "datasheet.json"
+    with atomic_write(html_path) as handle:
+        handle.write(page)
+    with atomic_write(json_path) as handle:
+        handle.write(json.dumps(_jsonable(sheet), indent=1) + "\n")
+    return html_path, json_path
+
+
+__all__ = ["compute", "figures", "html_page", "write", "DEFAULT_FRICTION"]
