@@ -357,7 +357,7 @@ def linearize_structure(structure: Structure, *, angles: Mapping[str, float] | N
           "states": dict(zip(stepper.state_names, map(float, state0))),
           "inputs": dict(zip(input_names, map(float, np.append(u0, q0) if fixed_pivot
                                                else u0))),
-          "outputs": dict(zip(out_names, map(float, y0)))}
+          "outputs": dict(zip(out_names, map(float, y0 + 0.0)))}  # + 0.0: no "-0"
     info = {"network": structure.name, "friction": FRICTION_TREATMENTS[friction],
             "pivot": ("held at q (a parameter; input 'q' is its sensitivity); the pivot "
                       "mechanism is not back-driven and is not part of the model")
