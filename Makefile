@@ -15,6 +15,7 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	@echo 'compiling the engine once (numba cache, about 2-3 minutes)...'
 	$(BIN)/vsj reproduce --reduced --out $(VENV)/warmup > /dev/null
+	$(BIN)/vsj linearize > /dev/null
 	touch $(STAMP)
 
 reproduce: $(STAMP)

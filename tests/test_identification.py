@@ -9,6 +9,7 @@ import json
 import numpy as np
 import pytest
 
+from conftest import override
 from vsj import characteristics as ch
 from vsj import measurements, synth
 from vsj.cli import main
@@ -108,12 +109,9 @@ def test_planetary_parameters_recovered_from_the_bench(params):
     result = fit_planetary(*curves, tooth_ratio=x)
     chosen = result.chosen
     assert chosen is not None and chosen.structure == "bearing-stiction"
-    from vsj.wrist import planetary
-
-    gear = planetary("pg", params)
     for key, fixed in (("fixed_sun", "sun"), ("fixed_ring", "ring")):
         w, predicted = chosen.predicted[key]
-        true = _true_bench_torque(gear, fixed, w)
+        true = _true_bench_torque(params, fixed, w)
         assert rms_of_range(predicted, true) < CURVE_TOL
     # what the two curves determine well: the mesh level and the ring bearing
     assert chosen.value("k_1") == pytest.approx(params["planetary.mesh_stiction"], rel=0.15)
@@ -121,23 +119,19 @@ def test_planetary_parameters_recovered_from_the_bench(params):
                                                 rel=0.15)
 
 
-def _true_bench_torque(gear, fixed, w):
-    """Steady torque of the bench's own model: arctan meshes, bearings that stick."""
-    from vsj import friction
+def _true_bench_torque(params, fixed, w):
+    """Steady torque of the bench's own model: arctan meshes and viscous bearings, plus
+    bearings that stick (Coulomb level), each from the module's closed form."""
+    from vsj.wrist import planetary
 
-    total = np.zeros_like(w)
-    x = gear.tooth_ratio
-    ratios = ({"mesh_sun": -1.0, "mesh_ring": x, "bearing_ring": 1 + x, "bearing_carrier": 1.0}
-              if fixed == "sun" else
-              {"mesh_sun": 1 / x, "mesh_ring": -1.0, "bearing_sun": 1 + 1 / x,
-               "bearing_carrier": 1.0})
-    for e in gear.parts().frictions:
-        r = ratios.get(e.name.rsplit(".", 1)[1], 0.0)
-        law = "stiction" if "bearing" in e.name else "arctan"
-        if r:
-            total += r * friction.torque(law, r * w, viscous=e.viscous, stiction=e.stiction,
-                                         sharpness=e.sharpness)
-    return total
+    keys = ("sun_bearing_stiction", "ring_bearing_stiction", "carrier_bearing_stiction")
+    smooth = override(params, **{f"planetary__{k}": "0 N m" for k in keys})
+    sticking = params.with_overrides(
+        {f"planetary.{k}": "0 N m s/rad" for k in ("sun_bearing_viscous", "ring_bearing_viscous",
+                                                   "carrier_bearing_viscous")}
+        | {"planetary.mesh_stiction": "0 N m"}, origin="test")
+    return (planetary("pg", smooth).closed_form_torque(fixed, w, "arctan")
+            + planetary("pg", sticking).closed_form_torque(fixed, w, "stiction"))
 
 
 def test_planetary_cli_json_and_parameter_file(tmp_path, capsys):

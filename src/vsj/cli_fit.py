@@ -8,6 +8,7 @@ standard output (messages go to standard error), so it can be piped.
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -49,11 +50,8 @@ def _emit_json(args, record: dict, out: Path | None, name: str) -> None:
 def cmd_synth_friction(args) -> int:
     from . import measurements, synth
 
-    if args.report:
-        proto, _, fixed = args.report.partition("-")
-        if (proto, args.fixed) not in synth.REPORT_CONSTANTS:
-            raise InputError(f"--report must be 'old' or 'second', got {args.report!r}")
-        constants, params = synth.REPORT_CONSTANTS[(proto, args.fixed)], None
+    if args.report:  # argparse has checked it is 'old' or 'second'
+        constants, params = synth.REPORT_CONSTANTS[(args.report, args.fixed)], None
     elif args.constants:
         constants, params = _floats(args.constants, 3, "--constants c1,c2,c3"), None
     else:
@@ -145,7 +143,7 @@ def cmd_fit_planetary(args) -> int:
     if chosen is not None:
         lines.append(f"parameters ({chosen.structure} model):")
         for e in chosen.parameters:
-            err = (f"+- {e.stderr:.2g}" if e.stderr == e.stderr and e.stderr != float("inf")
+            err = (f"+- {e.stderr:.2g}" if math.isfinite(e.stderr)
                    else "(at a bound)" if e.name in chosen.at_bound else "(not determined)")
             lines.append(f"  {e.name:<5} = {e.value:.5g} {err} {e.unit}")
         if chosen.undetermined:

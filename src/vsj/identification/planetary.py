@@ -252,6 +252,8 @@ def fit_structure(sun: FrictionFit, ring: FrictionFit, structure: str, *,
         down[j] -= h
         J[:, j] = (model(up) - model(down)) * weight / (2 * h)
     at_bound = [names[i] for i in range(len(names)) if coef[i] <= 0.0]
+    if free_x and min(abs(x - b) for b in TOOTH_RATIO_RANGE) < 1e-4:
+        at_bound.append("x")  # at an end of TOOTH_RATIO_RANGE: no symmetric interval
     free = [i for i, n in enumerate(full_names) if n not in at_bound]
     dof = max(len(T) - len(free), 1)
     chi2 = float(r @ r)
@@ -277,12 +279,10 @@ def fit_structure(sun: FrictionFit, ring: FrictionFit, structure: str, *,
     params = [Estimate(n, float(v), units[n], float(e),
                        (float(v - t * e), float(v + t * e))) for n, v, e in
               zip(full_names, theta, err)]
-    if free_x and min(abs(x - b) for b in TOOTH_RATIO_RANGE) < 1e-4:
-        at_bound.append(f"x (at {x:g}, the end of the range {TOOTH_RATIO_RANGE})")
     if not free_x:
         params.append(Estimate("x", float(tooth_ratio), "1", 0.0, (tooth_ratio, tooth_ratio)))
-    pred_s = model(theta)[:len(w_s)]
-    pred_r = model(theta)[len(w_s):]
+    predicted = model(theta)
+    pred_s, pred_r = predicted[:len(w_s)], predicted[len(w_s):]
     misfit = {"fixed_sun": _rms(pred_s - sun.torque), "fixed_ring": _rms(pred_r - ring.torque)}
     noise = {"fixed_sun": _noise(sun), "fixed_ring": _noise(ring)}
     p_value = float(stats.chi2.sf(chi2, dof))

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 import json
 import math
 import traceback
@@ -120,10 +119,8 @@ def run(out: Path, params: Parameters, *, reduced: bool = False, only=None,
         outcome = Outcome(name)
         try:
             fig = table[name](ctx)
-            buffer = io.BytesIO()
-            fig.figure.savefig(buffer, format="png", dpi=100, bbox_inches="tight")
-            outcome.png = buffer.getvalue()
             save(fig.figure, out / f"{name}.png", svg=True)
+            outcome.png = (out / f"{name}.png").read_bytes()  # embedded in the page
             outcome.figure = fig
             outcome.files = [f"{name}.png", f"{name}.svg"]
         except Exception as exc:  # a failing figure must not stop the others

@@ -119,7 +119,8 @@ def fig_4_6(ctx):
     fig.suptitle("fig-4.6: angle-dependent torque ripple, second prototype, sun fixed  "
                  "[synthetic data]", fontsize=10)
     fig.tight_layout()
-    peak = 0.0015 * 6 + 0.005 * np.arctan(60)
+    c1, c2, c3 = synth.REPORT_CONSTANTS[("second", "sun")]
+    peak = c1 * max(synth.SPEEDS) + c2 * np.arctan(c3 * max(synth.SPEEDS))
     rows = [Row("ripple rms, second prototype fixed sun", "seen, not quantified",
                 r.rms, "N m", "fig 4.6, section 4.1.3",
                 f"synthetic ripple of rms {0.15 * peak:.3g} N m (15 % of the largest friction "
