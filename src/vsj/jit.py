@@ -14,3 +14,7 @@ from numba import njit
 kernel = njit(cache=True, error_model="numpy")
 inline = njit(cache=True, error_model="numpy", inline="always")
 parallel = njit(cache=True, error_model="numpy", parallel=True)
+#: For allocation-free inner loops that receive every array from their caller
+#: (the time-stepper's loop): compiled without reference counting, which in a
+#: branchy loop over many arrays costs a call and an atomic add per array use.
+loop = njit(cache=True, error_model="numpy", _nrt=False)

@@ -38,7 +38,7 @@ import numpy as np
 
 from ..components.elastic_element import row, spring_law
 from ..friction import STICTION, coulomb_level, resistive_torque
-from ..jit import inline, kernel
+from ..jit import inline, kernel, loop
 from .core import (FRICTION_SOLVER, NOT_FINITE, OK, SG, STATUS, TOO_MANY_STEPS, U, eval_inputs,
                    eval_pivot, xadd, xdot)
 from .model import D_F, D_K, D_L, D_M, D_N, D_R, D_S
@@ -51,6 +51,9 @@ IMPULSE_REL = 1e-12
 IMPULSE_MAX_ITER = 500
 #: Relative Tikhonov term that makes the impulse problem strictly convex (removed by polishing).
 IMPULSE_REG = 1e-9
+#: Relative change of the step matrix H below which its factor is reused (round-off:
+#: a pivot held still moves q, hence the springs' stiffness, in the last bits).
+H_REUSE = 1e-12
 
 
 @inline
@@ -98,41 +101,250 @@ def _solve(L, b, out, k):
 
 
 @inline
-def _free_newton(Y, g, free, n_free, eps, G, Lg, t, c, d):
-    """Newton step on the free set: ``d = -(eps I + Y_F Y_F^T)^-1 g_F`` by Woodbury,
-    which only needs an n x n solve (n = degrees of freedom)."""
-    n = Y.shape[1]
+def _project(YT, p, z):
+    """``z = YT p``: the impulses' effect in the scaled speed coordinates."""
+    n, m = YT.shape
     for i in range(n):
-        acc_t = 0.0
-        for k in range(n_free):
-            acc_t += Y[free[k], i] * g[free[k]]
-        t[i] = acc_t
-        for j in range(i + 1):
-            acc = 0.0
-            for k in range(n_free):
-                acc += Y[free[k], i] * Y[free[k], j]
-            G[i, j] = acc
-            G[j, i] = acc
-        G[i, i] += eps
-    _cholesky(G, Lg, n, True)
-    _solve(Lg, t, c, n)
-    for k in range(n_free):
-        e = free[k]
-        acc = g[e]
-        for i in range(n):
-            acc -= Y[e, i] * c[i]
-        d[k] = -acc / eps
+        acc = 0.0
+        for e in range(m):
+            acc += YT[i, e] * p[e]
+        z[i] = acc
 
 
 @inline
-def solve_impulses(Y, q, cap, p, state, active, free, G, Lg, t, c, d, g, z):
+def _gram(YT, mask, vec, G, t, ridge):
+    """``G = YT diag(mask) YT^T + ridge I`` and ``t = YT (mask * vec)``."""
+    n, m = YT.shape
+    for i in range(n):
+        acc_t = 0.0
+        for e in range(m):
+            acc_t += YT[i, e] * mask[e] * vec[e]
+        t[i] = acc_t
+        for j in range(i + 1):
+            acc = 0.0
+            for e in range(m):
+                acc += YT[i, e] * mask[e] * YT[j, e]
+            G[i, j] = acc
+            G[j, i] = acc
+        G[i, i] += ridge
+
+
+@inline
+def _snap(q, cap, p, state, active, mask):
+    """Classify the warm start: impulses at (this step's) bound keep their sign,
+    the others are free (stuck); uninvolved elements get state 2. Fills ``mask``
+    (1 for free) and returns ``(number free, largest free slip)``."""
+    n_free = 0
+    scale = 0.0
+    for e in range(q.shape[0]):
+        ce = cap[e]
+        mask[e] = 0.0
+        if active[e] and ce > 0.0:
+            scale = max(scale, abs(q[e]))
+            # the cap varies in its last bits from step to step (the step length does):
+            # an impulse at last step's bound is at this step's bound
+            if p[e] >= ce * (1.0 - 1e-9):
+                p[e] = ce
+                state[e] = 1
+            elif p[e] <= -ce * (1.0 - 1e-9):
+                p[e] = -ce
+                state[e] = -1
+            else:
+                state[e] = 0
+                mask[e] = 1.0
+                n_free += 1
+        else:
+            p[e] = 0.0
+            state[e] = 2
+    return n_free, scale
+
+
+@inline
+def _stuck_impulses(YT, mask, slip, G, Lg, t, c, d):
+    """Minimum-norm impulses of the stuck (free) elements that cancel their slips
+    ``slip`` (computed with the other impulses applied): ``d = Y_F G^-2 Y_F^T s_F``
+    with ``G = Y_F^T Y_F``, only n x n solves. ``G`` may be singular (parallel
+    rows: elements in series): a tiny ridge. Writes ``d`` (zero off the free set)."""
+    n, m = YT.shape
+    _gram(YT, mask, slip, G, t, 0.0)
+    trace = 0.0
+    for i in range(n):
+        trace += G[i, i]
+    for i in range(n):
+        G[i, i] += 1e-13 * trace
+    _cholesky(G, Lg, n, True)
+    _solve(Lg, t, c, n)
+    _solve(Lg, c, t, n)
+    for e in range(m):
+        d[e] = 0.0
+    for i in range(n):
+        ti = t[i]
+        for e in range(m):
+            d[e] += YT[i, e] * ti * mask[e]
+
+
+@inline
+def _slips(YT, q, z, s):
+    """``s = q - YT^T z``."""
+    n, m = YT.shape
+    for e in range(m):
+        s[e] = q[e]
+    for i in range(n):
+        zi = z[i]
+        for e in range(m):
+            s[e] -= YT[i, e] * zi
+
+
+@inline
+def _same_pattern(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
+    """Fast path: does last step's stick/slip pattern still hold?
+
+    Bound impulses at their caps, the stuck elements' impulses the minimum-norm
+    ones that make their slips exactly zero; True if every condition holds
+    (stuck impulses within their caps, slipping elements' slips in the direction
+    of their impulses), and ``p`` is then the solution. Far cheaper than the
+    active-set method, and true on most steps.
+    """
+    n, m = YT.shape
+    n_free, scale = _snap(q, cap, p, state, active, mask)
+    tol = IMPULSE_ABS + IMPULSE_REL * scale
+    for e in range(m):
+        d[e] = p[e] * (1.0 - mask[e])
+    _project(YT, d, z)
+    _slips(YT, q, z, g)  # slips with the bound impulses only
+    if n_free > 0:
+        _stuck_impulses(YT, mask, g, G, Lg, t, c, d)
+        fits = True
+        for e in range(m):
+            if mask[e] > 0.0:
+                fits = fits and abs(d[e]) <= cap[e]
+                p[e] = d[e]
+        if not fits:
+            return False
+        _project(YT, d, z)
+        for i in range(n):
+            zi = z[i]
+            for e in range(m):
+                g[e] -= YT[i, e] * zi
+    holds = True
+    for e in range(m):
+        st = state[e]
+        if st == 0:
+            holds = holds and abs(g[e]) <= tol
+        elif st != 2:
+            holds = holds and g[e] * st >= -tol
+    return holds
+
+
+@inline
+def _active_set(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
+    """The general method (see `solve_impulses`), from the warm start in ``p``."""
+    n, m = YT.shape
+    _, scale = _snap(q, cap, p, state, active, mask)
+    w_max = 0.0
+    for e in range(m):
+        if state[e] != 2:
+            norm = 0.0
+            for i in range(n):
+                norm += YT[i, e] * YT[i, e]
+            w_max = max(w_max, norm)
+    if w_max == 0.0:
+        return True, 0
+    eps = IMPULSE_REG * w_max
+    tol = IMPULSE_ABS + IMPULSE_REL * scale
+    converged = False
+    iterations = 0
+    at_optimum = False  # the free set was just minimised: check the bound set next
+    for it in range(IMPULSE_MAX_ITER):
+        iterations = it + 1
+        # gradient of 1/2 p^T (W + eps I) p - q.p
+        _project(YT, p, z)
+        _slips(YT, q, z, g)
+        n_free = 0
+        for e in range(m):
+            g[e] = eps * p[e] - g[e]
+            free = state[e] == 0
+            mask[e] = 1.0 if free else 0.0
+            n_free += free
+        if n_free > 0 and not at_optimum:
+            # Newton step on the free set, d = -(eps I + Y_F Y_F^T)^-1 g_F by
+            # Woodbury's identity (an n x n solve), then a ratio test at the caps
+            _gram(YT, mask, g, G, t, eps)
+            _cholesky(G, Lg, n, True)
+            _solve(Lg, t, c, n)
+            for e in range(m):
+                d[e] = g[e]
+            for i in range(n):
+                ci = c[i]
+                for e in range(m):
+                    d[e] -= YT[i, e] * ci
+            alpha = 1.0
+            block = -1
+            for e in range(m):
+                if state[e] != 0:
+                    continue
+                de = -d[e] / eps
+                d[e] = de
+                if de > 0.0 and p[e] + de > cap[e]:
+                    a = (cap[e] - p[e]) / de
+                elif de < 0.0 and p[e] + de < -cap[e]:
+                    a = (-cap[e] - p[e]) / de
+                else:
+                    continue
+                if a < alpha:
+                    alpha = a
+                    block = e
+            for e in range(m):
+                if state[e] == 0:
+                    p[e] = min(cap[e], max(-cap[e], p[e] + alpha * d[e]))
+            if block >= 0:
+                p[block] = cap[block] if d[block] > 0.0 else -cap[block]
+                state[block] = 1 if d[block] > 0.0 else -1
+            else:
+                at_optimum = True
+            continue
+        at_optimum = False
+        worst = tol
+        release = -1
+        for e in range(m):
+            st = state[e]
+            if (st == 1 or st == -1) and g[e] * st > worst:
+                worst = g[e] * st
+                release = e
+        if release < 0:
+            converged = True
+            break
+        state[release] = 0
+    if not converged:
+        return False, iterations
+    # polish: remove the regularisation's creep from the stuck elements
+    n_free = 0
+    for e in range(m):
+        free = state[e] == 0
+        mask[e] = 1.0 if free else 0.0
+        n_free += free
+    if n_free > 0:
+        _project(YT, p, z)
+        _slips(YT, q, z, g)
+        _stuck_impulses(YT, mask, g, G, Lg, t, c, d)
+        for e in range(m):
+            if state[e] == 0:
+                p[e] = min(cap[e], max(-cap[e], p[e] + d[e]))
+    return True, iterations
+
+
+@inline
+def solve_impulses(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
     """Exact Coulomb impulses: slips ``s = q - Y Y^T p`` with ``|p_e| <= cap_e``.
 
-    ``Y`` holds one row ``L^-1 d_e`` per element (``H = L L^T``), so the
-    Delassus matrix is ``W = Y Y^T``. W has rank n (the degrees of freedom)
-    while there are many more elements, and while the sources move, the
-    elements of one chain cannot all stick, so the problem is degenerate and
-    first-order methods crawl. Two stages:
+    ``YT`` holds one column ``L^-1 d_e`` per element (``H = L L^T``), so the
+    Delassus matrix is ``W = Y Y^T`` with ``Y = YT^T``. W has rank n (the
+    degrees of freedom) while there are many more elements, and while the
+    sources move, the elements of one chain cannot all stick, so the problem is
+    degenerate and first-order methods crawl.
+
+    First the fast path (`_same_pattern`): last step's stick/slip pattern,
+    checked exactly. When it fails (a transition), two stages:
 
     1. the box problem ``min 1/2 p^T (W + eps I) p - q.p`` with a tiny
        ``eps = 1e-9 max W_ee`` is strictly convex; a primal active-set method
@@ -143,142 +355,12 @@ def solve_impulses(Y, q, cap, p, state, active, free, G, Lg, t, c, d, g, z):
        impulses, so stuck elements hold exactly (to round-off).
 
     ``state`` (-1, 0 free, +1; 2 = not involved) and ``p`` carry the previous
-    step's solution as a warm start. Returns ``(converged, iterations)``.
+    step's solution as a warm start; ``mask`` and the rest are scratch. Returns
+    ``(converged, active-set iterations)`` (0 iterations: the fast path held).
     """
-    m = q.shape[0]
-    n = Y.shape[1]
-    scale = 0.0
-    w_max = 0.0
-    for e in range(m):
-        if active[e] and cap[e] > 0.0:
-            scale = max(scale, abs(q[e]))
-            norm = 0.0
-            for i in range(n):
-                norm += Y[e, i] * Y[e, i]
-            w_max = max(w_max, norm)
-            # the cap varies in its last bits from step to step (the step length does):
-            # an impulse at last step's bound is at this step's bound
-            if p[e] >= cap[e] * (1.0 - 1e-9):
-                p[e] = cap[e]
-                state[e] = 1
-            elif p[e] <= -cap[e] * (1.0 - 1e-9):
-                p[e] = -cap[e]
-                state[e] = -1
-            else:
-                state[e] = 0
-        else:
-            p[e] = 0.0
-            state[e] = 2
-    if w_max == 0.0:
+    if _same_pattern(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
         return True, 0
-    eps = IMPULSE_REG * w_max
-    tol = IMPULSE_ABS + IMPULSE_REL * scale
-    converged = False
-    iterations = 0
-    at_optimum = False  # the free set was just minimised: check the bound set next
-    for it in range(IMPULSE_MAX_ITER):
-        iterations = it + 1
-        for i in range(n):
-            acc = 0.0
-            for e in range(m):
-                if state[e] != 2:
-                    acc += Y[e, i] * p[e]
-            z[i] = acc
-        n_free = 0
-        for e in range(m):
-            if state[e] == 2:
-                continue
-            acc = eps * p[e] - q[e]
-            for i in range(n):
-                acc += Y[e, i] * z[i]
-            g[e] = acc
-            if state[e] == 0:
-                free[n_free] = e
-                n_free += 1
-        if n_free > 0 and not at_optimum:
-            _free_newton(Y, g, free, n_free, eps, G, Lg, t, c, d)
-            alpha = 1.0
-            block = -1
-            for k in range(n_free):
-                e = free[k]
-                if d[k] > 0.0 and p[e] + d[k] > cap[e]:
-                    a = (cap[e] - p[e]) / d[k]
-                elif d[k] < 0.0 and p[e] + d[k] < -cap[e]:
-                    a = (-cap[e] - p[e]) / d[k]
-                else:
-                    continue
-                if a < alpha:
-                    alpha = a
-                    block = k
-            for k in range(n_free):
-                e = free[k]
-                p[e] = min(cap[e], max(-cap[e], p[e] + alpha * d[k]))
-            if block >= 0:
-                e = free[block]
-                p[e] = cap[e] if d[block] > 0.0 else -cap[e]
-                state[e] = 1 if d[block] > 0.0 else -1
-            else:
-                at_optimum = True
-            continue
-        at_optimum = False
-        worst = tol
-        release = -1
-        for e in range(m):
-            if state[e] == 1 and g[e] > worst:
-                worst = g[e]
-                release = e
-            elif state[e] == -1 and -g[e] > worst:
-                worst = -g[e]
-                release = e
-        if release < 0:
-            converged = True
-            break
-        state[release] = 0
-    if not converged:
-        return False, iterations
-    # polish: remove the regularisation's creep from the stuck elements with the
-    # minimum-norm correction of their impulses, delta = Y_F G^-2 Y_F^T s_F (G = Y_F^T Y_F)
-    for i in range(n):
-        acc = 0.0
-        for e in range(m):
-            if state[e] != 2:
-                acc += Y[e, i] * p[e]
-        z[i] = acc
-    n_free = 0
-    for e in range(m):
-        if state[e] == 0:
-            acc = q[e]
-            for i in range(n):
-                acc -= Y[e, i] * z[i]
-            g[e] = acc  # remaining slip
-            free[n_free] = e
-            n_free += 1
-    if n_free > 0:
-        trace = 0.0
-        for i in range(n):
-            acc_t = 0.0
-            for k in range(n_free):
-                acc_t += Y[free[k], i] * g[free[k]]
-            t[i] = acc_t
-            for j in range(i + 1):
-                acc = 0.0
-                for k in range(n_free):
-                    acc += Y[free[k], i] * Y[free[k], j]
-                G[i, j] = acc
-                G[j, i] = acc
-            trace += G[i, i]
-        for i in range(n):
-            G[i, i] += 1e-13 * trace  # G may be singular (parallel rows): a tiny ridge
-        _cholesky(G, Lg, n, True)
-        _solve(Lg, t, c, n)
-        _solve(Lg, c, t, n)
-        for k in range(n_free):
-            e = free[k]
-            acc = 0.0
-            for i in range(n):
-                acc += Y[e, i] * t[i]
-            p[e] = min(cap[e], max(-cap[e], p[e] + acc))
-    return True, iterations
+    return _active_set(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z)
 
 
 @inline
@@ -330,26 +412,14 @@ def run(m, w, y0, duration, h, t_out, max_steps):
     """
     dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, \
         first, count = m
-    hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
     n = dims[D_N]
     s_n = dims[D_S]
     nf = dims[D_F]
     nk = dims[D_K]
     nl = dims[D_L]
     nm = dims[D_M]
-    r_load = nf + nk
-    r_mot = r_load + nl
-    r_piv = dims[D_R] - 1
-    moving_pivot = par[r_piv, 2] > 0.0
     ny = y0.shape[0]
     n_state = 2 * n + nm
-    a_src = n_state
-    a_load = a_src + s_n
-    a_elec = a_load + nl
-    a_fric = a_elec + nm
-    a_res = a_fric + nf
-    a_spr = a_res + nm
-    a_piv = a_spr + nk
 
     n_out = t_out.shape[0]
     out = np.full((n_out, ny), np.nan)
@@ -383,13 +453,13 @@ def run(m, w, y0, duration, h, t_out, max_steps):
     col = np.empty(n)
     drow = np.empty(n)
     Y = np.zeros((nf, n))
-    Yl = np.zeros((nf, n))
+    YlT = np.zeros((n, nf))
     qv = np.zeros(nf)
     cap = np.zeros(nf)
     p = np.zeros(nf)
     slip = np.zeros(nf)
     state = np.zeros(nf, dtype=np.int64)
-    free_buf = np.zeros(nf, dtype=np.int64)
+    mask = np.zeros(nf)
     Gb = np.zeros((n, n))
     Lgb = np.zeros((n, n))
     tb = np.zeros(n)
@@ -414,6 +484,48 @@ def run(m, w, y0, duration, h, t_out, max_steps):
     i1 = np.empty(nm)
     ypiv = np.empty(2 * n)
 
+    scratch = (H, H_last, Lc, Y, YlT, Gb, Lgb, x, v, cur, r, vfree, v1, x1, col, drow, qv, cap, p,
+               slip, tb, cb, db, gb, zb, s0, f0, df0, force, sp_c, sp_kap, u0, sg0, u1, sg1, um, ldm, vm, srcF,
+               i1, ypiv, held, state, mask, active, driven)
+
+    status, t, steps_done = _steps(m, w, scratch, y, duration, h, t_out, max_steps, out, coulomb,
+                                   stuck, transitions)
+    return status, t, y, out, coulomb, stuck, steps_done, transitions
+
+
+@loop
+def _steps(m, w, scratch, y, duration, h, t_out, max_steps, out, coulomb, stuck, transitions):
+    """The stepping loop of `run`, over preallocated arrays; returns ``(status, t, steps)``.
+
+    Compiled as `vsj.jit.loop` (it allocates nothing): without reference
+    counting, which in this branchy loop cost about a tenth of the time.
+    """
+    dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, \
+        first, count = m
+    hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
+    H, H_last, Lc, Y, YlT, Gb, Lgb, x, v, cur, r, vfree, v1, x1, col, drow, qv, cap, p, slip, tb, cb, \
+        db, gb, zb, s0, f0, df0, force, sp_c, sp_kap, u0, sg0, u1, sg1, um, ldm, vm, srcF, i1, ypiv, \
+        held, state, mask, active, driven = scratch
+    n = dims[D_N]
+    s_n = dims[D_S]
+    nf = dims[D_F]
+    nk = dims[D_K]
+    nl = dims[D_L]
+    nm = dims[D_M]
+    r_load = nf + nk
+    r_mot = r_load + nl
+    r_piv = dims[D_R] - 1
+    moving_pivot = par[r_piv, 2] > 0.0
+    n_state = 2 * n + nm
+    a_src = n_state
+    a_load = a_src + s_n
+    a_elec = a_load + nl
+    a_fric = a_elec + nm
+    a_res = a_fric + nf
+    a_spr = a_res + nm
+    a_piv = a_spr + nk
+    n_out = t_out.shape[0]
+
     eval_inputs(0.0, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0, srcw)
     for j in range(s_n):
         u0[j] = srcw[j, U]
@@ -433,7 +545,8 @@ def run(m, w, y0, duration, h, t_out, max_steps):
     steps_done = 0
     i_out = 0
     if n_out > 0 and t_out[0] <= 0.0:
-        out[0, :] = y
+        for j in range(y.shape[0]):
+            out[0, j] = y[j]
         i_out = 1
     t = 0.0
     for step in range(steps_total):
@@ -494,13 +607,20 @@ def run(m, w, y0, duration, h, t_out, max_steps):
             xadd(xp, xc, xv, rr, r, hs * const)
             _outer(xp, xc, xv, rr, H, hs * damp)
         # H changes only with non-linear springs, smooth friction slopes or a moving
-        # pivot; when it is the same as last step, so are its factor and Y, Yl
+        # pivot; while it stays within round-off of the matrix last factored
+        # (H_last), that factor and Y, YlT are reused
+        scale_h = 0.0
+        for i in range(n):
+            for c in range(n):
+                scale_h = max(scale_h, abs(H_last[i, c]))
         same = step > 0
         for i in range(n):
             for c in range(n):
-                same = same and H[i, c] == H_last[i, c]
-                H_last[i, c] = H[i, c]
+                same = same and abs(H[i, c] - H_last[i, c]) <= H_REUSE * scale_h
         if n > 0 and not same:
+            for i in range(n):
+                for c in range(n):
+                    H_last[i, c] = H[i, c]
             if not _cholesky(H, Lc, n, False):
                 status = NOT_FINITE
                 break
@@ -512,9 +632,9 @@ def run(m, w, y0, duration, h, t_out, max_steps):
                     _solve(Lc, drow, col, n)  # H^-1 d_e, to update the speeds
                     for i in range(n):
                         Y[e, i] = col[i]
-                    _forward(Lc, drow, col, n)  # L^-1 d_e: W = Yl Yl^T
+                    _forward(Lc, drow, col, n)  # L^-1 d_e: W = Y Y^T, Y = YlT^T
                     for i in range(n):
-                        Yl[e, i] = col[i]
+                        YlT[i, e] = col[i]
         if n > 0:
             _solve(Lc, r, vfree, n)
 
@@ -526,7 +646,7 @@ def run(m, w, y0, duration, h, t_out, max_steps):
                 qv[e] = xdot(xp, xc, xv, e, vfree, 0) + _udot(up, uc, uv, e, u1)
                 cap[e] = hs * coulomb_level(par, e)
         if any_active:
-            ok, _ = solve_impulses(Yl, qv, cap, p, state, active, free_buf, Gb, Lgb, tb, cb, db,
+            ok, _ = solve_impulses(YlT, qv, cap, p, state, active, mask, Gb, Lgb, tb, cb, db,
                                    gb, zb)
             if not ok:
                 status = FRICTION_SOLVER
@@ -631,10 +751,11 @@ def run(m, w, y0, duration, h, t_out, max_steps):
         for mo in range(nm):
             y[2 * n + mo] = cur[mo]
         while i_out < n_out and t_out[i_out] <= t + 0.5 * h:
-            out[i_out, :] = y
+            for j in range(y.shape[0]):
+                out[i_out, j] = y[j]
             for e in range(nf):
                 if active[e] or driven[e]:
                     coulomb[i_out, e] = force[e] - (f0[e] + df0[e] * (slip[e] - s0[e]))
                     stuck[i_out, e] = abs(slip[e]) <= STUCK_SPEED
             i_out += 1
-    return status, t, y, out, coulomb, stuck, steps_done, transitions
+    return status, t, steps_done
