@@ -143,13 +143,13 @@ def main() -> int:
     # true stiction
     sopts = SimulationOptions(friction="stiction")
     model, layout, y0 = prepare(structure, inputs, DURATION, sopts, case.initial, rng)
-    stick_ref = timestep.run(model, make_work(model), y0, DURATION, 1e-4, t_out, 10 ** 8)
+    stick_ref = timestep.run(model, make_work(model), y0, DURATION, 1e-4, t_out, 10 ** 8, True)
     theta_stick_ref = theta_x_of(structure, stick_ref[3][:, :layout.n_state], t_out, inputs,
                                  case, rng)
     stick_rows = []
     for h in (1e-3, 2e-3):
         t_stick, res = best_time(lambda: timestep.run(model, make_work(model), y0, DURATION, h,
-                                                      t_out, 10 ** 8), repeat=5)
+                                                      t_out, 10 ** 8, True), repeat=5)
         err = np.max(np.abs(theta_x_of(structure, res[3][:, :layout.n_state], t_out, inputs,
                                        case, rng) - theta_stick_ref))
         stick_rows.append((f"vsj true stiction, step {h * 1e3:g} ms", f"{res[7].sum()} "

@@ -209,7 +209,7 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
             raise InputError(f"output_step ({options.output_step:g} s) must be a whole multiple "
                              f"of the time step ({options.step:g} s)")
         status, t_stop, y_end, out, coulomb, stuck, steps, flips = timestep.run(
-            model, w, y0, duration, options.step, t_out, options.max_steps)
+            model, w, y0, duration, options.step, t_out, options.max_steps, True)
         report = {"name": "timestep", "steps": int(steps), "step": options.step}
     wall = _time.perf_counter() - started
     report.update(wall_time=wall, options={k: v for k, v in asdict(options).items()})
@@ -446,7 +446,8 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
     n_state = layout.n_state
     # dopri integrates the state only: batch runs keep no ledger, and the kernels
     # then skip the elements that only the sources feel (a quarter of the work);
-    # the time-stepper books energy as it goes and needs the full vector
+    # the time-stepper's vector keeps room for the accumulators, which batch runs
+    # leave unbooked (ledger off)
     y0s = np.zeros((runs, n_state if solver == "dopri" else n_state + layout.n_acc))
     src0s = np.zeros((runs, layout.n_sources))
     masses = np.repeat(base.mass[None], runs, axis=0)

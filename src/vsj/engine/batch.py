@@ -45,7 +45,7 @@ def timestep_batch(m, masses, Minvs, pars, src0s, y0s, t_end, h, t_out, max_step
                          m.count)
         w = make_work(mr)
         st, ts, y, out, _, _, ns, flips = timestep_run(mr, w, y0s[r], t_end, h, t_out,
-                                                       max_steps)
+                                                       max_steps, False)
         for i in range(t_out.shape[0]):
             for j in range(n_keep):
                 outs[r, i, j] = out[i, j]

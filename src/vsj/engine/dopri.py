@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from ..jit import inline, kernel
+from ..jit import inline, kernel, loop
 from .core import NOT_FINITE, OK, STATUS, STEP_TOO_SMALL, TOO_MANY_STEPS, eval_derivatives
 
 #: Butcher tableau: nodes and coefficients of stages 2-7 (stage 7 is the solution).
@@ -57,19 +57,29 @@ def integrate(m, w, y0, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, o
     final state (the last good state on failure). ``out`` may be narrower than
     the state: its columns receive the leading components.
     """
+    ny = y0.shape[0]
+    scratch = (np.empty((7, ny)), np.empty(ny), np.empty(ny), np.empty(ny), np.empty(ny),
+               np.empty(ny), np.empty(ny), y0.copy())
+    return _integrate(m, w, scratch, y0, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err,
+                      out)
+
+
+@inline
+def _copy(src, dst):
+    for i in range(src.shape[0]):
+        dst[i] = src[i]
+
+
+@loop
+def _integrate(m, w, scratch, y0, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, out):
+    """The loop of `integrate`, over preallocated arrays (compiled as `vsj.jit.loop`,
+    without reference counting)."""
     dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, first, \
         count = m
     hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
+    K, yt, y1, err, r3, r4, r5, y = scratch
     ny = y0.shape[0]
     n_keep = min(ny, out.shape[1])
-    K = np.empty((7, ny))
-    yt = np.empty(ny)
-    y1 = np.empty(ny)
-    err = np.empty(ny)
-    r3 = np.empty(ny)
-    r4 = np.empty(ny)
-    r5 = np.empty(ny)
-    y = y0.copy()
     t = t0
     n_out = t_out.shape[0]
     i_out = 0
@@ -107,10 +117,10 @@ def integrate(m, w, y0, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, o
     rejected_last = False
     while t < t_end:
         if n_steps >= max_steps:
-            y0[:] = y
+            _copy(y, y0)
             return TOO_MANY_STEPS, t, n_steps, n_rejected
         if h < 1e-14 * max(1.0, abs(t)):
-            y0[:] = y
+            _copy(y, y0)
             return STEP_TOO_SMALL, t, n_steps, n_rejected
         last = False
         if t + h >= t_end:
@@ -148,7 +158,7 @@ def integrate(m, w, y0, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, o
         fac11 = e ** 0.17
         if e <= 1.0:
             if scal[STATUS] != OK:  # a physical limit was crossed at the new point
-                y0[:] = y1
+                _copy(y1, y0)
                 return int(scal[STATUS]), t + h, n_steps, n_rejected
             for i in range(ny):
                 d_i = y1[i] - y[i]
@@ -184,5 +194,5 @@ def integrate(m, w, y0, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, o
             h = h / min(5.0, fac11 / 0.9)
             n_rejected += 1
             rejected_last = True
-    y0[:] = y
+    _copy(y, y0)
     return OK, t, n_steps, n_rejected

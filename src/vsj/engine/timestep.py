@@ -398,8 +398,11 @@ def _pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x, v, buf):
 
 
 @kernel
-def run(m, w, y0, duration, h, t_out, max_steps):
+def run(m, w, y0, duration, h, t_out, max_steps, ledger):
     """Integrate with fixed step ``h``; sample at ``t_out`` (multiples of ``h``).
+
+    With ``ledger`` False the energy accumulators are not booked (they stay as
+    in ``y0``): batch runs, which report states only, skip that work.
 
     Returns ``(status, t, y, out, coulomb, stuck, steps, transitions)``:
     ``out`` holds the state and accumulators at each sample, ``coulomb`` the
@@ -488,13 +491,14 @@ def run(m, w, y0, duration, h, t_out, max_steps):
                slip, tb, cb, db, gb, zb, s0, f0, df0, force, sp_c, sp_kap, u0, sg0, u1, sg1, um, ldm, vm, srcF,
                i1, ypiv, held, state, mask, active, driven)
 
-    status, t, steps_done = _steps(m, w, scratch, y, duration, h, t_out, max_steps, out, coulomb,
-                                   stuck, transitions)
+    status, t, steps_done = _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out,
+                                   coulomb, stuck, transitions)
     return status, t, y, out, coulomb, stuck, steps_done, transitions
 
 
 @loop
-def _steps(m, w, scratch, y, duration, h, t_out, max_steps, out, coulomb, stuck, transitions):
+def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb, stuck,
+           transitions):
     """The stepping loop of `run`, over preallocated arrays; returns ``(status, t, steps)``.
 
     Compiled as `vsj.jit.loop` (it allocates nothing): without reference
@@ -678,42 +682,44 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, out, coulomb, stuck,
                 fe += coulomb_level(par, e) * (1.0 if s1 > 0.0 else -1.0)
             force[e] = fe
             slip[e] = s1
-            y[a_fric + e] += hs * fe * 0.5 * (s0[e] + s1)
-            _uadd(up, uc, uv, e, srcF, -fe)
+            if ledger:
+                y[a_fric + e] += hs * fe * 0.5 * (s0[e] + s1)
+                _uadd(up, uc, uv, e, srcF, -fe)
         q_end = q_prev
         if moving_pivot:
             q_end = _pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x1, v1, ypiv)  # at t1
-        for k in range(nk):
-            rr = nf + k
-            tau_avg = sp_c[k] - 0.25 * sp_kap[k] * hs * xdot(xp, xc, xv, rr, v1, 0)
-            dd = (xdot(xp, xc, xv, rr, x1, 0) - xdot(xp, xc, xv, rr, x, 0)
-                  + _udot(up, uc, uv, rr, sg1) - _udot(up, uc, uv, rr, sg0))
-            y[a_spr + k] += tau_avg * dd
-            _uadd(up, uc, uv, rr, srcF, tau_avg)
-            if q_end != q_prev:
-                d1 = xdot(xp, xc, xv, rr, x1, 0) + _udot(up, uc, uv, rr, sg1)
-                e1 = spring_law(code[rr], row(par, rr), d1, q_end)[2]
-                e0 = spring_law(code[rr], row(par, rr), d1, q_prev)[2]
-                y[a_piv + k] += e1 - e0
-        for ld in range(nl):
-            rr = r_load + ld
-            omega = 0.5 * (xdot(xp, xc, xv, rr, v, 0) + xdot(xp, xc, xv, rr, v1, 0))
-            omega += _udot(up, uc, uv, rr, um)
-            y[a_load + ld] += hs * ldm[ld] * omega
-            _uadd(up, uc, uv, rr, srcF, ldm[ld])
-        for mo in range(nm):
-            rr = r_mot + mo
-            imid = 0.5 * (cur[mo] + i1[mo])
-            y[a_elec + mo] += hs * vm[mo] * imid
-            y[a_res + mo] += hs * par[rr, 0] * i1[mo] * imid
-            _uadd(up, uc, uv, rr, srcF, par[rr, 2] * i1[mo])
-        for j in range(s_n):
-            impulse = -hs * srcF[j]
-            for i in range(n):
-                impulse += mass[n + j, i] * (v1[i] - v[i])
-            for c in range(s_n):
-                impulse += mass[n + j, n + c] * (u1[c] - u0[c])
-            y[a_src + j] += um[j] * impulse
+        if ledger:  # springs, loads, motors and sources
+            for k in range(nk):
+                rr = nf + k
+                tau_avg = sp_c[k] - 0.25 * sp_kap[k] * hs * xdot(xp, xc, xv, rr, v1, 0)
+                dd = (xdot(xp, xc, xv, rr, x1, 0) - xdot(xp, xc, xv, rr, x, 0)
+                      + _udot(up, uc, uv, rr, sg1) - _udot(up, uc, uv, rr, sg0))
+                y[a_spr + k] += tau_avg * dd
+                _uadd(up, uc, uv, rr, srcF, tau_avg)
+                if q_end != q_prev:
+                    d1 = xdot(xp, xc, xv, rr, x1, 0) + _udot(up, uc, uv, rr, sg1)
+                    e1 = spring_law(code[rr], row(par, rr), d1, q_end)[2]
+                    e0 = spring_law(code[rr], row(par, rr), d1, q_prev)[2]
+                    y[a_piv + k] += e1 - e0
+            for ld in range(nl):
+                rr = r_load + ld
+                omega = 0.5 * (xdot(xp, xc, xv, rr, v, 0) + xdot(xp, xc, xv, rr, v1, 0))
+                omega += _udot(up, uc, uv, rr, um)
+                y[a_load + ld] += hs * ldm[ld] * omega
+                _uadd(up, uc, uv, rr, srcF, ldm[ld])
+            for mo in range(nm):
+                rr = r_mot + mo
+                imid = 0.5 * (cur[mo] + i1[mo])
+                y[a_elec + mo] += hs * vm[mo] * imid
+                y[a_res + mo] += hs * par[rr, 0] * i1[mo] * imid
+                _uadd(up, uc, uv, rr, srcF, par[rr, 2] * i1[mo])
+            for j in range(s_n):
+                impulse = -hs * srcF[j]
+                for i in range(n):
+                    impulse += mass[n + j, i] * (v1[i] - v[i])
+                for c in range(s_n):
+                    impulse += mass[n + j, n + c] * (u1[c] - u0[c])
+                y[a_src + j] += um[j] * impulse
 
         # advance
         for i in range(n):
