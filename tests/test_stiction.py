@@ -4,12 +4,14 @@ import math
 
 import numpy as np
 import pytest
+from numba import njit
 from scipy.optimize import brentq
 
 from conftest import override
 from vsj import benches
 from vsj import scenario as scenarios
 from vsj.components import Bearing, Inertia, TorqueSource
+from vsj.engine.timestep import solve_impulses
 from vsj.inputs import Sine, Table
 from vsj.network import Network
 from vsj.simulate import InitialState, SimulationOptions, simulate
@@ -215,3 +217,60 @@ def test_stick_slip_transitions_do_not_grow_as_the_step_shrinks(fig415_stiction)
     assert counts[1e-3] > 10  # the scenario does stick and slip
     assert counts[2.5e-4] <= 1.1 * counts[1e-3] + 2
     assert counts[5e-4] <= 1.1 * counts[1e-3] + 2
+
+
+@njit
+def _solve_sequence(YT, qs, cap, active):
+    """Solve a sequence of impulse problems, each warm-started from the last
+    (the time-stepper's use); returns impulses, states and active-set iterations
+    (-1 where the solver did not converge)."""
+    n, m = YT.shape
+    G, Lg = np.zeros((n, n)), np.zeros((n, n))
+    t, c, z = np.zeros(n), np.zeros(n), np.zeros(n)
+    d, g, mask = np.zeros(m), np.zeros(m), np.zeros(m)
+    p, state = np.zeros(m), np.zeros(m, np.int64)
+    ps = np.zeros(qs.shape)
+    states = np.zeros(qs.shape, np.int64)
+    iterations = np.zeros(qs.shape[0], np.int64)
+    for k in range(qs.shape[0]):
+        ok, it = solve_impulses(YT, qs[k], cap, p, state, active, mask, G, Lg, t, c, d, g, z)
+        iterations[k] = it if ok else -1
+        ps[k] = p
+        states[k] = state
+    return ps, states, iterations
+
+
+def test_impulse_solver_fast_path_gives_exact_coulomb_solutions():
+    """Both paths of the impulse solver (last step's pattern, and the active-set
+    method when it fails) give impulses that satisfy the Coulomb conditions:
+    within the caps, stuck elements' slips zero, slipping elements' impulses at
+    the cap in the direction of their slip. Rows include parallel pairs
+    (elements in series) and an uninvolved element."""
+    rng = np.random.default_rng(7)
+    base = rng.normal(size=(2, 4))
+    YT = np.concatenate([base, 0.5 * base[:, :2], np.zeros((2, 1))], axis=1)  # 7 elements
+    m = YT.shape[1]
+    cap = rng.uniform(0.2, 1.0, m)
+    active = np.ones(m, dtype=np.bool_)
+    active[-1] = False
+    # slowly varying free slips, so that the pattern usually survives a step
+    t = np.linspace(0.0, 6.0, 600)[:, None]
+    qs = 1.5 * np.sin(t * rng.uniform(0.5, 2.0, m) + rng.uniform(0, 6, m))
+    qs[:, 4:6] = 0.5 * qs[:, 0:2]  # consistent parallel pairs can stick together
+    ps, states, iterations = _solve_sequence(YT, qs, cap, active)
+    assert np.all(iterations >= 0)  # every solve converged
+    fast = iterations == 0
+    assert 0.1 < fast.mean() < 1.0  # both paths are exercised
+    slips = qs - ps @ YT.T @ YT
+    scale = np.abs(qs).max()
+    assert np.all(np.abs(ps) <= cap * (1 + 1e-12))
+    assert np.all(ps[:, ~active] == 0.0)
+    for k in range(len(qs)):
+        for e in np.nonzero(active)[0]:
+            if states[k, e] == 0:  # stuck: no slip beyond round-off
+                assert abs(slips[k, e]) <= 1e-9 * scale
+            else:  # slipping: full impulse, in the direction of the slip
+                assert abs(ps[k, e]) == cap[e]
+                assert np.sign(ps[k, e]) == states[k, e]
+                assert slips[k, e] * states[k, e] >= -1e-9 * scale
+    assert (states[:, :-1] == 0).any()  # some elements stick
