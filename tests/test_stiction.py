@@ -7,7 +7,6 @@ import pytest
 from numba import njit
 from scipy.optimize import brentq
 
-from conftest import override
 from vsj import benches
 from vsj import scenario as scenarios
 from vsj.components import Bearing, Inertia, TorqueSource

@@ -8,7 +8,6 @@ the final state, accumulators included, is kept for each run's ledger.
 
 from __future__ import annotations
 
-import numpy as np
 from numba import prange
 
 from ..jit import parallel

@@ -185,7 +185,7 @@ def _stuck_impulses(YT, mask, slip, G, Lg, t, c, d):
 
 @inline
 def _slips(YT, q, z, s):
-    """``s = q - YT^T z``."""
+    """``s = q - YT^T z`` (``s`` may be ``q``)."""
     n, m = YT.shape
     for e in range(m):
         s[e] = q[e]
@@ -205,7 +205,7 @@ def _same_pattern(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
     of their impulses), and ``p`` is then the solution. Far cheaper than the
     active-set method, and true on most steps.
     """
-    n, m = YT.shape
+    m = YT.shape[1]
     n_free, scale = _snap(q, cap, p, state, active, mask)
     tol = IMPULSE_ABS + IMPULSE_REL * scale
     for e in range(m):
@@ -222,10 +222,7 @@ def _same_pattern(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
         if not fits:
             return False
         _project(YT, d, z)
-        for i in range(n):
-            zi = z[i]
-            for e in range(m):
-                g[e] -= YT[i, e] * zi
+        _slips(YT, g, z, g)  # and with the stuck impulses
     holds = True
     for e in range(m):
         st = state[e]
@@ -272,12 +269,7 @@ def _active_set(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
             _gram(YT, mask, g, G, t, eps)
             _cholesky(G, Lg, n, True)
             _solve(Lg, t, c, n)
-            for e in range(m):
-                d[e] = g[e]
-            for i in range(n):
-                ci = c[i]
-                for e in range(m):
-                    d[e] -= YT[i, e] * ci
+            _slips(YT, g, c, d)  # d = g - Y c, scaled below
             alpha = 1.0
             block = -1
             for e in range(m):
