@@ -37,7 +37,7 @@ import math
 import numpy as np
 
 from ..components.elastic_element import row, spring_law
-from ..friction import STICTION, coulomb_level, resistive_torque
+from ..friction import STICTION, VISCOUS, coulomb_level, resistive_torque
 from ..jit import inline, kernel, loop
 from .core import (FRICTION_SOLVER, NOT_FINITE, OK, SG, STATUS, TOO_MANY_STEPS, U, eval_inputs,
                    eval_pivot, xadd, xdot)
@@ -356,6 +356,22 @@ def solve_impulses(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
 
 
 @inline
+def _element_slips(DxT, DuT, v, u, s):
+    """Every element's slip ``s = Dx v + Du u`` (dense, one coordinate per row of
+    ``DxT`` and ``DuT``: the inner loops run over elements and vectorise)."""
+    for e in range(s.shape[0]):
+        s[e] = 0.0
+    for i in range(v.shape[0]):
+        vi = v[i]
+        for e in range(s.shape[0]):
+            s[e] += DxT[i, e] * vi
+    for j in range(u.shape[0]):
+        uj = u[j]
+        for e in range(s.shape[0]):
+            s[e] += DuT[j, e] * uj
+
+
+@inline
 def _udot(up, uc, uv, r, vec):
     """Source part of row ``r`` dotted with a source vector (sparse)."""
     acc = 0.0
@@ -437,6 +453,29 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger):
                 active[e] = True
             else:
                 driven[e] = True
+    # Elements whose smooth part is linear (viscous, and stiction's viscous part)
+    # are summed once into constant matrices: their share of the step matrix is
+    # h Bx and of the right-hand side -h Bu u1. Every element's slip is computed
+    # from dense element matrices stored one coordinate per row, so that the
+    # loops over elements are plain vector operations.
+    linear = np.zeros(nf, dtype=np.bool_)
+    Bx = np.zeros((n, n))
+    Bu = np.zeros((n, s_n))
+    DxT = np.zeros((n, nf))
+    DuT = np.zeros((s_n, nf))
+    for e in range(nf):
+        for k in range(xp[e], xp[e + 1]):
+            DxT[xc[k], e] = xv[k]
+        for k in range(up[e], up[e + 1]):
+            DuT[uc[k], e] = uv[k]
+        if code[e] == STICTION or code[e] == VISCOUS:
+            linear[e] = True
+            b = par[e, 0]
+            for i in range(n):
+                for c in range(n):
+                    Bx[i, c] += b * DxT[i, e] * DxT[c, e]
+                for j in range(s_n):
+                    Bu[i, j] += b * DxT[i, e] * DuT[j, e]
 
     H = np.empty((n, n))
     H_last = np.zeros((n, n))
@@ -479,9 +518,9 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger):
     i1 = np.empty(nm)
     ypiv = np.empty(2 * n)
 
-    scratch = (H, H_last, Lc, Y, YlT, Gb, Lgb, x, v, cur, r, vfree, v1, x1, col, drow, qv, cap, p,
-               slip, tb, cb, db, gb, zb, s0, f0, df0, force, sp_c, sp_kap, u0, sg0, u1, sg1, um, ldm, vm, srcF,
-               i1, ypiv, held, state, mask, active, driven)
+    scratch = (H, H_last, Lc, Y, YlT, Gb, Lgb, Bx, Bu, DxT, DuT, x, v, cur, r, vfree, v1, x1, col,
+               drow, qv, cap, p, slip, tb, cb, db, gb, zb, s0, f0, df0, force, sp_c, sp_kap, u0, sg0,
+               u1, sg1, um, ldm, vm, srcF, i1, ypiv, held, state, mask, active, driven, linear)
 
     status, t, steps_done = _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out,
                                    coulomb, stuck, transitions)
@@ -499,9 +538,9 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
     dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, \
         first, count = m
     hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
-    H, H_last, Lc, Y, YlT, Gb, Lgb, x, v, cur, r, vfree, v1, x1, col, drow, qv, cap, p, slip, tb, cb, \
-        db, gb, zb, s0, f0, df0, force, sp_c, sp_kap, u0, sg0, u1, sg1, um, ldm, vm, srcF, i1, ypiv, \
-        held, state, mask, active, driven = scratch
+    H, H_last, Lc, Y, YlT, Gb, Lgb, Bx, Bu, DxT, DuT, x, v, cur, r, vfree, v1, x1, col, drow, qv, \
+        cap, p, slip, tb, cb, db, gb, zb, s0, f0, df0, force, sp_c, sp_kap, u0, sg0, u1, sg1, um, \
+        ldm, vm, srcF, i1, ypiv, held, state, mask, active, driven, linear = scratch
     n = dims[D_N]
     s_n = dims[D_S]
     nf = dims[D_F]
@@ -538,6 +577,7 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
     elif steps_total > max_steps:
         status = TOO_MANY_STEPS
         steps_total = 0
+    _element_slips(DxT, DuT, v, u0, slip)  # carried: each step starts from the last one's
     steps_done = 0
     i_out = 0
     if n_out > 0 and t_out[0] <= 0.0:
@@ -568,10 +608,10 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
         for i in range(n):
             total = 0.0
             for c in range(n):
-                H[i, c] = mass[i, c]
+                H[i, c] = mass[i, c] + hs * Bx[i, c]
                 total += mass[i, c] * v[c]
             for j in range(s_n):
-                total -= mass[i, n + j] * (u1[j] - u0[j])
+                total -= mass[i, n + j] * (u1[j] - u0[j]) + hs * Bu[i, j] * u1[j]
             r[i] = total
         for k in range(nk):
             rr = nf + k
@@ -584,9 +624,11 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
             xadd(xp, xc, xv, rr, r, hs * c_k)
             _outer(xp, xc, xv, rr, H, 0.25 * hs * hs * kap)
         for e in range(nf):
-            se = xdot(xp, xc, xv, e, v, 0) + _udot(up, uc, uv, e, u0)
-            fe, dfe = resistive_torque(code[e], par[e, 0], par[e, 1], par[e, 2], par[e, 3], se)
+            se = slip[e]
             s0[e] = se
+            if linear[e]:
+                continue
+            fe, dfe = resistive_torque(code[e], par[e, 0], par[e, 1], par[e, 2], par[e, 3], se)
             f0[e] = fe
             df0[e] = dfe
             const = fe - dfe * se + dfe * _udot(up, uc, uv, e, u1)
@@ -637,11 +679,10 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
         # Coulomb impulses of the stiction elements, all together
         any_active = False
         for e in range(nf):
-            if active[e]:
-                any_active = True
-                qv[e] = xdot(xp, xc, xv, e, vfree, 0) + _udot(up, uc, uv, e, u1)
-                cap[e] = hs * coulomb_level(par, e)
+            any_active = any_active or active[e]
+            cap[e] = hs * coulomb_level(par, e)
         if any_active:
+            _element_slips(DxT, DuT, vfree, u1, qv)
             ok, _ = solve_impulses(YlT, qv, cap, p, state, active, mask, Gb, Lgb, tb, cb, db,
                                    gb, zb)
             if not ok:
@@ -650,8 +691,7 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
         for i in range(n):
             total = vfree[i]
             for e in range(nf):
-                if active[e]:
-                    total -= Y[e, i] * p[e]
+                total -= Y[e, i] * p[e]  # p is zero off the active elements
             v1[i] = total
             x1[i] = x[i] + 0.5 * hs * (v[i] + v1[i])
         for mo in range(nm):
@@ -665,15 +705,15 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
         for j in range(s_n):
             um[j] = 0.5 * (u0[j] + u1[j])
             srcF[j] = 0.0
+        _element_slips(DxT, DuT, v1, u1, slip)
         for e in range(nf):
-            s1 = xdot(xp, xc, xv, e, v1, 0) + _udot(up, uc, uv, e, u1)
-            fe = f0[e] + df0[e] * (s1 - s0[e])
+            s1 = slip[e]
+            fe = par[e, 0] * s1 if linear[e] else f0[e] + df0[e] * (s1 - s0[e])
             if active[e]:
                 fe += p[e] / hs
             elif driven[e] and s1 != 0.0:
                 fe += coulomb_level(par, e) * (1.0 if s1 > 0.0 else -1.0)
             force[e] = fe
-            slip[e] = s1
             if ledger:
                 y[a_fric + e] += hs * fe * 0.5 * (s0[e] + s1)
                 _uadd(up, uc, uv, e, srcF, -fe)
@@ -753,7 +793,7 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
                 out[i_out, j] = y[j]
             for e in range(nf):
                 if active[e] or driven[e]:
-                    coulomb[i_out, e] = force[e] - (f0[e] + df0[e] * (slip[e] - s0[e]))
+                    coulomb[i_out, e] = force[e] - par[e, 0] * slip[e]
                     stuck[i_out, e] = abs(slip[e]) <= STUCK_SPEED
             i_out += 1
     return status, t, steps_done
