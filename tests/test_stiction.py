@@ -10,7 +10,7 @@ from scipy.optimize import brentq
 from vsj import benches
 from vsj import scenario as scenarios
 from vsj.components import Bearing, Inertia, TorqueSource
-from vsj.engine.timestep import solve_impulses
+from vsj.engine.timestep import impulse_workspace, solve_impulses
 from vsj.inputs import Sine, Table
 from vsj.network import Network
 from vsj.simulate import InitialState, SimulationOptions, simulate
@@ -224,15 +224,13 @@ def _solve_sequence(YT, qs, cap, active):
     (the time-stepper's use); returns impulses, states and active-set iterations
     (-1 where the solver did not converge)."""
     n, m = YT.shape
-    G, Lg = np.zeros((n, n)), np.zeros((n, n))
-    t, c, z = np.zeros(n), np.zeros(n), np.zeros(n)
-    d, g, mask = np.zeros(m), np.zeros(m), np.zeros(m)
+    ws = impulse_workspace(n, m)
     p, state = np.zeros(m), np.zeros(m, np.int64)
     ps = np.zeros(qs.shape)
     states = np.zeros(qs.shape, np.int64)
     iterations = np.zeros(qs.shape[0], np.int64)
     for k in range(qs.shape[0]):
-        ok, it = solve_impulses(YT, qs[k], cap, p, state, active, mask, G, Lg, t, c, d, g, z)
+        ok, it = solve_impulses(YT, qs[k], cap, p, state, active, ws)
         iterations[k] = it if ok else -1
         ps[k] = p
         states[k] = state

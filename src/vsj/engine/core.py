@@ -157,24 +157,39 @@ def uadd(up, uc, uv, r, srcw, col, scale):
 
 
 @inline
-def eval_pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, y):
-    """Pivot position q [m] and its rate (the last row), with the range check.
-
-    ``y`` holds the generalised angles and then their speeds (offset n).
+def _pivot_at(par, r, angle, scal):
+    """Pivot position q [m] at pivot-mechanism angle ``angle`` (row ``r``), with
+    the range check: a pivot outside its range sets ``scal[STATUS]``.
 
     Written without branches: numba's reference counting of the array
     arguments does not get pruned in branchy inlined code (it cost ~100 ns).
     """
-    r = dims[D_R] - 1
     moving = par[r, 2]  # 1 with a pivot mechanism, 0 for a fixed pivot (row of zeros)
+    q = moving * par[r, 0] * math.sin(angle) + (1.0 - moving) * par[r, 1]
+    scal[Q] = q
+    outside = (q < par[r, 3] - 1e-12) + (q > par[r, 4] + 1e-12)
+    scal[STATUS] = max(scal[STATUS], PIVOT_RANGE * min(outside, 1))
+    return q
+
+
+@inline
+def pivot_position(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x):
+    """Pivot position q [m] (the last row) at generalised angles ``x``, with the
+    range check."""
+    r = dims[D_R] - 1
+    return _pivot_at(par, r, xdot(xp, xc, xv, r, x, 0) + udot(up, uc, uv, r, srcw, SG), scal)
+
+
+@inline
+def eval_pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, y):
+    """`pivot_position` and its rate ``scal[QDOT]``; ``y`` holds the generalised
+    angles and then their speeds (offset n)."""
+    r = dims[D_R] - 1
     n = dims[D_N]
     angle = xdot(xp, xc, xv, r, y, 0) + udot(up, uc, uv, r, srcw, SG)
     rate = xdot(xp, xc, xv, r, y, n) + udot(up, uc, uv, r, srcw, U)
-    q = moving * par[r, 0] * math.sin(angle) + (1.0 - moving) * par[r, 1]
-    scal[Q] = q
-    scal[QDOT] = moving * par[r, 0] * math.cos(angle) * rate
-    outside = (q < par[r, 3] - 1e-12) + (q > par[r, 4] + 1e-12)
-    scal[STATUS] = max(scal[STATUS], PIVOT_RANGE * min(outside, 1))
+    q = _pivot_at(par, r, angle, scal)
+    scal[QDOT] = par[r, 2] * par[r, 0] * math.cos(angle) * rate
     return q
 
 

@@ -40,7 +40,7 @@ from ..components.elastic_element import row, spring_law
 from ..friction import STICTION, VISCOUS, coulomb_level, resistive_torque
 from ..jit import inline, kernel, loop
 from .core import (FRICTION_SOLVER, NOT_FINITE, OK, SG, STATUS, TOO_MANY_STEPS, U, eval_inputs,
-                   eval_pivot, xadd, xdot)
+                   pivot_position, xadd, xdot)
 from .model import D_F, D_K, D_L, D_M, D_N, D_R, D_S
 
 #: Slip speed [rad/s] below which an element counts as stuck.
@@ -90,14 +90,20 @@ def _forward(L, b, out, k):
 
 
 @inline
-def _solve(L, b, out, k):
-    """Solve ``L L^T out = b`` given the Cholesky factor."""
-    _forward(L, b, out, k)
+def _backward(L, b, out, k):
+    """Solve ``L^T out = b`` (``out`` may be ``b``)."""
     for i in range(k - 1, -1, -1):
-        acc = out[i]
+        acc = b[i]
         for r in range(i + 1, k):
             acc -= L[r, i] * out[r]
         out[i] = acc / L[i, i]
+
+
+@inline
+def _solve(L, b, out, k):
+    """Solve ``L L^T out = b`` given the Cholesky factor."""
+    _forward(L, b, out, k)
+    _backward(L, out, out, k)
 
 
 @inline
@@ -195,25 +201,94 @@ def _slips(YT, q, z, s):
             s[e] -= YT[i, e] * zi
 
 
+@kernel
+def impulse_workspace(n, m):
+    """Scratch arrays of `solve_impulses` for n coordinates and m elements.
+
+    The last three hold the fast path's memo: ``Gc = Y_F Y_F^T`` and
+    ``K = (Gc + ridge I)^-2`` of the stuck set recorded in ``memo[:m]``
+    (``memo[m]`` is 1 while they are valid; set it to 0 when ``YT`` changes).
+    """
+    return (np.zeros(m), np.zeros((n, n)), np.zeros((n, n)), np.zeros(n), np.zeros(n),
+            np.zeros(m), np.zeros(m), np.zeros(n), np.zeros((n, n)), np.zeros((n, n)),
+            np.zeros(m + 1))
+
+
 @inline
-def _same_pattern(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
+def _stuck_map(YT, mask, Gc, K, Lg, t, c):
+    """``Gc = Y_F Y_F^T`` and ``K = (Gc + ridge I)^-2`` for the stuck set ``mask``.
+
+    ``K Y_F s_F`` are the coefficients of the minimum-norm impulses that cancel
+    the stuck elements' slips ``s_F`` (see `_stuck_impulses`); the ridge keeps
+    ``K`` finite when the stuck rows are parallel (elements in series).
+    """
+    n = YT.shape[0]
+    _gram(YT, mask, mask, Gc, t, 0.0)
+    trace = 0.0
+    for i in range(n):
+        trace += Gc[i, i]
+    for i in range(n):
+        for j in range(n):
+            K[i, j] = Gc[i, j]
+        K[i, i] += 1e-13 * trace
+    _cholesky(K, Lg, n, True)
+    for j in range(n):
+        for i in range(n):
+            t[i] = 1.0 if i == j else 0.0
+        _solve(Lg, t, c, n)
+        _solve(Lg, c, t, n)
+        for i in range(n):
+            K[i, j] = t[i]
+
+
+@inline
+def _same_pattern(YT, q, cap, p, state, active, ws):
     """Fast path: does last step's stick/slip pattern still hold?
 
     Bound impulses at their caps, the stuck elements' impulses the minimum-norm
     ones that make their slips exactly zero; True if every condition holds
     (stuck impulses within their caps, slipping elements' slips in the direction
-    of their impulses), and ``p`` is then the solution. Far cheaper than the
-    active-set method, and true on most steps.
+    of their impulses), and ``p`` is then the solution. Worked in the n
+    coordinates: with ``z_B = Y_B p_B`` the stuck impulses are ``Y_F^T c`` with
+    ``c = K (Y_F q_F - Gc z_B)``, and they add ``Gc c`` to ``z``. ``Gc`` and ``K``
+    change only with the stuck set or ``YT`` and are kept between calls. Far
+    cheaper than the active-set method, and true on most steps.
     """
-    m = YT.shape[1]
+    mask, _, Lg, t, c, d, g, z, Gc, K, memo = ws
+    n, m = YT.shape
     n_free, scale = _snap(q, cap, p, state, active, mask)
     tol = IMPULSE_ABS + IMPULSE_REL * scale
     for e in range(m):
         d[e] = p[e] * (1.0 - mask[e])
-    _project(YT, d, z)
-    _slips(YT, q, z, g)  # slips with the bound impulses only
+    _project(YT, d, z)  # z_B
     if n_free > 0:
-        _stuck_impulses(YT, mask, g, G, Lg, t, c, d)
+        known = memo[m] > 0.0
+        for e in range(m):
+            known = known and memo[e] == mask[e]
+        if not known:
+            _stuck_map(YT, mask, Gc, K, Lg, t, c)
+            for e in range(m):
+                memo[e] = mask[e]
+            memo[m] = 1.0
+        for e in range(m):
+            d[e] = q[e] * mask[e]
+        _project(YT, d, t)
+        for i in range(n):
+            acc = t[i]
+            for j in range(n):
+                acc -= Gc[i, j] * z[j]
+            t[i] = acc  # Y_F s_F, s the slips under the bound impulses alone
+        for i in range(n):
+            acc = 0.0
+            for j in range(n):
+                acc += K[i, j] * t[j]
+            c[i] = acc
+        for e in range(m):
+            d[e] = 0.0
+        for i in range(n):
+            ci = c[i]
+            for e in range(m):
+                d[e] += YT[i, e] * ci
         fits = True
         for e in range(m):
             if mask[e] > 0.0:
@@ -221,8 +296,12 @@ def _same_pattern(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
                 p[e] = d[e]
         if not fits:
             return False
-        _project(YT, d, z)
-        _slips(YT, g, z, g)  # and with the stuck impulses
+        for i in range(n):
+            acc = z[i]
+            for j in range(n):
+                acc += Gc[i, j] * c[j]
+            z[i] = acc
+    _slips(YT, q, z, g)
     holds = True
     for e in range(m):
         st = state[e]
@@ -234,8 +313,9 @@ def _same_pattern(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
 
 
 @inline
-def _active_set(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
+def _active_set(YT, q, cap, p, state, active, ws):
     """The general method (see `solve_impulses`), from the warm start in ``p``."""
+    mask, G, Lg, t, c, d, g, z, _, _, _ = ws
     n, m = YT.shape
     _, scale = _snap(q, cap, p, state, active, mask)
     w_max = 0.0
@@ -246,6 +326,7 @@ def _active_set(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
                 norm += YT[i, e] * YT[i, e]
             w_max = max(w_max, norm)
     if w_max == 0.0:
+        _project(YT, p, z)
         return True, 0
     eps = IMPULSE_REG * w_max
     tol = IMPULSE_ABS + IMPULSE_REL * scale
@@ -322,11 +403,12 @@ def _active_set(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
         for e in range(m):
             if state[e] == 0:
                 p[e] = min(cap[e], max(-cap[e], p[e] + d[e]))
+    _project(YT, p, z)
     return True, iterations
 
 
 @inline
-def solve_impulses(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
+def solve_impulses(YT, q, cap, p, state, active, ws):
     """Exact Coulomb impulses: slips ``s = q - Y Y^T p`` with ``|p_e| <= cap_e``.
 
     ``YT`` holds one column ``L^-1 d_e`` per element (``H = L L^T``), so the
@@ -347,12 +429,13 @@ def solve_impulses(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
        impulses, so stuck elements hold exactly (to round-off).
 
     ``state`` (-1, 0 free, +1; 2 = not involved) and ``p`` carry the previous
-    step's solution as a warm start; ``mask`` and the rest are scratch. Returns
+    step's solution as a warm start; ``ws`` is `impulse_workspace`, whose ``z``
+    (index 7) holds ``YT p`` on return. Returns
     ``(converged, active-set iterations)`` (0 iterations: the fast path held).
     """
-    if _same_pattern(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z):
+    if _same_pattern(YT, q, cap, p, state, active, ws):
         return True, 0
-    return _active_set(YT, q, cap, p, state, active, mask, G, Lg, t, c, d, g, z)
+    return _active_set(YT, q, cap, p, state, active, ws)
 
 
 @inline
@@ -395,22 +478,14 @@ def _outer(xp, xc, xv, r, H, scale):
             H[xc[a], xc[b]] += scale * xv[a] * xv[b]
 
 
-@inline
-def _pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x, v, buf):
-    """`eval_pivot` for angles ``x`` and speeds ``v`` held apart."""
-    n = x.shape[0]
-    for i in range(n):
-        buf[i] = x[i]
-        buf[n + i] = v[i]
-    return eval_pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, buf)
-
-
 @kernel
 def run(m, w, y0, duration, h, t_out, max_steps, ledger):
     """Integrate with fixed step ``h``; sample at ``t_out`` (multiples of ``h``).
 
     With ``ledger`` False the energy accumulators are not booked (they stay as
-    in ``y0``): batch runs, which report states only, skip that work.
+    in ``y0``): batch runs, which report states only, skip that work, and the
+    pivot's range is then checked at mid-steps and at the end (half a step
+    later than with the ledger, which checks at every step's end).
 
     Returns ``(status, t, y, out, coulomb, stuck, steps, transitions)``:
     ``out`` holds the state and accumulators at each sample, ``coulomb`` the
@@ -476,6 +551,24 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger):
                     Bx[i, c] += b * DxT[i, e] * DxT[c, e]
                 for j in range(s_n):
                     Bu[i, j] += b * DxT[i, e] * DuT[j, e]
+    # the impulse problem is posed over the active elements alone: element act[a]
+    # is its a-th unknown, slot[e] the place of element e (-1: not active)
+    slot = np.full(nf, -1, dtype=np.int64)
+    na = 0
+    for e in range(nf):
+        if active[e]:
+            slot[e] = na
+            na += 1
+    act = np.empty(na, dtype=np.int64)
+    DxA = np.empty((n, na))
+    DuA = np.empty((s_n, na))
+    for e in range(nf):
+        a = slot[e]
+        if a >= 0:
+            act[a] = e
+            DxA[:, a] = DxT[:, e]
+            DuA[:, a] = DuT[:, e]
+    involved = np.ones(na, dtype=np.bool_)
 
     H = np.empty((n, n))
     H_last = np.zeros((n, n))
@@ -486,21 +579,13 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger):
     x1 = np.empty(n)
     col = np.empty(n)
     drow = np.empty(n)
-    Y = np.zeros((nf, n))
-    YlT = np.zeros((n, nf))
-    qv = np.zeros(nf)
-    cap = np.zeros(nf)
-    p = np.zeros(nf)
+    YlT = np.zeros((n, na))
+    qv = np.zeros(na)
+    cap = np.zeros(na)
+    p = np.zeros(na)
     slip = np.zeros(nf)
-    state = np.zeros(nf, dtype=np.int64)
-    mask = np.zeros(nf)
-    Gb = np.zeros((n, n))
-    Lgb = np.zeros((n, n))
-    tb = np.zeros(n)
-    cb = np.zeros(n)
-    db = np.zeros(nf)
-    gb = np.zeros(nf)
-    zb = np.zeros(n)
+    state = np.zeros(na, dtype=np.int64)
+    ws = impulse_workspace(n, na)
     s0 = np.empty(nf)
     f0 = np.empty(nf)
     df0 = np.empty(nf)
@@ -516,11 +601,11 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger):
     vm = np.empty(nm)
     srcF = np.empty(s_n)
     i1 = np.empty(nm)
-    ypiv = np.empty(2 * n)
 
-    scratch = (H, H_last, Lc, Y, YlT, Gb, Lgb, Bx, Bu, DxT, DuT, x, v, cur, r, vfree, v1, x1, col,
-               drow, qv, cap, p, slip, tb, cb, db, gb, zb, s0, f0, df0, force, sp_c, sp_kap, u0, sg0,
-               u1, sg1, um, ldm, vm, srcF, i1, ypiv, held, state, mask, active, driven, linear)
+    scratch = (H, H_last, Lc, YlT, ws, Bx, Bu, DxT, DuT, x, v, cur, r, vfree, v1, x1, col, drow,
+               qv, cap, p, slip, s0, f0, df0, force, sp_c, sp_kap, u0, sg0, u1, sg1, um, ldm, vm,
+               srcF, i1, held, state, active, driven, linear,
+               act, slot, DxA, DuA, involved)
 
     status, t, steps_done = _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out,
                                    coulomb, stuck, transitions)
@@ -538,9 +623,11 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
     dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, \
         first, count = m
     hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
-    H, H_last, Lc, Y, YlT, Gb, Lgb, Bx, Bu, DxT, DuT, x, v, cur, r, vfree, v1, x1, col, drow, qv, \
-        cap, p, slip, tb, cb, db, gb, zb, s0, f0, df0, force, sp_c, sp_kap, u0, sg0, u1, sg1, um, \
-        ldm, vm, srcF, i1, ypiv, held, state, mask, active, driven, linear = scratch
+    H, H_last, Lc, YlT, ws, Bx, Bu, DxT, DuT, x, v, cur, r, vfree, v1, x1, col, drow, qv, cap, \
+        p, slip, s0, f0, df0, force, sp_c, sp_kap, u0, sg0, u1, sg1, um, ldm, vm, srcF, i1, \
+        held, state, active, driven, linear, act, slot, DxA, DuA, \
+        involved = scratch
+    na = act.shape[0]
     n = dims[D_N]
     s_n = dims[D_S]
     nf = dims[D_F]
@@ -569,7 +656,7 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
     # numba count references of every live array on every step
     status = OK
     scal[STATUS] = OK
-    q_prev = _pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x, v, ypiv)
+    q_prev = pivot_position(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x)
     steps_total = int(math.ceil(duration / h - 1e-9))
     if scal[STATUS] != OK:
         status = int(scal[STATUS])
@@ -598,7 +685,7 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
             vm[mo] = chan[code[r_mot + mo], 0]
         for i in range(n):
             x1[i] = x[i] + 0.5 * hs * v[i]
-        q_mid = _pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x1, v, ypiv)
+        q_mid = pivot_position(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x1)
         eval_inputs(t1, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0, srcw)
         for j in range(s_n):
             u1[j] = srcw[j, U]
@@ -662,37 +749,33 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
             if not _cholesky(H, Lc, n, False):
                 status = NOT_FINITE
                 break
-            for e in range(nf):
-                if active[e]:
-                    for i in range(n):
-                        drow[i] = 0.0
-                    xadd(xp, xc, xv, e, drow, 1.0)
-                    _solve(Lc, drow, col, n)  # H^-1 d_e, to update the speeds
-                    for i in range(n):
-                        Y[e, i] = col[i]
-                    _forward(Lc, drow, col, n)  # L^-1 d_e: W = Y Y^T, Y = YlT^T
-                    for i in range(n):
-                        YlT[i, e] = col[i]
+            for a in range(na):
+                for i in range(n):
+                    drow[i] = DxA[i, a]
+                _forward(Lc, drow, col, n)  # L^-1 d_e: W = Y Y^T, Y = YlT^T
+                for i in range(n):
+                    YlT[i, a] = col[i]
+            ws[-1][na] = 0.0  # the impulse solver's memo was made with the old YlT
         if n > 0:
             _solve(Lc, r, vfree, n)
 
         # Coulomb impulses of the stiction elements, all together
-        any_active = False
-        for e in range(nf):
-            any_active = any_active or active[e]
-            cap[e] = hs * coulomb_level(par, e)
-        if any_active:
-            _element_slips(DxT, DuT, vfree, u1, qv)
-            ok, _ = solve_impulses(YlT, qv, cap, p, state, active, mask, Gb, Lgb, tb, cb, db,
-                                   gb, zb)
+        if na > 0:
+            for a in range(na):
+                cap[a] = hs * coulomb_level(par, act[a])
+            _element_slips(DxA, DuA, vfree, u1, qv)
+            ok, _ = solve_impulses(YlT, qv, cap, p, state, involved, ws)
             if not ok:
                 status = FRICTION_SOLVER
                 break
+            # the impulses change the speeds by H^-1 D^T p = L^-T (YlT p)
+            _backward(Lc, ws[7], v1, n)
+            for i in range(n):
+                v1[i] = vfree[i] - v1[i]
+        else:
+            for i in range(n):
+                v1[i] = vfree[i]
         for i in range(n):
-            total = vfree[i]
-            for e in range(nf):
-                total -= Y[e, i] * p[e]  # p is zero off the active elements
-            v1[i] = total
             x1[i] = x[i] + 0.5 * hs * (v[i] + v1[i])
         for mo in range(nm):
             rr = r_mot + mo
@@ -706,11 +789,13 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
             um[j] = 0.5 * (u0[j] + u1[j])
             srcF[j] = 0.0
         _element_slips(DxT, DuT, v1, u1, slip)
-        for e in range(nf):
+        # the elements' torques are wanted by the ledger and at the samples only
+        sample = i_out < n_out and t_out[i_out] <= t1 + 0.5 * h
+        for e in range(nf if ledger or sample else 0):
             s1 = slip[e]
             fe = par[e, 0] * s1 if linear[e] else f0[e] + df0[e] * (s1 - s0[e])
             if active[e]:
-                fe += p[e] / hs
+                fe += p[slot[e]] / hs
             elif driven[e] and s1 != 0.0:
                 fe += coulomb_level(par, e) * (1.0 if s1 > 0.0 else -1.0)
             force[e] = fe
@@ -718,8 +803,8 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
                 y[a_fric + e] += hs * fe * 0.5 * (s0[e] + s1)
                 _uadd(up, uc, uv, e, srcF, -fe)
         q_end = q_prev
-        if moving_pivot:
-            q_end = _pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x1, v1, ypiv)  # at t1
+        if moving_pivot and (ledger or step == steps_total - 1):  # at t1, for the ledger
+            q_end = pivot_position(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x1)
         if ledger:  # springs, loads, motors and sources
             for k in range(nk):
                 rr = nf + k
