@@ -75,49 +75,60 @@ def make_work(m):
 
 
 @inline
+def eval_channel(c, t, knots, coef, cum, first, count, hint, chan):
+    """Value, derivative and integral of input channel ``c`` at ``t`` into ``chan[c]``."""
+    p0 = first[c]
+    npieces = count[c]
+    koff = p0 + c
+    t0 = knots[koff]
+    if t < t0:
+        v = coef[p0, 0]
+        chan[c, 0] = v
+        chan[c, 1] = 0.0
+        chan[c, 2] = (t - t0) * v
+        return
+    t_last = knots[koff + npieces]
+    if t >= t_last:
+        p = p0 + npieces - 1
+        tau = t_last - knots[koff + npieces - 1]
+        v = coef[p, 0] + tau * (coef[p, 1] + tau * (coef[p, 2] + tau * coef[p, 3]))
+        chan[c, 0] = v
+        chan[c, 1] = 0.0
+        chan[c, 2] = cum[koff + npieces] + (t - t_last) * v
+        return
+    j = hint[c]
+    if j < 0 or j >= npieces:
+        j = 0
+    while knots[koff + j + 1] <= t:
+        j += 1
+    while knots[koff + j] > t:
+        j -= 1
+    hint[c] = j
+    tau = t - knots[koff + j]
+    p = p0 + j
+    c0, c1, c2, c3 = coef[p, 0], coef[p, 1], coef[p, 2], coef[p, 3]
+    chan[c, 0] = c0 + tau * (c1 + tau * (c2 + tau * c3))
+    chan[c, 1] = c1 + tau * (2.0 * c2 + 3.0 * c3 * tau)
+    chan[c, 2] = cum[koff + j] + tau * (c0 + tau * (0.5 * c1 + tau * (c2 / 3.0 + 0.25 * c3 * tau)))
+
+
+@inline
+def eval_source(j, chan, src_ch, src_pos0, srcw):
+    """Speed, acceleration and angle of source ``j`` from its (evaluated) channel."""
+    c = src_ch[j]
+    srcw[j, U] = chan[c, 0]
+    srcw[j, UD] = chan[c, 1]
+    srcw[j, SG] = src_pos0[j] + chan[c, 2]
+
+
+@inline
 def eval_inputs(t, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0, srcw):
     """Value, derivative and integral of every input channel at ``t``; then the
     sources' speeds, accelerations and angles."""
     for c in range(first.shape[0]):
-        p0 = first[c]
-        npieces = count[c]
-        koff = p0 + c
-        t0 = knots[koff]
-        if t < t0:
-            v = coef[p0, 0]
-            chan[c, 0] = v
-            chan[c, 1] = 0.0
-            chan[c, 2] = (t - t0) * v
-            continue
-        t_last = knots[koff + npieces]
-        if t >= t_last:
-            p = p0 + npieces - 1
-            tau = t_last - knots[koff + npieces - 1]
-            v = coef[p, 0] + tau * (coef[p, 1] + tau * (coef[p, 2] + tau * coef[p, 3]))
-            chan[c, 0] = v
-            chan[c, 1] = 0.0
-            chan[c, 2] = cum[koff + npieces] + (t - t_last) * v
-            continue
-        j = hint[c]
-        if j < 0 or j >= npieces:
-            j = 0
-        while knots[koff + j + 1] <= t:
-            j += 1
-        while knots[koff + j] > t:
-            j -= 1
-        hint[c] = j
-        tau = t - knots[koff + j]
-        p = p0 + j
-        c0, c1, c2, c3 = coef[p, 0], coef[p, 1], coef[p, 2], coef[p, 3]
-        chan[c, 0] = c0 + tau * (c1 + tau * (c2 + tau * c3))
-        chan[c, 1] = c1 + tau * (2.0 * c2 + 3.0 * c3 * tau)
-        chan[c, 2] = cum[koff + j] + tau * (c0 + tau * (0.5 * c1 + tau * (c2 / 3.0
-                                                                        + 0.25 * c3 * tau)))
+        eval_channel(c, t, knots, coef, cum, first, count, hint, chan)
     for j in range(src_ch.shape[0]):
-        c = src_ch[j]
-        srcw[j, U] = chan[c, 0]
-        srcw[j, UD] = chan[c, 1]
-        srcw[j, SG] = src_pos0[j] + chan[c, 2]
+        eval_source(j, chan, src_ch, src_pos0, srcw)
 
 
 @inline

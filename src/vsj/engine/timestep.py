@@ -39,8 +39,8 @@ import numpy as np
 from ..components.elastic_element import row, spring_law
 from ..friction import STICTION, VISCOUS, coulomb_level, resistive_torque
 from ..jit import inline, kernel, loop
-from .core import (FRICTION_SOLVER, NOT_FINITE, OK, SG, STATUS, TOO_MANY_STEPS, U, eval_inputs,
-                   pivot_position, xadd, xdot)
+from .core import (FRICTION_SOLVER, NOT_FINITE, OK, SG, STATUS, TOO_MANY_STEPS, U, eval_channel,
+                   eval_inputs, eval_source, pivot_position, xadd, xdot)
 from .model import D_F, D_K, D_L, D_M, D_N, D_R, D_S
 
 #: Slip speed [rad/s] below which an element counts as stuck.
@@ -536,14 +536,14 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger):
     linear = np.zeros(nf, dtype=np.bool_)
     Bx = np.zeros((n, n))
     Bu = np.zeros((n, s_n))
-    DxT = np.zeros((n, nf))
-    DuT = np.zeros((s_n, nf))
-    for e in range(nf):
+    DxT = np.zeros((n, nf + nk))  # friction elements, then springs
+    DuT = np.zeros((s_n, nf + nk))
+    for e in range(nf + nk):
         for k in range(xp[e], xp[e + 1]):
             DxT[xc[k], e] = xv[k]
         for k in range(up[e], up[e + 1]):
             DuT[uc[k], e] = uv[k]
-        if code[e] == STICTION or code[e] == VISCOUS:
+        if e < nf and (code[e] == STICTION or code[e] == VISCOUS):
             linear[e] = True
             b = par[e, 0]
             for i in range(n):
@@ -569,6 +569,17 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger):
             DxA[:, a] = DxT[:, e]
             DuA[:, a] = DuT[:, e]
     involved = np.ones(na, dtype=np.bool_)
+    # at mid-step only the loads, the motor voltages and the pivot's sources are
+    # read: their channels (mid_ch) and the pivot's sources (mid_src)
+    r_load = nf + nk
+    r_piv = dims[D_R] - 1
+    wanted = np.zeros(first.shape[0], dtype=np.bool_)
+    for rr in range(r_load, r_load + nl + nm):
+        wanted[code[rr]] = True
+    mid_src = uc[up[r_piv]:up[r_piv + 1]].copy()
+    for j in mid_src:
+        wanted[src_ch[j]] = True
+    mid_ch = np.flatnonzero(wanted)
 
     H = np.empty((n, n))
     H_last = np.zeros((n, n))
@@ -605,7 +616,7 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger):
     scratch = (H, H_last, Lc, YlT, ws, Bx, Bu, DxT, DuT, x, v, cur, r, vfree, v1, x1, col, drow,
                qv, cap, p, slip, s0, f0, df0, force, sp_c, sp_kap, u0, sg0, u1, sg1, um, ldm, vm,
                srcF, i1, held, state, active, driven, linear,
-               act, slot, DxA, DuA, involved)
+               act, slot, DxA, DuA, involved, mid_ch, mid_src)
 
     status, t, steps_done = _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out,
                                    coulomb, stuck, transitions)
@@ -626,7 +637,7 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
     H, H_last, Lc, YlT, ws, Bx, Bu, DxT, DuT, x, v, cur, r, vfree, v1, x1, col, drow, qv, cap, \
         p, slip, s0, f0, df0, force, sp_c, sp_kap, u0, sg0, u1, sg1, um, ldm, vm, srcF, i1, \
         held, state, active, driven, linear, act, slot, DxA, DuA, \
-        involved = scratch
+        involved, mid_ch, mid_src = scratch
     na = act.shape[0]
     n = dims[D_N]
     s_n = dims[D_S]
@@ -677,8 +688,10 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
         t1 = (step + 1) * h if step < steps_total - 1 else duration
         hs = t1 - t
         # mid-step inputs (loads, voltages) and pivot position
-        eval_inputs(t + 0.5 * hs, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0,
-                    srcw)
+        for i in range(mid_ch.shape[0]):
+            eval_channel(mid_ch[i], t + 0.5 * hs, knots, coef, cum, first, count, hint, chan)
+        for i in range(mid_src.shape[0]):
+            eval_source(mid_src[i], chan, src_ch, src_pos0, srcw)
         for ld in range(nl):
             ldm[ld] = chan[code[r_load + ld], 0]
         for mo in range(nm):
@@ -702,14 +715,24 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
             r[i] = total
         for k in range(nk):
             rr = nf + k
-            d0 = xdot(xp, xc, xv, rr, x, 0) + _udot(up, uc, uv, rr, sg0)
+            d0 = 0.0
+            rate = 0.0
+            for i in range(n):
+                d0 += DxT[i, rr] * x[i]
+                rate += DxT[i, rr] * v[i]
+            dsig = 0.0
+            for j in range(s_n):
+                d0 += DuT[j, rr] * sg0[j]
+                dsig += DuT[j, rr] * (sg1[j] - sg0[j])
             tau, kap, _, _ = spring_law(code[rr], row(par, rr), d0, q_mid)
-            dsig = _udot(up, uc, uv, rr, sg1) - _udot(up, uc, uv, rr, sg0)
-            c_k = tau - 0.5 * kap * dsig - 0.25 * kap * hs * xdot(xp, xc, xv, rr, v, 0)
+            c_k = tau - 0.5 * kap * dsig - 0.25 * kap * hs * rate
             sp_c[k] = c_k
             sp_kap[k] = kap
-            xadd(xp, xc, xv, rr, r, hs * c_k)
-            _outer(xp, xc, xv, rr, H, 0.25 * hs * hs * kap)
+            for i in range(n):
+                di = DxT[i, rr]
+                r[i] += hs * c_k * di
+                for c in range(n):
+                    H[i, c] += 0.25 * hs * hs * kap * di * DxT[c, rr]
         for e in range(nf):
             se = slip[e]
             s0[e] = se
