@@ -18,11 +18,12 @@ for the measurements behind the choice). Per step of length ``h``:
       p_e = +h c_e if s_e > 0,  p_e = -h c_e if s_e < 0,  |p_e| <= h c_e if s_e = 0,
 
   with ``W = D H^-1 D^T`` the Delassus matrix of the elements' slip rows and
-  ``q`` their slip speeds without Coulomb friction. It is solved by projected
-  Gauss-Seidel, warm-started from the previous step, to a tolerance far below
-  any physical speed; an element with ``s_e = 0`` holds exactly (no creep), and
-  which elements hold is decided jointly through ``W`` (coupled through the
-  gears and the differential).
+  ``q`` their slip speeds without Coulomb friction. It is solved exactly
+  (`solve_impulses`: last step's stick/slip pattern checked first, an
+  active-set method when it no longer holds), warm-started from the previous
+  step; an element with ``s_e = 0`` holds exactly (no creep), and which
+  elements hold is decided jointly through ``W`` (coupled through the gears
+  and the differential).
 
 Every force's work is booked against the mid-step speed, which is the velocity
 the scheme actually moves with, so the energy ledger closes up to the spring
