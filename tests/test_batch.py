@@ -21,11 +21,8 @@ def test_batch_runs_equal_single_runs(params, friction):
     for r, q in enumerate(qs):
         single = simulate(structure, inputs, 2.0, initial=InitialState(q=q), options=options,
                           pivot_range=rng, ports=False)
-        # the batch kernel is compiled separately: round-off may differ, nothing more
-        np.testing.assert_allclose(batch.angle("diff.theta_x")[r], single["theta_x"], rtol=0,
-                                   atol=1e-12)
-        np.testing.assert_allclose(batch.speed("vsm_1.ring")[r], single["phi_1.speed"], rtol=0,
-                                   atol=1e-10)
+        assert np.array_equal(batch.angle("diff.theta_x")[r], single["theta_x"])
+        assert np.array_equal(batch.speed("vsm_1.ring")[r], single["phi_1.speed"])
     # the pivot position matters: softer settings deflect more
     peak = np.max(np.abs(batch.angle("vsm_1.ring")), axis=1)
     assert peak[0] < peak[1] < peak[2]
