@@ -47,7 +47,7 @@ STATUS_TEXT = {
 
 # columns of the work arrays
 U, UD, SG, SRCF, SRCTAU = range(5)            # srcw (per source)
-SLIP, TORQUE, SLOPE, EXTRA = range(4)         # frw (per friction element)
+SLIP, TORQUE, EXTRA = range(3)                # frw (per friction element)
 DEFL, RATE, SPTAU, STIFF, ENERGY, DVDQ = range(6)  # spw (per spring)
 Q, QDOT, STATUS = range(3)                    # scal
 
@@ -58,7 +58,7 @@ class Work(NamedTuple):
     hint: np.ndarray  # (channels,) int64 last spline piece used
     chan: np.ndarray  # (channels, 3) value, derivative, integral
     srcw: np.ndarray  # (s, 5) speed, acceleration, angle, element torque sum, source torque
-    frw: np.ndarray   # (f, 4) slip, torque, slope, Coulomb torque set by the time stepper
+    frw: np.ndarray   # (f, 3) slip, torque, Coulomb torque set by the time stepper
     spw: np.ndarray   # (k, 6) deflection, rate, torque, stiffness, energy, dV/dq
     ldw: np.ndarray   # (loads, 2) torque, speed
     mow: np.ndarray   # (motors, 2) rotor speed, voltage
@@ -70,7 +70,7 @@ class Work(NamedTuple):
 def make_work(m):
     d = m.dims
     return Work(np.zeros(d[D_CH], np.int64), np.zeros((d[D_CH], 3)), np.zeros((d[D_S], 5)),
-                np.zeros((d[D_F], 4)), np.zeros((d[D_K], 6)), np.zeros((d[D_L], 2)),
+                np.zeros((d[D_F], 3)), np.zeros((d[D_K], 6)), np.zeros((d[D_L], 2)),
                 np.zeros((d[D_M], 2)), np.zeros(d[D_N]), np.zeros(3))
 
 
@@ -253,13 +253,12 @@ def eval_forces(dims, xp, xc, xv, up, uc, uv, par, code, chan, srcw, frw, spw, l
         if not full and xp[e + 1] == xp[e]:
             continue
         slip = xdot(xp, xc, xv, e, y, n) + udot(up, uc, uv, e, srcw, U)
-        torque, slope = resistive_torque(code[e], par[e, 0], par[e, 1], par[e, 2], par[e, 3],
-                                         slip)
+        # (the slope is left unused: then the compiler drops its division)
+        torque = resistive_torque(code[e], par[e, 0], par[e, 1], par[e, 2], par[e, 3], slip)[0]
         if code[e] == STICTION:
             torque += frw[e, EXTRA]
         frw[e, SLIP] = slip
         frw[e, TORQUE] = torque
-        frw[e, SLOPE] = slope
         xadd(xp, xc, xv, e, gen, -torque)
         if full:
             uadd(up, uc, uv, e, srcw, SRCF, -torque)
