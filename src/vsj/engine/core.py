@@ -168,7 +168,7 @@ def uadd(up, uc, uv, r, srcw, col, scale):
 
 
 @inline
-def _pivot_at(par, r, angle, scal):
+def pivot_at(par, r, angle, scal):
     """Pivot position q [m] at pivot-mechanism angle ``angle`` (row ``r``), with
     the range check: a pivot outside its range sets ``scal[STATUS]``.
 
@@ -184,11 +184,17 @@ def _pivot_at(par, r, angle, scal):
 
 
 @inline
+def pivot_angle(dims, xp, xc, xv, up, uc, uv, srcw, x):
+    """Angle of the pivot mechanism (the last row) at generalised angles ``x``."""
+    r = dims[D_R] - 1
+    return xdot(xp, xc, xv, r, x, 0) + udot(up, uc, uv, r, srcw, SG)
+
+
+@inline
 def pivot_position(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x):
     """Pivot position q [m] (the last row) at generalised angles ``x``, with the
     range check."""
-    r = dims[D_R] - 1
-    return _pivot_at(par, r, xdot(xp, xc, xv, r, x, 0) + udot(up, uc, uv, r, srcw, SG), scal)
+    return pivot_at(par, dims[D_R] - 1, pivot_angle(dims, xp, xc, xv, up, uc, uv, srcw, x), scal)
 
 
 @inline
@@ -199,7 +205,7 @@ def eval_pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, y):
     n = dims[D_N]
     angle = xdot(xp, xc, xv, r, y, 0) + udot(up, uc, uv, r, srcw, SG)
     rate = xdot(xp, xc, xv, r, y, n) + udot(up, uc, uv, r, srcw, U)
-    q = _pivot_at(par, r, angle, scal)
+    q = pivot_at(par, r, angle, scal)
     scal[QDOT] = par[r, 2] * par[r, 0] * math.cos(angle) * rate
     return q
 

@@ -41,7 +41,7 @@ from ..components.elastic_element import row, spring_law
 from ..friction import STICTION, VISCOUS, coulomb_level, resistive_torque
 from ..jit import inline, kernel, loop
 from .core import (FRICTION_SOLVER, NOT_FINITE, OK, SG, STATUS, TOO_MANY_STEPS, U, eval_channel,
-                   eval_inputs, eval_source, pivot_position, xadd, xdot)
+                   eval_inputs, eval_source, pivot_angle, pivot_at, pivot_position, xadd, xdot)
 from .model import D_F, D_K, D_L, D_M, D_N, D_R, D_S
 
 #: Slip speed [rad/s] below which an element counts as stuck.
@@ -215,7 +215,7 @@ def impulse_workspace(n, m):
             np.zeros(m + 1))
 
 
-@inline
+@loop
 def _stuck_map(YT, mask, Gc, K, Lg, t, c):
     """``Gc = Y_F Y_F^T`` and ``K = (Gc + ridge I)^-2`` for the stuck set ``mask``.
 
@@ -320,9 +320,14 @@ def _same_pattern(YT, q, cap, p, state, active, ws):
     return holds
 
 
-@inline
+@loop
 def _active_set(YT, q, cap, p, state, active, ws):
-    """The general method (see `solve_impulses`), from the warm start in ``p``."""
+    """The general method (see `solve_impulses`), from the warm start in ``p``.
+
+    Like `_stuck_map`, a function of its own rather than inlined: both run
+    only when the stick/slip pattern or the step matrix changes, and out of
+    line they keep the common step's code smaller (2-3% faster).
+    """
     mask, G, Lg, t, c, d, g, z, _, _, _ = ws
     n, m = YT.shape
     _, scale = _snap(q, cap, p, state, active, mask)
@@ -578,17 +583,34 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger):
             DxA[:, a] = DxT[:, e]
             DuA[:, a] = DuT[:, e]
     involved = np.ones(na, dtype=np.bool_)
+    level = np.empty(na)  # Coulomb levels of the active elements
+    for a in range(na):
+        level[a] = coulomb_level(par, act[a])
+    # index lists, so that the per-step loops visit only the elements concerned:
+    # smooth parts that are not linear, and elements whose stick phases are counted
+    nonlinear = np.flatnonzero(~linear)
+    watched = np.flatnonzero(active | driven)
     # at mid-step only the loads, the motor voltages and the pivot's sources are
-    # read: their channels (mid_ch) and the pivot's sources (mid_src)
+    # read: their channels (mid_ch) and the pivot's sources (mid_src); a load or
+    # voltage constant in time (one piece of degree 0) keeps its value from t = 0.
+    # At step end only the sources' channels are read (end_ch).
     r_load = nf + nk
     r_piv = dims[D_R] - 1
     wanted = np.zeros(first.shape[0], dtype=np.bool_)
     for rr in range(r_load, r_load + nl + nm):
-        wanted[code[rr]] = True
+        c = code[rr]
+        p0 = first[c]
+        steady = count[c] == 1 and coef[p0, 1] == 0.0 and coef[p0, 2] == 0.0 \
+            and coef[p0, 3] == 0.0
+        wanted[c] = not steady
     mid_src = uc[up[r_piv]:up[r_piv + 1]].copy()
     for j in mid_src:
         wanted[src_ch[j]] = True
     mid_ch = np.flatnonzero(wanted)
+    wanted[:] = False
+    for j in range(s_n):
+        wanted[src_ch[j]] = True
+    end_ch = np.flatnonzero(wanted)
 
     H = np.empty((n, n))
     H_last = np.zeros((n, n))
@@ -625,7 +647,7 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger):
     scratch = (H, H_last, Lc, YlT, ws, Bx, Bu, DxT, DuT, x, v, cur, r, vfree, v1, x1, col, drow,
                qv, cap, p, slip, s0, f0, df0, force, sp_c, sp_kap, u0, sg0, u1, sg1, um, ldm, vm,
                srcF, i1, held, state, active, driven, linear,
-               act, slot, DxA, DuA, involved, mid_ch, mid_src)
+               act, slot, DxA, DuA, involved, level, nonlinear, watched, mid_ch, mid_src, end_ch)
 
     status, t, steps_done = _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out,
                                    coulomb, stuck, transitions)
@@ -645,8 +667,8 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
     hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
     H, H_last, Lc, YlT, ws, Bx, Bu, DxT, DuT, x, v, cur, r, vfree, v1, x1, col, drow, qv, cap, \
         p, slip, s0, f0, df0, force, sp_c, sp_kap, u0, sg0, u1, sg1, um, ldm, vm, srcF, i1, \
-        held, state, active, driven, linear, act, slot, DxA, DuA, \
-        involved, mid_ch, mid_src = scratch
+        held, state, active, driven, linear, act, slot, DxA, DuA, involved, level, nonlinear, \
+        watched, mid_ch, mid_src, end_ch = scratch
     na = act.shape[0]
     n, s_n, nf, nk, nl, nm = _sizes(dims)
     r_load = nf + nk
@@ -672,6 +694,10 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
     status = OK
     scal[STATUS] = OK
     q_prev = pivot_position(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x)
+    # the mid-step pivot position is recomputed only when its angle changes (a
+    # pivot held still costs no sine per step)
+    angle_mid = math.nan
+    q_mid = q_prev
     steps_total = int(math.ceil(duration / h - 1e-9))
     if scal[STATUS] != OK:
         status = int(scal[STATUS])
@@ -702,9 +728,14 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
             vm[mo] = chan[code[r_mot + mo], 0]
         for i in range(n):
             x1[i] = x[i] + 0.5 * hs * v[i]
-        q_mid = pivot_position(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, x1)
-        eval_inputs(t1, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0, srcw)
+        angle = pivot_angle(dims, xp, xc, xv, up, uc, uv, srcw, x1)
+        if angle != angle_mid:
+            angle_mid = angle
+            q_mid = pivot_at(par, r_piv, angle, scal)
+        for i in range(end_ch.shape[0]):
+            eval_channel(end_ch[i], t1, knots, coef, cum, first, count, hint, chan)
         for j in range(s_n):
+            eval_source(j, chan, src_ch, src_pos0, srcw)
             u1[j] = srcw[j, U]
             sg1[j] = srcw[j, SG]
 
@@ -738,10 +769,10 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
                 for c in range(n):
                     H[i, c] += 0.25 * hs * hs * kap * di * DxT[c, rr]
         for e in range(nf):
+            s0[e] = slip[e]
+        for i in range(nonlinear.shape[0]):
+            e = nonlinear[i]
             se = slip[e]
-            s0[e] = se
-            if linear[e]:
-                continue
             fe, dfe = resistive_torque(code[e], par[e, 0], par[e, 1], par[e, 2], par[e, 3], se)
             f0[e] = fe
             df0[e] = dfe
@@ -789,7 +820,7 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
         # Coulomb impulses of the stiction elements, all together
         if na > 0:
             for a in range(na):
-                cap[a] = hs * coulomb_level(par, act[a])
+                cap[a] = hs * level[a]
             _element_slips(DxA, DuA, vfree, u1, qv)
             ok, _ = solve_impulses(YlT, qv, cap, p, state, involved, ws)
             if not ok:
@@ -876,16 +907,16 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
             sg0[j] = sg1[j]
         t = t1
         q_prev = q_end
-        for e in range(nf):
-            if active[e] or driven[e]:
-                if abs(slip[e]) <= STUCK_SPEED:
-                    held[e] += 1
-                    if held[e] == 2:
-                        transitions[e] += 1
-                else:
-                    if held[e] >= 2:
-                        transitions[e] += 1
-                    held[e] = 0
+        for i in range(watched.shape[0]):
+            e = watched[i]
+            if abs(slip[e]) <= STUCK_SPEED:
+                held[e] += 1
+                if held[e] == 2:
+                    transitions[e] += 1
+            else:
+                if held[e] >= 2:
+                    transitions[e] += 1
+                held[e] = 0
         steps_done = step + 1
         if scal[STATUS] != OK:
             status = int(scal[STATUS])
