@@ -203,7 +203,7 @@ def eval_pivot(dims, xp, xc, xv, up, uc, uv, par, srcw, scal, y):
     angles and then their speeds (offset n)."""
     r = dims[D_R] - 1
     n = dims[D_N]
-    angle = xdot(xp, xc, xv, r, y, 0) + udot(up, uc, uv, r, srcw, SG)
+    angle = pivot_angle(dims, xp, xc, xv, up, uc, uv, srcw, y)
     rate = xdot(xp, xc, xv, r, y, n) + udot(up, uc, uv, r, srcw, U)
     q = pivot_at(par, r, angle, scal)
     scal[QDOT] = par[r, 2] * par[r, 0] * math.cos(angle) * rate

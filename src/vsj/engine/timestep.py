@@ -934,9 +934,9 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
         while i_out < n_out and t_out[i_out] <= t + 0.5 * h:
             for j in range(y.shape[0]):
                 out[i_out, j] = y[j]
-            for e in range(nf):
-                if active[e] or driven[e]:
-                    coulomb[i_out, e] = force[e] - par[e, 0] * slip[e]
-                    stuck[i_out, e] = abs(slip[e]) <= STUCK_SPEED
+            for i in range(watched.shape[0]):
+                e = watched[i]
+                coulomb[i_out, e] = force[e] - par[e, 0] * slip[e]
+                stuck[i_out, e] = abs(slip[e]) <= STUCK_SPEED
             i_out += 1
     return status, t, steps_done
