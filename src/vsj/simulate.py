@@ -192,15 +192,15 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
     t_out = np.arange(n_out) * options.output_step
     started = _time.perf_counter()
     w = make_work(model)
+    out = np.full((n_out, y0.shape[0]), np.nan)
+    coulomb = np.zeros((n_out, layout.n_frictions))
+    stuck = np.zeros((n_out, layout.n_frictions), dtype=bool)
     if solver == "dopri":
-        out = np.full((n_out, y0.shape[0]), np.nan)
         y_end = y0.copy()
         n_err = layout.n_state if layout.n_state else y0.shape[0]
         status, t_stop, steps, rejected = dopri.integrate(
             model, w, y_end, 0.0, duration, t_out, options.rtol, options.atol, options.max_step,
             options.max_steps, n_err, out)
-        coulomb = np.zeros((n_out, layout.n_frictions))
-        stuck = np.zeros((n_out, layout.n_frictions), dtype=bool)
         flips = np.zeros(layout.n_frictions, dtype=np.int64)
         report = {"name": "dopri", "steps": int(steps), "rejected": int(rejected)}
     else:
@@ -208,8 +208,9 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
         if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
             raise InputError(f"output_step ({options.output_step:g} s) must be a whole multiple "
                              f"of the time step ({options.step:g} s)")
-        status, t_stop, y_end, out, coulomb, stuck, steps, flips = timestep.run(
-            model, w, y0, duration, options.step, t_out, options.max_steps, True)
+        status, t_stop, y_end, steps, flips = timestep.run(
+            model, w, y0, duration, options.step, t_out, options.max_steps, True, out, coulomb,
+            stuck)
         report = {"name": "timestep", "steps": int(steps), "step": options.step}
     wall = _time.perf_counter() - started
     report.update(wall_time=wall, options={k: v for k, v in asdict(options).items()})

@@ -498,19 +498,27 @@ def _sizes(dims):
 
 
 @kernel
-def run(m, w, y0, duration, h, t_out, max_steps, ledger):
+def run(m, w, y0, duration, h, t_out, max_steps, ledger, out, coulomb, stuck):
     """Integrate with fixed step ``h``; sample at ``t_out`` (multiples of ``h``).
+
+    The samples go into caller-owned arrays, as with `dopri.integrate`: ``out``
+    (one row per sample, NaN-filled by the caller so that rows after a failure
+    stay NaN) takes the leading ``out.shape[1]`` entries of the state and
+    accumulator vector; ``coulomb`` and ``stuck`` (one row per sample, one
+    column per friction element) are filled only if they have rows. A batch
+    passes its own output row and no ``coulomb``/``stuck`` rows, so its runs
+    allocate no per-sample memory.
 
     With ``ledger`` False the energy accumulators are not booked (they stay as
     in ``y0``): batch runs, which report states only, skip that work, and the
     pivot's range is then checked at mid-steps and at the end (half a step
     later than with the ledger, which checks at every step's end).
 
-    Returns ``(status, t, y, out, coulomb, stuck, steps, transitions)``:
-    ``out`` holds the state and accumulators at each sample, ``coulomb`` the
-    Coulomb torque of each stiction element over the step ending there (the
-    resistive torque, positive against positive slip), ``stuck`` whether it
-    held. ``transitions`` counts, per element, the starts and ends of stick
+    Returns ``(status, t, y, steps, transitions)``. ``out`` gets the state and
+    accumulators at each sample, ``coulomb`` the Coulomb torque of each
+    stiction element over the step ending there (the resistive torque,
+    positive against positive slip), ``stuck`` whether it held.
+    ``transitions`` counts, per element, the starts and ends of stick
     phases; a phase starts when an element has held for two consecutive steps,
     so a speed reversal that touches zero for a single step (the scheme's
     resolution) is not counted as sticking.
@@ -518,13 +526,13 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger):
     dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, \
         first, count = m
     n, s_n, nf, nk, nl, nm = _sizes(dims)
-    ny = y0.shape[0]
+    if out.shape[0] != t_out.shape[0] or (coulomb.shape[0] != 0 and coulomb.shape[0] != t_out.shape[0]) \
+            or stuck.shape[0] != coulomb.shape[0] or coulomb.shape[1] != stuck.shape[1] \
+            or (coulomb.shape[0] > 0 and coulomb.shape[1] != nf):
+        raise ValueError("timestep.run: out needs one row per sample; coulomb and stuck "
+                         "either none or one row per sample and one column per friction element")
     n_state = 2 * n + nm
 
-    n_out = t_out.shape[0]
-    out = np.full((n_out, ny), np.nan)
-    coulomb = np.zeros((n_out, nf))
-    stuck = np.zeros((n_out, nf), dtype=np.bool_)
     transitions = np.zeros(nf, dtype=np.int64)
     held = np.zeros(nf, dtype=np.int64)
     y = y0.copy()
@@ -651,7 +659,7 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger):
 
     status, t, steps_done = _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out,
                                    coulomb, stuck, transitions)
-    return status, t, y, out, coulomb, stuck, steps_done, transitions
+    return status, t, y, steps_done, transitions
 
 
 @loop
@@ -684,6 +692,8 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
     a_spr = a_res + nm
     a_piv = a_spr + nk
     n_out = t_out.shape[0]
+    n_col = min(out.shape[1], y.shape[0])
+    sample_friction = coulomb.shape[0] > 0
 
     eval_inputs(0.0, knots, coef, cum, first, count, hint, chan, src_ch, src_pos0, srcw)
     for j in range(s_n):
@@ -709,7 +719,7 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
     steps_done = 0
     i_out = 0
     if n_out > 0 and t_out[0] <= 0.0:
-        for j in range(y.shape[0]):
+        for j in range(n_col):
             out[0, j] = y[j]
         i_out = 1
     t = 0.0
@@ -932,11 +942,12 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
         for mo in range(nm):
             y[2 * n + mo] = cur[mo]
         while i_out < n_out and t_out[i_out] <= t + 0.5 * h:
-            for j in range(y.shape[0]):
+            for j in range(n_col):
                 out[i_out, j] = y[j]
-            for i in range(watched.shape[0]):
-                e = watched[i]
-                coulomb[i_out, e] = force[e] - par[e, 0] * slip[e]
-                stuck[i_out, e] = abs(slip[e]) <= STUCK_SPEED
+            if sample_friction:
+                for i in range(watched.shape[0]):
+                    e = watched[i]
+                    coulomb[i_out, e] = force[e] - par[e, 0] * slip[e]
+                    stuck[i_out, e] = abs(slip[e]) <= STUCK_SPEED
             i_out += 1
     return status, t, steps_done
