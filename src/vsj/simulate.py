@@ -26,6 +26,7 @@ import time as _time
 from dataclasses import asdict, dataclass, field
 from typing import Mapping
 
+import numba
 import numpy as np
 
 from . import friction as friction_laws
@@ -477,13 +478,18 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
     steps = np.zeros(runs, dtype=np.int64)
     flips = np.zeros(runs, dtype=np.int64)
     started = _time.perf_counter()
-    if solver == "dopri":
-        batch.dopri_batch(base, masses, Minvs, pars, src0s, y0s, duration, t_out, options.rtol,
-                          options.atol, options.max_step, options.max_steps, n_state, outs, y_end,
-                          status, t_stop, steps)
-    else:
-        batch.timestep_batch(base, masses, Minvs, pars, src0s, y0s, duration, options.step, t_out,
-                             options.max_steps, outs, y_end, status, t_stop, steps, flips)
+    # runs are handed to the threads one at a time as they free up: split in
+    # equal halves, a sweep whose runs differ in cost (more stick-slip
+    # transitions at one end) leaves one core idle at the end
+    with numba.parallel_chunksize(1):
+        if solver == "dopri":
+            batch.dopri_batch(base, masses, Minvs, pars, src0s, y0s, duration, t_out,
+                              options.rtol, options.atol, options.max_step, options.max_steps,
+                              n_state, outs, y_end, status, t_stop, steps)
+        else:
+            batch.timestep_batch(base, masses, Minvs, pars, src0s, y0s, duration, options.step,
+                                 t_out, options.max_steps, outs, y_end, status, t_stop, steps,
+                                 flips)
     wall = _time.perf_counter() - started
     messages = [STATUS_TEXT[int(s)] if s == core.OK else
                 f"{STATUS_TEXT[int(s)]} at t = {t_stop[r]:.6g} s" for r, s in enumerate(status)]
