@@ -69,10 +69,4 @@ parallel = njit(cache=True, error_model="numpy", parallel=True)
 #: For allocation-free inner loops that receive every array from their caller
 #: (the time-stepper's loop): compiled without reference counting, which in a
 #: branchy loop over many arrays costs a call and an atomic add per array use.
-#: Their floating point may be rearranged within round-off (LLVM's fast-math
-#: flags: fused multiply-adds, reassociated sums, which lets the sums over
-#: elements vectorise, and reciprocal multiplies): a stiction run got about 10%
-#: faster, and its states moved by 5e-16 rad. NaN and infinity keep their
-#: meaning (no ``nnan``/``ninf``): the loop detects a diverging state by them.
-loop = njit(cache=True, error_model="numpy", _nrt=False,
-            fastmath={"contract", "reassoc", "arcp", "nsz"})
+loop = njit(cache=True, error_model="numpy", _nrt=False)
