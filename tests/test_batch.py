@@ -43,3 +43,32 @@ def test_batch_over_parameter_sets(params):
                           options=SimulationOptions(output_step=0.01), ports=False)
         assert np.array_equal(batch.angle("diff.theta_x")[r], single["theta_x"])
     assert not np.allclose(batch.angle("diff.theta_x")[0], batch.angle("diff.theta_x")[1])
+
+
+def test_time_stepper_checks_the_shapes_of_its_sample_arrays(params):
+    from vsj.engine import make_work, timestep
+    from vsj.simulate import prepare
+
+    scen = scenarios.load("fig-4.15")
+    case = scen.cases[0]
+    _, structure, inputs, rng = scenarios.prepare_case(scen, case, params)
+    options = SimulationOptions(friction="stiction")
+    model, layout, y0 = prepare(structure, inputs, 0.05, options, case.initial, rng)
+    t_out = np.arange(6) * 0.01
+    nf = layout.n_frictions
+
+    def run(n_out, coulomb_rows, columns):
+        out = np.full((n_out, y0.shape[0]), np.nan)
+        coulomb = np.zeros((coulomb_rows, columns))
+        stuck = np.zeros((coulomb_rows, columns), dtype=bool)
+        status = timestep.run(model, make_work(model), y0, 0.05, 1e-3, t_out, 10 ** 6, True, out,
+                              coulomb, stuck)[0]
+        return status, out, coulomb
+
+    status, out, coulomb = run(6, 0, nf)  # no friction samples: states only
+    assert status == 0 and not np.isnan(out).any() and coulomb.shape == (0, nf)
+    status, out, coulomb = run(6, 6, nf)
+    assert status == 0 and np.any(coulomb != 0.0)
+    for bad in [(5, 6, nf), (6, 5, nf), (6, 6, nf - 1)]:
+        with pytest.raises(ValueError, match="one row per sample"):
+            run(*bad)

@@ -526,9 +526,9 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger, out, coulomb, stuck):
     dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, \
         first, count = m
     n, s_n, nf, nk, nl, nm = _sizes(dims)
-    if out.shape[0] != t_out.shape[0] or (coulomb.shape[0] != 0 and coulomb.shape[0] != t_out.shape[0]) \
-            or stuck.shape[0] != coulomb.shape[0] or coulomb.shape[1] != stuck.shape[1] \
-            or (coulomb.shape[0] > 0 and coulomb.shape[1] != nf):
+    sampled = coulomb.shape[0] > 0
+    if out.shape[0] != t_out.shape[0] or stuck.shape != coulomb.shape \
+            or (sampled and coulomb.shape != (t_out.shape[0], nf)):
         raise ValueError("timestep.run: out needs one row per sample; coulomb and stuck "
                          "either none or one row per sample and one column per friction element")
     n_state = 2 * n + nm
