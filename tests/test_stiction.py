@@ -9,7 +9,7 @@ from scipy.optimize import brentq
 
 from vsj import benches
 from vsj import scenario as scenarios
-from vsj.components import Bearing, Inertia, TorqueSource
+from vsj.components import Bearing, IdealGear, Inertia, TorqueSource
 from vsj.engine.timestep import impulse_workspace, solve_impulses
 from vsj.inputs import Sine, Table
 from vsj.network import Network
@@ -109,6 +109,51 @@ def test_coulomb_benchmark_matches_the_analytic_solution():
     # the error shrinks with the step (ten times smaller steps, at least five times smaller)
     assert errors[1e-4] < errors[1e-3] / 5
     assert errors[1e-4] < 1e-3 * np.max(np.abs(reference(np.linspace(0, t_end, 999))))
+
+
+def geared_run(split):
+    """The Coulomb benchmark's inertia with its friction either split over a bearing
+    on the inertia and one behind a gear of ratio RATIO, or lumped into one bearing
+    with the far level reflected through the gear."""
+    near, far, ratio = 0.004, 0.015, -2.5
+    net = Network("geared")
+    net.add(Inertia("mass", J), TorqueSource("push", "tau"))
+    net.connect("mass.flange", "push.flange")
+    if split:
+        net.add(Bearing("near", stiction=near * 2 / math.pi), IdealGear("gear", ratio),
+                Bearing("far", stiction=far * 2 / math.pi))
+        net.connect("mass.flange", "near.flange").connect("mass.flange", "gear.a")
+        net.connect("gear.b", "far.flange")
+    else:
+        net.add(Bearing("near", stiction=(near + far / abs(ratio)) * 2 / math.pi))
+        net.connect("mass.flange", "near.flange")
+    r = simulate(net.assemble(), {"tau": Sine(AMPLITUDE, FREQ)}, 8.0, ports=False,
+                 options=SimulationOptions(friction="stiction", step=1e-3, output_step=1e-3))
+    assert r.success
+    return r, (near, far, ratio)
+
+
+def test_elements_that_slip_together_share_one_impulse_exactly():
+    """Two stiction elements whose slips are proportional (here through a gear) are
+    posed as one impulse unknown: the motion is that of one element with the summed
+    (reflected) level, a slipping pair puts each element at its own level, and a
+    stuck pair loads both to the same fraction of their levels."""
+    split, (near, far, ratio) = geared_run(True)
+    lumped, _ = geared_run(False)
+    speed = split["mass.flange.speed"]
+    assert np.max(np.abs(speed - lumped["mass.flange.speed"])) <= 1e-12 * np.max(np.abs(speed))
+    t_near, t_far = split["friction.near.torque"], split["friction.far.torque"]
+    stuck = split["friction.near.stuck"] > 0.5
+    assert np.array_equal(stuck, split["friction.far.stuck"] > 0.5)
+    assert 0.05 < stuck.mean() < 0.95  # both phases occur
+    slipping = ~stuck & (split.time > 0)  # the first sample reports no step
+    np.testing.assert_allclose(np.abs(t_near[slipping]), near, rtol=1e-12)
+    np.testing.assert_allclose(np.abs(t_far[slipping]), far, rtol=1e-12)
+    np.testing.assert_allclose(np.abs(t_near[stuck]) / near, np.abs(t_far[stuck]) / far,
+                               atol=1e-12)
+    # the torques on the inertia add up to the lumped element's, stuck or slipping
+    np.testing.assert_allclose(t_near + t_far / ratio, lumped["friction.near.torque"],
+                               atol=1e-12 * far)
 
 
 def test_wrist_holds_a_constant_load_exactly(params):
