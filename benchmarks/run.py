@@ -150,7 +150,7 @@ def main() -> int:
         coulomb = np.zeros((len(t_out), layout.n_frictions))
         stuck = np.zeros((len(t_out), layout.n_frictions), dtype=bool)
         flips = timestep.run(model, make_work(model), y0, DURATION, h, t_out, 10 ** 8, True, out,
-                             coulomb, stuck)[4]
+                             coulomb, stuck, timestep.free_token(model))[4]
         return out[:, :layout.n_state], flips.sum()
 
     theta_stick_ref = theta_x_of(structure, stick_run(1e-4)[0], t_out, inputs, case, rng)

@@ -56,13 +56,14 @@ def test_time_stepper_checks_the_shapes_of_its_sample_arrays(params):
     model, layout, y0 = prepare(structure, inputs, 0.05, options, case.initial, rng)
     t_out = np.arange(6) * 0.01
     nf = layout.n_frictions
+    free = timestep.free_token(model)
 
     def run(n_out, coulomb_rows, columns):
         out = np.full((n_out, y0.shape[0]), np.nan)
         coulomb = np.zeros((coulomb_rows, columns))
         stuck = np.zeros((coulomb_rows, columns), dtype=bool)
         status = timestep.run(model, make_work(model), y0, 0.05, 1e-3, t_out, 10 ** 6, True, out,
-                              coulomb, stuck)[0]
+                              coulomb, stuck, free)[0]
         return status, out, coulomb
 
     status, out, coulomb = run(6, 0, nf)  # no friction samples: states only

@@ -275,7 +275,7 @@ def _solve_sequence(YT, qs, cap, active):
     states = np.zeros(qs.shape, np.int64)
     iterations = np.zeros(qs.shape[0], np.int64)
     for k in range(qs.shape[0]):
-        ok, it = solve_impulses(YT, qs[k], cap, p, state, active, ws)
+        ok, it = solve_impulses(YT, qs[k], cap, p, state, active, ws, n)
         iterations[k] = it if ok else -1
         ps[k] = p
         states[k] = state

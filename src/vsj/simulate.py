@@ -211,7 +211,7 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
                              f"of the time step ({options.step:g} s)")
         status, t_stop, y_end, steps, flips = timestep.run(
             model, w, y0, duration, options.step, t_out, options.max_steps, True, out, coulomb,
-            stuck)
+            stuck, timestep.free_token(model))
         report = {"name": "timestep", "steps": int(steps), "step": options.step}
     wall = _time.perf_counter() - started
     report.update(wall_time=wall, options={k: v for k, v in asdict(options).items()})
@@ -489,7 +489,7 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
         else:
             batch.timestep_batch(base, masses, Minvs, pars, src0s, y0s, duration, options.step,
                                  t_out, options.max_steps, outs, y_end, status, t_stop, steps,
-                                 flips)
+                                 flips, timestep.free_token(base))
     wall = _time.perf_counter() - started
     messages = [STATUS_TEXT[int(s)] if s == core.OK else
                 f"{STATUS_TEXT[int(s)]} at t = {t_stop[r]:.6g} s" for r, s in enumerate(status)]

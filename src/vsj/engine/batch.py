@@ -38,7 +38,7 @@ def dopri_batch(m, masses, Minvs, pars, src0s, y0s, t_end, t_out, rtol, atol, h_
 
 @parallel
 def timestep_batch(m, masses, Minvs, pars, src0s, y0s, t_end, h, t_out, max_steps, outs, y_end,
-                   status, t_stop, steps, transitions):
+                   status, t_stop, steps, transitions, free):
     no_coulomb = np.zeros((0, m.dims[D_F]))
     no_stuck = np.zeros((0, m.dims[D_F]), dtype=np.bool_)
     for r in prange(y0s.shape[0]):
@@ -48,7 +48,7 @@ def timestep_batch(m, masses, Minvs, pars, src0s, y0s, t_end, h, t_out, max_step
         w = make_work(mr)
         # samples straight into this run's rows; friction torques are not sampled
         st, ts, y, ns, flips = timestep_run(mr, w, y0s[r], t_end, h, t_out, max_steps, False,
-                                            outs[r], no_coulomb, no_stuck)
+                                            outs[r], no_coulomb, no_stuck, free)
         y_end[r] = y
         status[r] = st
         t_stop[r] = ts

@@ -113,9 +113,9 @@ def _solve(L, b, out, k):
 
 
 @inline
-def _project(YT, p, z):
+def _project(YT, p, z, n):
     """``z = YT p``: the impulses' effect in the scaled speed coordinates."""
-    n, m = YT.shape
+    m = YT.shape[1]
     for i in range(n):
         acc = 0.0
         for e in range(m):
@@ -124,9 +124,9 @@ def _project(YT, p, z):
 
 
 @inline
-def _gram(YT, mask, vec, G, t, ridge):
+def _gram(YT, mask, vec, G, t, ridge, n):
     """``G = YT diag(mask) YT^T + ridge I`` and ``t = YT (mask * vec)``."""
-    n, m = YT.shape
+    m = YT.shape[1]
     for i in range(n):
         acc_t = 0.0
         for e in range(m):
@@ -172,13 +172,13 @@ def _snap(q, cap, p, state, active, mask):
 
 
 @inline
-def _stuck_impulses(YT, mask, slip, G, Lg, t, c, d):
+def _stuck_impulses(YT, mask, slip, G, Lg, t, c, d, n):
     """Minimum-norm impulses of the stuck (free) elements that cancel their slips
     ``slip`` (computed with the other impulses applied): ``d = Y_F G^-2 Y_F^T s_F``
     with ``G = Y_F^T Y_F``, only n x n solves. ``G`` may be singular (parallel
     rows: elements in series): a tiny ridge. Writes ``d`` (zero off the free set)."""
-    n, m = YT.shape
-    _gram(YT, mask, slip, G, t, 0.0)
+    m = YT.shape[1]
+    _gram(YT, mask, slip, G, t, 0.0, n)
     trace = 0.0
     for i in range(n):
         trace += G[i, i]
@@ -196,9 +196,9 @@ def _stuck_impulses(YT, mask, slip, G, Lg, t, c, d):
 
 
 @inline
-def _slips(YT, q, z, s):
+def _slips(YT, q, z, s, n):
     """``s = q - YT^T z`` (``s`` may be ``q``)."""
-    n, m = YT.shape
+    m = YT.shape[1]
     for e in range(m):
         s[e] = q[e]
     for i in range(n):
@@ -236,7 +236,7 @@ def _stuck_map(YT, mask, Gc, K, Lg, t, c):
     tests/test_stiction.py.
     """
     n = YT.shape[0]
-    _gram(YT, mask, mask, Gc, t, 0.0)
+    _gram(YT, mask, mask, Gc, t, 0.0, n)
     trace = 0.0
     for i in range(n):
         trace += Gc[i, i]
@@ -255,7 +255,7 @@ def _stuck_map(YT, mask, Gc, K, Lg, t, c):
 
 
 @inline
-def _same_pattern(YT, q, cap, p, state, active, ws):
+def _same_pattern(YT, q, cap, p, state, active, ws, n):
     """Fast path: does last step's stick/slip pattern still hold?
 
     Bound impulses at their caps, the stuck elements' impulses the minimum-norm
@@ -268,12 +268,12 @@ def _same_pattern(YT, q, cap, p, state, active, ws):
     cheaper than the active-set method, and true on most steps.
     """
     mask, _, Lg, t, c, d, g, z, Gc, K, memo = ws
-    n, m = YT.shape
+    m = YT.shape[1]
     n_free, scale = _snap(q, cap, p, state, active, mask)
     tol = IMPULSE_ABS + IMPULSE_REL * scale
     for e in range(m):
         d[e] = p[e] * (1.0 - mask[e])
-    _project(YT, d, z)  # z_B
+    _project(YT, d, z, n)  # z_B
     if n_free > 0:
         known = memo[m] > 0.0
         for e in range(m):
@@ -285,7 +285,7 @@ def _same_pattern(YT, q, cap, p, state, active, ws):
             memo[m] = 1.0
         for e in range(m):
             d[e] = q[e] * mask[e]
-        _project(YT, d, t)
+        _project(YT, d, t, n)
         for i in range(n):
             acc = t[i]
             for j in range(n):
@@ -314,7 +314,7 @@ def _same_pattern(YT, q, cap, p, state, active, ws):
             for j in range(n):
                 acc += Gc[i, j] * c[j]
             z[i] = acc
-    _slips(YT, q, z, g)
+    _slips(YT, q, z, g, n)
     holds = True
     for e in range(m):
         st = state[e]
@@ -344,7 +344,7 @@ def _active_set(YT, q, cap, p, state, active, ws):
                 norm += YT[i, e] * YT[i, e]
             w_max = max(w_max, norm)
     if w_max == 0.0:
-        _project(YT, p, z)
+        _project(YT, p, z, n)
         return True, 0
     eps = IMPULSE_REG * w_max
     tol = IMPULSE_ABS + IMPULSE_REL * scale
@@ -354,8 +354,8 @@ def _active_set(YT, q, cap, p, state, active, ws):
     for it in range(IMPULSE_MAX_ITER):
         iterations = it + 1
         # gradient of 1/2 p^T (W + eps I) p - q.p
-        _project(YT, p, z)
-        _slips(YT, q, z, g)
+        _project(YT, p, z, n)
+        _slips(YT, q, z, g, n)
         n_free = 0
         for e in range(m):
             g[e] = eps * p[e] - g[e]
@@ -365,10 +365,10 @@ def _active_set(YT, q, cap, p, state, active, ws):
         if n_free > 0 and not at_optimum:
             # Newton step on the free set, d = -(eps I + Y_F Y_F^T)^-1 g_F by
             # Woodbury's identity (an n x n solve), then a ratio test at the caps
-            _gram(YT, mask, g, G, t, eps)
+            _gram(YT, mask, g, G, t, eps, n)
             _cholesky(G, Lg, n, True)
             _solve(Lg, t, c, n)
-            _slips(YT, g, c, d)  # d = g - Y c, scaled below
+            _slips(YT, g, c, d, n)  # d = g - Y c, scaled below
             alpha = 1.0
             block = -1
             for e in range(m):
@@ -415,18 +415,18 @@ def _active_set(YT, q, cap, p, state, active, ws):
         mask[e] = 1.0 if free else 0.0
         n_free += free
     if n_free > 0:
-        _project(YT, p, z)
-        _slips(YT, q, z, g)
-        _stuck_impulses(YT, mask, g, G, Lg, t, c, d)
+        _project(YT, p, z, n)
+        _slips(YT, q, z, g, n)
+        _stuck_impulses(YT, mask, g, G, Lg, t, c, d, n)
         for e in range(m):
             if state[e] == 0:
                 p[e] = min(cap[e], max(-cap[e], p[e] + d[e]))
-    _project(YT, p, z)
+    _project(YT, p, z, n)
     return True, iterations
 
 
 @inline
-def solve_impulses(YT, q, cap, p, state, active, ws):
+def solve_impulses(YT, q, cap, p, state, active, ws, n):
     """Exact Coulomb impulses: slips ``s = q - Y Y^T p`` with ``|p_e| <= cap_e``.
 
     ``YT`` holds one column ``L^-1 d_e`` per element (``H = L L^T``), so the
@@ -451,18 +451,18 @@ def solve_impulses(YT, q, cap, p, state, active, ws):
     (index 7) holds ``YT p`` on return. Returns
     ``(converged, active-set iterations)`` (0 iterations: the fast path held).
     """
-    if _same_pattern(YT, q, cap, p, state, active, ws):
+    if _same_pattern(YT, q, cap, p, state, active, ws, n):
         return True, 0
     return _active_set(YT, q, cap, p, state, active, ws)
 
 
 @inline
-def _element_slips(DxT, DuT, v, u, s):
+def _element_slips(DxT, DuT, v, u, s, n):
     """Every element's slip ``s = Dx v + Du u`` (dense, one coordinate per row of
     ``DxT`` and ``DuT``: the inner loops run over elements and vectorise)."""
     for e in range(s.shape[0]):
         s[e] = 0.0
-    for i in range(v.shape[0]):
+    for i in range(n):
         vi = v[i]
         for e in range(s.shape[0]):
             s[e] += DxT[i, e] * vi
@@ -527,9 +527,25 @@ def _parallel(DxT, DuT, e, g):
     return alpha
 
 
+def free_token(m):
+    """The last argument of `run` for model ``m``: a tuple of n zeros, one per
+    free coordinate.
+
+    A tuple's length is part of its numba type, so `run` is compiled once per
+    number of free coordinates and its stepping loop sees that number as a
+    constant: the many loops over the coordinates (two in the wrist) are then
+    unrolled. Measured on the fig 4.15 stiction run: a third less time per
+    step, for one more compilation (about a minute, cached on disk) per
+    distinct number of free coordinates.
+    """
+    return (0,) * int(m.dims[D_N])
+
+
 @kernel
-def run(m, w, y0, duration, h, t_out, max_steps, ledger, out, coulomb, stuck):
+def run(m, w, y0, duration, h, t_out, max_steps, ledger, out, coulomb, stuck, free):
     """Integrate with fixed step ``h``; sample at ``t_out`` (multiples of ``h``).
+
+    ``free`` is `free_token` of ``m``.
 
     The samples go into caller-owned arrays, as with `dopri.integrate`: ``out``
     (one row per sample, NaN-filled by the caller so that rows after a failure
@@ -556,6 +572,9 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger, out, coulomb, stuck):
     dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, cum, \
         first, count = m
     n, s_n, nf, nk, nl, nm = _sizes(dims)
+    if len(free) != n:
+        raise ValueError("timestep.run: free must be free_token(m), one entry per free "
+                         "coordinate")
     sampled = coulomb.shape[0] > 0
     if out.shape[0] != t_out.shape[0] or stuck.shape != coulomb.shape \
             or (sampled and coulomb.shape != (t_out.shape[0], nf)):
@@ -710,14 +729,17 @@ def run(m, w, y0, duration, h, t_out, max_steps, ledger, out, coulomb, stuck):
                share, slot, DxA, DuA, involved, level, nonlinear, watched, mid_ch, mid_src, end_ch)
 
     status, t, steps_done = _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out,
-                                   coulomb, stuck, transitions)
+                                   coulomb, stuck, transitions, free)
     return status, t, y, steps_done, transitions
 
 
 @loop
 def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb, stuck,
-           transitions):
+           transitions, free):
     """The stepping loop of `run`, over preallocated arrays; returns ``(status, t, steps)``.
+
+    The number of free coordinates is ``len(free)``, a compile-time constant
+    (see `free_token`); the helpers it inlines take it as their ``n``.
 
     Compiled as `vsj.jit.loop` (it allocates nothing): without reference
     counting, which in this branchy loop cost about a tenth of the time.
@@ -730,7 +752,8 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
         held, state, active, driven, linear, share, slot, DxA, DuA, involved, level, nonlinear, \
         watched, mid_ch, mid_src, end_ch = scratch
     na = level.shape[0]
-    n, s_n, nf, nk, nl, nm = _sizes(dims)
+    _, s_n, nf, nk, nl, nm = _sizes(dims)
+    n = len(free)
     r_load = nf + nk
     r_mot = r_load + nl
     r_piv = dims[D_R] - 1
@@ -767,7 +790,7 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
     elif steps_total > max_steps:
         status = TOO_MANY_STEPS
         steps_total = 0
-    _element_slips(DxT, DuT, v, u0, slip)  # carried: each step starts from the last one's
+    _element_slips(DxT, DuT, v, u0, slip, n)  # carried: each step starts from the last one's
     steps_done = 0
     i_out = 0
     if n_out > 0 and t_out[0] <= 0.0:
@@ -883,8 +906,8 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
         if na > 0:
             for a in range(na):
                 cap[a] = hs * level[a]
-            _element_slips(DxA, DuA, vfree, u1, qv)
-            ok, _ = solve_impulses(YlT, qv, cap, p, state, involved, ws)
+            _element_slips(DxA, DuA, vfree, u1, qv, n)
+            ok, _ = solve_impulses(YlT, qv, cap, p, state, involved, ws, n)
             if not ok:
                 status = FRICTION_SOLVER
                 break
@@ -908,7 +931,7 @@ def _steps(m, w, scratch, y, duration, h, t_out, max_steps, ledger, out, coulomb
         for j in range(s_n):
             um[j] = 0.5 * (u0[j] + u1[j])
             srcF[j] = 0.0
-        _element_slips(DxT, DuT, v1, u1, slip)
+        _element_slips(DxT, DuT, v1, u1, slip, n)
         # the elements' torques are wanted by the ledger and at the samples only
         sample = i_out < n_out and t_out[i_out] <= t1 + 0.5 * h
         for e in range(nf if ledger or sample else 0):
