@@ -21,8 +21,10 @@ $(STAMP): pyproject.toml
 reproduce: $(STAMP)
 	$(BIN)/vsj reproduce --out reproduction
 
+# one worker per core, a test file to a worker: most of the suite's time is numba
+# compiling kernels (each worker its own share, both writing the shared disk cache)
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto --dist loadfile
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
