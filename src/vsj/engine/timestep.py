@@ -534,7 +534,7 @@ def free_token(m):
     A tuple's length is part of its numba type, so `run` is compiled once per
     number of free coordinates and its stepping loop sees that number as a
     constant: the many loops over the coordinates (two in the wrist) are then
-    unrolled. Measured on the fig 4.15 stiction run: a third less time per
+    unrolled. Measured on the fig 4.15 stiction run: a fifth less time per
     step, for one more compilation (about a minute, cached on disk) per
     distinct number of free coordinates.
     """
