@@ -517,6 +517,8 @@ def _parallel(DxT, DuT, e, g):
         dot += DuT[j, e] * DuT[j, g]
         norm += DuT[j, g] * DuT[j, g]
         big = max(big, abs(DuT[j, e]))
+    if norm == 0.0:
+        return 0.0
     alpha = dot / norm
     for i in range(DxT.shape[0]):
         if abs(DxT[i, e] - alpha * DxT[i, g]) > PARALLEL * big:
