@@ -13,8 +13,10 @@ Each method runs at the loosest setting that keeps the end-effector angle
 within 1e-6 rad of a tight reference, found in this run: tolerances are tried
 on a 1-2-5 series (1e-3, 5e-4, 2e-4, 1e-4, ...), the RK4 loop's step on
 10 ms / k (so that it lands on the 10 ms samples).
-Times are the minimum of several repetitions (this machine is a shared VM whose
-timings scatter by tens of percent); batch rates are the best of three batches.
+Times are the minimum of several repetitions, taken in interleaved rounds (this
+machine is a shared VM whose speed drifts by up to 2x over seconds: a method
+timed in one burst can land wholly in a slow moment); batch rates are the best
+of three batches, smooth and stiction alternating.
 Prints a table of figures, ratios and the issue's targets.
 """
 
@@ -43,6 +45,7 @@ ACCURACY = 1e-6  # rad, on theta_x
 DURATION = 10.0
 SAMPLE = 0.01
 BATCH_REPEAT = 3  # batches of 1000 runs, best of three
+ROUNDS = 5  # interleaved rounds of the single-run timings
 
 
 def tolerances(loosest: int, tightest: int) -> list[float]:
@@ -116,21 +119,21 @@ def main() -> int:
             chosen = (rtol, atol, err)
             break
     rtol, atol, err_vsj = chosen
-    t_vsj, _ = best_time(vsj_core(structure, inputs, case, rng, rtol, atol, False)[0])
-    t_vsj_ledger, _ = best_time(vsj_core(structure, inputs, case, rng, rtol, atol, True)[0])
+    run_vsj = vsj_core(structure, inputs, case, rng, rtol, atol, False)[0]
+    run_ledger = vsj_core(structure, inputs, case, rng, rtol, atol, True)[0]
     opts = SimulationOptions(rtol=rtol, atol=atol, output_step=SAMPLE)
-    t_full, _ = best_time(lambda: simulate(structure, inputs, DURATION, options=opts,
-                                           initial=case.initial, pivot_range=rng), repeat=3)
+
+    def run_full():
+        return simulate(structure, inputs, DURATION, options=opts, initial=case.initial,
+                        pivot_range=rng)
 
     # compiled fixed-step loop at the largest step that meets the accuracy
-    for h in (0.01, 0.005, 0.0025, 0.002, 0.001, 0.0005):
-        every = int(round(SAMPLE / h))
-        out = ref.compiled_rk4(consts, h, DURATION, every)
+    for h_rk4 in (0.01, 0.005, 0.0025, 0.002, 0.001, 0.0005):
+        every = int(round(SAMPLE / h_rk4))
+        out = ref.compiled_rk4(consts, h_rk4, DURATION, every)
         err_rk4 = np.max(np.abs(ref.theta_x(out[:, :2], t_out, consts) - theta_ref))
         if err_rk4 <= ACCURACY:
             break
-    t_rk4, _ = best_time(lambda: ref.compiled_rk4(consts, h, DURATION, every))
-    h_rk4 = h
 
     # scipy LSODA with a Python right-hand side
     rhs = ref.python_rhs(consts)
@@ -140,16 +143,6 @@ def main() -> int:
         err_scipy = np.max(np.abs(ref.theta_x(sol.y[:2].T, t_out, consts) - theta_ref))
         if err_scipy <= ACCURACY:
             break
-    t_scipy, _ = best_time(lambda: solve_ivp(rhs, (0, DURATION), np.zeros(4), method="LSODA",
-                                             rtol=srtol, atol=srtol * 1e-2, t_eval=t_out),
-                           repeat=2)
-
-    rows.append(("scipy LSODA, Python RHS", f"rtol {srtol:g}", err_scipy, t_scipy))
-    rows.append(("compiled RK4 loop (hand-written)", f"h {h_rk4 * 1e3:g} ms", err_rk4, t_rk4))
-    rows.append(("vsj dopri, integration only", f"rtol {rtol:g}", err_vsj, t_vsj))
-    rows.append(("vsj dopri, with energy ledger", f"rtol {rtol:g}", err_vsj, t_vsj_ledger))
-    rows.append(("vsj simulate(): ledger, all signals, ports", f"rtol {rtol:g}", err_vsj,
-                 t_full))
 
     # true stiction
     sopts = SimulationOptions(friction="stiction")
@@ -164,37 +157,63 @@ def main() -> int:
         return out[:, :layout.n_state], flips.sum()
 
     theta_stick_ref = theta_x_of(structure, stick_run(1e-4)[0], t_out, inputs, case, rng)
-    stick_rows = []
+    stick_errors = {}
     for h in (1e-3, 2e-3):
-        t_stick, (states, flips) = best_time(lambda: stick_run(h), repeat=5)
+        states, flips = stick_run(h)
         err = np.max(np.abs(theta_x_of(structure, states, t_out, inputs, case, rng)
                             - theta_stick_ref))
-        stick_rows.append((f"vsj true stiction, step {h * 1e3:g} ms", f"{flips} transitions",
-                           err, t_stick))
+        stick_errors[h] = (flips, err)
+
+    # the timings, in interleaved rounds: this VM's speed drifts over seconds, and
+    # a ratio of two times taken in different moments would carry that drift
+    timed = {
+        "scipy": (lambda: solve_ivp(rhs, (0, DURATION), np.zeros(4), method="LSODA",
+                                    rtol=srtol, atol=srtol * 1e-2, t_eval=t_out), 1),
+        "rk4": (lambda: ref.compiled_rk4(consts, h_rk4, DURATION, every), 7),
+        "vsj": (run_vsj, 7),
+        "ledger": (run_ledger, 7),
+        "full": (run_full, 3),
+        1e-3: (lambda: stick_run(1e-3), 5),
+        2e-3: (lambda: stick_run(2e-3), 5),
+    }
+    best = dict.fromkeys(timed, math.inf)
+    for _ in range(ROUNDS):
+        for key, (fun, repeat) in timed.items():
+            best[key] = min(best[key], best_time(fun, repeat)[0])
+    t_vsj, t_rk4, t_scipy = best["vsj"], best["rk4"], best["scipy"]
+
+    rows.append(("scipy LSODA, Python RHS", f"rtol {srtol:g}", err_scipy, t_scipy))
+    rows.append(("compiled RK4 loop (hand-written)", f"h {h_rk4 * 1e3:g} ms", err_rk4, t_rk4))
+    rows.append(("vsj dopri, integration only", f"rtol {rtol:g}", err_vsj, t_vsj))
+    rows.append(("vsj dopri, with energy ledger", f"rtol {rtol:g}", err_vsj, best["ledger"]))
+    rows.append(("vsj simulate(): ledger, all signals, ports", f"rtol {rtol:g}", err_vsj,
+                 best["full"]))
+    stick_rows = [(f"vsj true stiction, step {h * 1e3:g} ms", f"{flips} transitions", err,
+                   best[h]) for h, (flips, err) in stick_errors.items()]
 
     print(f"{'method':<45} {'setting':<18} {'error [rad]':>12} {'time [ms]':>10}")
     for name, setting, err, t in rows + stick_rows:
         print(f"{name:<45} {setting:<18} {err:12.2e} {t * 1e3:10.2f}")
     print("  (stiction errors against the same solver at 0.1 ms)")
 
-    # batches: a sweep over the pivot position on both cores
+    # batches: a sweep over the pivot position on both cores, the two kinds alternating
     qs = np.linspace(-0.022, 0.020, 1000)
     initials = [InitialState(q=q) for q in qs]
-    batch_rows = []
-    for label, options in (("smooth", SimulationOptions(rtol=rtol, atol=atol, output_step=SAMPLE)),
-                           ("true stiction", SimulationOptions(friction="stiction",
-                                                               output_step=SAMPLE))):
+    kinds = {"smooth": SimulationOptions(rtol=rtol, atol=atol, output_step=SAMPLE),
+             "true stiction": SimulationOptions(friction="stiction", output_step=SAMPLE)}
+    wall = dict.fromkeys(kinds, math.inf)
+    for options in kinds.values():
         simulate_batch(structure, inputs, DURATION, initials=initials[:4], options=options,
                        pivot_range=rng)
-        wall = math.inf
-        for _ in range(BATCH_REPEAT):
+    for _ in range(BATCH_REPEAT):
+        for label, options in kinds.items():
             b = simulate_batch(structure, inputs, DURATION, initials=initials, options=options,
                                pivot_range=rng)
             if not b.success.all():
                 failed = next(m for m, ok in zip(b.messages, b.success) if not ok)
                 raise RuntimeError(f"batch benchmark ({label}): a run failed: {failed}")
-            wall = min(wall, b.wall_time)
-        batch_rows.append((label, len(qs) / wall))
+            wall[label] = min(wall[label], b.wall_time)
+    batch_rows = [(label, len(qs) / w) for label, w in wall.items()]
     print()
     for label, rate in batch_rows:
         print(f"batch of 1000 runs (q from -2.2 to 2.0 cm), {label}: {rate:.0f} runs/s "
