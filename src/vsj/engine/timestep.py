@@ -446,6 +446,8 @@ def solve_impulses(YT, q, cap, p, state, active, ws, n):
        ~1e-12 rad/s) are removed by the minimum-norm correction of their
        impulses, so stuck elements hold exactly (to round-off).
 
+    ``n`` is the number of rows of ``YT`` that are used (the free coordinates;
+    a compile-time constant inside the stepping loop, see `free_token`).
     ``state`` (-1, 0 free, +1; 2 = not involved) and ``p`` carry the previous
     step's solution as a warm start; ``ws`` is `impulse_workspace`, whose ``z``
     (index 7) holds ``YT p`` on return. Returns
