@@ -16,7 +16,7 @@ on a 1-2-5 series (1e-3, 5e-4, 2e-4, 1e-4, ...), the RK4 loop's step on
 Times are the minimum of several repetitions, taken in interleaved rounds (this
 machine is a shared VM whose speed drifts by up to 2x over seconds: a method
 timed in one burst can land wholly in a slow moment); batch rates are the best
-of three batches, smooth and stiction alternating.
+of five batches, smooth and stiction alternating.
 Prints a table of figures, ratios and the issue's targets.
 """
 
@@ -44,7 +44,7 @@ from vsj.simulate import (InitialState, SimulationOptions, prepare, simulate,  #
 ACCURACY = 1e-6  # rad, on theta_x
 DURATION = 10.0
 SAMPLE = 0.01
-BATCH_REPEAT = 3  # batches of 1000 runs, best of three
+BATCH_REPEAT = 5  # batches of 1000 runs of each kind, best of five
 ROUNDS = 5  # interleaved rounds of the single-run timings
 
 
