@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 # numba compiles the engine on first use and caches it beside the sources; this
-# step only says so before the long silence of a first run
+# step does that up front, with a message, instead of a first run silent for minutes
 $(WARM): $(STAMP)
 	@echo 'compiling the engine once (numba cache, about 5-7 minutes on 2 cores)...'
 	$(BIN)/vsj reproduce --reduced --out $(VENV)/warmup > /dev/null
