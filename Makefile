@@ -1,35 +1,27 @@
-# Set-up and main jobs. Only Python 3.11 and make are needed; everything else
-# is installed into .venv on first use.
+# Set-up and main jobs. Python 3.11, make and a C compiler are all they need;
+# everything else is installed into .venv on first use.
 PYTHON ?= python3
+CC ?= cc
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-WARM := $(VENV)/.compiled
+ENGINE := $(wildcard src/vsj/engine/c/*.c src/vsj/engine/c/*.h) src/vsj/engine/_core.c
 
-.PHONY: install reproduce test bench clean
+.PHONY: install reproduce test bench sanitize clean
 
 install: $(STAMP)
 
-$(STAMP): pyproject.toml
-	$(PYTHON) -m venv $(VENV)
+# the engine is C: (re)installing compiles it, so the stamp follows its sources
+$(STAMP): pyproject.toml setup.py $(ENGINE)
+	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-# numba compiles the engine on first use and caches it beside the sources; this
-# step does that up front, with a message, instead of a first run silent for minutes
-$(WARM): $(STAMP)
-	@echo 'compiling the engine once (numba cache, about 5-7 minutes on 2 cores)...'
-	$(BIN)/vsj reproduce --reduced --out $(VENV)/warmup > /dev/null
-	touch $(WARM)
-
-reproduce: $(WARM)
+reproduce: $(STAMP)
 	$(BIN)/vsj reproduce --out reproduction
 
-# one worker per core, a test file to a worker: most of the suite's time is numba
-# compiling kernels, each worker its own share (both write the shared disk cache).
-# No warm-up first: a serial warm-up left one core idle (13-14 minutes in all from
-# a fresh clone, against under 10 for the tests compiling on both cores)
+# one worker per core, a test file to a worker
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n auto --dist loadfile
 
@@ -39,4 +31,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/step_cost.py
 
 clean:
-	rm -rf $(VENV) reproduction out build src/vsj.egg-info
+	rm -rf $(VENV) reproduction out build src/vsj.egg-info src/vsj/engine/*.so

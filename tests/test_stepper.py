@@ -4,12 +4,11 @@ import math
 
 import numpy as np
 import pytest
-from numba import njit
 
 from vsj.errors import InputError, SimulationError
 from vsj.inputs import Constant, Table
 from vsj.simulate import InitialState, SimulationOptions, simulate
-from vsj.stepper import OK, Stepper, step_dopri, step_rk4
+from vsj.stepper import Stepper
 from vsj.wrist import WristOptions, build_wrist, pivot_range
 
 #: One period, same integrator and tolerances as simulate: the same computation
@@ -146,42 +145,25 @@ def test_rk4_is_accurate_at_four_substeps(params):
     assert np.max(np.abs(a[2:4] - b[2:4])) < 1e-6 * np.max(np.abs(a[2:4]))
 
 
-@njit(cache=True)
-def _loop_dopri(model, work, state, inputs, dt, rtol, atol, max_steps):
-    for k in range(inputs.shape[0]):
-        if step_dopri(model, work, state, inputs[k], dt, rtol, atol, max_steps) != OK:
-            return k
-    return inputs.shape[0]
-
-
-@njit(cache=True)
-def _loop_rk4(model, work, state, inputs, dt, substeps):
-    for k in range(inputs.shape[0]):
-        if step_rk4(model, work, state, inputs[k], dt, substeps) != OK:
-            return k
-    return inputs.shape[0]
-
-
-@pytest.mark.parametrize("method", ["dopri", "rk4"])
-def test_compiled_loop_matches_the_python_loop(params, method):
-    stepper = Stepper.wrist(params, period=PERIOD, method=method)
-    t = np.arange(100) * PERIOD
-    U = np.zeros((t.size, stepper.n_inputs))
-    U[:, 0] = 0.5 * np.sin(2 * np.pi * 3 * t)
-    U[:, 3] = 0.02 * np.cos(2 * np.pi * 2 * t)
-    start = stepper.initial_state(InitialState(q=-0.01))
-    python = start.copy()
-    for u in U:
-        stepper.step(python, u, out=python)
-    compiled = start.copy()
-    if method == "dopri":
-        done = _loop_dopri(stepper.model, stepper.work, compiled, U, stepper.period,
-                           stepper.rtol, stepper.atol, stepper.max_steps)
-    else:
-        done = _loop_rk4(stepper.model, stepper.work, compiled, U, stepper.period,
-                         stepper.substeps)
-    assert done == len(U)
-    assert np.array_equal(compiled, python)
+def test_time_stepper_steps_agree_with_simulate(params):
+    """Stiction through the step function: periods of the time-stepper with constant
+    inputs against one time-stepping simulation (the same steps; each period
+    refactors its step matrix once, which moves results in the last bits)."""
+    options = SimulationOptions(friction="stiction", step=2.5e-4)
+    stepper = Stepper.wrist(params, period=PERIOD, options=options, method="timestep")
+    values = {"motor_1": 0.4, "motor_2": -0.2, "tau_x": 0.03}
+    initial = InitialState(q=-0.01)
+    state = stepper.initial_state(initial, values)
+    for _ in range(300):
+        stepper.step(state, values, out=state)
+    result = simulate(build_wrist(params).assemble(),
+                      {k: Constant(v) for k, v in values.items()}, 300 * PERIOD,
+                      initial=initial, options=options, ports=False)
+    assert result.success and sum(result.transitions.values()) > 0  # elements stuck and slipped
+    theta = stepper.angle_rows(["theta_x", "theta_y"]) @ state
+    assert abs(theta[0] - result["theta_x"][-1]) < ONE_STEP_TOL
+    assert abs(theta[1] - result["theta_y"][-1]) < ONE_STEP_TOL
+    assert abs(state[0] - result["phi_1"][-1]) < ONE_STEP_TOL
 
 
 def test_discrete_jacobian_predicts_a_perturbed_step(params):

@@ -4,13 +4,12 @@ import math
 
 import numpy as np
 import pytest
-from numba import njit
 from scipy.optimize import brentq
 
 from vsj import benches
 from vsj import scenario as scenarios
 from vsj.components import Bearing, IdealGear, Inertia, TorqueSource
-from vsj.engine.timestep import impulse_workspace, solve_impulses
+from vsj.engine import _core
 from vsj.inputs import Sine, Table
 from vsj.network import Network
 from vsj.simulate import InitialState, SimulationOptions, simulate
@@ -263,22 +262,15 @@ def test_stick_slip_transitions_do_not_grow_as_the_step_shrinks(fig415_stiction)
     assert counts[5e-4] <= 1.1 * counts[1e-3] + 2
 
 
-@njit
 def _solve_sequence(YT, qs, cap, active):
     """Solve a sequence of impulse problems, each warm-started from the last
     (the time-stepper's use); returns impulses, states and active-set iterations
     (-1 where the solver did not converge)."""
-    n, m = YT.shape
-    ws = impulse_workspace(n, m)
-    p, state = np.zeros(m), np.zeros(m, np.int64)
     ps = np.zeros(qs.shape)
     states = np.zeros(qs.shape, np.int64)
     iterations = np.zeros(qs.shape[0], np.int64)
-    for k in range(qs.shape[0]):
-        ok, it = solve_impulses(YT, qs[k], cap, p, state, active, ws, n)
-        iterations[k] = it if ok else -1
-        ps[k] = p
-        states[k] = state
+    _core.solve_impulses(np.ascontiguousarray(YT), np.ascontiguousarray(qs), cap, active, ps,
+                         states, iterations)
     return ps, states, iterations
 
 

@@ -31,12 +31,9 @@ The slope law is one reading of fig 4.8 (a straight line through zero inside
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from .errors import InputError
-from .jit import inline, kernel
 
 VISCOUS = 0
 ARCTAN = 1
@@ -60,63 +57,22 @@ def law_code(name: str) -> int:
                          f"{', '.join(LAWS)}") from None
 
 
-@inline
-def coulomb_level(par, r):
-    """Saturation torque k pi/2 [N m] of parameter row ``r``."""
-    return par[r, 1] * (0.5 * math.pi)
-
-
-@inline
-def resistive_torque(law, b, k, kb, w, s):
-    """Smooth part of the resistive torque and its slope: ``(f(s), df/ds)``.
-
-    ``b, k, kb, w`` are the element's parameters (viscous, stiction, arctan
-    sharpness, slope width); scalars, so that the compiled callers stay free of
-    array bookkeeping in this branchy code. For the ``stiction`` law this is
-    the viscous part only; its Coulomb part is an impulse decided by the
-    time-stepping solver. For ``sign`` the slope at the jump is reported as the
-    viscous slope.
-    """
-    f = b * s
-    df = b
-    if law == ARCTAN:
-        f += k * math.atan(kb * s)
-        df += k * kb / (1.0 + (kb * s) ** 2)
-    elif law == SIGN:
-        if s > 0.0:
-            f += k * (0.5 * math.pi)
-        elif s < 0.0:
-            f -= k * (0.5 * math.pi)
-    elif law == SLOPE:
-        level = k * (0.5 * math.pi)
-        if s >= w:
-            f += level
-        elif s <= -w:
-            f -= level
-        else:
-            f += level * s / w
-            df += level / w
-    return f, df
-
-
-@kernel
-def _torque_array(law, par, speeds, out):
-    for i in range(speeds.shape[0]):
-        out[i] = resistive_torque(law, par[0, 0], par[0, 1], par[0, 2], par[0, 3], speeds[i])[0]
-    return out
-
-
 def torque(law: str, speeds, *, viscous=0.0, stiction=0.0, sharpness=1.0, width=1e-3):
-    """Resistive torque [N m] of one law at an array of speeds [rad/s].
+    """Resistive torque [N m] of one law at an array of speeds [rad/s] (the
+    engine's own evaluation, ``vsj_friction_torque`` in ``engine/c/laws.c``).
 
     For ``stiction`` the element is sliding at every nonzero speed, so the
     Coulomb torque ``k pi/2 sign(s)`` is added to the viscous part (at ``s = 0``
     the torque is whatever holds the element and is not a function of speed).
     """
+    from .engine import _core
+
     code = law_code(law)
-    par = np.array([[viscous, stiction, sharpness, width]], dtype=float)
-    s = np.atleast_1d(np.asarray(speeds, dtype=float))
-    out = _torque_array(code, par, s, np.empty_like(s))
+    shape = np.shape(np.atleast_1d(speeds))
+    s = np.ascontiguousarray(np.asarray(speeds, dtype=float).ravel())
+    out = np.empty_like(s)
+    _core.friction_torque(code, float(viscous), float(stiction), float(sharpness), float(width),
+                          s, out)
     if code == STICTION:
         out = out + stiction * 0.5 * np.pi * np.sign(s)
-    return out
+    return out.reshape(shape)

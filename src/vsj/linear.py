@@ -248,15 +248,17 @@ def _equilibrium(stepper: Stepper, state: np.ndarray, u: np.ndarray,
 
 def _pivot_sensitivity(stepper: Stepper, state, u) -> np.ndarray:
     """d rate / d q of a fixed pivot (the engine's pivot row is the last)."""
-    par = stepper.model.par
-    q0 = par[-1, 1]
+    model = stepper.model
+    q0 = model.par[-1, 1]
 
     def f(dq):
+        par = model.par.copy()
         par[-1, 1] = q0 + dq
+        stepper.use_model(model._replace(par=par))
         try:
             return stepper.rate(state, u)
         finally:
-            par[-1, 1] = q0
+            stepper.use_model(model)
 
     h = JACOBIAN_STEP * 1e-2  # the pivot moves centimetres: 1e-7 m
     d1 = (f(h) - f(-h)) / (2 * h)
@@ -282,7 +284,9 @@ def linearize_structure(structure: Structure, *, angles: Mapping[str, float] | N
     friction = _treatment(friction)
     stepper = Stepper(structure, 1.0, options=SimulationOptions(friction=_ENGINE_LAW[friction]))
     if friction == "removed":
-        stepper.model.par[:stepper.layout.n_frictions, :2] = 0.0
+        par = stepper.model.par.copy()
+        par[:stepper.layout.n_frictions, :2] = 0.0
+        stepper.use_model(stepper.model._replace(par=par))
     n, nm = stepper.layout.n, stepper.layout.n_motors
     channels = stepper.input_names
     loads = dict(loads or {})
@@ -310,8 +314,7 @@ def linearize_structure(structure: Structure, *, angles: Mapping[str, float] | N
 
     jx, ju = stepper.jacobian(state0, u0)
     fixed_pivot = structure.pivot.flange is None
-    stepper.rate(state0, u0)
-    q0 = float(stepper.work.scal[0])  # the engine's pivot position (`vsj.engine.core.Q`)
+    q0 = stepper.pivot_position(state0)
     input_names = list(channels) + ([PIVOT_INPUT] if fixed_pivot else [])
     input_units = list(stepper.input_units) + (["m"] if fixed_pivot else [])
     B_all = np.hstack([ju, _pivot_sensitivity(stepper, state0, u0)[:, None]]) if fixed_pivot \

@@ -26,12 +26,11 @@ import time as _time
 from dataclasses import asdict, dataclass, field
 from typing import Mapping
 
-import numba
 import numpy as np
 
 from . import friction as friction_laws
-from .engine import STATUS_TEXT, Layout, compile_model, make_work, observation_layout
-from .engine import core, dopri, timestep
+from .engine import STATUS_TEXT, Engine, Layout, compile_model, observation_layout
+from .engine import core
 from .engine.model import friction_laws_for
 from .errors import InputError
 from .inputs import Input
@@ -167,7 +166,7 @@ def prepare(structure: Structure, inputs: Mapping[str, Input], duration: float,
     model, layout = compile_model(structure, inputs, duration, friction=options.friction,
                                   friction_overrides=options.friction_overrides,
                                   slope_width=options.slope_width, pivot_range=pivot_range)
-    u0 = core.source_speeds(model, make_work(model), 0.0)
+    u0 = Engine(model).source_speeds(0.0)
     x0, v0, sigma0, currents = _initial(structure, inputs, initial, u0)
     model = model._replace(src_pos0=np.ascontiguousarray(sigma0, dtype=float))
     y0 = np.concatenate([x0, v0, currents, np.zeros(layout.n_acc)])
@@ -191,27 +190,27 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
     model, layout, y0 = prepare(structure, inputs, duration, options, initial, pivot_range)
     n_out = int(math.floor(duration / options.output_step + 1e-9)) + 1
     t_out = np.arange(n_out) * options.output_step
-    started = _time.perf_counter()
-    w = make_work(model)
-    out = np.full((n_out, y0.shape[0]), np.nan)
-    coulomb = np.zeros((n_out, layout.n_frictions))
-    stuck = np.zeros((n_out, layout.n_frictions), dtype=bool)
-    if solver == "dopri":
-        y_end = y0.copy()
-        n_err = layout.n_state if layout.n_state else y0.shape[0]
-        status, t_stop, steps, rejected = dopri.integrate(
-            model, w, y_end, 0.0, duration, t_out, options.rtol, options.atol, options.max_step,
-            options.max_steps, n_err, out)
-        flips = np.zeros(layout.n_frictions, dtype=np.int64)
-        report = {"name": "dopri", "steps": int(steps), "rejected": int(rejected)}
-    else:
+    if solver == "timestep":
         ratio = options.output_step / options.step
         if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
             raise InputError(f"output_step ({options.output_step:g} s) must be a whole multiple "
                              f"of the time step ({options.step:g} s)")
-        status, t_stop, y_end, steps, flips = timestep.run(
-            model, w, y0, duration, options.step, t_out, options.max_steps, True, out, coulomb,
-            stuck, timestep.free_token(model))
+    started = _time.perf_counter()
+    engine = Engine(model)
+    out = np.full((n_out, y0.shape[0]), np.nan)
+    coulomb = np.zeros((n_out, layout.n_frictions))
+    stuck = np.zeros((n_out, layout.n_frictions), dtype=bool)
+    y_end = y0.copy()
+    if solver == "dopri":
+        n_err = layout.n_state if layout.n_state else y0.shape[0]
+        status, t_stop, steps, rejected = engine.dopri(
+            y_end, 0.0, duration, t_out, options.rtol, options.atol, options.max_step,
+            options.max_steps, n_err, out)
+        flips = np.zeros(layout.n_frictions, dtype=np.int64)
+        report = {"name": "dopri", "steps": int(steps), "rejected": int(rejected)}
+    else:
+        status, t_stop, steps, flips = engine.timestep(
+            y_end, duration, options.step, t_out, options.max_steps, True, out, coulomb, stuck)
         report = {"name": "timestep", "steps": int(steps), "step": options.step}
     wall = _time.perf_counter() - started
     report.update(wall_time=wall, options={k: v for k, v in asdict(options).items()})
@@ -219,13 +218,13 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
     if status != core.OK:
         last = int(np.flatnonzero(valid)[-1]) + 1 if valid.any() else 0
         t_out, out, coulomb, stuck = t_out[:last], out[:last], coulomb[:last], stuck[:last]
-    result = collect(structure, model, layout, t_out, out, coulomb, stuck, ports=ports)
+    result = collect(structure, engine, layout, t_out, out, coulomb, stuck, ports=ports)
     result.transitions = {fr.name: int(flips[e]) for e, fr in enumerate(structure.frictions)
                           if flips[e]}
     if status == core.OK:
         result.success = True
         result.message = f"simulated {duration:g} s"
-        result.ledger = ledger(structure, model, layout, y0, y_end, duration, out[-1])
+        result.ledger = ledger(structure, engine, layout, y0, y_end, duration)
     else:
         n_state = 2 * layout.n + layout.n_motors
         state = ", ".join(f"{name}={value:.6g}" for name, value in
@@ -242,12 +241,10 @@ def state_names(structure: Structure) -> list[str]:
     return names + [f"{m.name}.current" for m in structure.motors]
 
 
-def collect(structure: Structure, model, layout: Layout, t_out, out, coulomb, stuck, *,
-            ports: bool) -> Result:
+def collect(structure: Structure, engine: Engine, layout: Layout, t_out, out, coulomb, stuck,
+            *, ports: bool) -> Result:
     """Evaluate every signal at the samples (one compiled pass), then name them."""
-    width = core.observation_width(layout.n, layout.n_sources, layout.n_frictions,
-                                   layout.n_springs, layout.n_loads, layout.n_motors)
-    raw = core.observe_all(model, t_out, out, coulomb, width)
+    raw = engine.observe(t_out, out, coulomb)
     cols = observation_layout(layout)
     sig: dict[str, np.ndarray] = {}
     units: dict[str, str] = {}
@@ -294,14 +291,14 @@ def collect(structure: Structure, model, layout: Layout, t_out, out, coulomb, st
         put(f"spring.{sp.name}.power", raw[:, cols["sp_tau"]][:, k] * raw[:, cols["sp_dd"]][:, k],
             "W")
     if ports and len(t_out):
-        for name, torque_c, power_c in port_flows(structure, model, raw, cols):
+        for name, torque_c, power_c in port_flows(structure, raw, cols):
             put(f"port.{name}.torque", torque_c, "N m")
             put(f"port.{name}.power", power_c, "W")
     return Result(time=t_out, signals=sig, units=units, ledger={}, success=False, message="",
                   solver={})
 
 
-def port_flows(structure: Structure, model, raw, cols):
+def port_flows(structure: Structure, raw, cols):
     """Torque and power through every connection, from Newton's law per flange.
 
     With all element torques known, the constraint forces follow from
@@ -331,16 +328,13 @@ def port_flows(structure: Structure, model, raw, cols):
     return flows
 
 
-def ledger(structure: Structure, model, layout: Layout, y0, y_end, duration, acc_end_row):
+def ledger(structure: Structure, engine: Engine, layout: Layout, y0, y_end, duration):
     """Energy balance of a run: work in = stored change + dissipated (+ residual)."""
     n_state = 2 * layout.n + layout.n_motors
     acc = y_end[n_state:]
     slices = layout.acc_slices()
-    w = make_work(model)
-    kin0, pot0, ind0 = core.stored_energy(model, w, 0.0, y0[:n_state])
-    kin1, pot1, ind1 = core.stored_energy(model, w, duration, y_end[:n_state])
-    spring_v0 = _spring_energies(model, 0.0, y0[:n_state])
-    spring_v1 = _spring_energies(model, duration, y_end[:n_state])
+    (kin0, pot0, ind0), spring_v0 = engine.stored_energy(0.0, y0[:n_state])
+    (kin1, pot1, ind1), spring_v1 = engine.stored_energy(duration, y_end[:n_state])
     work_in = {}
     for j, src in enumerate(structure.sources):
         work_in[f"source {src.name}"] = float(acc[slices["sources"]][j])
@@ -377,12 +371,6 @@ def ledger(structure: Structure, model, layout: Layout, y0, y_end, duration, acc
             "nonconservative": nonconservative, "total_in": total_in,
             "total_stored": total_stored, "total_dissipated": total_diss,
             "residual": residual, "relative_residual": abs(residual) / scale}
-
-
-def _spring_energies(model, t, y):
-    w = make_work(model)
-    core.stored_energy(model, w, t, y)
-    return w.spw[:, core.ENERGY].copy()
 
 
 
@@ -425,17 +413,17 @@ class BatchResult:
 def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: float, *,
                    initials: list[InitialState], options: SimulationOptions | None = None,
                    structures: list[Structure] | None = None,
-                   pivot_range: tuple[float, float] | None = None) -> BatchResult:
+                   pivot_range: tuple[float, float] | None = None,
+                   threads: int | None = None) -> BatchResult:
     """Run one model many times in parallel, on every core.
 
     Each run starts from its own `InitialState` (a sweep over the pivot
     position, say); with ``structures`` (one per run, same topology) the runs
     may also differ in every parameter. All runs share inputs, duration and
     options. Only the states are integrated and sampled (no energy ledger); use
-    `BatchResult.angle` and `speed`.
+    `BatchResult.angle` and `speed`. ``threads`` (default: every core) share
+    the runs; the results do not depend on their number.
     """
-    from .engine import batch
-
     options = options or SimulationOptions()
     if not initials:
         raise InputError("simulate_batch needs at least one initial state")
@@ -443,13 +431,13 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
         raise InputError(f"simulate_batch: {len(structures)} structures for {len(initials)} runs")
     solver = choose_solver(structure, options)
     base, layout, _ = prepare(structure, inputs, duration, options, InitialState(), pivot_range)
-    u0 = core.source_speeds(base, make_work(base), 0.0)
+    engine = Engine(base)
+    u0 = engine.source_speeds(0.0)
     runs = len(initials)
     n_state = layout.n_state
-    # dopri integrates the state only: batch runs keep no ledger, and the kernels
-    # then skip the elements that only the sources feel (a quarter of the work);
-    # the time-stepper's vector keeps room for the accumulators, which batch runs
-    # leave unbooked (ledger off)
+    # dopri integrates the state only: batch runs keep no ledger, and the engine
+    # then skips the elements that only the sources feel; the time-stepper's
+    # vector keeps room for the accumulators, which batch runs leave unbooked
     y0s = np.zeros((runs, n_state if solver == "dopri" else n_state + layout.n_acc))
     src0s = np.zeros((runs, layout.n_sources))
     masses = np.repeat(base.mass[None], runs, axis=0)
@@ -471,29 +459,15 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
     step = options.output_step
     n_out = int(math.floor(duration / step + 1e-9)) + 1
     t_out = np.arange(n_out) * step
-    outs = np.full((runs, n_out, n_state), np.nan)
-    y_end = np.zeros_like(y0s)
-    status = np.zeros(runs, dtype=np.int64)
-    t_stop = np.zeros(runs)
-    steps = np.zeros(runs, dtype=np.int64)
-    flips = np.zeros(runs, dtype=np.int64)
     started = _time.perf_counter()
-    # runs are handed to the threads one at a time as they free up: split in
-    # equal halves, a sweep whose runs differ in cost (more stick-slip
-    # transitions at one end) leaves one core idle at the end
-    with numba.parallel_chunksize(1):
-        if solver == "dopri":
-            batch.dopri_batch(base, masses, Minvs, pars, src0s, y0s, duration, t_out,
-                              options.rtol, options.atol, options.max_step, options.max_steps,
-                              n_state, outs, y_end, status, t_stop, steps)
-        else:
-            batch.timestep_batch(base, masses, Minvs, pars, src0s, y0s, duration, options.step,
-                                 t_out, options.max_steps, outs, y_end, status, t_stop, steps,
-                                 flips, timestep.free_token(base))
+    outs, y_end, status, t_stop, steps, flips = core.run_batch(
+        solver, engine, masses, Minvs, pars, src0s, y0s, duration, t_out, rtol=options.rtol,
+        atol=options.atol, h_max=options.max_step, max_steps=options.max_steps, h=options.step,
+        threads=threads)
     wall = _time.perf_counter() - started
     messages = [STATUS_TEXT[int(s)] if s == core.OK else
                 f"{STATUS_TEXT[int(s)]} at t = {t_stop[r]:.6g} s" for r, s in enumerate(status)]
-    sigma, speeds = core.source_signals(base, t_out)
+    sigma, speeds = engine.source_signals(t_out)
     return BatchResult(time=t_out, states=outs, state_names=state_names(structure),
                        success=status == core.OK, messages=messages, stop_time=t_stop,
                        steps=steps, transitions=flips, wall_time=wall, solver=solver,

@@ -32,51 +32,30 @@ of `vsj.network.Structure.channels`: velocity-source speeds [rad/s] first,
 then load torques [N m] and motor voltages [V].
 
 Integration: ``method="dopri"`` runs the simulator's own adaptive
-Dormand-Prince 5(4) kernel (`vsj.engine.dopri`) from 0 to ``dt`` with the
-run's ``rtol``/``atol``, so a step is the computation `vsj.simulate.simulate`
-performs for a run of one period with constant inputs (tests check agreement
-to 1e-9). Its cost varies with the dynamics. ``method="rk4"`` takes
-``substeps`` classical Runge-Kutta steps of ``dt/substeps``: a fixed cost per
-call, for hard real-time loops; its accuracy is the user's choice of
-``substeps`` (stable while ``dt/substeps`` times the fastest rate of the
-model stays below about 2.8; with the DC motors' armature time constant of
-0.1 ms, use at least 8 substeps per millisecond). Friction laws that are
-functions of speed only: the ``stiction`` law needs the time-stepping solver
-of `vsj.simulate`, and the jump of the ``sign`` law makes ``dopri`` take very
-many tiny steps (`benchmarks/friction_laws.py`).
+Dormand-Prince 5(4) solver from 0 to ``dt`` with the run's ``rtol``/``atol``,
+so a step is the computation `vsj.simulate.simulate` performs for a run of
+one period with constant inputs (tests check agreement to 1e-9). Its cost
+varies with the dynamics. ``method="rk4"`` takes ``substeps`` classical
+Runge-Kutta steps of ``dt/substeps``: a fixed cost per call, for hard
+real-time loops; its accuracy is the user's choice of ``substeps`` (stable
+while ``dt/substeps`` times the fastest rate of the model stays below about
+2.8; with the DC motors' armature time constant of 0.1 ms, use at least 8
+substeps per millisecond). Both integrate friction laws that are functions of
+speed (the jump of the ``sign`` law makes ``dopri`` take very many tiny
+steps, `benchmarks/friction_laws.py`). ``method="timestep"`` runs the
+simulator's time-stepper with true stiction at the options' ``step``; its
+stick/slip history (which elements hold, the last impulses) is kept from one
+call to the next, so calls must follow one another in time.
 
-Cost per call (`benchmarks/step_cost.py`: the default wrist, 1 ms period,
-arctan friction, inputs changing every period; the 2-core development VM
-while shared, so expect some scatter): from Python about 21 us per
-`Stepper.step` with ``dopri`` (rtol 1e-8, one or two steps per period) and
-28 us with ``rk4`` (4 substeps, 17 evaluations), of which about 8 us are the
-Python wrapper and numba's dispatch; from a compiled loop 13 us and 20 us.
-One `simulate` call of the same period costs about 1.8 ms (it compiles the
-model's arrays and samples every signal), 90 times more. The right-hand side
-itself costs about 1.3 us per evaluation.
+Cost per call: `benchmarks/step_cost.py` (run by `make bench`) prints it,
+from Python and from C, against one `simulate` call of the same period.
 
-From compiled code (numba): `step_dopri` and `step_rk4` are numba functions
-taking the model and work tuples `Stepper.model` and `Stepper.work`. Call
-them from your own ``@numba.njit`` function; numba then calls them directly,
-without Python in between::
+From C: the same step is ``vsj_step_dopri`` (``vsj_step_rk4``,
+``vsj_step_timestep``) of the engine's public header ``vsj/engine/c/vsj.h``;
+``examples/c/step_wrist.c`` loads a wrist exported by ``vsj export-model`` and
+steps it.
 
-    from numba import njit
-    from vsj.stepper import OK, step_dopri
-
-    @njit
-    def run(model, work, state, inputs, dt, rtol, atol, max_steps):
-        for k in range(inputs.shape[0]):
-            if step_dopri(model, work, state, inputs[k], dt, rtol, atol, max_steps) != OK:
-                return k
-        return inputs.shape[0]
-
-    run(stepper.model, stepper.work, state, inputs, stepper.period, stepper.rtol,
-        stepper.atol, stepper.max_steps)
-
-The state is advanced in place (left unchanged if the step fails; the return
-value is the engine's status, `vsj.engine.STATUS_TEXT`). The model's input
-arrays are scratch space that every call overwrites: use one `Stepper` per
-thread.
+A `Stepper` holds one work: use one `Stepper` per thread.
 """
 
 from __future__ import annotations
@@ -86,225 +65,22 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .engine import OK, STATUS_TEXT, compile_model, make_work
-from .engine.core import STATUS, Work, eval_derivatives
-from .engine.dopri import integrate
-from .engine.model import D_M, D_N, EngineModel, friction_laws_for
+from .engine import OK, STATUS_TEXT, Engine, compile_model
+from .engine import _core
+from .engine.core import pivot_position
+from .engine.model import EngineModel, friction_laws_for
 from .errors import InputError, SimulationError
 from .inputs import Constant
-from .jit import inline, kernel
 from .network import Structure
 from .simulate import InitialState, SimulationOptions, prepare
 
-METHODS = ("dopri", "rk4")
+METHODS = ("dopri", "rk4", "timestep")
+_METHOD_CODE = {"dopri": 0, "rk4": 1, "timestep": 2}
 
 #: Relative step of the central differences in `Stepper.jacobian` (times each
 #: variable's scale); with Richardson extrapolation the truncation error is
 #: O(h^4) and the round-off about 1e-16 / 1e-5 of the derivative's scale.
 JACOBIAN_STEP = 1e-5
-
-#: How long the held-input splines run, in periods: stage times never reach
-#: the end of a spline, where its integral would be read from a stale table.
-_SPLINE_PERIODS = 4.0
-
-
-# -- compiled kernels ------------------------------------------------------------------
-
-
-@inline
-def _set_inputs(coef, cum, knots, first, src_ch, src_pos0, state, inputs, base):
-    """Hold ``inputs`` over the period and start the sources at ``state[base:]``."""
-    for c in range(first.shape[0]):
-        p = first[c]
-        koff = p + c
-        coef[p, 0] = inputs[c]
-        cum[koff + 1] = inputs[c] * (knots[koff + 1] - knots[koff])
-    for j in range(src_ch.shape[0]):
-        src_pos0[j] = state[base + j]
-
-
-@inline
-def _to_engine(n, nm, mass, Minv, src_ch, state, inputs, y):
-    """Engine state ``[x, v, i]`` from ``[x, p, i, ...]``: ``v = M^-1 (p - M_su u)``."""
-    s = src_ch.shape[0]
-    for i in range(n):
-        y[i] = state[i]
-        acc = 0.0
-        bound = 0.0
-        for r in range(n):
-            pr = state[n + r]
-            size = abs(pr)
-            for j in range(s):
-                term = mass[r, n + j] * inputs[src_ch[j]]
-                pr -= term
-                size += abs(term)
-            acc += Minv[i, r] * pr
-            bound += abs(Minv[i, r]) * size
-        # a speed within the round-off of the cancellation p - M_su u (8 ulp of its
-        # terms) is zero: left at 1e-19, it would make the integrator's first step
-        # 1e-19 s long with a tight atol (Hairer's initial-step estimate)
-        y[n + i] = acc if abs(acc) > 8.0 * 2.220446049250313e-16 * bound else 0.0
-    for k in range(nm):
-        y[2 * n + k] = state[2 * n + k]
-
-
-@inline
-def _from_engine(n, nm, mass, src_ch, y, inputs, dt, state):
-    """Back to ``[x, p, i, sigma]`` after a period (sources moved ``u dt``)."""
-    s = src_ch.shape[0]
-    for r in range(n):
-        state[r] = y[r]
-        acc = 0.0
-        for i in range(n):
-            acc += mass[r, i] * y[n + i]
-        for j in range(s):
-            acc += mass[r, n + j] * inputs[src_ch[j]]
-        state[n + r] = acc
-    for k in range(nm):
-        state[2 * n + k] = y[2 * n + k]
-    base = 2 * n + nm
-    for j in range(s):
-        state[base + j] += inputs[src_ch[j]] * dt
-
-
-@kernel
-def step_dopri(m, w, state, inputs, dt, rtol, atol, max_steps):
-    """Advance ``state`` in place by ``dt`` with adaptive DOPRI5; returns the status.
-
-    ``m``, ``w``: `Stepper.model`, `Stepper.work`; ``inputs``: one value per
-    input channel, held over the period. On failure the state is unchanged.
-    """
-    dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, \
-        cum, first, count = m
-    n = dims[D_N]
-    nm = dims[D_M]
-    ny = 2 * n + nm
-    _set_inputs(coef, cum, knots, first, src_ch, src_pos0, state, inputs, ny)
-    y = np.empty(ny)
-    _to_engine(n, nm, mass, Minv, src_ch, state, inputs, y)
-    status, t_stop, steps, rejected = integrate(m, w, y, 0.0, dt, np.empty(0),
-                                                rtol, atol, np.inf, max_steps, ny,
-                                                np.empty((0, ny)))
-    if status == OK:
-        _from_engine(n, nm, mass, src_ch, y, inputs, dt, state)
-    return status
-
-
-#: Classical Runge-Kutta: stage nodes and the weights of the previous stage.
-_RK4_C = np.array([0.0, 0.5, 0.5, 1.0])
-_RK4_W = np.array([1.0, 2.0, 2.0, 1.0]) / 6.0
-
-
-@kernel
-def step_rk4(m, w, state, inputs, dt, substeps):
-    """Advance ``state`` in place by ``dt`` with ``substeps`` fixed RK4 steps.
-
-    A fixed cost per call: ``4 substeps + 1`` evaluations of the right-hand
-    side. Returns the status; on failure (a non-finite value, the pivot
-    leaving its range at the end point) the state is unchanged.
-    """
-    dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, \
-        cum, first, count = m
-    hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
-    n = dims[D_N]
-    nm = dims[D_M]
-    ny = 2 * n + nm
-    _set_inputs(coef, cum, knots, first, src_ch, src_pos0, state, inputs, ny)
-    y = np.empty(ny)
-    _to_engine(n, nm, mass, Minv, src_ch, state, inputs, y)
-    k = np.zeros(ny)
-    yt = np.empty(ny)
-    acc = np.empty(ny)
-    h = dt / substeps
-    scal[STATUS] = OK
-    # one call site of the inlined right-hand side (each one is compiled in full); after
-    # the last substep it is evaluated once more, at the end point, for its status
-    for sub in range(substeps + 1):
-        t = sub * h
-        last = sub == substeps
-        for stage in range(1 if last else 4):
-            a = _RK4_C[stage]
-            for i in range(ny):
-                yt[i] = y[i] + a * h * k[i] if stage else y[i]
-            eval_derivatives(t + a * h, yt, k, dims, mass, Minv, xp, xc, xv, up, uc, uv, par,
-                             code, src_ch, src_pos0, knots, coef, cum, first, count, hint, chan,
-                             srcw, frw, spw, ldw, mow, gen, scal)
-            if last:
-                break
-            for i in range(ny):
-                if stage == 0:
-                    acc[i] = 0.0
-                acc[i] += _RK4_W[stage] * k[i]
-        if not last:
-            for i in range(ny):
-                y[i] += h * acc[i]
-    status = int(scal[STATUS])
-    if status == OK:
-        _from_engine(n, nm, mass, src_ch, y, inputs, dt, state)
-    return status
-
-
-@kernel
-def rate(m, w, state, inputs, dstate):
-    """Time derivative of the state ``[x, p, i, sigma]`` at held ``inputs``; returns the status.
-
-    ``dx/dt = v``, ``dp/dt`` = the generalised force (every element's torque
-    mapped to the free coordinates), ``di/dt`` from the armature circuits,
-    ``dsigma/dt = u``. The time-derivative of the source speeds drops out:
-    that is what the momentum coordinates buy.
-    """
-    dims, mass, Minv, rows, xp, xc, xv, up, uc, uv, par, code, src_ch, src_pos0, knots, coef, \
-        cum, first, count = m
-    n = dims[D_N]
-    nm = dims[D_M]
-    ny = 2 * n + nm
-    _set_inputs(coef, cum, knots, first, src_ch, src_pos0, state, inputs, ny)
-    y = np.empty(ny)
-    dy = np.empty(ny)
-    _to_engine(n, nm, mass, Minv, src_ch, state, inputs, y)
-    hint, chan, srcw, frw, spw, ldw, mow, gen, scal = w
-    scal[STATUS] = OK
-    eval_derivatives(0.0, y, dy, dims, mass, Minv, xp, xc, xv, up, uc, uv, par, code, src_ch,
-                     src_pos0, knots, coef, cum, first, count, hint, chan, srcw, frw, spw, ldw,
-                     mow, gen, scal)
-    for i in range(n):
-        dstate[i] = y[n + i]
-        acc = 0.0
-        for r in range(n):
-            acc += mass[i, r] * dy[n + r]
-        dstate[n + i] = acc
-    for k in range(nm):
-        dstate[2 * n + k] = dy[2 * n + k]
-    for j in range(src_ch.shape[0]):
-        dstate[ny + j] = inputs[src_ch[j]]
-    return int(scal[STATUS])
-
-
-@inline
-def _named(mt, wt):
-    """The engine's named tuples from plain ones (cheap in compiled code)."""
-    m = EngineModel(mt[0], mt[1], mt[2], mt[3], mt[4], mt[5], mt[6], mt[7], mt[8], mt[9],
-                    mt[10], mt[11], mt[12], mt[13], mt[14], mt[15], mt[16], mt[17], mt[18])
-    w = Work(wt[0], wt[1], wt[2], wt[3], wt[4], wt[5], wt[6], wt[7], wt[8])
-    return m, w
-
-
-@kernel
-def _dopri_from_python(mt, wt, state, inputs, dt, rtol, atol, max_steps):
-    m, w = _named(mt, wt)
-    return step_dopri(m, w, state, inputs, dt, rtol, atol, max_steps)
-
-
-@kernel
-def _rk4_from_python(mt, wt, state, inputs, dt, substeps):
-    m, w = _named(mt, wt)
-    return step_rk4(m, w, state, inputs, dt, substeps)
-
-
-@kernel
-def _rate_from_python(mt, wt, state, inputs, dstate):
-    m, w = _named(mt, wt)
-    return rate(m, w, state, inputs, dstate)
 
 
 # -- the Python face -------------------------------------------------------------------
@@ -335,10 +111,12 @@ class Stepper:
                              f"{method!r}")
         if not (isinstance(substeps, int) and substeps >= 1):
             raise InputError(f"stepper: substeps must be an integer >= 1, got {substeps!r}")
-        if "stiction" in friction_laws_for(structure, options.friction,
-                                           options.friction_overrides):
-            raise InputError("stepper: the stiction friction law needs the time-stepping "
-                             "solver of vsj.simulate; the stepper integrates smooth laws "
+        if not (isinstance(max_steps, int) and max_steps >= 1):
+            raise InputError(f"stepper: max_steps must be an integer >= 1, got {max_steps!r}")
+        if method != "timestep" and "stiction" in friction_laws_for(
+                structure, options.friction, options.friction_overrides):
+            raise InputError("stepper: the stiction friction law needs method='timestep' "
+                             "(the time-stepping solver); dopri and rk4 integrate smooth laws "
                              "(viscous, arctan, sign, slope)")
         self.structure = structure
         self.period = float(period)
@@ -348,16 +126,15 @@ class Stepper:
         self.max_steps = int(max_steps)
         self.rtol = float(options.rtol)
         self.atol = float(options.atol)
+        self.step_size = float(options.step)
         self.pivot_range = pivot_range
         self.input_names = structure.channels()
         held = {ch: Constant(0.0) for ch in self.input_names}
-        self.model, self.layout = compile_model(
-            structure, held, _SPLINE_PERIODS * self.period, friction=options.friction,
+        model, self.layout = compile_model(
+            structure, held, self.period, friction=options.friction,
             friction_overrides=options.friction_overrides, slope_width=options.slope_width,
             pivot_range=pivot_range)
-        self.work = make_work(self.model)
-        # plain tuples: numba dispatches them from Python in half the time of named ones
-        self._plain = (tuple(self.model), tuple(self.work))
+        self.use_model(model)
         n, nm, s = self.layout.n, self.layout.n_motors, self.layout.n_sources
         self.state_names = tuple(
             [f"{f}.angle" for f in structure.free] + [f"{f}.momentum" for f in structure.free]
@@ -366,6 +143,15 @@ class Stepper:
         self.state_units = tuple(["rad"] * n + ["N m s"] * n + ["A"] * nm + ["rad"] * s)
         self.input_units = tuple(_channel_unit(structure, ch) for ch in self.input_names)
         self._n_state = 2 * n + nm + s
+
+    def use_model(self, model: EngineModel) -> None:
+        """Step with ``model`` from now on: the engine arrays of the same network with
+        other parameters (the time-stepper's stick/slip history starts afresh)."""
+        self.model = model
+        self._engine = Engine(model)
+        self._c, self._work = self._engine.c, self._engine.work
+        if self.method == "timestep":
+            _core.ts_prepare(self._c, self._work)
 
     @classmethod
     def wrist(cls, params, wrist_options=None, period: float = 1e-3, **kwargs) -> "Stepper":
@@ -386,7 +172,7 @@ class Stepper:
 
     def input_vector(self, inputs: Mapping[str, float] | Sequence[float] | np.ndarray | None
                      ) -> np.ndarray:
-        """Inputs as the array the kernels take (a mapping names a subset; others are 0)."""
+        """Inputs as the array the engine takes (a mapping names a subset; others are 0)."""
         if inputs is None:
             return np.zeros(self.n_inputs)
         if isinstance(inputs, Mapping):
@@ -394,11 +180,14 @@ class Stepper:
             if unknown:
                 raise InputError(f"stepper: unknown input(s) {', '.join(unknown)}; inputs are "
                                  f"{', '.join(self.input_names)}")
-            return np.array([float(inputs.get(ch, 0.0)) for ch in self.input_names])
+            inputs = [float(inputs.get(ch, 0.0)) for ch in self.input_names]
         u = np.ascontiguousarray(inputs, dtype=float)
         if u.shape != (self.n_inputs,):
             raise InputError(f"stepper: expected {self.n_inputs} inputs "
                              f"({', '.join(self.input_names)}), got shape {u.shape}")
+        if not np.all(np.isfinite(u)):
+            bad = [name for name, v in zip(self.input_names, u) if not math.isfinite(v)]
+            raise InputError(f"stepper: input(s) {', '.join(bad)} must be finite")
         return u
 
     def _state_vector(self, state) -> np.ndarray:
@@ -406,6 +195,8 @@ class Stepper:
         if y.shape != (self.n_state,):
             raise InputError(f"stepper: expected a state of {self.n_state} values "
                              f"({', '.join(self.state_names)}), got shape {y.shape}")
+        if not np.all(np.isfinite(y)):
+            raise InputError("stepper: the state must be finite")
         return y
 
     # -- states -------------------------------------------------------------------------
@@ -467,11 +258,8 @@ class Stepper:
             out = y.copy()
         elif out is not y:
             out[:] = y
-        if self.method == "dopri":
-            status = _dopri_from_python(*self._plain, out, u, self.period, self.rtol,
-                                        self.atol, self.max_steps)
-        else:
-            status = _rk4_from_python(*self._plain, out, u, self.period, self.substeps)
+        status = _core.step(_METHOD_CODE[self.method], self._c, self._work, out, u, self.period,
+                            self.rtol, self.atol, self.max_steps, self.substeps, self.step_size)
         if status != OK:
             values = ", ".join(f"{name}={v:.6g}" for name, v in zip(self.state_names, y))
             raise SimulationError(f"stepper: {STATUS_TEXT[status]} within a period of "
@@ -483,10 +271,16 @@ class Stepper:
         y = self._state_vector(state).copy()
         u = self.input_vector(inputs)
         dstate = np.empty(self.n_state)
-        status = _rate_from_python(*self._plain, y, u, dstate)
+        status = _core.step_rate(self._c, self._work, y, u, dstate)
         if status != OK:
             raise SimulationError(f"stepper: {STATUS_TEXT[status]} at the state {y}")
         return dstate
+
+    def pivot_position(self, state) -> float:
+        """Pivot position q [m] of a state."""
+        y = self._state_vector(state)
+        n, nm = self.layout.n, self.layout.n_motors
+        return pivot_position(self.model, y[:n], y[2 * n + nm:])
 
     def jacobian(self, state, inputs) -> tuple[np.ndarray, np.ndarray]:
         """Continuous-time Jacobians ``(d rate/d state, d rate/d inputs)`` at any state.
@@ -553,4 +347,4 @@ def _channel_unit(structure: Structure, channel: str) -> str:
     return "N m"
 
 
-__all__ = ["Stepper", "step_dopri", "step_rk4", "rate", "OK", "METHODS", "STATUS_TEXT"]
+__all__ = ["Stepper", "OK", "METHODS", "STATUS_TEXT"]

@@ -41,11 +41,8 @@ position (the force the springs put on the pivot is ``-dV/dq``).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from ..jit import inline, kernel
 from ..network import Component, Friction, Parts, Spring
 
 LINEAR = 0
@@ -66,172 +63,57 @@ GEOMETRY_FIELDS = ("ring_radius", "lever_length", "lever_width", "anchor_x", "an
 #: EXPONENTIAL: a1, a2, a3, phi_stop, k_stop (N m/rad, 1/m, N m/rad, rad, N m/rad).
 EXPONENTIAL_FIELDS = ("a1", "a2", "a3", "end_stop", "end_stop_stiffness")
 
-
-@inline
-def _lever(phi, q, R):
-    """Lever angle alpha and its derivatives (eq 3.1) and the pin-pivot distance."""
-    sp = math.sin(phi)
-    cp = math.cos(phi)
-    n = R * sp
-    d = q + R * cp
-    r2sq = n * n + d * d
-    r2 = math.sqrt(r2sq)
-    sa = n / r2
-    ca = d / r2
-    a_phi = R * (R + q * cp) / r2sq
-    a_q = -R * sp / r2sq
-    a_pp = R * q * sp * (R * R - q * q) / (r2sq * r2sq)
-    return sp, cp, sa, ca, a_phi, a_q, a_pp, r2
+# The laws themselves are the engine's (engine/c/laws.c); these are their
+# Python entry points, evaluated by the same compiled code the simulator runs.
 
 
-@inline
-def _lever_end(R, L, W, sa, ca, sp, cp, side):
-    """Position of the lever end where spring ``side`` (+1: a, -1: b) attaches (eq 3.4)."""
-    return R * sp - L * sa + side * W * ca, -R * cp + L * ca + side * W * sa
+def _row(p) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(p, dtype=float).ravel()[:N_PARAMETERS])
 
 
-@inline
-def row(par, r):
-    """Parameter row ``r`` as a tuple of nine floats (values, not an array view)."""
-    return (par[r, 0], par[r, 1], par[r, 2], par[r, 3], par[r, 4], par[r, 5], par[r, 6],
-            par[r, 7], par[r, 8])
+def extensions(phi: float, q: float, p) -> tuple[float, float]:
+    """Extensions ``l - s0`` [m] of springs a and b (negative: slack); ``p`` the
+    geometric parameter row."""
+    from ..engine import _core
+
+    return _core.spring_extensions(_row(p), float(phi), float(q))
 
 
-@kernel
-def extensions(phi, q, p):
-    """Extensions ``l - s0`` [m] of springs a and b (negative: slack); ``p`` as `row`."""
-    R, L, W, x0, y0, s0 = p[0], p[1], p[2], p[3], p[4], p[5]
-    sp, cp, sa, ca, _, _, _, _ = _lever(phi, q, R)
-    Xa, Ya = _lever_end(R, L, W, sa, ca, sp, cp, 1.0)
-    Xb, Yb = _lever_end(R, L, W, sa, ca, sp, cp, -1.0)
-    return (math.sqrt((Xa - x0) ** 2 + (Ya - y0) ** 2) - s0,
-            math.sqrt((Xb + x0) ** 2 + (Yb - y0) ** 2) - s0)
+def shortest_extension(phis, q: float, par, r: int = 0) -> np.ndarray:
+    """Smaller of the two springs' extensions at each deflection in ``phis``
+    (parameter row ``r`` of ``par``)."""
+    p = _row(np.atleast_2d(par)[r])
+    return np.array([min(extensions(phi, q, p)) for phi in np.atleast_1d(phis)])
 
 
-@kernel
-def shortest_extension(phis, q, par, r):
-    """Smaller of the two springs' extensions at each deflection in ``phis``."""
-    out = np.empty(phis.shape[0])
-    p = row(par, r)
-    for i in range(phis.shape[0]):
-        ea, eb = extensions(phis[i], q, p)
-        out[i] = min(ea, eb)
-    return out
+def geometry(phi: float, q: float, p) -> tuple[float, ...]:
+    """Both geometric models at one point: ``(V, dV/dphi, d2V/dphi2, dV/dq, T_phi,
+    dT_phi/dphi)`` where the first four belong to the potential model and
+    ``T_phi`` is eq 3.8 (the report's reaction torque, applied to the ring as
+    ``-T_phi``)."""
+    from ..engine import _core
 
-
-@inline
-def geometry(phi, q, p):
-    """Both geometric models at one point (parameters ``p`` as `row`).
-
-    Returns ``(V, dV/dphi, d2V/dphi2, dV/dq, T_phi, dT_phi/dphi)`` where the
-    first four belong to the potential model and ``T_phi`` is eq 3.8 (the
-    report's reaction torque, applied to the ring as ``-T_phi``).
-    """
-    R, L, W, x0, y0, s0, k = p[0], p[1], p[2], p[3], p[4], p[5], p[6]
-    sp, cp, sa, ca, a_phi, a_q, a_pp, r2 = _lever(phi, q, R)
-    V = 0.0
-    dV = 0.0
-    d2V = 0.0
-    dVq = 0.0
-    t_sum = 0.0
-    dt_sum = 0.0
-    for half in range(2):
-        side = 1.0 - 2.0 * half  # spring a (+1), then spring b (-1)
-        # lever end point X and its derivatives (eq 3.4), u_L = (-sa, ca), u_W = (ca, sa)
-        lx = -L * ca + side * W * (-sa)   # (-L u_W + side W u_L), x
-        ly = -L * sa + side * W * ca      # (-L u_W + side W u_L), y
-        mx = L * sa - side * W * ca       # (-L u_L - side W u_W), x
-        my = -L * ca - side * W * sa      # (-L u_L - side W u_W), y
-        X, Y = _lever_end(R, L, W, sa, ca, sp, cp, side)
-        Xp = R * cp + lx * a_phi
-        Yp = R * sp + ly * a_phi
-        Xpp = -R * sp + mx * a_phi * a_phi + lx * a_pp
-        Ypp = R * cp + my * a_phi * a_phi + ly * a_pp
-        Xq = lx * a_q
-        Yq = ly * a_q
-        ax = side * x0
-        gx = X - ax
-        gy = Y - y0
-        ell = math.sqrt(gx * gx + gy * gy)
-        e = ell - s0
-        if e <= 0.0:
-            continue  # slack: a spring only pulls
-        gxp = gx * Xp + gy * Yp
-        V += 0.5 * k * e * e
-        dV += k * e * gxp / ell
-        d2V += k * (gxp * gxp / (ell * ell)
-                    + e * ((Xp * Xp + Yp * Yp + gx * Xpp + gy * Ypp) / ell
-                           - gxp * gxp / (ell * ell * ell)))
-        dVq += k * e * (gx * Xq + gy * Yq) / ell
-        # eq 3.5-3.7: moment arm of the spring force about the pivot (0, q)
-        c = gy * ax - gx * (y0 - q)
-        dc = Yp * ax - Xp * (y0 - q)
-        arm = c / ell
-        darm = dc / ell - c * gxp / (ell * ell * ell)
-        t_sum += k * e * arm
-        dt_sum += k * (gxp / ell * arm + e * darm)
-    scale = R / r2  # sin(alpha) / sin(phi) of eq 3.8
-    T_phi = t_sum * scale
-    dT_phi = dt_sum * scale + t_sum * R * q * R * sp / (r2 * r2 * r2)
-    return V, dV, d2V, dVq, T_phi, dT_phi
-
-
-@inline
-def spring_law(law, p, phi, q):
-    """``(torque, stiffness, energy, dV/dq)`` of a spring law at deflection ``phi``.
-
-    ``p`` is the spring's parameter row as a tuple (`row`; a value, so this
-    inlined code needs no array bookkeeping), ``q`` the pivot position [m]
-    (ignored by ``LINEAR``). A non-finite result means the geometry broke down
-    (the pin reached the pivot, ``q + R <= 0``).
-    """
-    if law == LINEAR:
-        k = p[0]
-        return -k * phi, k, 0.5 * k * phi * phi, 0.0
-    if law == EXPONENTIAL:
-        growth = p[0] * math.exp(p[1] * q)
-        stiff = growth + p[2]
-        tau = -stiff * phi
-        energy = 0.5 * stiff * phi * phi
-        dvq = 0.5 * growth * p[1] * phi * phi
-        stop, k_stop = p[3], p[4]
-    else:
-        V, dV, d2V, dVq, T_phi, dT_phi = geometry(phi, q, p)
-        if law == GEOMETRIC:
-            tau = -dV
-            stiff = d2V
-        else:
-            tau = -T_phi
-            stiff = dT_phi
-        energy = V
-        dvq = dVq
-        stop, k_stop = p[7], p[8]
-    excess = abs(phi) - stop
-    if excess > 0.0:
-        sign = 1.0 if phi > 0.0 else -1.0
-        tau -= k_stop * excess * sign
-        stiff += k_stop
-        energy += 0.5 * k_stop * excess * excess
-    return tau, stiff, energy, dvq
-
-
-@kernel
-def _law_arrays(law, par, phis, q, out):
-    for i in range(phis.shape[0]):
-        res = spring_law(law, row(par, 0), phis[i], q)
-        out[i, 0] = res[0]
-        out[i, 1] = res[1]
-        out[i, 2] = res[2]
-        out[i, 3] = res[3]
-    return out
+    return _core.spring_geometry(_row(p), float(phi), float(q))
 
 
 def evaluate(law: int, par, phi, q: float):
-    """Vectorised `spring_law`: arrays of torque, stiffness, energy and dV/dq."""
-    phis = np.atleast_1d(np.asarray(phi, dtype=float))
-    out = _law_arrays(int(law), np.asarray(par, dtype=float).reshape(1, -1), phis, float(q),
-                      np.empty((phis.shape[0], 4)))
+    """A spring law at deflections ``phi`` [rad] and pivot position ``q`` [m]:
+    arrays of the torque on the ring (restoring, in the ring's positive
+    direction), the stiffness ``-dtorque/dphi``, the stored energy ``V`` and
+    ``dV/dq`` (the force the springs put on the pivot is ``-dV/dq``). A
+    non-finite result means the geometry broke down (``q + R <= 0``)."""
+    from ..engine import _core
+
+    phis = np.ascontiguousarray(np.atleast_1d(np.asarray(phi, dtype=float)).ravel())
+    out = np.empty((phis.shape[0], 4))
+    _core.spring_law(int(law), _row(par), phis, float(q), out)
     return out[:, 0], out[:, 1], out[:, 2], out[:, 3]
+
+
+def spring_law(law: int, p, phi: float, q: float) -> tuple[float, float, float, float]:
+    """`evaluate` at one point: ``(torque, stiffness, energy, dV/dq)``."""
+    torque, stiffness, energy, dvdq = evaluate(law, p, phi, q)
+    return float(torque[0]), float(stiffness[0]), float(energy[0]), float(dvdq[0])
 
 
 # -- the component -----------------------------------------------------------

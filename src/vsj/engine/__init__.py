@@ -1,20 +1,21 @@
-"""The compiled simulation engine (private): arrays in, trajectories out.
+"""The simulation engine (private): arrays in, trajectories out.
 
-`model.compile_model` turns a network into arrays; `core` evaluates forces and
-derivatives; `dopri` (smooth laws) and `timestep` (true stiction) integrate.
-Users call `vsj.simulate`, which drives these.
+`model.compile_model` turns a network into arrays; the C library under
+``c/`` (public header ``c/vsj.h``) evaluates forces and integrates them;
+`core.Engine` is its Python face. Users call `vsj.simulate`, which drives
+these.
 """
 
 from .core import (FRICTION_SOLVER, NOT_FINITE, OK, PIVOT_RANGE, STATUS_TEXT, STEP_TOO_SMALL,
-                   TOO_MANY_STEPS, make_work)
+                   TOO_MANY_STEPS, Engine)
 from .model import EngineModel, Layout, compile_model
 
-__all__ = ["EngineModel", "Layout", "compile_model", "make_work", "STATUS_TEXT", "OK",
+__all__ = ["Engine", "EngineModel", "Layout", "compile_model", "STATUS_TEXT", "OK",
            "NOT_FINITE", "PIVOT_RANGE", "TOO_MANY_STEPS", "STEP_TOO_SMALL", "FRICTION_SOLVER"]
 
 
 def observation_layout(layout: Layout) -> dict[str, slice]:
-    """Names of the columns `core.observe` writes, as slices."""
+    """Names of the columns `Engine.observe` writes, as slices."""
     n, s, f, k = layout.n, layout.n_sources, layout.n_frictions, layout.n_springs
     nl, nm = layout.n_loads, layout.n_motors
     sizes = [("x", n), ("v", n), ("current", nm), ("a", n), ("sigma", s), ("u", s), ("ud", s),

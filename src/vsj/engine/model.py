@@ -1,20 +1,17 @@
-"""The compiled form of a network: a few plain arrays the numba kernels read.
+"""The compiled form of a network: the plain arrays the C engine reads.
 
 `compile_model` turns an assembled `Structure`, its inputs and the run's
-options into an `EngineModel` (a named tuple of NumPy arrays) and a `Layout`
-that names every slot of the state and the accumulators.
-
-Why so few, grouped arrays: numba adjusts the reference count of every array
-held in a tuple whenever a function taking the tuple branches, which made a
-60-array model cost about 1 us per helper call. The kernels unpack these
-thirteen arrays once, at the top, and pass them on explicitly.
+options into an `EngineModel` (a named tuple of NumPy arrays, laid out as
+``vsj_model`` in ``c/vsj.h``) and a `Layout` that names every slot of the
+state and the accumulators.
 
 Element rows are stacked in one matrix ``rows`` of shape ``(R, n + s)``: the
 first ``n`` columns multiply the generalised coordinates, the last ``s`` the
-source coordinates. The kernels read them in compressed sparse row form (most
-rows hold one or two nonzeros), split into the two parts. Row order: friction elements, springs, loads, motors, and
-the pivot last. ``par`` holds each row's parameters, ``code`` its law code
-(friction, spring) or input channel (load, motor).
+source coordinates. The engine reads them in compressed sparse row form (most
+rows hold one or two nonzeros), split into the two parts. Row order: friction
+elements, springs, loads, motors, and the pivot last. ``par`` holds each row's
+parameters, ``code`` its law code (friction, spring) or input channel (load,
+motor).
 """
 
 from __future__ import annotations
@@ -172,7 +169,7 @@ def compile_model(structure: Structure, inputs: Mapping[str, Input], t_end: floa
                   friction: str = "arctan", friction_overrides: Mapping[str, str] | None = None,
                   slope_width: float = 0.01, pivot_range: tuple[float, float] | None = None,
                   source_angles: np.ndarray | None = None) -> tuple[EngineModel, Layout]:
-    """Arrays for the kernels. ``t_end`` bounds the input splines; ``source_angles``
+    """Arrays for the engine. ``t_end`` bounds the input splines; ``source_angles``
     are the sources' angles at t = 0 (see `Structure.initial_positions`)."""
     if not (math.isfinite(slope_width) and slope_width > 0.0):
         raise InputError(f"slope width must be > 0 rad/s, got {slope_width!r}")

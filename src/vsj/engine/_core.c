@@ -1,0 +1,1183 @@
+/* vsj.engine._core: the Python binding of the C engine (c/vsj.h).
+ *
+ * Thin: it checks what it hands to C (buffer types, shapes, model indices)
+ * and adds no physics. Arrays are taken through the buffer protocol, so the
+ * binding needs no NumPy headers. A Model copies its arrays into memory of its
+ * own (a later change of the Python arrays cannot invalidate what was
+ * checked); a Work is the run-time state of one computation at a time. Long
+ * computations release the GIL, so that threads can run models side by side.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "c/vsj.h"
+
+/* ---- buffers ------------------------------------------------------------------ */
+
+enum kind { DOUBLES, INTS, BOOLS };
+
+typedef struct arg {
+    Py_buffer view;
+    int held;
+} arg;
+
+static void release(arg *a) {
+    if (a->held) {
+        PyBuffer_Release(&a->view);
+        a->held = 0;
+    }
+}
+
+static int format_is(const Py_buffer *v, enum kind kind) {
+    const char *f = v->format ? v->format : "B";
+    if (*f == '@' || *f == '=' || *f == '<')
+        f++;
+    if (kind == DOUBLES)
+        return v->itemsize == 8 && strcmp(f, "d") == 0;
+    if (kind == INTS)
+        return v->itemsize == 8 && (strcmp(f, "q") == 0 || strcmp(f, "l") == 0);
+    return v->itemsize == 1 && strcmp(f, "?") == 0;
+}
+
+static const char *kind_name(enum kind kind) {
+    return kind == DOUBLES ? "float64" : kind == INTS ? "int64" : "bool";
+}
+
+/* A C-contiguous buffer of `kind` with `expected` items (-1: any). */
+static int get(PyObject *obj, arg *a, enum kind kind, int writable, Py_ssize_t expected,
+               const char *name) {
+    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+    a->held = 0;
+    if (PyObject_GetBuffer(obj, &a->view, flags) != 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_TypeError, "%s: expected a %scontiguous %s array, got %.80s", name,
+                     writable ? "writable " : "", kind_name(kind), Py_TYPE(obj)->tp_name);
+        return -1;
+    }
+    a->held = 1;
+    if (!format_is(&a->view, kind)) {
+        PyErr_Format(PyExc_TypeError, "%s: expected %s items, got format %.20s", name,
+                     kind_name(kind), a->view.format ? a->view.format : "B");
+        release(a);
+        return -1;
+    }
+    if (expected >= 0 && a->view.len / a->view.itemsize != expected) {
+        PyErr_Format(PyExc_ValueError, "%s: expected %zd items, got %zd", name, expected,
+                     a->view.len / a->view.itemsize);
+        release(a);
+        return -1;
+    }
+    return 0;
+}
+
+static Py_ssize_t items(const arg *a) { return a->view.len / a->view.itemsize; }
+
+/* ---- Model --------------------------------------------------------------------- */
+
+#define N_ARRAYS 17
+
+static const char *const ARRAY_NAMES[N_ARRAYS] = {
+    "mass", "Minv", "xp", "xc", "xv", "up", "uc", "uv", "par", "code",
+    "src_ch", "src_pos0", "knots", "coef", "cum", "first", "count"};
+static const enum kind ARRAY_KINDS[N_ARRAYS] = {
+    DOUBLES, DOUBLES, INTS, INTS, DOUBLES, INTS, INTS, DOUBLES, DOUBLES, INTS,
+    INTS, DOUBLES, DOUBLES, DOUBLES, DOUBLES, INTS, INTS};
+
+typedef struct {
+    PyObject_HEAD
+    vsj_model m;
+    void *arrays[N_ARRAYS];
+} ModelObject;
+
+static void model_dealloc(ModelObject *self) {
+    int i;
+    for (i = 0; i < N_ARRAYS; i++)
+        free(self->arrays[i]);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+/* Expected items of each array, from the sizes (and the CSR pointers). */
+static Py_ssize_t expected_items(int i, const vsj_model *m) {
+    int64_t n = m->n, s = m->n_sources, rows = m->n_rows;
+    switch (i) {
+    case 0: return (Py_ssize_t)((n + s) * (n + s));
+    case 1: return (Py_ssize_t)(n * n);
+    case 2: case 5: return (Py_ssize_t)(rows + 1);
+    case 3: case 4: return (Py_ssize_t)m->xp[rows];
+    case 6: case 7: return (Py_ssize_t)m->up[rows];
+    case 8: return (Py_ssize_t)(rows * VSJ_NPAR);
+    case 9: return (Py_ssize_t)rows;
+    case 10: case 11: return (Py_ssize_t)s;
+    case 12: case 14: return (Py_ssize_t)(m->n_pieces + m->n_channels);
+    case 13: return (Py_ssize_t)(4 * m->n_pieces);
+    default: return (Py_ssize_t)m->n_channels;
+    }
+}
+
+static PyObject *model_new(PyTypeObject *type, PyObject *args, PyObject *kwds) {
+    static char *keywords[] = {"dims", "mass", "Minv", "xp", "xc", "xv", "up", "uc", "uv", "par",
+                               "code", "src_ch", "src_pos0", "knots", "coef", "cum", "first",
+                               "count", NULL};
+    PyObject *objs[N_ARRAYS + 1];
+    arg dims, a;
+    ModelObject *self;
+    const int64_t *d;
+    char message[256];
+    int i;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "OOOOOOOOOOOOOOOOOO:Model", keywords, &objs[0],
+                                     &objs[1], &objs[2], &objs[3], &objs[4], &objs[5], &objs[6],
+                                     &objs[7], &objs[8], &objs[9], &objs[10], &objs[11],
+                                     &objs[12], &objs[13], &objs[14], &objs[15], &objs[16],
+                                     &objs[17]))
+        return NULL;
+    if (get(objs[0], &dims, INTS, 0, 8, "dims") < 0)
+        return NULL;
+    self = (ModelObject *)type->tp_alloc(type, 0);
+    if (!self) {
+        release(&dims);
+        return NULL;
+    }
+    d = (const int64_t *)dims.view.buf;
+    for (i = 0; i < 8; i++)
+        if (d[i] < 0 || d[i] > 100000000) {
+            PyErr_Format(PyExc_ValueError, "dims: size %d is %lld, outside 0..1e8", i,
+                         (long long)d[i]);
+            release(&dims);
+            Py_DECREF(self);
+            return NULL;
+        }
+    self->m.n = d[0];
+    self->m.n_sources = d[1];
+    self->m.n_frictions = d[2];
+    self->m.n_springs = d[3];
+    self->m.n_loads = d[4];
+    self->m.n_motors = d[5];
+    self->m.n_channels = d[6];
+    self->m.n_rows = d[7];
+    release(&dims);
+    if (self->m.n_rows != self->m.n_frictions + self->m.n_springs + self->m.n_loads
+                              + self->m.n_motors + 1) {
+        PyErr_SetString(PyExc_ValueError,
+                        "dims: rows must be frictions + springs + loads + motors + 1");
+        Py_DECREF(self);
+        return NULL;
+    }
+    /* the number of spline pieces comes from the length of coef */
+    if (get(objs[14], &a, DOUBLES, 0, -1, "coef") < 0) {
+        Py_DECREF(self);
+        return NULL;
+    }
+    self->m.n_pieces = (int64_t)(items(&a) / 4);
+    release(&a);
+    for (i = 0; i < N_ARRAYS; i++) {
+        Py_ssize_t want;
+        size_t bytes;
+        if (get(objs[i + 1], &a, ARRAY_KINDS[i], 0, -1, ARRAY_NAMES[i]) < 0) {
+            Py_DECREF(self);
+            return NULL;
+        }
+        want = expected_items(i, &self->m);
+        if (items(&a) != want || (i == 2 || i == 5 ? want < 1 : 0)) {
+            PyErr_Format(PyExc_ValueError, "model array %s: expected %zd items, got %zd",
+                         ARRAY_NAMES[i], want, items(&a));
+            release(&a);
+            Py_DECREF(self);
+            return NULL;
+        }
+        bytes = (size_t)a.view.len;
+        self->arrays[i] = malloc(bytes ? bytes : 1);
+        if (!self->arrays[i]) {
+            release(&a);
+            Py_DECREF(self);
+            return PyErr_NoMemory();
+        }
+        memcpy(self->arrays[i], a.view.buf, bytes);
+        release(&a);
+        /* CSR pointers must be sane before their last entry sizes the next arrays */
+        if (i == 2 || i == 5) {
+            const int64_t *ptr = (const int64_t *)self->arrays[i];
+            int64_t r;
+            for (r = 0; r < self->m.n_rows; r++)
+                if (ptr[r + 1] < ptr[r] || ptr[0] != 0) {
+                    PyErr_Format(PyExc_ValueError, "model array %s: pointers must start at 0 "
+                                 "and not decrease", ARRAY_NAMES[i]);
+                    Py_DECREF(self);
+                    return NULL;
+                }
+            if (ptr[self->m.n_rows] > 100000000) {
+                PyErr_Format(PyExc_ValueError, "model array %s: too many entries",
+                             ARRAY_NAMES[i]);
+                Py_DECREF(self);
+                return NULL;
+            }
+            if (i == 2)
+                self->m.xp = ptr;
+            else
+                self->m.up = ptr;
+        }
+    }
+    self->m.mass = (const double *)self->arrays[0];
+    self->m.Minv = (const double *)self->arrays[1];
+    self->m.xc = (const int64_t *)self->arrays[3];
+    self->m.xv = (const double *)self->arrays[4];
+    self->m.uc = (const int64_t *)self->arrays[6];
+    self->m.uv = (const double *)self->arrays[7];
+    self->m.par = (const double *)self->arrays[8];
+    self->m.code = (const int64_t *)self->arrays[9];
+    self->m.src_ch = (const int64_t *)self->arrays[10];
+    self->m.src_pos0 = (const double *)self->arrays[11];
+    self->m.knots = (const double *)self->arrays[12];
+    self->m.coef = (const double *)self->arrays[13];
+    self->m.cum = (const double *)self->arrays[14];
+    self->m.first = (const int64_t *)self->arrays[15];
+    self->m.count = (const int64_t *)self->arrays[16];
+    if (vsj_check_model(&self->m, message, sizeof message) != VSJ_OK) {
+        PyErr_SetString(PyExc_ValueError, message);
+        Py_DECREF(self);
+        return NULL;
+    }
+    return (PyObject *)self;
+}
+
+static PyObject *model_sizes(ModelObject *self, PyObject *Py_UNUSED(ignored)) {
+    return Py_BuildValue("(LLLLLLLL)", (long long)self->m.n, (long long)self->m.n_sources,
+                         (long long)self->m.n_frictions, (long long)self->m.n_springs,
+                         (long long)self->m.n_loads, (long long)self->m.n_motors,
+                         (long long)self->m.n_channels, (long long)self->m.n_rows);
+}
+
+static PyMethodDef model_methods[] = {
+    {"sizes", (PyCFunction)model_sizes, METH_NOARGS,
+     "(n, sources, frictions, springs, loads, motors, channels, rows)"},
+    {NULL, NULL, 0, NULL}};
+
+static PyTypeObject ModelType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "vsj.engine._core.Model",
+    .tp_basicsize = sizeof(ModelObject),
+    .tp_dealloc = (destructor)model_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "A checked copy of an engine model's arrays (vsj.engine.model.EngineModel).",
+    .tp_methods = model_methods,
+    .tp_new = model_new,
+};
+
+/* ---- Work ----------------------------------------------------------------------- */
+
+typedef struct {
+    PyObject_HEAD
+    vsj_work *w;
+    vsj_model sizes; /* the model sizes it was made for */
+    int busy;        /* in use by a computation (possibly without the GIL) */
+} WorkObject;
+
+static void work_dealloc(WorkObject *self) {
+    vsj_work_free(self->w);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyObject *work_new(PyTypeObject *type, PyObject *args, PyObject *kwds) {
+    static char *keywords[] = {"model", NULL};
+    ModelObject *model;
+    WorkObject *self;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "O!:Work", keywords, &ModelType, &model))
+        return NULL;
+    self = (WorkObject *)type->tp_alloc(type, 0);
+    if (!self)
+        return NULL;
+    self->w = vsj_work_new(&model->m);
+    if (!self->w) {
+        Py_DECREF(self);
+        return PyErr_NoMemory();
+    }
+    self->sizes = model->m;
+    return (PyObject *)self;
+}
+
+static PyTypeObject WorkType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "vsj.engine._core.Work",
+    .tp_basicsize = sizeof(WorkObject),
+    .tp_dealloc = (destructor)work_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "Run-time state of the engine for one model's sizes; one computation at a time.",
+    .tp_new = work_new,
+};
+
+/* Takes a work for a computation on model m; release with `give_back`. */
+static int take(WorkObject *w, const vsj_model *m) {
+    const vsj_model *s = &w->sizes;
+    if (s->n != m->n || s->n_sources != m->n_sources || s->n_frictions != m->n_frictions
+        || s->n_springs != m->n_springs || s->n_loads != m->n_loads
+        || s->n_motors != m->n_motors || s->n_channels != m->n_channels
+        || s->n_rows != m->n_rows) {
+        PyErr_SetString(PyExc_ValueError, "work: made for a model of other sizes");
+        return -1;
+    }
+    if (w->busy) {
+        PyErr_SetString(PyExc_RuntimeError,
+                        "work: in use by another computation (use one work per thread)");
+        return -1;
+    }
+    w->busy = 1;
+    return 0;
+}
+
+static void give_back(WorkObject *w) { w->busy = 0; }
+
+static int finite_scalar(double v, const char *name) {
+    if (!isfinite(v)) {
+        PyErr_Format(PyExc_ValueError, "%s must be finite", name);
+        return -1;
+    }
+    return 0;
+}
+
+/* ---- integration ------------------------------------------------------------------- */
+
+static PyObject *report_tuple(vsj_report r) {
+    return Py_BuildValue("(idLL)", r.status, r.t, (long long)r.steps, (long long)r.rejected);
+}
+
+static int increasing(const double *t, Py_ssize_t n, const char *name) {
+    Py_ssize_t i;
+    for (i = 0; i < n; i++)
+        if (!isfinite(t[i]) || (i > 0 && t[i] < t[i - 1])) {
+            PyErr_Format(PyExc_ValueError, "%s: times must be finite and non-decreasing", name);
+            return -1;
+        }
+    return 0;
+}
+
+/* dopri(model, work, y, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, out) */
+static PyObject *py_dopri(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    PyObject *oy, *ot, *oout;
+    double t0, t_end, rtol, atol, h_max;
+    long long max_steps, n_err;
+    arg y, t_out, out;
+    Py_ssize_t ny, n_out, cols;
+    vsj_report r;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "O!O!OddOdddLLO:dopri", &ModelType, &model, &WorkType, &work,
+                          &oy, &t0, &t_end, &ot, &rtol, &atol, &h_max, &max_steps, &n_err,
+                          &oout))
+        return NULL;
+    if (finite_scalar(t0, "t0") < 0 || finite_scalar(t_end, "t_end") < 0)
+        return NULL;
+    if (!(t_end > t0) || !(rtol > 0.0) || !(atol > 0.0) || !(h_max > 0.0) || max_steps < 1) {
+        PyErr_SetString(PyExc_ValueError,
+                        "dopri: needs t_end > t0, rtol > 0, atol > 0, h_max > 0, max_steps >= 1");
+        return NULL;
+    }
+    if (get(oy, &y, DOUBLES, 1, -1, "y") < 0)
+        return NULL;
+    ny = items(&y);
+    if (ny != vsj_n_state(&model->m) && ny != vsj_n_state(&model->m) + vsj_n_acc(&model->m)) {
+        PyErr_Format(PyExc_ValueError, "y: expected %lld or %lld values, got %zd",
+                     (long long)vsj_n_state(&model->m),
+                     (long long)(vsj_n_state(&model->m) + vsj_n_acc(&model->m)), ny);
+        release(&y);
+        return NULL;
+    }
+    if (n_err < 0 || n_err > ny) {
+        PyErr_SetString(PyExc_ValueError, "n_err: outside 0..len(y)");
+        release(&y);
+        return NULL;
+    }
+    if (get(ot, &t_out, DOUBLES, 0, -1, "t_out") < 0) {
+        release(&y);
+        return NULL;
+    }
+    n_out = items(&t_out);
+    if (increasing((const double *)t_out.view.buf, n_out, "t_out") < 0
+        || get(oout, &out, DOUBLES, 1, -1, "out") < 0) {
+        release(&y);
+        release(&t_out);
+        return NULL;
+    }
+    cols = n_out ? items(&out) / n_out : 0;
+    if (cols * n_out != items(&out) || (out.view.ndim == 2 && out.view.shape[0] != n_out)) {
+        PyErr_SetString(PyExc_ValueError, "out: needs one row per sample");
+        release(&y);
+        release(&t_out);
+        release(&out);
+        return NULL;
+    }
+    if (take(work, &model->m) < 0) {
+        release(&y);
+        release(&t_out);
+        release(&out);
+        return NULL;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    r = vsj_dopri(&model->m, work->w, (double *)y.view.buf, ny, t0, t_end,
+                  (const double *)t_out.view.buf, n_out, rtol, atol, h_max, max_steps, n_err,
+                  (double *)out.view.buf, cols);
+    Py_END_ALLOW_THREADS
+    give_back(work);
+    release(&y);
+    release(&t_out);
+    release(&out);
+    return report_tuple(r);
+}
+
+/* Optional samples of the time-stepper. */
+typedef struct ts_args {
+    arg t_out, out, coulomb, stuck;
+    vsj_samples samples;
+} ts_args;
+
+static void ts_release(ts_args *a) {
+    release(&a->t_out);
+    release(&a->out);
+    release(&a->coulomb);
+    release(&a->stuck);
+}
+
+static int ts_samples(ts_args *a, const vsj_model *m, PyObject *ot, PyObject *oout,
+                      PyObject *oc, PyObject *os, double h) {
+    Py_ssize_t n_out, i;
+    const double *t;
+    memset(a, 0, sizeof *a);
+    if (get(ot, &a->t_out, DOUBLES, 0, -1, "t_out") < 0)
+        return -1;
+    n_out = items(&a->t_out);
+    t = (const double *)a->t_out.view.buf;
+    if (increasing(t, n_out, "t_out") < 0)
+        return -1;
+    for (i = 0; i < n_out; i++) {
+        double k = t[i] / h;
+        if (fabs(k - floor(k + 0.5)) > 1e-6 * (1.0 + fabs(k))) {
+            PyErr_SetString(PyExc_ValueError, "t_out: sample times must be multiples of the step");
+            return -1;
+        }
+    }
+    if (get(oout, &a->out, DOUBLES, 1, -1, "out") < 0)
+        return -1;
+    a->samples.t = t;
+    a->samples.n = n_out;
+    a->samples.out = (double *)a->out.view.buf;
+    a->samples.out_cols = n_out ? items(&a->out) / n_out : 0;
+    if (a->samples.out_cols * n_out != items(&a->out)) {
+        PyErr_SetString(PyExc_ValueError, "out: needs one row per sample");
+        return -1;
+    }
+    if (oc != Py_None) {
+        if (get(oc, &a->coulomb, DOUBLES, 1, n_out * (Py_ssize_t)m->n_frictions,
+                "coulomb") < 0
+            || get(os, &a->stuck, BOOLS, 1, n_out * (Py_ssize_t)m->n_frictions, "stuck") < 0)
+            return -1;
+        a->samples.coulomb = (double *)a->coulomb.view.buf;
+        a->samples.stuck = (unsigned char *)a->stuck.view.buf;
+    }
+    return 0;
+}
+
+/* timestep(model, work, y, duration, h, t_out, max_steps, ledger, out, coulomb, stuck,
+ *          transitions) */
+static PyObject *py_timestep(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    PyObject *oy, *ot, *oout, *oc, *os, *otr;
+    double duration, h;
+    long long max_steps;
+    int ledger;
+    arg y, tr;
+    ts_args a;
+    Py_ssize_t ny, want;
+    vsj_report r;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "O!O!OddOLpOOOO:timestep", &ModelType, &model, &WorkType, &work,
+                          &oy, &duration, &h, &ot, &max_steps, &ledger, &oout, &oc, &os, &otr))
+        return NULL;
+    if (!(isfinite(duration) && duration > 0.0 && isfinite(h) && h > 0.0) || max_steps < 1) {
+        PyErr_SetString(PyExc_ValueError,
+                        "timestep: needs duration > 0, a step h > 0 and max_steps >= 1");
+        return NULL;
+    }
+    if (duration / h > 1e12) {
+        PyErr_SetString(PyExc_ValueError, "timestep: more than 1e12 steps");
+        return NULL;
+    }
+    want = (Py_ssize_t)(vsj_n_state(&model->m) + (ledger ? vsj_n_acc(&model->m) : 0));
+    if (get(oy, &y, DOUBLES, 1, -1, "y") < 0)
+        return NULL;
+    ny = items(&y);
+    if (ny < want) {
+        PyErr_Format(PyExc_ValueError, "y: expected at least %zd values, got %zd", want, ny);
+        release(&y);
+        return NULL;
+    }
+    if (ts_samples(&a, &model->m, ot, oout, oc, os, h) < 0) {
+        ts_release(&a);
+        release(&y);
+        return NULL;
+    }
+    if (get(otr, &tr, INTS, 1, (Py_ssize_t)model->m.n_frictions, "transitions") < 0) {
+        ts_release(&a);
+        release(&y);
+        return NULL;
+    }
+    if (take(work, &model->m) < 0) {
+        ts_release(&a);
+        release(&y);
+        release(&tr);
+        return NULL;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    r = vsj_timestep(&model->m, work->w, (double *)y.view.buf, duration, h, max_steps, ledger,
+                     &a.samples, (int64_t *)tr.view.buf);
+    Py_END_ALLOW_THREADS
+    give_back(work);
+    ts_release(&a);
+    release(&y);
+    release(&tr);
+    return report_tuple(r);
+}
+
+/* observe(model, work, t_out, out, coulomb or None, raw) */
+static PyObject *py_observe(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    PyObject *ot, *oout, *oc, *oraw;
+    arg t_out, out, coulomb, raw;
+    Py_ssize_t n_out, ny;
+    int status;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "O!O!OOOO:observe", &ModelType, &model, &WorkType, &work, &ot,
+                          &oout, &oc, &oraw))
+        return NULL;
+    coulomb.held = 0;
+    if (get(ot, &t_out, DOUBLES, 0, -1, "t_out") < 0)
+        return NULL;
+    n_out = items(&t_out);
+    if (get(oout, &out, DOUBLES, 0, -1, "out") < 0) {
+        release(&t_out);
+        return NULL;
+    }
+    ny = n_out ? items(&out) / n_out : vsj_n_state(&model->m);
+    if (ny * n_out != items(&out) || ny < vsj_n_state(&model->m)) {
+        PyErr_SetString(PyExc_ValueError, "out: needs one row of at least the state per sample");
+        goto fail2;
+    }
+    if (oc != Py_None
+        && get(oc, &coulomb, DOUBLES, 0, n_out * (Py_ssize_t)model->m.n_frictions, "coulomb") < 0)
+        goto fail2;
+    if (get(oraw, &raw, DOUBLES, 1, n_out * (Py_ssize_t)vsj_observation_width(&model->m),
+            "raw") < 0)
+        goto fail3;
+    if (take(work, &model->m) < 0)
+        goto fail4;
+    Py_BEGIN_ALLOW_THREADS
+    status = vsj_observe(&model->m, work->w, (const double *)t_out.view.buf, n_out,
+                         (const double *)out.view.buf, ny,
+                         coulomb.held ? (const double *)coulomb.view.buf : NULL,
+                         (double *)raw.view.buf);
+    Py_END_ALLOW_THREADS
+    give_back(work);
+    release(&raw);
+    release(&coulomb);
+    release(&out);
+    release(&t_out);
+    return PyLong_FromLong(status);
+fail4:
+    release(&raw);
+fail3:
+    release(&coulomb);
+fail2:
+    release(&out);
+    release(&t_out);
+    return NULL;
+}
+
+/* derivatives(model, work, t, y, dy) -> status */
+static PyObject *py_derivatives(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    PyObject *oy, *ody;
+    double t;
+    arg y, dy;
+    Py_ssize_t ny;
+    int status;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "O!O!dOO:derivatives", &ModelType, &model, &WorkType, &work, &t,
+                          &oy, &ody))
+        return NULL;
+    if (finite_scalar(t, "t") < 0 || get(oy, &y, DOUBLES, 0, -1, "y") < 0)
+        return NULL;
+    ny = items(&y);
+    if (ny != vsj_n_state(&model->m) && ny != vsj_n_state(&model->m) + vsj_n_acc(&model->m)) {
+        PyErr_SetString(PyExc_ValueError, "y: expected the state, or the state and accumulators");
+        release(&y);
+        return NULL;
+    }
+    if (get(ody, &dy, DOUBLES, 1, ny, "dy") < 0) {
+        release(&y);
+        return NULL;
+    }
+    if (take(work, &model->m) < 0) {
+        release(&y);
+        release(&dy);
+        return NULL;
+    }
+    status = vsj_derivatives(&model->m, work->w, t, (const double *)y.view.buf, ny,
+                             (double *)dy.view.buf);
+    give_back(work);
+    release(&y);
+    release(&dy);
+    return PyLong_FromLong(status);
+}
+
+/* source_signals(model, work, t_out, angles, speeds) */
+static PyObject *py_source_signals(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    PyObject *ot, *oa, *os;
+    arg t, a, s;
+    Py_ssize_t n, ns;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "O!O!OOO:source_signals", &ModelType, &model, &WorkType, &work,
+                          &ot, &oa, &os))
+        return NULL;
+    if (get(ot, &t, DOUBLES, 0, -1, "t_out") < 0)
+        return NULL;
+    n = items(&t);
+    ns = (Py_ssize_t)model->m.n_sources;
+    if (increasing((const double *)t.view.buf, n, "t_out") < 0) {
+        release(&t);
+        return NULL;
+    }
+    if (get(oa, &a, DOUBLES, 1, n * ns, "angles") < 0) {
+        release(&t);
+        return NULL;
+    }
+    if (get(os, &s, DOUBLES, 1, n * ns, "speeds") < 0) {
+        release(&t);
+        release(&a);
+        return NULL;
+    }
+    if (take(work, &model->m) < 0) {
+        release(&t);
+        release(&a);
+        release(&s);
+        return NULL;
+    }
+    vsj_source_signals(&model->m, work->w, (const double *)t.view.buf, n, (double *)a.view.buf,
+                       (double *)s.view.buf);
+    give_back(work);
+    release(&t);
+    release(&a);
+    release(&s);
+    Py_RETURN_NONE;
+}
+
+/* stored_energy(model, work, t, y, springs or None) -> (kinetic, springs, inductors) */
+static PyObject *py_stored_energy(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    PyObject *oy, *osp;
+    double t, e[3];
+    arg y, sp;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "O!O!dOO:stored_energy", &ModelType, &model, &WorkType, &work,
+                          &t, &oy, &osp))
+        return NULL;
+    sp.held = 0;
+    if (finite_scalar(t, "t") < 0
+        || get(oy, &y, DOUBLES, 0, (Py_ssize_t)vsj_n_state(&model->m), "y") < 0)
+        return NULL;
+    if (osp != Py_None
+        && get(osp, &sp, DOUBLES, 1, (Py_ssize_t)model->m.n_springs, "springs") < 0) {
+        release(&y);
+        return NULL;
+    }
+    if (take(work, &model->m) < 0) {
+        release(&y);
+        release(&sp);
+        return NULL;
+    }
+    vsj_stored_energy(&model->m, work->w, t, (const double *)y.view.buf, e,
+                      sp.held ? (double *)sp.view.buf : NULL);
+    give_back(work);
+    release(&y);
+    release(&sp);
+    return Py_BuildValue("(ddd)", e[0], e[1], e[2]);
+}
+
+/* ---- the step function --------------------------------------------------------------- */
+
+/* The state and the inputs of a step, checked. */
+static int step_args(ModelObject *model, PyObject *os, PyObject *ou, arg *s, arg *u,
+                     int writable) {
+    Py_ssize_t i;
+    const double *v;
+    if (get(os, s, DOUBLES, writable, (Py_ssize_t)vsj_step_state_size(&model->m), "state") < 0)
+        return -1;
+    if (get(ou, u, DOUBLES, 0, (Py_ssize_t)model->m.n_channels, "inputs") < 0) {
+        release(s);
+        return -1;
+    }
+    v = (const double *)u->view.buf;
+    for (i = 0; i < items(u); i++)
+        if (!isfinite(v[i])) {
+            PyErr_Format(PyExc_ValueError, "inputs: value %zd is not finite", i);
+            release(s);
+            release(u);
+            return -1;
+        }
+    v = (const double *)s->view.buf;
+    for (i = 0; i < items(s); i++)
+        if (!isfinite(v[i])) {
+            PyErr_Format(PyExc_ValueError, "state: value %zd is not finite", i);
+            release(s);
+            release(u);
+            return -1;
+        }
+    return 0;
+}
+
+/* step(method, model, work, state, inputs, dt, rtol, atol, max_steps, substeps, h) -> status;
+ * method 0: dopri, 1: rk4, 2: time-stepper */
+static PyObject *py_step(PyObject *mod, PyObject *const *argv, Py_ssize_t argc) {
+    ModelObject *model;
+    WorkObject *work;
+    arg s, u;
+    int method, status;
+    double dt, rtol, atol, h;
+    long long max_steps, substeps;
+    (void)mod;
+    if (argc != 11) {
+        PyErr_SetString(PyExc_TypeError, "step: 11 arguments");
+        return NULL;
+    }
+    if (!PyObject_TypeCheck(argv[1], &ModelType) || !PyObject_TypeCheck(argv[2], &WorkType)) {
+        PyErr_SetString(PyExc_TypeError, "step: needs a Model and a Work");
+        return NULL;
+    }
+    model = (ModelObject *)argv[1];
+    work = (WorkObject *)argv[2];
+    method = (int)PyLong_AsLong(argv[0]);
+    dt = PyFloat_AsDouble(argv[5]);
+    rtol = PyFloat_AsDouble(argv[6]);
+    atol = PyFloat_AsDouble(argv[7]);
+    max_steps = PyLong_AsLongLong(argv[8]);
+    substeps = PyLong_AsLongLong(argv[9]);
+    h = PyFloat_AsDouble(argv[10]);
+    if (PyErr_Occurred())
+        return NULL;
+    if (method < 0 || method > 2 || !(isfinite(dt) && dt > 0.0) || !(rtol > 0.0)
+        || !(atol > 0.0) || max_steps < 1 || substeps < 1 || !(isfinite(h) && h > 0.0)) {
+        PyErr_SetString(PyExc_ValueError, "step: needs method 0..2, dt > 0, rtol > 0, atol > 0, "
+                                          "max_steps >= 1, substeps >= 1, h > 0");
+        return NULL;
+    }
+    if (step_args(model, argv[3], argv[4], &s, &u, 1) < 0)
+        return NULL;
+    if (take(work, &model->m) < 0) {
+        release(&s);
+        release(&u);
+        return NULL;
+    }
+    if (method == 0) {
+        status = vsj_step_dopri(&model->m, work->w, (double *)s.view.buf,
+                                (const double *)u.view.buf, dt, rtol, atol, max_steps);
+    } else if (method == 1) {
+        status = vsj_step_rk4(&model->m, work->w, (double *)s.view.buf,
+                              (const double *)u.view.buf, dt, substeps);
+    } else {
+        status = vsj_step_timestep(&model->m, work->w, (double *)s.view.buf,
+                                   (const double *)u.view.buf, dt, h);
+    }
+    give_back(work);
+    release(&s);
+    release(&u);
+    return PyLong_FromLong(status);
+}
+
+/* ts_prepare(model, work) -> status: the time-stepper's analysis, its history cleared */
+static PyObject *py_ts_prepare(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    int status;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "O!O!:ts_prepare", &ModelType, &model, &WorkType, &work))
+        return NULL;
+    if (take(work, &model->m) < 0)
+        return NULL;
+    status = vsj_ts_prepare(&model->m, work->w);
+    give_back(work);
+    return PyLong_FromLong(status);
+}
+
+/* step_rate(model, work, state, inputs, dstate) -> status */
+static PyObject *py_step_rate(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    PyObject *os, *ou, *od;
+    arg s, u, d;
+    int status;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "O!O!OOO:step_rate", &ModelType, &model, &WorkType, &work, &os,
+                          &ou, &od))
+        return NULL;
+    if (step_args(model, os, ou, &s, &u, 0) < 0)
+        return NULL;
+    if (get(od, &d, DOUBLES, 1, (Py_ssize_t)vsj_step_state_size(&model->m), "dstate") < 0) {
+        release(&s);
+        release(&u);
+        return NULL;
+    }
+    if (take(work, &model->m) < 0) {
+        release(&s);
+        release(&u);
+        release(&d);
+        return NULL;
+    }
+    status = vsj_step_rate(&model->m, work->w, (const double *)s.view.buf,
+                           (const double *)u.view.buf, (double *)d.view.buf);
+    give_back(work);
+    release(&s);
+    release(&u);
+    release(&d);
+    return PyLong_FromLong(status);
+}
+
+/* ---- batches ---------------------------------------------------------------------------- */
+
+/* batch_run(kind, model, work, r, masses, Minvs, pars, src0s, y0s, t_end, t_out, rtol, atol,
+ *           h_max, max_steps, h, outs, y_end, status, t_stop, steps, transitions)
+ * Run r of a batch: the model with run r's mass matrix, inverse, parameters and
+ * source angles, from state y0s[r]; samples into outs[r] (states only, no
+ * ledger). kind 0: dopri, 1: time-stepper. */
+static PyObject *py_batch_run(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    PyObject *o[12];
+    int kind;
+    long long r, max_steps;
+    double t_end, rtol, atol, h_max, h;
+    arg a[12];
+    vsj_model mr;
+    Py_ssize_t runs, n_out, ny, sz, i, nst;
+    int64_t nf;
+    vsj_report rep = {VSJ_OK, 0.0, 0, 0};
+    char message[256];
+    int ok = 1, status;
+    int64_t flips = 0;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "iO!O!LOOOOOdOdddLdOOOOOO:batch_run", &kind, &ModelType, &model,
+                          &WorkType, &work, &r, &o[0], &o[1], &o[2], &o[3], &o[4], &t_end, &o[5],
+                          &rtol, &atol, &h_max, &max_steps, &h, &o[6], &o[7], &o[8], &o[9],
+                          &o[10], &o[11]))
+        return NULL;
+    if ((kind != 0 && kind != 1) || !(isfinite(t_end) && t_end > 0.0) || !(rtol > 0.0)
+        || !(atol > 0.0) || !(h_max > 0.0) || max_steps < 1 || !(isfinite(h) && h > 0.0)) {
+        PyErr_SetString(PyExc_ValueError, "batch_run: bad kind, time, tolerance or step");
+        return NULL;
+    }
+    for (i = 0; i < 12; i++)
+        a[i].held = 0;
+    sz = (Py_ssize_t)(model->m.n + model->m.n_sources);
+    nf = model->m.n_frictions;
+    ny = (Py_ssize_t)vsj_n_state(&model->m) + (kind == 1 ? (Py_ssize_t)vsj_n_acc(&model->m) : 0);
+    nst = (Py_ssize_t)vsj_n_state(&model->m);
+    if (get(o[4], &a[4], DOUBLES, 0, -1, "y0s") < 0)
+        return NULL;
+    runs = items(&a[4]) / ny;
+    if (runs * ny != items(&a[4]) || r < 0 || r >= runs) {
+        PyErr_SetString(PyExc_ValueError, "batch_run: y0s needs one state row per run, r in range");
+        ok = 0;
+    }
+    if (ok && (get(o[0], &a[0], DOUBLES, 0, runs * sz * sz, "masses") < 0
+               || get(o[1], &a[1], DOUBLES, 0, runs * (Py_ssize_t)(model->m.n * model->m.n),
+                      "Minvs") < 0
+               || get(o[2], &a[2], DOUBLES, 0, runs * (Py_ssize_t)(model->m.n_rows * VSJ_NPAR),
+                      "pars") < 0
+               || get(o[3], &a[3], DOUBLES, 0, runs * (Py_ssize_t)model->m.n_sources,
+                      "src0s") < 0
+               || get(o[5], &a[5], DOUBLES, 0, -1, "t_out") < 0))
+        ok = 0;
+    n_out = ok ? items(&a[5]) : 0;
+    if (ok && (increasing((const double *)a[5].view.buf, n_out, "t_out") < 0
+               || get(o[6], &a[6], DOUBLES, 1, runs * n_out * nst, "outs") < 0
+               || get(o[7], &a[7], DOUBLES, 1, runs * ny, "y_end") < 0
+               || get(o[8], &a[8], INTS, 1, runs, "status") < 0
+               || get(o[9], &a[9], DOUBLES, 1, runs, "t_stop") < 0
+               || get(o[10], &a[10], INTS, 1, runs, "steps") < 0
+               || get(o[11], &a[11], INTS, 1, runs, "transitions") < 0))
+        ok = 0;
+    if (ok) {
+        mr = model->m;
+        mr.mass = (const double *)a[0].view.buf + r * sz * sz;
+        mr.Minv = (const double *)a[1].view.buf + r * model->m.n * model->m.n;
+        mr.par = (const double *)a[2].view.buf + r * model->m.n_rows * VSJ_NPAR;
+        mr.src_pos0 = (const double *)a[3].view.buf + r * model->m.n_sources;
+        if (vsj_check_model(&mr, message, sizeof message) != VSJ_OK) {
+            PyErr_Format(PyExc_ValueError, "batch run %lld: %s", r, message);
+            ok = 0;
+        }
+    }
+    if (ok && take(work, &model->m) < 0)
+        ok = 0;
+    if (!ok) {
+        for (i = 0; i < 12; i++)
+            release(&a[i]);
+        return NULL;
+    }
+    {
+        double *y = (double *)a[7].view.buf + r * ny;
+        double *out = (double *)a[6].view.buf + r * n_out * nst;
+        const double *t_out = (const double *)a[5].view.buf;
+        memcpy(y, (const double *)a[4].view.buf + r * ny, (size_t)ny * sizeof(double));
+        Py_BEGIN_ALLOW_THREADS
+        if (kind == 0) {
+            rep = vsj_dopri(&mr, work->w, y, ny, 0.0, t_end, t_out, n_out, rtol, atol, h_max,
+                            max_steps, nst, out, nst);
+        } else {
+            vsj_samples smp;
+            smp.t = t_out;
+            smp.n = n_out;
+            smp.out = out;
+            smp.out_cols = nst;
+            smp.coulomb = NULL;
+            smp.stuck = NULL;
+            rep = vsj_timestep(&mr, work->w, y, t_end, h, max_steps, 0, &smp, NULL);
+        }
+        Py_END_ALLOW_THREADS
+        if (kind == 1) {
+            int64_t *tr = (int64_t *)malloc((size_t)(nf > 0 ? nf : 1) * sizeof(int64_t));
+            int64_t e;
+            if (tr) {
+                vsj_ts_transitions(work->w, tr);
+                for (e = 0; e < nf; e++)
+                    flips += tr[e];
+                free(tr);
+            }
+        }
+    }
+    give_back(work);
+    status = rep.status;
+    ((int64_t *)a[8].view.buf)[r] = status;
+    ((double *)a[9].view.buf)[r] = rep.t;
+    ((int64_t *)a[10].view.buf)[r] = rep.steps;
+    ((int64_t *)a[11].view.buf)[r] = flips;
+    for (i = 0; i < 12; i++)
+        release(&a[i]);
+    Py_RETURN_NONE;
+}
+
+/* solve_impulses(YT, qs, cap, active, ps, states, iterations): vsj_solve_impulses */
+static PyObject *py_solve_impulses(PyObject *mod, PyObject *args) {
+    PyObject *o[7];
+    arg a[7];
+    Py_ssize_t n, m, count, i;
+    int status = VSJ_OK, ok = 1;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "OOOOOOO:solve_impulses", &o[0], &o[1], &o[2], &o[3], &o[4],
+                          &o[5], &o[6]))
+        return NULL;
+    for (i = 0; i < 7; i++)
+        a[i].held = 0;
+    if (get(o[2], &a[2], DOUBLES, 0, -1, "cap") < 0)
+        return NULL;
+    m = items(&a[2]);
+    if (get(o[0], &a[0], DOUBLES, 0, -1, "YT") < 0 || get(o[1], &a[1], DOUBLES, 0, -1, "qs") < 0)
+        ok = 0;
+    n = ok && m ? items(&a[0]) / m : 0;
+    count = ok && m ? items(&a[1]) / m : 0;
+    if (ok && (m < 1 || n * m != items(&a[0]) || count * m != items(&a[1]))) {
+        PyErr_SetString(PyExc_ValueError, "solve_impulses: YT needs m columns, qs rows of m");
+        ok = 0;
+    }
+    if (ok && (get(o[3], &a[3], BOOLS, 0, m, "active") < 0
+               || get(o[4], &a[4], DOUBLES, 1, count * m, "ps") < 0
+               || get(o[5], &a[5], INTS, 1, count * m, "states") < 0
+               || get(o[6], &a[6], INTS, 1, count, "iterations") < 0))
+        ok = 0;
+    if (ok)
+        status = vsj_solve_impulses(n, m, (const double *)a[0].view.buf, count,
+                                    (const double *)a[1].view.buf, (const double *)a[2].view.buf,
+                                    (const unsigned char *)a[3].view.buf,
+                                    (double *)a[4].view.buf, (int64_t *)a[5].view.buf,
+                                    (int64_t *)a[6].view.buf);
+    for (i = 0; i < 7; i++)
+        release(&a[i]);
+    if (!ok)
+        return NULL;
+    if (status == VSJ_NO_MEMORY)
+        return PyErr_NoMemory();
+    Py_RETURN_NONE;
+}
+
+/* ---- element laws ------------------------------------------------------------------------ */
+
+static int par_row(PyObject *o, double p[VSJ_NPAR]) {
+    arg a;
+    Py_ssize_t i, n;
+    if (get(o, &a, DOUBLES, 0, -1, "par") < 0)
+        return -1;
+    n = items(&a);
+    if (n > VSJ_NPAR) {
+        PyErr_Format(PyExc_ValueError, "par: at most %d values, got %zd", VSJ_NPAR, n);
+        release(&a);
+        return -1;
+    }
+    for (i = 0; i < VSJ_NPAR; i++)
+        p[i] = i < n ? ((const double *)a.view.buf)[i] : 0.0;
+    release(&a);
+    return 0;
+}
+
+/* spring_law(law, par, phis, q, out): out[i] = (torque, stiffness, energy, dV/dq) */
+static PyObject *py_spring_law(PyObject *mod, PyObject *args) {
+    int law;
+    PyObject *opar, *ophi, *oout;
+    double q, p[VSJ_NPAR];
+    arg phi, out;
+    Py_ssize_t i, n;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "iOOdO:spring_law", &law, &opar, &ophi, &q, &oout))
+        return NULL;
+    if (law < VSJ_LINEAR || law > VSJ_GEOMETRIC_REPORT) {
+        PyErr_Format(PyExc_ValueError, "unknown spring law %d", law);
+        return NULL;
+    }
+    if (par_row(opar, p) < 0 || get(ophi, &phi, DOUBLES, 0, -1, "phi") < 0)
+        return NULL;
+    n = items(&phi);
+    if (get(oout, &out, DOUBLES, 1, 4 * n, "out") < 0) {
+        release(&phi);
+        return NULL;
+    }
+    for (i = 0; i < n; i++)
+        vsj_spring_law(law, p, ((const double *)phi.view.buf)[i], q,
+                       (double *)out.view.buf + 4 * i);
+    release(&phi);
+    release(&out);
+    Py_RETURN_NONE;
+}
+
+/* spring_geometry(par, phi, q) -> (V, dV/dphi, d2V/dphi2, dV/dq, T_phi, dT_phi/dphi) */
+static PyObject *py_spring_geometry(PyObject *mod, PyObject *args) {
+    PyObject *opar;
+    double phi, q, p[VSJ_NPAR], out[6];
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "Odd:spring_geometry", &opar, &phi, &q) || par_row(opar, p) < 0)
+        return NULL;
+    vsj_spring_geometry(p, phi, q, out);
+    return Py_BuildValue("(dddddd)", out[0], out[1], out[2], out[3], out[4], out[5]);
+}
+
+/* spring_extensions(par, phi, q) -> (extension a, extension b) */
+static PyObject *py_spring_extensions(PyObject *mod, PyObject *args) {
+    PyObject *opar;
+    double phi, q, p[VSJ_NPAR], out[2];
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "Odd:spring_extensions", &opar, &phi, &q) || par_row(opar, p) < 0)
+        return NULL;
+    vsj_spring_extensions(p, phi, q, out);
+    return Py_BuildValue("(dd)", out[0], out[1]);
+}
+
+/* friction_torque(law, b, k, kb, w, speeds, out) */
+static PyObject *py_friction_torque(PyObject *mod, PyObject *args) {
+    int law;
+    double b, k, kb, w;
+    PyObject *os, *oout;
+    arg s, out;
+    Py_ssize_t i, n;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "iddddOO:friction_torque", &law, &b, &k, &kb, &w, &os, &oout))
+        return NULL;
+    if (law < VSJ_VISCOUS || law > VSJ_STICTION) {
+        PyErr_Format(PyExc_ValueError, "unknown friction law %d", law);
+        return NULL;
+    }
+    if (get(os, &s, DOUBLES, 0, -1, "speeds") < 0)
+        return NULL;
+    n = items(&s);
+    if (get(oout, &out, DOUBLES, 1, n, "out") < 0) {
+        release(&s);
+        return NULL;
+    }
+    for (i = 0; i < n; i++)
+        ((double *)out.view.buf)[i] =
+            vsj_friction_torque(law, b, k, kb, w, ((const double *)s.view.buf)[i], NULL);
+    release(&s);
+    release(&out);
+    Py_RETURN_NONE;
+}
+
+static PyObject *py_status_text(PyObject *mod, PyObject *arg_) {
+    long status = PyLong_AsLong(arg_);
+    (void)mod;
+    if (status == -1 && PyErr_Occurred())
+        return NULL;
+    return PyUnicode_FromString(vsj_status_text((int)status));
+}
+
+static PyObject *py_observation_width(PyObject *mod, PyObject *arg_) {
+    (void)mod;
+    if (!PyObject_TypeCheck(arg_, &ModelType)) {
+        PyErr_SetString(PyExc_TypeError, "observation_width: needs a Model");
+        return NULL;
+    }
+    return PyLong_FromLongLong((long long)vsj_observation_width(&((ModelObject *)arg_)->m));
+}
+
+static PyMethodDef methods[] = {
+    {"dopri", py_dopri, METH_VARARGS, "Adaptive Dormand-Prince 5(4) (vsj_dopri)."},
+    {"timestep", py_timestep, METH_VARARGS, "The time-stepper with true stiction (vsj_timestep)."},
+    {"observe", py_observe, METH_VARARGS, "Every internal signal at samples (vsj_observe)."},
+    {"derivatives", py_derivatives, METH_VARARGS, "dy/dt (vsj_derivatives)."},
+    {"source_signals", py_source_signals, METH_VARARGS, "Source angles and speeds."},
+    {"stored_energy", py_stored_energy, METH_VARARGS, "Kinetic, spring and inductor energy."},
+    {"step", (PyCFunction)(void (*)(void))py_step, METH_FASTCALL,
+     "One control period (vsj_step_dopri, vsj_step_rk4, vsj_step_timestep)."},
+    {"ts_prepare", py_ts_prepare, METH_VARARGS, "Analyse a model for the time-stepper."},
+    {"step_rate", py_step_rate, METH_VARARGS, "ds/dt of the step function's state."},
+    {"batch_run", py_batch_run, METH_VARARGS, "One run of a batch (releases the GIL)."},
+    {"solve_impulses", py_solve_impulses, METH_VARARGS,
+     "The joint Coulomb impulse problem for a sequence of right-hand sides."},
+    {"spring_law", py_spring_law, METH_VARARGS, "Spring law at many deflections."},
+    {"spring_geometry", py_spring_geometry, METH_VARARGS, "Both geometric models at a point."},
+    {"spring_extensions", py_spring_extensions, METH_VARARGS, "Spring extensions l - s0."},
+    {"friction_torque", py_friction_torque, METH_VARARGS, "Friction law at many speeds."},
+    {"status_text", py_status_text, METH_O, "Text of an engine status."},
+    {"observation_width", py_observation_width, METH_O, "Columns of observe's rows."},
+    {NULL, NULL, 0, NULL}};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "vsj.engine._core",
+    "The compiled engine of vsj (C99 library vsj.h) behind a thin binding.", -1, methods,
+    NULL, NULL, NULL, NULL};
+
+PyMODINIT_FUNC PyInit__core(void) {
+    PyObject *m;
+    if (PyType_Ready(&ModelType) < 0 || PyType_Ready(&WorkType) < 0)
+        return NULL;
+    m = PyModule_Create(&module);
+    if (!m)
+        return NULL;
+    Py_INCREF(&ModelType);
+    if (PyModule_AddObject(m, "Model", (PyObject *)&ModelType) < 0) {
+        Py_DECREF(&ModelType);
+        Py_DECREF(m);
+        return NULL;
+    }
+    Py_INCREF(&WorkType);
+    if (PyModule_AddObject(m, "Work", (PyObject *)&WorkType) < 0) {
+        Py_DECREF(&WorkType);
+        Py_DECREF(m);
+        return NULL;
+    }
+    PyModule_AddIntConstant(m, "NPAR", VSJ_NPAR);
+    PyModule_AddIntConstant(m, "VERSION_MAJOR", VSJ_VERSION_MAJOR);
+    return m;
+}

@@ -1,0 +1,413 @@
+/* Evaluation of a model: inputs, element forces, accelerations, energies.
+ *
+ * Equations of motion (vsj.network): with flange speeds A v + B u and the
+ * kinetic energy matrix [[M, Msu], [Mus, Mss]] over (v, u),
+ *
+ *     M a = sum over elements of A^T torque - Msu du/dt
+ *     tau_sources = Mus a + Mss du/dt - sum over elements of B^T torque
+ *
+ * where tau_sources is the torque each velocity source supplies.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "internal.h"
+
+const char *vsj_status_text(int status) {
+    switch (status) {
+    case VSJ_OK: return "ok";
+    case VSJ_NOT_FINITE: return "the state or a force became non-finite";
+    case VSJ_PIVOT_RANGE: return "the pivot position left its allowed range";
+    case VSJ_TOO_MANY_STEPS: return "the solver reached its maximum number of steps";
+    case VSJ_STEP_TOO_SMALL:
+        return "the step size fell below the round-off limit (stiff or discontinuous "
+               "dynamics; try the time-stepping solver)";
+    case VSJ_FRICTION_SOLVER: return "the stiction solver did not converge";
+    case VSJ_BAD_ARGUMENT: return "an argument is out of range";
+    case VSJ_NO_MEMORY: return "out of memory";
+    default: return "unknown status";
+    }
+}
+
+int64_t vsj_n_state(const vsj_model *m) { return 2 * m->n + m->n_motors; }
+
+int64_t vsj_n_acc(const vsj_model *m) {
+    return m->n_sources + m->n_loads + 2 * m->n_motors + m->n_frictions + 2 * m->n_springs;
+}
+
+/* ---- inputs ---------------------------------------------------------------- */
+
+void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c, double t) {
+    double *ch = w->chan + 3 * c;
+    int64_t p0, npieces, koff, j, p;
+    double t0, t_last, tau, c0, c1, c2, c3;
+    if (w->held) { /* held over a control period, from t = 0 */
+        double v = w->held[c];
+        ch[0] = v;
+        ch[1] = 0.0;
+        ch[2] = t * v;
+        return;
+    }
+    p0 = m->first[c];
+    npieces = m->count[c];
+    koff = p0 + c;
+    t0 = m->knots[koff];
+    if (t < t0) {
+        double v = m->coef[4 * p0];
+        ch[0] = v;
+        ch[1] = 0.0;
+        ch[2] = (t - t0) * v;
+        return;
+    }
+    t_last = m->knots[koff + npieces];
+    if (t >= t_last) {
+        const double *cf;
+        double v;
+        p = p0 + npieces - 1;
+        cf = m->coef + 4 * p;
+        tau = t_last - m->knots[koff + npieces - 1];
+        v = cf[0] + tau * (cf[1] + tau * (cf[2] + tau * cf[3]));
+        ch[0] = v;
+        ch[1] = 0.0;
+        ch[2] = m->cum[koff + npieces] + (t - t_last) * v;
+        return;
+    }
+    j = w->hint[c];
+    if (j < 0 || j >= npieces)
+        j = 0;
+    while (m->knots[koff + j + 1] <= t)
+        j++;
+    while (m->knots[koff + j] > t)
+        j--;
+    w->hint[c] = j;
+    tau = t - m->knots[koff + j];
+    p = p0 + j;
+    c0 = m->coef[4 * p];
+    c1 = m->coef[4 * p + 1];
+    c2 = m->coef[4 * p + 2];
+    c3 = m->coef[4 * p + 3];
+    ch[0] = c0 + tau * (c1 + tau * (c2 + tau * c3));
+    ch[1] = c1 + tau * (2.0 * c2 + 3.0 * c3 * tau);
+    ch[2] = m->cum[koff + j] + tau * (c0 + tau * (0.5 * c1 + tau * (c2 / 3.0 + 0.25 * c3 * tau)));
+}
+
+void vsj__eval_source(const vsj_model *m, vsj_work *w, int64_t j) {
+    const double *ch = w->chan + 3 * m->src_ch[j];
+    double *sw = w->srcw + SRCW * j;
+    sw[U] = ch[0];
+    sw[UD] = ch[1];
+    sw[SG] = (w->held ? w->pos0[j] : m->src_pos0[j]) + ch[2];
+}
+
+void vsj__eval_inputs(const vsj_model *m, vsj_work *w, double t) {
+    int64_t c, j;
+    for (c = 0; c < m->n_channels; c++)
+        vsj__eval_channel(m, w, c, t);
+    for (j = 0; j < m->n_sources; j++)
+        vsj__eval_source(m, w, j);
+}
+
+/* ---- sparse rows ----------------------------------------------------------- */
+
+double vsj__xdot(const vsj_model *m, int64_t r, const double *vec) {
+    double acc = 0.0;
+    int64_t k;
+    for (k = m->xp[r]; k < m->xp[r + 1]; k++)
+        acc += m->xv[k] * vec[m->xc[k]];
+    return acc;
+}
+
+double vsj__udot(const vsj_model *m, int64_t r, const double *srcw, int col) {
+    double acc = 0.0;
+    int64_t k;
+    for (k = m->up[r]; k < m->up[r + 1]; k++)
+        acc += m->uv[k] * srcw[SRCW * m->uc[k] + col];
+    return acc;
+}
+
+double vsj__udotv(const vsj_model *m, int64_t r, const double *vec) {
+    double acc = 0.0;
+    int64_t k;
+    for (k = m->up[r]; k < m->up[r + 1]; k++)
+        acc += m->uv[k] * vec[m->uc[k]];
+    return acc;
+}
+
+void vsj__xadd(const vsj_model *m, int64_t r, double *vec, double scale) {
+    int64_t k;
+    for (k = m->xp[r]; k < m->xp[r + 1]; k++)
+        vec[m->xc[k]] += scale * m->xv[k];
+}
+
+static void uadd(const vsj_model *m, int64_t r, double *srcw, int col, double scale) {
+    int64_t k;
+    for (k = m->up[r]; k < m->up[r + 1]; k++)
+        srcw[SRCW * m->uc[k] + col] += scale * m->uv[k];
+}
+
+void vsj__uaddv(const vsj_model *m, int64_t r, double *vec, double scale) {
+    int64_t k;
+    for (k = m->up[r]; k < m->up[r + 1]; k++)
+        vec[m->uc[k]] += scale * m->uv[k];
+}
+
+/* ---- the pivot --------------------------------------------------------------- */
+
+double vsj__pivot_at(const vsj_model *m, vsj_work *w, double angle) {
+    const double *p = vsj__row(m, m->n_rows - 1);
+    double moving = p[2]; /* 1 with a pivot mechanism, 0 for a fixed pivot */
+    double q = moving * p[0] * sin(angle) + (1.0 - moving) * p[1];
+    w->q = q;
+    if ((q < p[3] - 1e-12 || q > p[4] + 1e-12) && w->status < VSJ_PIVOT_RANGE)
+        w->status = VSJ_PIVOT_RANGE;
+    return q;
+}
+
+double vsj__pivot_angle(const vsj_model *m, const vsj_work *w, const double *x) {
+    int64_t r = m->n_rows - 1;
+    return vsj__xdot(m, r, x) + vsj__udot(m, r, w->srcw, SG);
+}
+
+double vsj__pivot_position(const vsj_model *m, vsj_work *w, const double *x) {
+    return vsj__pivot_at(m, w, vsj__pivot_angle(m, w, x));
+}
+
+/* Pivot position and rate; y holds the angles and then the speeds (offset n). */
+static double eval_pivot(const vsj_model *m, vsj_work *w, const double *y) {
+    int64_t r = m->n_rows - 1;
+    const double *p = vsj__row(m, r);
+    double angle = vsj__pivot_angle(m, w, y);
+    double rate = vsj__xdot(m, r, y + m->n) + vsj__udot(m, r, w->srcw, U);
+    double q = vsj__pivot_at(m, w, angle);
+    w->qdot = p[2] * p[0] * cos(angle) * rate;
+    return q;
+}
+
+/* ---- forces ----------------------------------------------------------------- */
+
+static void eval_springs(const vsj_model *m, vsj_work *w, const double *y) {
+    double q = eval_pivot(m, w, y);
+    int64_t kk, f = m->n_frictions, n = m->n;
+    for (kk = 0; kk < m->n_springs; kk++) {
+        int64_t r = f + kk;
+        double *sp = w->spw + SPW * kk;
+        double d = vsj__xdot(m, r, y) + vsj__udot(m, r, w->srcw, SG);
+        double stiff, energy, dvq;
+        double tau = vsj__spring(m->code[r], vsj__row(m, r), d, q, &stiff, &energy, &dvq);
+        sp[DEFL] = d;
+        sp[RATE] = vsj__xdot(m, r, y + n) + vsj__udot(m, r, w->srcw, U);
+        sp[SPTAU] = tau;
+        sp[STIFF] = stiff;
+        sp[ENERGY] = energy;
+        sp[DVDQ] = dvq;
+    }
+}
+
+/* All element torques at y, as generalised forces in w->gen and, with `full`,
+ * as source forces in srcw[:, SRCF]. Without `full`, elements that only the
+ * sources feel are skipped (the dynamics do not need them). */
+static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int full) {
+    int64_t n = m->n, s = m->n_sources, f = m->n_frictions, k = m->n_springs;
+    int64_t nl = m->n_loads, i, j, kk, e, ld, mo;
+    for (i = 0; i < n; i++)
+        w->gen[i] = 0.0;
+    for (j = 0; j < s; j++)
+        w->srcw[SRCW * j + SRCF] = 0.0;
+    eval_springs(m, w, y);
+    for (kk = 0; kk < k; kk++) {
+        int64_t r = f + kk;
+        double tau = w->spw[SPW * kk + SPTAU];
+        vsj__xadd(m, r, w->gen, tau);
+        if (full)
+            uadd(m, r, w->srcw, SRCF, tau);
+    }
+    for (e = 0; e < f; e++) {
+        const double *p;
+        double slip, torque;
+        if (!full && m->xp[e + 1] == m->xp[e])
+            continue;
+        p = vsj__row(m, e);
+        slip = vsj__xdot(m, e, y + n) + vsj__udot(m, e, w->srcw, U);
+        torque = vsj_friction_torque((int)m->code[e], p[0], p[1], p[2], p[3], slip, NULL);
+        if (m->code[e] == VSJ_STICTION)
+            torque += w->frw[FRW * e + EXTRA];
+        w->frw[FRW * e + SLIP] = slip;
+        w->frw[FRW * e + TORQUE] = torque;
+        vsj__xadd(m, e, w->gen, -torque);
+        if (full)
+            uadd(m, e, w->srcw, SRCF, -torque);
+    }
+    for (ld = 0; ld < nl; ld++) {
+        int64_t r = f + k + ld;
+        double tau = w->chan[3 * m->code[r]];
+        w->ldw[2 * ld] = tau;
+        w->ldw[2 * ld + 1] = vsj__xdot(m, r, y + n) + vsj__udot(m, r, w->srcw, U);
+        vsj__xadd(m, r, w->gen, tau);
+        if (full)
+            uadd(m, r, w->srcw, SRCF, tau);
+    }
+    for (mo = 0; mo < m->n_motors; mo++) {
+        int64_t r = f + k + nl + mo;
+        double torque = vsj__row(m, r)[2] * y[2 * n + mo];
+        w->mow[2 * mo] = vsj__xdot(m, r, y + n) + vsj__udot(m, r, w->srcw, U);
+        w->mow[2 * mo + 1] = w->chan[3 * m->code[r]];
+        vsj__xadd(m, r, w->gen, torque);
+        if (full)
+            uadd(m, r, w->srcw, SRCF, torque);
+    }
+}
+
+void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y,
+                           int64_t ny, double *dy) {
+    int64_t n = m->n, s = m->n_sources, nm = m->n_motors, i, j, r, mo, e, kk, ld, p;
+    int64_t sz = n + s;
+    int64_t base_m = m->n_frictions + m->n_springs + m->n_loads;
+    int full = ny > 2 * n + nm;
+    vsj__eval_inputs(m, w, t);
+    eval_forces(m, w, y, full);
+    for (i = 0; i < n; i++)
+        for (j = 0; j < s; j++)
+            w->gen[i] -= m->mass[sz * i + n + j] * w->srcw[SRCW * j + UD];
+    for (i = 0; i < n; i++) {
+        double total = 0.0;
+        for (r = 0; r < n; r++)
+            total += m->Minv[n * i + r] * w->gen[r];
+        dy[n + i] = total;
+        dy[i] = y[n + i];
+    }
+    if (full) {
+        for (j = 0; j < s; j++) {
+            double tau = -w->srcw[SRCW * j + SRCF];
+            for (i = 0; i < n; i++)
+                tau += m->mass[sz * (n + j) + i] * dy[n + i];
+            for (r = 0; r < s; r++)
+                tau += m->mass[sz * (n + j) + n + r] * w->srcw[SRCW * r + UD];
+            w->srcw[SRCW * j + SRCTAU] = tau;
+        }
+    }
+    for (mo = 0; mo < nm; mo++) {
+        const double *pr = vsj__row(m, base_m + mo);
+        dy[2 * n + mo] = (w->mow[2 * mo + 1] - pr[0] * y[2 * n + mo] - pr[2] * w->mow[2 * mo])
+                         / pr[1];
+    }
+    if (full) {
+        p = 2 * n + nm;
+        for (j = 0; j < s; j++)
+            dy[p++] = w->srcw[SRCW * j + U] * w->srcw[SRCW * j + SRCTAU];
+        for (ld = 0; ld < m->n_loads; ld++)
+            dy[p++] = w->ldw[2 * ld] * w->ldw[2 * ld + 1];
+        for (mo = 0; mo < nm; mo++)
+            dy[p++] = w->mow[2 * mo + 1] * y[2 * n + mo];
+        for (e = 0; e < m->n_frictions; e++)
+            dy[p++] = w->frw[FRW * e + TORQUE] * w->frw[FRW * e + SLIP];
+        for (mo = 0; mo < nm; mo++)
+            dy[p++] = vsj__row(m, base_m + mo)[0] * y[2 * n + mo] * y[2 * n + mo];
+        for (kk = 0; kk < m->n_springs; kk++)
+            dy[p++] = w->spw[SPW * kk + SPTAU] * w->spw[SPW * kk + RATE];
+        for (kk = 0; kk < m->n_springs; kk++)
+            dy[p++] = w->spw[SPW * kk + DVDQ] * w->qdot;
+    }
+    for (i = 0; i < ny; i++)
+        if (!isfinite(dy[i]))
+            w->status = VSJ_NOT_FINITE;
+}
+
+int vsj_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y, int64_t ny,
+                    double *dy) {
+    w->status = VSJ_OK;
+    vsj__eval_derivatives(m, w, t, y, ny, dy);
+    return w->status;
+}
+
+void vsj_source_signals(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_out,
+                        double *angles, double *speeds) {
+    int64_t i, j, s = m->n_sources;
+    for (i = 0; i < n_out; i++) {
+        vsj__eval_inputs(m, w, t_out[i]);
+        for (j = 0; j < s; j++) {
+            angles[s * i + j] = w->srcw[SRCW * j + SG];
+            speeds[s * i + j] = w->srcw[SRCW * j + U];
+        }
+    }
+}
+
+void vsj_stored_energy(const vsj_model *m, vsj_work *w, double t, const double *y,
+                       double energy[3], double *springs) {
+    int64_t n = m->n, s = m->n_sources, nm = m->n_motors, sz = n + s, i, r, kk, mo;
+    int64_t base_m = m->n_frictions + m->n_springs + m->n_loads;
+    double kin = 0.0, pot = 0.0, ind = 0.0;
+    vsj__eval_inputs(m, w, t);
+    eval_springs(m, w, y);
+    for (i = 0; i < sz; i++) {
+        double a = i < n ? y[n + i] : w->srcw[SRCW * (i - n) + U];
+        for (r = 0; r < sz; r++) {
+            double b = r < n ? y[n + r] : w->srcw[SRCW * (r - n) + U];
+            kin += 0.5 * a * m->mass[sz * i + r] * b;
+        }
+    }
+    for (kk = 0; kk < m->n_springs; kk++) {
+        pot += w->spw[SPW * kk + ENERGY];
+        if (springs)
+            springs[kk] = w->spw[SPW * kk + ENERGY];
+    }
+    for (mo = 0; mo < nm; mo++)
+        ind += 0.5 * vsj__row(m, base_m + mo)[1] * y[2 * n + mo] * y[2 * n + mo];
+    energy[0] = kin;
+    energy[1] = pot;
+    energy[2] = ind;
+}
+
+int64_t vsj_observation_width(const vsj_model *m) {
+    int64_t n = m->n, s = m->n_sources, f = m->n_frictions, k = m->n_springs;
+    return 3 * n + m->n_motors + 3 * s + 2 + 2 * f + 5 * k + s + 2 * m->n_loads
+           + 2 * m->n_motors;
+}
+
+int vsj_observe(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_out,
+                const double *out, int64_t ny, const double *coulomb, double *raw) {
+    int64_t n = m->n, nm = m->n_motors, ns = 2 * n + nm, s = m->n_sources;
+    int64_t f = m->n_frictions, k = m->n_springs, nl = m->n_loads;
+    int64_t width = vsj_observation_width(m), full = ns + vsj_n_acc(m), i, j, e, kk;
+    static const int src_cols[3] = {SG, U, UD};
+    static const int spring_cols[5] = {DEFL, RATE, SPTAU, ENERGY, STIFF};
+    int status = VSJ_OK;
+    if (ny < ns)
+        return VSJ_BAD_ARGUMENT;
+    for (i = 0; i < n_out; i++) {
+        const double *y = out + ny * i;
+        double *row = raw + width * i;
+        int64_t p = 0, c;
+        for (e = 0; e < f; e++)
+            w->frw[FRW * e + EXTRA] = coulomb ? coulomb[f * i + e] : 0.0;
+        /* evaluated at full length (source torques and every element), which
+         * reads the state part of y only */
+        w->status = VSJ_OK;
+        vsj__eval_derivatives(m, w, t_out[i], y, full, w->dy);
+        if (w->status == VSJ_NOT_FINITE)
+            status = VSJ_NOT_FINITE;
+        for (j = 0; j < ns; j++)
+            row[p++] = y[j];
+        for (j = 0; j < n; j++)
+            row[p++] = w->dy[n + j];
+        for (c = 0; c < 3; c++)
+            for (j = 0; j < s; j++)
+                row[p++] = w->srcw[SRCW * j + src_cols[c]];
+        row[p++] = w->q;
+        row[p++] = w->qdot;
+        for (c = 0; c < 2; c++)
+            for (e = 0; e < f; e++)
+                row[p++] = w->frw[FRW * e + (c == 0 ? SLIP : TORQUE)];
+        for (c = 0; c < 5; c++)
+            for (kk = 0; kk < k; kk++)
+                row[p++] = w->spw[SPW * kk + spring_cols[c]];
+        for (j = 0; j < s; j++)
+            row[p++] = w->srcw[SRCW * j + SRCTAU];
+        for (c = 0; c < 2; c++)
+            for (j = 0; j < nl; j++)
+                row[p++] = w->ldw[2 * j + c];
+        for (c = 0; c < 2; c++)
+            for (j = 0; j < nm; j++)
+                row[p++] = w->mow[2 * j + c];
+    }
+    return status;
+}

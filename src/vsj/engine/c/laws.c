@@ -1,0 +1,188 @@
+/* Element laws: friction (vsj.friction) and springs (vsj.components.elastic_element).
+ *
+ * Friction laws give the resistive torque f(s) of a relative speed s, which
+ * the element applies against s; every law saturates at the Coulomb level
+ * k pi/2 (the report's k read as in section 4.1.3).
+ *
+ * Spring laws give the torque on the ring (restoring), the stiffness
+ * -dtorque/dphi, the stored energy V and dV/dq. The geometric element is that
+ * of report section 3.2.1 (eq 3.1-3.8); the potential form differentiates the
+ * springs' energy, eq 3.8 is the report's moment balance about the pivot.
+ */
+#include <math.h>
+
+#include "internal.h"
+
+double vsj_friction_torque(int law, double b, double k, double kb, double w, double s,
+                           double *slope) {
+    double f = b * s;
+    double df = b;
+    if (law == VSJ_ARCTAN) {
+        f += k * atan(kb * s);
+        df += k * kb / (1.0 + (kb * s) * (kb * s));
+    } else if (law == VSJ_SIGN) {
+        if (s > 0.0)
+            f += k * (0.5 * VSJ_PI);
+        else if (s < 0.0)
+            f -= k * (0.5 * VSJ_PI);
+    } else if (law == VSJ_SLOPE) {
+        double level = k * (0.5 * VSJ_PI);
+        if (s >= w) {
+            f += level;
+        } else if (s <= -w) {
+            f -= level;
+        } else {
+            f += level * s / w;
+            df += level / w;
+        }
+    }
+    if (slope)
+        *slope = df;
+    return f;
+}
+
+/* Lever of eq 3.1: sines and cosines of phi and alpha, dalpha/dphi, dalpha/dq,
+ * d2alpha/dphi2 and the pin-pivot distance r2. */
+typedef struct lever {
+    double sp, cp, sa, ca, a_phi, a_q, a_pp, r2;
+} lever;
+
+static lever lever_at(double phi, double q, double R) {
+    lever l;
+    double n, d, r2sq;
+    l.sp = sin(phi);
+    l.cp = cos(phi);
+    n = R * l.sp;
+    d = q + R * l.cp;
+    r2sq = n * n + d * d;
+    l.r2 = sqrt(r2sq);
+    l.sa = n / l.r2;
+    l.ca = d / l.r2;
+    l.a_phi = R * (R + q * l.cp) / r2sq;
+    l.a_q = -R * l.sp / r2sq;
+    l.a_pp = R * q * l.sp * (R * R - q * q) / (r2sq * r2sq);
+    return l;
+}
+
+/* Lever end where spring `side` (+1: a, -1: b) attaches (eq 3.4). */
+static void lever_end(double R, double L, double W, const lever *l, double side, double *X,
+                      double *Y) {
+    *X = R * l->sp - L * l->sa + side * W * l->ca;
+    *Y = -R * l->cp + L * l->ca + side * W * l->sa;
+}
+
+void vsj_spring_extensions(const double p[VSJ_NPAR], double phi, double q, double out[2]) {
+    double R = p[0], L = p[1], W = p[2], x0 = p[3], y0 = p[4], s0 = p[5];
+    lever l = lever_at(phi, q, R);
+    double Xa, Ya, Xb, Yb;
+    lever_end(R, L, W, &l, 1.0, &Xa, &Ya);
+    lever_end(R, L, W, &l, -1.0, &Xb, &Yb);
+    out[0] = sqrt((Xa - x0) * (Xa - x0) + (Ya - y0) * (Ya - y0)) - s0;
+    out[1] = sqrt((Xb + x0) * (Xb + x0) + (Yb - y0) * (Yb - y0)) - s0;
+}
+
+void vsj_spring_geometry(const double p[VSJ_NPAR], double phi, double q, double out[6]) {
+    double R = p[0], L = p[1], W = p[2], x0 = p[3], y0 = p[4], s0 = p[5], k = p[6];
+    lever l = lever_at(phi, q, R);
+    double V = 0.0, dV = 0.0, d2V = 0.0, dVq = 0.0, t_sum = 0.0, dt_sum = 0.0;
+    int half;
+    for (half = 0; half < 2; half++) {
+        double side = 1.0 - 2.0 * half; /* spring a (+1), then spring b (-1) */
+        /* derivatives of the lever end with u_L = (-sa, ca), u_W = (ca, sa) */
+        double lx = -L * l.ca + side * W * (-l.sa);
+        double ly = -L * l.sa + side * W * l.ca;
+        double mx = L * l.sa - side * W * l.ca;
+        double my = -L * l.ca - side * W * l.sa;
+        double X, Y, Xp, Yp, Xpp, Ypp, Xq, Yq, ax, gx, gy, ell, e, gxp, c, dc, arm, darm;
+        lever_end(R, L, W, &l, side, &X, &Y);
+        Xp = R * l.cp + lx * l.a_phi;
+        Yp = R * l.sp + ly * l.a_phi;
+        Xpp = -R * l.sp + mx * l.a_phi * l.a_phi + lx * l.a_pp;
+        Ypp = R * l.cp + my * l.a_phi * l.a_phi + ly * l.a_pp;
+        Xq = lx * l.a_q;
+        Yq = ly * l.a_q;
+        ax = side * x0;
+        gx = X - ax;
+        gy = Y - y0;
+        ell = sqrt(gx * gx + gy * gy);
+        e = ell - s0;
+        if (e <= 0.0)
+            continue; /* slack: a spring only pulls */
+        gxp = gx * Xp + gy * Yp;
+        V += 0.5 * k * e * e;
+        dV += k * e * gxp / ell;
+        d2V += k * (gxp * gxp / (ell * ell)
+                    + e * ((Xp * Xp + Yp * Yp + gx * Xpp + gy * Ypp) / ell
+                           - gxp * gxp / (ell * ell * ell)));
+        dVq += k * e * (gx * Xq + gy * Yq) / ell;
+        /* eq 3.5-3.7: moment arm of the spring force about the pivot (0, q) */
+        c = gy * ax - gx * (y0 - q);
+        dc = Yp * ax - Xp * (y0 - q);
+        arm = c / ell;
+        darm = dc / ell - c * gxp / (ell * ell * ell);
+        t_sum += k * e * arm;
+        dt_sum += k * (gxp / ell * arm + e * darm);
+    }
+    {
+        double scale = R / l.r2; /* sin(alpha) / sin(phi) of eq 3.8 */
+        out[0] = V;
+        out[1] = dV;
+        out[2] = d2V;
+        out[3] = dVq;
+        out[4] = t_sum * scale;
+        out[5] = dt_sum * scale + t_sum * R * q * R * l.sp / (l.r2 * l.r2 * l.r2);
+    }
+}
+
+double vsj__spring(int64_t law, const double *p, double phi, double q, double *stiff,
+                   double *energy, double *dvdq) {
+    double tau, k_, en, dvq, stop, k_stop, excess;
+    if (law == VSJ_LINEAR) {
+        double k = p[0];
+        *stiff = k;
+        *energy = 0.5 * k * phi * phi;
+        *dvdq = 0.0;
+        return -k * phi;
+    }
+    if (law == VSJ_EXPONENTIAL) {
+        double growth = p[0] * exp(p[1] * q);
+        k_ = growth + p[2];
+        tau = -k_ * phi;
+        en = 0.5 * k_ * phi * phi;
+        dvq = 0.5 * growth * p[1] * phi * phi;
+        stop = p[3];
+        k_stop = p[4];
+    } else {
+        double g[6];
+        vsj_spring_geometry(p, phi, q, g);
+        if (law == VSJ_GEOMETRIC) {
+            tau = -g[1];
+            k_ = g[2];
+        } else {
+            tau = -g[4];
+            k_ = g[5];
+        }
+        en = g[0];
+        dvq = g[3];
+        stop = p[7];
+        k_stop = p[8];
+    }
+    excess = fabs(phi) - stop;
+    if (excess > 0.0) {
+        double sign = phi > 0.0 ? 1.0 : -1.0;
+        tau -= k_stop * excess * sign;
+        k_ += k_stop;
+        en += 0.5 * k_stop * excess * excess;
+    }
+    *stiff = k_;
+    *energy = en;
+    *dvdq = dvq;
+    return tau;
+}
+
+int vsj_spring_law(int law, const double par[VSJ_NPAR], double phi, double q, double out[4]) {
+    if (law < VSJ_LINEAR || law > VSJ_GEOMETRIC_REPORT)
+        return VSJ_BAD_ARGUMENT;
+    out[0] = vsj__spring(law, par, phi, q, &out[1], &out[2], &out[3]);
+    return VSJ_OK;
+}

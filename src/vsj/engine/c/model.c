@@ -1,0 +1,290 @@
+/* Checking a model, and the work a computation runs in. */
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "internal.h"
+
+static int fail(char *message, size_t size, const char *format, ...) {
+    if (message && size) {
+        va_list args;
+        va_start(args, format);
+        vsnprintf(message, size, format, args);
+        va_end(args);
+    }
+    return VSJ_BAD_ARGUMENT;
+}
+
+static int finite_array(const double *a, int64_t len, const char *name, char *message,
+                        size_t size) {
+    int64_t i;
+    for (i = 0; i < len; i++)
+        if (!isfinite(a[i]))
+            return fail(message, size, "model array %s: entry %lld is %g (not finite)", name,
+                        (long long)i, a[i]);
+    return VSJ_OK;
+}
+
+static int csr(const int64_t *ptr, const int64_t *col, const double *val, int64_t rows,
+               int64_t cols, const char *name, char *message, size_t size) {
+    int64_t r, k;
+    if (ptr[0] != 0)
+        return fail(message, size, "model array %sp: first pointer must be 0, got %lld", name,
+                    (long long)ptr[0]);
+    for (r = 0; r < rows; r++) {
+        if (ptr[r + 1] < ptr[r])
+            return fail(message, size, "model array %sp: pointers must not decrease (row %lld)",
+                        name, (long long)r);
+        for (k = ptr[r]; k < ptr[r + 1]; k++)
+            if (col[k] < 0 || col[k] >= cols)
+                return fail(message, size,
+                            "model array %sc: column %lld of row %lld is outside 0..%lld", name,
+                            (long long)col[k], (long long)r, (long long)(cols - 1));
+    }
+    return finite_array(val, ptr[rows], name[0] == 'x' ? "xv" : "uv", message, size);
+}
+
+int vsj_check_model(const vsj_model *m, char *message, size_t size) {
+    int64_t n, s, f, k, nl, nm, nch, rows, sz, i, c, r;
+    int status;
+    if (!m)
+        return fail(message, size, "no model");
+    n = m->n;
+    s = m->n_sources;
+    f = m->n_frictions;
+    k = m->n_springs;
+    nl = m->n_loads;
+    nm = m->n_motors;
+    nch = m->n_channels;
+    rows = m->n_rows;
+    if (n < 0 || s < 0 || f < 0 || k < 0 || nl < 0 || nm < 0 || nch < 0 || m->n_pieces < 0)
+        return fail(message, size, "model sizes must be >= 0");
+    if (rows != f + k + nl + nm + 1)
+        return fail(message, size,
+                    "model: n_rows must be n_frictions + n_springs + n_loads + n_motors + 1 = "
+                    "%lld, got %lld", (long long)(f + k + nl + nm + 1), (long long)rows);
+    if (m->n_pieces < nch)
+        return fail(message, size, "model: %lld spline pieces for %lld channels",
+                    (long long)m->n_pieces, (long long)nch);
+    if (!m->mass || !m->Minv || !m->xp || !m->xc || !m->xv || !m->up || !m->uc || !m->uv
+        || !m->par || !m->code || !m->src_ch || !m->src_pos0 || !m->knots || !m->coef
+        || !m->cum || !m->first || !m->count)
+        return fail(message, size, "model: an array pointer is NULL");
+    sz = n + s;
+    if ((status = finite_array(m->mass, sz * sz, "mass", message, size)) != VSJ_OK)
+        return status;
+    if ((status = finite_array(m->Minv, n * n, "Minv", message, size)) != VSJ_OK)
+        return status;
+    if ((status = csr(m->xp, m->xc, m->xv, rows, n, "x", message, size)) != VSJ_OK)
+        return status;
+    if ((status = csr(m->up, m->uc, m->uv, rows, s, "u", message, size)) != VSJ_OK)
+        return status;
+    /* parameters: finite, except the pivot range, which may be unbounded */
+    for (r = 0; r < rows; r++)
+        for (c = 0; c < VSJ_NPAR; c++) {
+            double v = m->par[VSJ_NPAR * r + c];
+            int range = r == rows - 1 && (c == 3 || c == 4);
+            if (range ? isnan(v) : !isfinite(v))
+                return fail(message, size, "model array par: row %lld column %lld is %g",
+                            (long long)r, (long long)c, v);
+        }
+    for (r = 0; r < f; r++) {
+        if (m->code[r] < VSJ_VISCOUS || m->code[r] > VSJ_STICTION)
+            return fail(message, size, "model: friction row %lld has unknown law %lld",
+                        (long long)r, (long long)m->code[r]);
+        if (m->code[r] == VSJ_SLOPE && !(m->par[VSJ_NPAR * r + 3] > 0.0))
+            return fail(message, size, "model: friction row %lld: slope width must be > 0",
+                        (long long)r);
+    }
+    for (r = f; r < f + k; r++)
+        if (m->code[r] < VSJ_LINEAR || m->code[r] > VSJ_GEOMETRIC_REPORT)
+            return fail(message, size, "model: spring row %lld has unknown law %lld",
+                        (long long)r, (long long)m->code[r]);
+    for (r = f + k; r < f + k + nl + nm; r++)
+        if (m->code[r] < 0 || m->code[r] >= nch)
+            return fail(message, size, "model: row %lld reads input channel %lld of %lld",
+                        (long long)r, (long long)m->code[r], (long long)nch);
+    for (r = f + k + nl; r < f + k + nl + nm; r++)
+        if (!(m->par[VSJ_NPAR * r + 1] > 0.0))
+            return fail(message, size, "model: motor row %lld: inductance must be > 0",
+                        (long long)r);
+    for (i = 0; i < s; i++)
+        if (m->src_ch[i] < 0 || m->src_ch[i] >= nch)
+            return fail(message, size, "model: source %lld reads input channel %lld of %lld",
+                        (long long)i, (long long)m->src_ch[i], (long long)nch);
+    if ((status = finite_array(m->src_pos0, s, "src_pos0", message, size)) != VSJ_OK)
+        return status;
+    if ((status = finite_array(m->coef, 4 * m->n_pieces, "coef", message, size)) != VSJ_OK)
+        return status;
+    if ((status = finite_array(m->knots, m->n_pieces + nch, "knots", message, size)) != VSJ_OK)
+        return status;
+    if ((status = finite_array(m->cum, m->n_pieces + nch, "cum", message, size)) != VSJ_OK)
+        return status;
+    for (c = 0; c < nch; c++) {
+        int64_t p0 = m->first[c], cnt = m->count[c], j;
+        if (cnt < 1 || p0 < 0 || p0 + cnt > m->n_pieces)
+            return fail(message, size,
+                        "model: channel %lld has pieces %lld..%lld outside 0..%lld",
+                        (long long)c, (long long)p0, (long long)(p0 + cnt - 1),
+                        (long long)(m->n_pieces - 1));
+        for (j = 0; j < cnt; j++)
+            if (!(m->knots[p0 + c + j + 1] > m->knots[p0 + c + j]))
+                return fail(message, size, "model: knots of channel %lld must increase",
+                            (long long)c);
+    }
+    return VSJ_OK;
+}
+
+/* ---- the work -------------------------------------------------------------- */
+
+/* Carves arrays out of one block: first with base NULL to size it, then for real. */
+typedef struct carver {
+    unsigned char *base;
+    size_t used;
+} carver;
+
+static void *carve(carver *cv, int64_t count, size_t item) {
+    size_t bytes = (size_t)(count > 0 ? count : 1) * item;
+    void *p;
+    cv->used = (cv->used + 31u) & ~(size_t)31u;
+    p = cv->base ? cv->base + cv->used : NULL;
+    cv->used += bytes;
+    return p;
+}
+
+#define DOUBLES(n) ((double *)carve(cv, (n), sizeof(double)))
+#define INTS(n) ((int64_t *)carve(cv, (n), sizeof(int64_t)))
+#define BYTES(n) ((unsigned char *)carve(cv, (n), 1))
+
+static void layout(vsj_work *w, carver *cv) {
+    int64_t n = w->n, s = w->s, f = w->f, k = w->k, nl = w->nl, nm = w->nm, nch = w->nch;
+    ts_work *t = &w->ts;
+    w->hint = INTS(nch);
+    w->chan = DOUBLES(3 * nch);
+    w->srcw = DOUBLES(SRCW * s);
+    w->frw = DOUBLES(FRW * f);
+    w->spw = DOUBLES(SPW * k);
+    w->ldw = DOUBLES(2 * nl);
+    w->mow = DOUBLES(2 * nm);
+    w->gen = DOUBLES(n);
+    w->pos0 = DOUBLES(s);
+    w->K = DOUBLES(7 * w->ny_max);
+    w->yt = DOUBLES(w->ny_max);
+    w->y1 = DOUBLES(w->ny_max);
+    w->err = DOUBLES(w->ny_max);
+    w->r3 = DOUBLES(w->ny_max);
+    w->r4 = DOUBLES(w->ny_max);
+    w->r5 = DOUBLES(w->ny_max);
+    w->y = DOUBLES(w->ny_max);
+    w->dy = DOUBLES(w->ny_max);
+    w->sy = DOUBLES(w->ny_max);
+    w->sk = DOUBLES(w->ny_max);
+    w->sacc = DOUBLES(w->ny_max);
+    t->H = DOUBLES(n * n);
+    t->H_last = DOUBLES(n * n);
+    t->Lc = DOUBLES(n * n);
+    t->Bx = DOUBLES(n * n);
+    t->G = DOUBLES(n * n);
+    t->Lg = DOUBLES(n * n);
+    t->Gc = DOUBLES(n * n);
+    t->Kc = DOUBLES(n * n);
+    t->x = DOUBLES(n);
+    t->v = DOUBLES(n);
+    t->r = DOUBLES(n);
+    t->vfree = DOUBLES(n);
+    t->v1 = DOUBLES(n);
+    t->x1 = DOUBLES(n);
+    t->col = DOUBLES(n);
+    t->drow = DOUBLES(n);
+    t->tv = DOUBLES(n);
+    t->cv = DOUBLES(n);
+    t->z = DOUBLES(n);
+    t->Bu = DOUBLES(n * s);
+    t->DxT = DOUBLES(n * (f + k));
+    t->DuT = DOUBLES(s * (f + k));
+    t->DxA = DOUBLES(n * f);
+    t->DuA = DOUBLES(s * f);
+    t->YlT = DOUBLES(n * f);
+    t->qv = DOUBLES(f);
+    t->cap = DOUBLES(f);
+    t->p = DOUBLES(f);
+    t->mask = DOUBLES(f);
+    t->d = DOUBLES(f);
+    t->g = DOUBLES(f);
+    t->level = DOUBLES(f);
+    t->memo = DOUBLES(f + 1);
+    t->state = INTS(f);
+    t->involved = BYTES(f);
+    t->slip = DOUBLES(f);
+    t->s0 = DOUBLES(f);
+    t->f0 = DOUBLES(f);
+    t->df0 = DOUBLES(f);
+    t->force = DOUBLES(f);
+    t->share = DOUBLES(f);
+    t->ratio = DOUBLES(f);
+    t->held = INTS(f);
+    t->slot = INTS(f);
+    t->lead = INTS(f);
+    t->transitions = INTS(f);
+    t->nonlinear = INTS(f);
+    t->watched = INTS(f);
+    t->active = BYTES(f);
+    t->driven = BYTES(f);
+    t->linear = BYTES(f);
+    t->sp_c = DOUBLES(k);
+    t->sp_kap = DOUBLES(k);
+    t->u0 = DOUBLES(s);
+    t->sg0 = DOUBLES(s);
+    t->u1 = DOUBLES(s);
+    t->sg1 = DOUBLES(s);
+    t->um = DOUBLES(s);
+    t->srcF = DOUBLES(s);
+    t->ldm = DOUBLES(nl);
+    t->vm = DOUBLES(nm);
+    t->cur = DOUBLES(nm);
+    t->i1 = DOUBLES(nm);
+    t->mid_ch = INTS(nch);
+    t->mid_src = INTS(s);
+    t->end_ch = INTS(nch);
+    t->wanted = BYTES(nch);
+}
+
+vsj_work *vsj_work_new(const vsj_model *m) {
+    vsj_work *w;
+    carver cv = {NULL, 0};
+    if (!m || m->n < 0 || m->n_sources < 0 || m->n_frictions < 0 || m->n_springs < 0
+        || m->n_loads < 0 || m->n_motors < 0 || m->n_channels < 0)
+        return NULL;
+    w = (vsj_work *)calloc(1, sizeof(vsj_work));
+    if (!w)
+        return NULL;
+    w->n = m->n;
+    w->s = m->n_sources;
+    w->f = m->n_frictions;
+    w->k = m->n_springs;
+    w->nl = m->n_loads;
+    w->nm = m->n_motors;
+    w->nch = m->n_channels;
+    w->rows = m->n_rows;
+    w->ny_max = vsj_n_state(m) + vsj_n_acc(m) + m->n_sources;
+    layout(w, &cv);
+    w->block = calloc(1, cv.used + 32u);
+    if (!w->block) {
+        free(w);
+        return NULL;
+    }
+    cv.base = (unsigned char *)w->block;
+    cv.base += (32u - ((size_t)cv.base & 31u)) & 31u;
+    cv.used = 0;
+    layout(w, &cv);
+    return w;
+}
+
+void vsj_work_free(vsj_work *w) {
+    if (!w)
+        return;
+    free(w->block);
+    free(w);
+}

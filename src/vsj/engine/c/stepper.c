@@ -1,0 +1,191 @@
+/* The step function: advance a state by one control period with held inputs.
+ *
+ * State s = [x (n), p (n), i (motors), sigma (sources)]: momenta p = M v + M_su u
+ * rather than speeds, because a velocity source whose speed jumps between two
+ * periods gives the free flanges an impulse; the momentum is continuous across
+ * the jump, the speeds are not. Within a period the inputs are constant (what
+ * a digital controller applies), the sources start at the angles sigma.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "internal.h"
+
+int64_t vsj_step_state_size(const vsj_model *m) {
+    return 2 * m->n + m->n_motors + m->n_sources;
+}
+
+static int fits(const vsj_model *m, const vsj_work *w) {
+    return m && w && m->n == w->n && m->n_sources == w->s && m->n_frictions == w->f
+           && m->n_springs == w->k && m->n_loads == w->nl && m->n_motors == w->nm
+           && m->n_channels == w->nch && m->n_rows == w->rows;
+}
+
+/* Hold the inputs over the period and start the sources at s[base:]. */
+static void hold(const vsj_model *m, vsj_work *w, const double *s, const double *inputs) {
+    w->held = inputs;
+    memcpy(w->pos0, s + 2 * m->n + m->n_motors, (size_t)m->n_sources * sizeof(double));
+}
+
+/* Engine state [x, v, i] from [x, p, i, ...]: v = M^-1 (p - M_su u). */
+static void to_engine(const vsj_model *m, const double *s, const double *inputs, double *y) {
+    int64_t n = m->n, ns = m->n_sources, sz = n + ns, i, r, j;
+    for (i = 0; i < n; i++) {
+        double acc = 0.0, bound = 0.0;
+        y[i] = s[i];
+        for (r = 0; r < n; r++) {
+            double pr = s[n + r], size = fabs(pr);
+            for (j = 0; j < ns; j++) {
+                double term = m->mass[sz * r + n + j] * inputs[m->src_ch[j]];
+                pr -= term;
+                size += fabs(term);
+            }
+            acc += m->Minv[n * i + r] * pr;
+            bound += fabs(m->Minv[n * i + r]) * size;
+        }
+        /* a speed within the round-off of the cancellation p - M_su u (8 ulp of
+         * its terms) is zero: left at 1e-19, it would make the integrator's first
+         * step 1e-19 s long with a tight atol (Hairer's initial-step estimate) */
+        y[n + i] = fabs(acc) > 8.0 * 2.220446049250313e-16 * bound ? acc : 0.0;
+    }
+    for (i = 0; i < m->n_motors; i++)
+        y[2 * n + i] = s[2 * n + i];
+}
+
+/* Back to [x, p, i, sigma] after a period (the sources moved u dt). */
+static void from_engine(const vsj_model *m, const double *y, const double *inputs, double dt,
+                        double *s) {
+    int64_t n = m->n, ns = m->n_sources, sz = n + ns, nm = m->n_motors, r, i, j;
+    for (r = 0; r < n; r++) {
+        double acc = 0.0;
+        s[r] = y[r];
+        for (i = 0; i < n; i++)
+            acc += m->mass[sz * r + i] * y[n + i];
+        for (j = 0; j < ns; j++)
+            acc += m->mass[sz * r + n + j] * inputs[m->src_ch[j]];
+        s[n + r] = acc;
+    }
+    for (i = 0; i < nm; i++)
+        s[2 * n + i] = y[2 * n + i];
+    for (j = 0; j < ns; j++)
+        s[2 * n + nm + j] += inputs[m->src_ch[j]] * dt;
+}
+
+void vsj_step_speeds(const vsj_model *m, const double *s, const double *inputs, double *v) {
+    int64_t n = m->n, ns = m->n_sources, sz = n + ns, i, r, j;
+    for (i = 0; i < n; i++) {
+        double acc = 0.0;
+        for (r = 0; r < n; r++) {
+            double pr = s[n + r];
+            for (j = 0; j < ns; j++)
+                pr -= m->mass[sz * r + n + j] * inputs[m->src_ch[j]];
+            acc += m->Minv[n * i + r] * pr;
+        }
+        v[i] = acc;
+    }
+}
+
+int vsj_step_dopri(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
+                   double rtol, double atol, int64_t max_steps) {
+    int64_t ny = vsj_n_state(m);
+    vsj_report rep;
+    if (!fits(m, w) || !(dt > 0.0))
+        return VSJ_BAD_ARGUMENT;
+    hold(m, w, s, inputs);
+    to_engine(m, s, inputs, w->sy);
+    rep = vsj_dopri(m, w, w->sy, ny, 0.0, dt, NULL, 0, rtol, atol, INFINITY, max_steps, ny, NULL,
+                    0);
+    w->held = NULL;
+    if (rep.status == VSJ_OK)
+        from_engine(m, w->sy, inputs, dt, s);
+    return rep.status;
+}
+
+static const double RK4_C[4] = {0.0, 0.5, 0.5, 1.0};
+static const double RK4_W[4] = {1.0 / 6.0, 2.0 / 6.0, 2.0 / 6.0, 1.0 / 6.0};
+
+int vsj_step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
+                 int64_t substeps) {
+    int64_t ny = vsj_n_state(m), sub, stage, i;
+    double *y = w->sy, *k = w->sk, *acc = w->sacc, *yt = w->yt, h;
+    int status;
+    if (!fits(m, w) || !(dt > 0.0) || substeps < 1)
+        return VSJ_BAD_ARGUMENT;
+    hold(m, w, s, inputs);
+    to_engine(m, s, inputs, y);
+    memset(k, 0, (size_t)ny * sizeof(double));
+    h = dt / (double)substeps;
+    w->status = VSJ_OK;
+    /* after the last substep the right-hand side is evaluated once more, at the
+     * end point, for its status (the pivot's range, finiteness) */
+    for (sub = 0; sub <= substeps; sub++) {
+        double t = (double)sub * h;
+        int last = sub == substeps;
+        for (stage = 0; stage < (last ? 1 : 4); stage++) {
+            double a = RK4_C[stage];
+            for (i = 0; i < ny; i++)
+                yt[i] = stage ? y[i] + a * h * k[i] : y[i];
+            vsj__eval_derivatives(m, w, t + a * h, yt, ny, k);
+            if (last)
+                break;
+            for (i = 0; i < ny; i++) {
+                if (stage == 0)
+                    acc[i] = 0.0;
+                acc[i] += RK4_W[stage] * k[i];
+            }
+        }
+        if (!last)
+            for (i = 0; i < ny; i++)
+                y[i] += h * acc[i];
+    }
+    status = w->status;
+    w->held = NULL;
+    if (status == VSJ_OK)
+        from_engine(m, y, inputs, dt, s);
+    return status;
+}
+
+int vsj_step_timestep(const vsj_model *m, vsj_work *w, double *s, const double *inputs,
+                      double dt, double h) {
+    int64_t steps = (int64_t)ceil(dt / h - 1e-9);
+    vsj_report rep;
+    int status;
+    if (!fits(m, w) || !w->ts.prepared || !(dt > 0.0) || !(h > 0.0))
+        return VSJ_BAD_ARGUMENT;
+    hold(m, w, s, inputs);
+    to_engine(m, s, inputs, w->sy);
+    status = vsj_ts_begin(m, w, w->sy, 0.0);
+    rep = vsj_ts_advance(m, w, w->sy, dt, h, steps, 0, NULL);
+    w->held = NULL;
+    if (status == VSJ_OK)
+        status = rep.status;
+    if (status == VSJ_OK)
+        from_engine(m, w->sy, inputs, dt, s);
+    return status;
+}
+
+int vsj_step_rate(const vsj_model *m, vsj_work *w, const double *s, const double *inputs,
+                  double *ds) {
+    int64_t n = m->n, nm = m->n_motors, ny = 2 * n + nm, sz = n + m->n_sources, i, r, j;
+    int status;
+    if (!fits(m, w))
+        return VSJ_BAD_ARGUMENT;
+    hold(m, w, s, inputs);
+    to_engine(m, s, inputs, w->sy);
+    w->status = VSJ_OK;
+    vsj__eval_derivatives(m, w, 0.0, w->sy, ny, w->sk);
+    for (i = 0; i < n; i++) {
+        double acc = 0.0;
+        ds[i] = w->sy[n + i];
+        for (r = 0; r < n; r++)
+            acc += m->mass[sz * i + r] * w->sk[n + r];
+        ds[n + i] = acc;
+    }
+    for (i = 0; i < nm; i++)
+        ds[2 * n + i] = w->sk[2 * n + i];
+    for (j = 0; j < m->n_sources; j++)
+        ds[ny + j] = inputs[m->src_ch[j]];
+    status = w->status;
+    w->held = NULL;
+    return status;
+}

@@ -1,0 +1,1186 @@
+/* Fixed-step time stepping with exact Coulomb stiction.
+ *
+ * A velocity-level scheme in the family of Moreau and Jean, for true sticking
+ * (the open problem of report section 4.1.3 and its conclusion). Per step of
+ * length h:
+ *
+ *   - springs: trapezoidal rule, linearised about the start of the step with
+ *     the law's analytic stiffness;
+ *   - smooth friction and viscous parts: implicit Euler, linearised;
+ *   - DC motor armatures: implicit Euler;
+ *   - Coulomb parts of stiction elements: impulses p_e with |p_e| <= h c_e
+ *     (c_e = k_e pi/2), decided together for all elements by
+ *
+ *         s = q - W p,  p_e = +h c_e if s_e > 0,  -h c_e if s_e < 0,
+ *         |p_e| <= h c_e if s_e = 0,
+ *
+ *     with W = D H^-1 D^T the Delassus matrix of the elements' slip rows and
+ *     q their slips without Coulomb friction. It is solved exactly: last
+ *     step's stick/slip pattern is checked first (cheap, and it holds on most
+ *     steps), an active-set method takes over when it does not. An element
+ *     with s_e = 0 holds exactly (no creep), and which elements hold is decided
+ *     jointly through the gears and the differential.
+ *
+ * Elements whose slip rows are parallel (the bearings and meshes that turn
+ * with one gear) slip together; they are posed as one unknown bounded by
+ * their levels summed through the gear ratios: the same problem, smaller. A
+ * stuck group loads each element to the same fraction of its static level
+ * (the contact conditions leave that split open).
+ *
+ * Every force's work is booked against the mid-step speed, the speed the
+ * scheme moves with, so the energy ledger closes up to the spring
+ * linearisation.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "internal.h"
+
+/* slip speed [rad/s] below which an element counts as stuck */
+#define STUCK_SPEED 1e-10
+/* impulse solver: absolute and relative (to the largest free slip) tolerance [rad/s] */
+#define IMPULSE_ABS 1e-14
+#define IMPULSE_REL 1e-12
+#define IMPULSE_MAX_ITER 500
+/* relative Tikhonov term that makes the impulse problem strictly convex (polished away) */
+#define IMPULSE_REG 1e-9
+/* relative change of the step matrix below which its factor is reused */
+#define H_REUSE 1e-12
+/* relative difference below which two friction rows count as parallel */
+#define PARALLEL 1e-12
+
+static double dmax(double a, double b) { return a > b ? a : b; }
+static double dmin(double a, double b) { return a < b ? a : b; }
+
+/* ---- small dense linear algebra (leading k x k blocks of n x n arrays) ----- */
+
+static int cholesky(const double *H, double *L, int64_t k, int64_t n, int floor) {
+    int64_t i, j, r;
+    for (i = 0; i < k; i++)
+        for (j = 0; j <= i; j++) {
+            double acc = H[n * i + j];
+            for (r = 0; r < j; r++)
+                acc -= L[n * i + r] * L[n * j + r];
+            if (i == j) {
+                if (acc <= 0.0) {
+                    if (!floor)
+                        return 0;
+                    acc = 1e-300;
+                }
+                L[n * i + i] = sqrt(acc);
+            } else {
+                L[n * i + j] = acc / L[n * j + j];
+            }
+        }
+    return 1;
+}
+
+static void forward(const double *L, const double *b, double *out, int64_t k, int64_t n) {
+    int64_t i, r;
+    for (i = 0; i < k; i++) {
+        double acc = b[i];
+        for (r = 0; r < i; r++)
+            acc -= L[n * i + r] * out[r];
+        out[i] = acc / L[n * i + i];
+    }
+}
+
+/* L^T out = b; out may be b */
+static void backward(const double *L, const double *b, double *out, int64_t k, int64_t n) {
+    int64_t i, r;
+    for (i = k - 1; i >= 0; i--) {
+        double acc = b[i];
+        for (r = i + 1; r < k; r++)
+            acc -= L[n * r + i] * out[r];
+        out[i] = acc / L[n * i + i];
+    }
+}
+
+static void solve(const double *L, const double *b, double *out, int64_t n) {
+    forward(L, b, out, n, n);
+    backward(L, out, out, n, n);
+}
+
+/* ---- the impulse problem (YT: n x m, one column L^-1 d_e per unknown) ------- */
+
+typedef struct impulses {
+    const double *YT;
+    int64_t n, m;
+    double *mask, *G, *Lg, *t, *c, *d, *g, *z, *Gc, *K, *memo;
+} impulses;
+
+/* z = YT p */
+static void project(const impulses *im, const double *p, double *z) {
+    int64_t i, e, m = im->m;
+    for (i = 0; i < im->n; i++) {
+        double acc = 0.0;
+        const double *row = im->YT + m * i;
+        for (e = 0; e < m; e++)
+            acc += row[e] * p[e];
+        z[i] = acc;
+    }
+}
+
+/* G = YT diag(mask) YT^T + ridge I and t = YT (mask * vec) */
+static void gram(const impulses *im, const double *vec, double *G, double *t, double ridge) {
+    int64_t i, j, e, n = im->n, m = im->m;
+    const double *YT = im->YT, *mask = im->mask;
+    for (i = 0; i < n; i++) {
+        double acc_t = 0.0;
+        for (e = 0; e < m; e++)
+            acc_t += YT[m * i + e] * mask[e] * vec[e];
+        t[i] = acc_t;
+        for (j = 0; j <= i; j++) {
+            double acc = 0.0;
+            for (e = 0; e < m; e++)
+                acc += YT[m * i + e] * mask[e] * YT[m * j + e];
+            G[n * i + j] = acc;
+            G[n * j + i] = acc;
+        }
+        G[n * i + i] += ridge;
+    }
+}
+
+/* s = q - YT^T z (s may be q) */
+static void slips(const impulses *im, const double *q, const double *z, double *s) {
+    int64_t i, e, m = im->m;
+    for (e = 0; e < m; e++)
+        s[e] = q[e];
+    for (i = 0; i < im->n; i++) {
+        double zi = z[i];
+        const double *row = im->YT + m * i;
+        for (e = 0; e < m; e++)
+            s[e] -= row[e] * zi;
+    }
+}
+
+/* Classify the warm start: impulses at (this step's) bound keep their sign,
+ * the others are free (stuck); uninvolved unknowns get state 2. Fills mask (1
+ * for free); returns the number free, and the largest free slip in *scale. */
+static int64_t snap(const impulses *im, const double *q, const double *cap, double *p,
+                    int64_t *state, const unsigned char *active, double *scale) {
+    int64_t e, n_free = 0;
+    double sc = 0.0;
+    for (e = 0; e < im->m; e++) {
+        double ce = cap[e];
+        im->mask[e] = 0.0;
+        if (active[e] && ce > 0.0) {
+            sc = dmax(sc, fabs(q[e]));
+            /* the cap varies in its last bits from step to step (the step length
+             * does): an impulse at last step's bound is at this step's bound */
+            if (p[e] >= ce * (1.0 - 1e-9)) {
+                p[e] = ce;
+                state[e] = 1;
+            } else if (p[e] <= -ce * (1.0 - 1e-9)) {
+                p[e] = -ce;
+                state[e] = -1;
+            } else {
+                state[e] = 0;
+                im->mask[e] = 1.0;
+                n_free++;
+            }
+        } else {
+            p[e] = 0.0;
+            state[e] = 2;
+        }
+    }
+    *scale = sc;
+    return n_free;
+}
+
+/* Minimum-norm impulses of the stuck (free) unknowns that cancel their slips
+ * `slip`: d = Y_F G^-2 Y_F^T s_F with G = Y_F^T Y_F (n x n solves; a tiny
+ * ridge where stuck rows are parallel). Writes d (zero off the free set). */
+static void stuck_impulses(impulses *im, const double *slip) {
+    int64_t i, e, n = im->n, m = im->m;
+    double trace = 0.0;
+    gram(im, slip, im->G, im->t, 0.0);
+    for (i = 0; i < n; i++)
+        trace += im->G[n * i + i];
+    for (i = 0; i < n; i++)
+        im->G[n * i + i] += 1e-13 * trace;
+    cholesky(im->G, im->Lg, n, n, 1);
+    solve(im->Lg, im->t, im->c, n);
+    solve(im->Lg, im->c, im->t, n);
+    for (e = 0; e < m; e++)
+        im->d[e] = 0.0;
+    for (i = 0; i < n; i++) {
+        double ti = im->t[i];
+        const double *row = im->YT + m * i;
+        for (e = 0; e < m; e++)
+            im->d[e] += row[e] * ti * im->mask[e];
+    }
+}
+
+/* Gc = Y_F Y_F^T and K = (Gc + ridge I)^-2 for the stuck set in mask: K Y_F s_F
+ * are the coefficients of the minimum-norm impulses that cancel the stuck
+ * unknowns' slips s_F. The explicit K loses accuracy when stuck rows are
+ * nearly parallel; the fast path may use it because its result is checked,
+ * while the active set's final polish solves with the factor. */
+static void stuck_map(impulses *im) {
+    int64_t i, j, n = im->n;
+    double trace = 0.0;
+    gram(im, im->mask, im->Gc, im->t, 0.0);
+    for (i = 0; i < n; i++)
+        trace += im->Gc[n * i + i];
+    for (i = 0; i < n; i++) {
+        for (j = 0; j < n; j++)
+            im->K[n * i + j] = im->Gc[n * i + j];
+        im->K[n * i + i] += 1e-13 * trace;
+    }
+    cholesky(im->K, im->Lg, n, n, 1);
+    for (j = 0; j < n; j++) {
+        for (i = 0; i < n; i++)
+            im->t[i] = i == j ? 1.0 : 0.0;
+        solve(im->Lg, im->t, im->c, n);
+        solve(im->Lg, im->c, im->t, n);
+        for (i = 0; i < n; i++)
+            im->K[n * i + j] = im->t[i];
+    }
+}
+
+/* Fast path: does last step's stick/slip pattern still hold? Bound impulses at
+ * their caps, the stuck unknowns' impulses the minimum-norm ones that make
+ * their slips exactly zero; returns 1 if every condition holds (p is then the
+ * solution). With z_B = Y_B p_B the stuck impulses are Y_F^T c with
+ * c = K (Y_F q_F - Gc z_B), and they add Gc c to z. Gc and K change only with
+ * the stuck set or YT and are kept between calls (memo). */
+static int same_pattern(impulses *im, const double *q, const double *cap, double *p,
+                        int64_t *state, const unsigned char *active) {
+    int64_t e, i, j, n = im->n, m = im->m, n_free;
+    double scale, tol;
+    int holds = 1;
+    n_free = snap(im, q, cap, p, state, active, &scale);
+    tol = IMPULSE_ABS + IMPULSE_REL * scale;
+    for (e = 0; e < m; e++)
+        im->d[e] = p[e] * (1.0 - im->mask[e]);
+    project(im, im->d, im->z); /* z_B */
+    if (n_free > 0) {
+        int known = im->memo[m] > 0.0, fits = 1;
+        for (e = 0; e < m; e++)
+            known = known && im->memo[e] == im->mask[e];
+        if (!known) {
+            stuck_map(im);
+            for (e = 0; e < m; e++)
+                im->memo[e] = im->mask[e];
+            im->memo[m] = 1.0;
+        }
+        for (e = 0; e < m; e++)
+            im->d[e] = q[e] * im->mask[e];
+        project(im, im->d, im->t);
+        for (i = 0; i < n; i++) {
+            double acc = im->t[i];
+            for (j = 0; j < n; j++)
+                acc -= im->Gc[n * i + j] * im->z[j];
+            im->t[i] = acc; /* Y_F s_F, s the slips under the bound impulses alone */
+        }
+        for (i = 0; i < n; i++) {
+            double acc = 0.0;
+            for (j = 0; j < n; j++)
+                acc += im->K[n * i + j] * im->t[j];
+            im->c[i] = acc;
+        }
+        for (e = 0; e < m; e++)
+            im->d[e] = 0.0;
+        for (i = 0; i < n; i++) {
+            double ci = im->c[i];
+            const double *row = im->YT + m * i;
+            for (e = 0; e < m; e++)
+                im->d[e] += row[e] * ci;
+        }
+        for (e = 0; e < m; e++)
+            if (im->mask[e] > 0.0) {
+                fits = fits && fabs(im->d[e]) <= cap[e];
+                p[e] = im->d[e];
+            }
+        if (!fits)
+            return 0;
+        for (i = 0; i < n; i++) {
+            double acc = im->z[i];
+            for (j = 0; j < n; j++)
+                acc += im->Gc[n * i + j] * im->c[j];
+            im->z[i] = acc;
+        }
+    }
+    slips(im, q, im->z, im->g);
+    for (e = 0; e < m; e++) {
+        int64_t st = state[e];
+        if (st == 0)
+            holds = holds && fabs(im->g[e]) <= tol;
+        else if (st != 2)
+            holds = holds && im->g[e] * (double)st >= -tol;
+    }
+    return holds;
+}
+
+/* The general method, from the warm start in p:
+ * 1. the box problem min 1/2 p^T (W + eps I) p - q.p with a tiny
+ *    eps = 1e-9 max W_ee is strictly convex; a primal active-set method (free
+ *    unknowns stuck, the others at a bound) solves it in finitely many
+ *    steps, each an n x n solve by Woodbury's identity;
+ * 2. polish: the stuck unknowns' remaining slips (of order eps p) are removed
+ *    by the minimum-norm correction of their impulses. */
+static int active_set(impulses *im, const double *q, const double *cap, double *p,
+                      int64_t *state, const unsigned char *active, int64_t *iterations) {
+    int64_t n = im->n, m = im->m, e, i, it, n_free;
+    double scale, w_max = 0.0, eps, tol;
+    int converged = 0, at_optimum = 0;
+    snap(im, q, cap, p, state, active, &scale);
+    for (e = 0; e < m; e++)
+        if (state[e] != 2) {
+            double norm = 0.0;
+            for (i = 0; i < n; i++)
+                norm += im->YT[m * i + e] * im->YT[m * i + e];
+            w_max = dmax(w_max, norm);
+        }
+    *iterations = 0;
+    if (w_max == 0.0) {
+        project(im, p, im->z);
+        return 1;
+    }
+    eps = IMPULSE_REG * w_max;
+    tol = IMPULSE_ABS + IMPULSE_REL * scale;
+    for (it = 0; it < IMPULSE_MAX_ITER; it++) {
+        double worst;
+        int64_t release;
+        *iterations = it + 1;
+        /* gradient of 1/2 p^T (W + eps I) p - q.p */
+        project(im, p, im->z);
+        slips(im, q, im->z, im->g);
+        n_free = 0;
+        for (e = 0; e < m; e++) {
+            int free_ = state[e] == 0;
+            im->g[e] = eps * p[e] - im->g[e];
+            im->mask[e] = free_ ? 1.0 : 0.0;
+            n_free += free_;
+        }
+        if (n_free > 0 && !at_optimum) {
+            /* Newton step on the free set, d = -(eps I + Y_F Y_F^T)^-1 g_F by
+             * Woodbury's identity (an n x n solve), then a ratio test at the caps */
+            double alpha = 1.0;
+            int64_t block = -1;
+            gram(im, im->g, im->G, im->t, eps);
+            cholesky(im->G, im->Lg, n, n, 1);
+            solve(im->Lg, im->t, im->c, n);
+            slips(im, im->g, im->c, im->d); /* d = g - Y c, scaled below */
+            for (e = 0; e < m; e++) {
+                double de, a;
+                if (state[e] != 0)
+                    continue;
+                de = -im->d[e] / eps;
+                im->d[e] = de;
+                if (de > 0.0 && p[e] + de > cap[e])
+                    a = (cap[e] - p[e]) / de;
+                else if (de < 0.0 && p[e] + de < -cap[e])
+                    a = (-cap[e] - p[e]) / de;
+                else
+                    continue;
+                if (a < alpha) {
+                    alpha = a;
+                    block = e;
+                }
+            }
+            for (e = 0; e < m; e++)
+                if (state[e] == 0)
+                    p[e] = dmin(cap[e], dmax(-cap[e], p[e] + alpha * im->d[e]));
+            if (block >= 0) {
+                p[block] = im->d[block] > 0.0 ? cap[block] : -cap[block];
+                state[block] = im->d[block] > 0.0 ? 1 : -1;
+            } else {
+                at_optimum = 1;
+            }
+            continue;
+        }
+        at_optimum = 0;
+        worst = tol;
+        release = -1;
+        for (e = 0; e < m; e++) {
+            int64_t st = state[e];
+            if ((st == 1 || st == -1) && im->g[e] * (double)st > worst) {
+                worst = im->g[e] * (double)st;
+                release = e;
+            }
+        }
+        if (release < 0) {
+            converged = 1;
+            break;
+        }
+        state[release] = 0;
+    }
+    if (!converged)
+        return 0;
+    /* polish: remove the regularisation's creep from the stuck unknowns */
+    n_free = 0;
+    for (e = 0; e < m; e++) {
+        int free_ = state[e] == 0;
+        im->mask[e] = free_ ? 1.0 : 0.0;
+        n_free += free_;
+    }
+    if (n_free > 0) {
+        project(im, p, im->z);
+        slips(im, q, im->z, im->g);
+        stuck_impulses(im, im->g);
+        for (e = 0; e < m; e++)
+            if (state[e] == 0)
+                p[e] = dmin(cap[e], dmax(-cap[e], p[e] + im->d[e]));
+    }
+    project(im, p, im->z);
+    return 1;
+}
+
+/* Exact Coulomb impulses: slips s = q - Y Y^T p with |p_e| <= cap_e. state
+ * (-1, 0 stuck, +1; 2 not involved) and p carry the previous step's solution
+ * as a warm start; im->z holds YT p on return. */
+static int solve_impulses(impulses *im, const double *q, const double *cap, double *p,
+                          int64_t *state, const unsigned char *active, int64_t *iterations) {
+    *iterations = 0;
+    if (same_pattern(im, q, cap, p, state, active))
+        return 1;
+    return active_set(im, q, cap, p, state, active, iterations);
+}
+
+int vsj_solve_impulses(int64_t n, int64_t m, const double *YT, int64_t count, const double *qs,
+                       const double *cap, const unsigned char *active, double *ps,
+                       int64_t *states, int64_t *iterations) {
+    impulses im;
+    double *block, *p;
+    int64_t *state, k;
+    if (n < 0 || m < 0 || count < 0)
+        return VSJ_BAD_ARGUMENT;
+    block = (double *)calloc((size_t)(5 * n * n + 4 * n + 5 * m + 2), sizeof(double));
+    state = (int64_t *)calloc((size_t)(m + 1), sizeof(int64_t));
+    if (!block || !state) {
+        free(block);
+        free(state);
+        return VSJ_NO_MEMORY;
+    }
+    im.YT = YT;
+    im.n = n;
+    im.m = m;
+    im.G = block;
+    im.Lg = im.G + n * n;
+    im.Gc = im.Lg + n * n;
+    im.K = im.Gc + n * n;
+    im.t = im.K + n * n;
+    im.c = im.t + n;
+    im.z = im.c + n;
+    im.mask = im.z + n;
+    im.d = im.mask + m;
+    im.g = im.d + m;
+    im.memo = im.g + m; /* m + 1 */
+    p = im.memo + m + 1;
+    for (k = 0; k < count; k++) {
+        int64_t it;
+        int ok = solve_impulses(&im, qs + m * k, cap, p, state, active, &it);
+        iterations[k] = ok ? it : -1;
+        memcpy(ps + m * k, p, (size_t)m * sizeof(double));
+        memcpy(states + m * k, state, (size_t)m * sizeof(int64_t));
+    }
+    free(block);
+    free(state);
+    return VSJ_OK;
+}
+
+/* ---- the stepper's set-up ---------------------------------------------------- */
+
+static impulses impulses_of(vsj_work *w) {
+    ts_work *t = &w->ts;
+    impulses im;
+    im.YT = t->YlT;
+    im.n = w->n;
+    im.m = t->na;
+    im.mask = t->mask;
+    im.G = t->G;
+    im.Lg = t->Lg;
+    im.t = t->tv;
+    im.c = t->cv;
+    im.d = t->d;
+    im.g = t->g;
+    im.z = t->z;
+    im.Gc = t->Gc;
+    im.K = t->Kc;
+    im.memo = t->memo;
+    return im;
+}
+
+static int fits(const vsj_model *m, const vsj_work *w) {
+    return m && w && m->n == w->n && m->n_sources == w->s && m->n_frictions == w->f
+           && m->n_springs == w->k && m->n_loads == w->nl && m->n_motors == w->nm
+           && m->n_channels == w->nch && m->n_rows == w->rows;
+}
+
+/* alpha with row e = alpha row g (free and source parts, to round-off), or 0 */
+static double parallel(const ts_work *t, int64_t cols, int64_t n, int64_t s, int64_t e,
+                       int64_t g) {
+    double dot = 0.0, norm = 0.0, big = 0.0, alpha;
+    int64_t i, j;
+    for (i = 0; i < n; i++) {
+        dot += t->DxT[cols * i + e] * t->DxT[cols * i + g];
+        norm += t->DxT[cols * i + g] * t->DxT[cols * i + g];
+        big = dmax(big, fabs(t->DxT[cols * i + e]));
+    }
+    for (j = 0; j < s; j++) {
+        dot += t->DuT[cols * j + e] * t->DuT[cols * j + g];
+        norm += t->DuT[cols * j + g] * t->DuT[cols * j + g];
+        big = dmax(big, fabs(t->DuT[cols * j + e]));
+    }
+    if (norm == 0.0)
+        return 0.0;
+    alpha = dot / norm;
+    for (i = 0; i < n; i++)
+        if (fabs(t->DxT[cols * i + e] - alpha * t->DxT[cols * i + g]) > PARALLEL * big)
+            return 0.0;
+    for (j = 0; j < s; j++)
+        if (fabs(t->DuT[cols * j + e] - alpha * t->DuT[cols * j + g]) > PARALLEL * big)
+            return 0.0;
+    return alpha;
+}
+
+static double coulomb_level(const vsj_model *m, int64_t e) {
+    return vsj__row(m, e)[1] * (0.5 * VSJ_PI);
+}
+
+int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
+    ts_work *t = &w->ts;
+    int64_t n, s, nf, nk, nl, nm, cols, e, i, j, c, k, a, rr, na = 0;
+    int64_t r_load, r_piv;
+    if (!fits(m, w))
+        return VSJ_BAD_ARGUMENT;
+    n = m->n;
+    s = m->n_sources;
+    nf = m->n_frictions;
+    nk = m->n_springs;
+    nl = m->n_loads;
+    nm = m->n_motors;
+    cols = nf + nk;
+    /* Coulomb impulses act on free coordinates (active); stiction elements that
+     * only sources drive just follow their slip (driven) */
+    for (e = 0; e < nf; e++) {
+        int stick = m->code[e] == VSJ_STICTION;
+        t->active[e] = stick && m->xp[e + 1] > m->xp[e];
+        t->driven[e] = stick && !t->active[e];
+    }
+    /* elements whose smooth part is linear (viscous, and stiction's viscous
+     * part) are summed once: their share of the step matrix is h Bx and of the
+     * right-hand side -h Bu u1. Element rows are stored densely, one
+     * coordinate per row, so that the loops over elements are vector loops. */
+    memset(t->Bx, 0, (size_t)(n * n) * sizeof(double));
+    memset(t->Bu, 0, (size_t)(n * s) * sizeof(double));
+    memset(t->DxT, 0, (size_t)(n * cols) * sizeof(double));
+    memset(t->DuT, 0, (size_t)(s * cols) * sizeof(double));
+    for (e = 0; e < cols; e++) {
+        for (k = m->xp[e]; k < m->xp[e + 1]; k++)
+            t->DxT[cols * m->xc[k] + e] = m->xv[k];
+        for (k = m->up[e]; k < m->up[e + 1]; k++)
+            t->DuT[cols * m->uc[k] + e] = m->uv[k];
+    }
+    for (e = 0; e < nf; e++) {
+        t->linear[e] = m->code[e] == VSJ_STICTION || m->code[e] == VSJ_VISCOUS;
+        if (t->linear[e]) {
+            double b = vsj__row(m, e)[0];
+            for (i = 0; i < n; i++) {
+                for (c = 0; c < n; c++)
+                    t->Bx[n * i + c] += b * t->DxT[cols * i + e] * t->DxT[cols * c + e];
+                for (j = 0; j < s; j++)
+                    t->Bu[s * i + j] += b * t->DxT[cols * i + e] * t->DuT[cols * j + e];
+            }
+        }
+    }
+    /* groups of parallel active elements: one impulse unknown each (slot), shared
+     * in proportion to the elements' levels (share) */
+    for (e = 0; e < nf; e++) {
+        t->slot[e] = -1;
+        t->ratio[e] = 0.0;
+        if (!t->active[e])
+            continue;
+        for (a = 0; a < na; a++) {
+            double alpha = parallel(t, cols, n, s, e, t->lead[a]);
+            if (alpha != 0.0) {
+                t->slot[e] = a;
+                t->ratio[e] = alpha;
+                break;
+            }
+        }
+        if (t->slot[e] < 0) {
+            t->slot[e] = na;
+            t->ratio[e] = 1.0;
+            t->lead[na] = e;
+            na++;
+        }
+    }
+    t->na = na;
+    for (a = 0; a < na; a++) {
+        for (i = 0; i < n; i++)
+            t->DxA[na * i + a] = t->DxT[cols * i + t->lead[a]];
+        for (j = 0; j < s; j++)
+            t->DuA[na * j + a] = t->DuT[cols * j + t->lead[a]];
+        t->involved[a] = 1;
+        t->level[a] = 0.0;
+    }
+    for (e = 0; e < nf; e++)
+        if (t->slot[e] >= 0)
+            t->level[t->slot[e]] += fabs(t->ratio[e]) * coulomb_level(m, e);
+    for (e = 0; e < nf; e++) {
+        t->share[e] = 0.0;
+        if (t->slot[e] >= 0 && t->level[t->slot[e]] > 0.0)
+            t->share[e] = copysign(coulomb_level(m, e) / t->level[t->slot[e]], t->ratio[e]);
+    }
+    /* index lists: smooth parts that are not linear; elements whose stick phases
+     * are counted */
+    t->n_nonlinear = 0;
+    t->n_watched = 0;
+    for (e = 0; e < nf; e++) {
+        if (!t->linear[e])
+            t->nonlinear[t->n_nonlinear++] = e;
+        if (t->active[e] || t->driven[e])
+            t->watched[t->n_watched++] = e;
+    }
+    /* at mid-step only the loads, the motor voltages and the pivot's sources are
+     * read; a load or voltage constant in time keeps its value from t = 0. At
+     * step end only the sources' channels are read. */
+    r_load = nf + nk;
+    r_piv = m->n_rows - 1;
+    memset(t->wanted, 0, (size_t)m->n_channels);
+    for (rr = r_load; rr < r_load + nl + nm; rr++) {
+        int64_t ch = m->code[rr], p0 = m->first[ch];
+        const double *cf = m->coef + 4 * p0;
+        int steady = m->count[ch] == 1 && cf[1] == 0.0 && cf[2] == 0.0 && cf[3] == 0.0;
+        t->wanted[ch] = !steady;
+    }
+    t->n_mid_src = 0;
+    for (k = m->up[r_piv]; k < m->up[r_piv + 1]; k++) {
+        t->mid_src[t->n_mid_src++] = m->uc[k];
+        t->wanted[m->src_ch[m->uc[k]]] = 1;
+    }
+    t->n_mid_ch = 0;
+    for (c = 0; c < m->n_channels; c++)
+        if (t->wanted[c])
+            t->mid_ch[t->n_mid_ch++] = c;
+    memset(t->wanted, 0, (size_t)m->n_channels);
+    for (j = 0; j < s; j++)
+        t->wanted[m->src_ch[j]] = 1;
+    t->n_end_ch = 0;
+    for (c = 0; c < m->n_channels; c++)
+        if (t->wanted[c])
+            t->end_ch[t->n_end_ch++] = c;
+    /* history */
+    memset(t->H_last, 0, (size_t)(n * n) * sizeof(double));
+    memset(t->YlT, 0, (size_t)(n * nf) * sizeof(double));
+    memset(t->qv, 0, (size_t)nf * sizeof(double));
+    memset(t->cap, 0, (size_t)nf * sizeof(double));
+    memset(t->p, 0, (size_t)nf * sizeof(double));
+    memset(t->mask, 0, (size_t)nf * sizeof(double));
+    memset(t->memo, 0, (size_t)(nf + 1) * sizeof(double));
+    memset(t->Gc, 0, (size_t)(n * n) * sizeof(double));
+    memset(t->Kc, 0, (size_t)(n * n) * sizeof(double));
+    for (e = 0; e < nf; e++) {
+        t->state[e] = 0;
+        t->held[e] = 0;
+        t->transitions[e] = 0;
+    }
+    t->factored = 0;
+    t->prepared = 1;
+    return VSJ_OK;
+}
+
+/* every element's slip s = Dx v + Du u (dense rows, one coordinate per row) */
+static void element_slips(const double *DxT, const double *DuT, int64_t cols, int64_t count,
+                          const double *v, int64_t n, const double *u, int64_t s_n, double *s) {
+    int64_t e, i, j;
+    for (e = 0; e < count; e++)
+        s[e] = 0.0;
+    for (i = 0; i < n; i++) {
+        double vi = v[i];
+        const double *row = DxT + cols * i;
+        for (e = 0; e < count; e++)
+            s[e] += row[e] * vi;
+    }
+    for (j = 0; j < s_n; j++) {
+        double uj = u[j];
+        const double *row = DuT + cols * j;
+        for (e = 0; e < count; e++)
+            s[e] += row[e] * uj;
+    }
+}
+
+/* H += scale d d^T with d the free-coordinate part of row r */
+static void outer(const vsj_model *m, int64_t r, double *H, double scale) {
+    int64_t a, b, n = m->n;
+    for (a = m->xp[r]; a < m->xp[r + 1]; a++)
+        for (b = m->xp[r]; b < m->xp[r + 1]; b++)
+            H[n * m->xc[a] + m->xc[b]] += scale * m->xv[a] * m->xv[b];
+}
+
+int vsj_ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
+    ts_work *t = &w->ts;
+    int64_t n, nm, j;
+    if (!fits(m, w) || !t->prepared)
+        return VSJ_BAD_ARGUMENT;
+    n = m->n;
+    nm = m->n_motors;
+    memcpy(t->x, y, (size_t)n * sizeof(double));
+    memcpy(t->v, y + n, (size_t)n * sizeof(double));
+    memcpy(t->cur, y + 2 * n, (size_t)nm * sizeof(double));
+    vsj__eval_inputs(m, w, t0);
+    for (j = 0; j < m->n_sources; j++) {
+        t->u0[j] = w->srcw[SRCW * j + U];
+        t->sg0[j] = w->srcw[SRCW * j + SG];
+    }
+    w->status = VSJ_OK;
+    t->q_prev = vsj__pivot_position(m, w, t->x);
+    /* the mid-step pivot position is recomputed only when its angle changes */
+    t->angle_mid = NAN;
+    t->q_mid = t->q_prev;
+    t->t = t0;
+    t->factored = 0;
+    element_slips(t->DxT, t->DuT, m->n_frictions + m->n_springs, m->n_frictions, t->v, n, t->u0,
+                  m->n_sources, t->slip);
+    return w->status;
+}
+
+static void sample(const vsj_model *m, const ts_work *t, const vsj_samples *smp, int64_t i_out,
+                   const double *y, int64_t n_col) {
+    int64_t j, k, nf = m->n_frictions;
+    for (j = 0; j < n_col; j++)
+        smp->out[smp->out_cols * i_out + j] = y[j];
+    if (smp->coulomb)
+        for (k = 0; k < t->n_watched; k++) {
+            int64_t e = t->watched[k];
+            smp->coulomb[nf * i_out + e] = t->force[e] - vsj__row(m, e)[0] * t->slip[e];
+            smp->stuck[nf * i_out + e] = fabs(t->slip[e]) <= STUCK_SPEED;
+        }
+}
+
+vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_end, double h,
+                          int64_t max_steps, int ledger, const vsj_samples *smp) {
+    ts_work *t = &w->ts;
+    vsj_report rep;
+    impulses im;
+    int64_t n, s_n, nf, nk, nl, nm, na, cols, r_load, r_mot, n_state, a_src, a_load, a_elec;
+    int64_t a_fric, a_res, a_spr, a_piv, n_out, n_col, i_out = 0, steps_total, step, i, j, c;
+    int64_t e, k, mo, ld, rr, a, iterations;
+    int moving_pivot, status = VSJ_OK;
+    double t0 = t->t, tnow = t0;
+    rep.status = VSJ_OK;
+    rep.t = t0;
+    rep.steps = 0;
+    rep.rejected = 0;
+    if (!fits(m, w) || !t->prepared || !(h > 0.0) || !(t_end >= t0)) {
+        rep.status = VSJ_BAD_ARGUMENT;
+        return rep;
+    }
+    n = m->n;
+    s_n = m->n_sources;
+    nf = m->n_frictions;
+    nk = m->n_springs;
+    nl = m->n_loads;
+    nm = m->n_motors;
+    na = t->na;
+    cols = nf + nk;
+    im = impulses_of(w);
+    r_load = nf + nk;
+    r_mot = r_load + nl;
+    moving_pivot = vsj__row(m, m->n_rows - 1)[2] > 0.0;
+    n_state = 2 * n + nm;
+    a_src = n_state;
+    a_load = a_src + s_n;
+    a_elec = a_load + nl;
+    a_fric = a_elec + nm;
+    a_res = a_fric + nf;
+    a_spr = a_res + nm;
+    a_piv = a_spr + nk;
+    n_out = smp ? smp->n : 0;
+    n_col = smp ? (smp->out_cols < n_state + (ledger ? vsj_n_acc(m) : 0)
+                       ? smp->out_cols
+                       : n_state + (ledger ? vsj_n_acc(m) : 0))
+                : 0;
+    steps_total = (int64_t)ceil((t_end - t0) / h - 1e-9);
+    if (w->status != VSJ_OK) {
+        status = w->status;
+        steps_total = 0;
+    } else if (steps_total > max_steps) {
+        status = VSJ_TOO_MANY_STEPS;
+        steps_total = 0;
+    }
+    while (i_out < n_out && smp->t[i_out] <= t0) {
+        sample(m, t, smp, i_out, y, n_col);
+        i_out++;
+    }
+    for (step = 0; step < steps_total; step++) {
+        double t1 = step < steps_total - 1 ? t0 + (double)(step + 1) * h : t_end;
+        double hs = t1 - tnow, angle, scale_h, q_end;
+        int same, finite_, sample_now;
+        /* mid-step inputs (loads, voltages) and pivot position; held inputs
+         * (the step function) may change from call to call: all of them */
+        if (w->held)
+            for (c = 0; c < m->n_channels; c++)
+                vsj__eval_channel(m, w, c, tnow + 0.5 * hs);
+        else
+            for (i = 0; i < t->n_mid_ch; i++)
+                vsj__eval_channel(m, w, t->mid_ch[i], tnow + 0.5 * hs);
+        for (i = 0; i < t->n_mid_src; i++)
+            vsj__eval_source(m, w, t->mid_src[i]);
+        for (ld = 0; ld < nl; ld++)
+            t->ldm[ld] = w->chan[3 * m->code[r_load + ld]];
+        for (mo = 0; mo < nm; mo++)
+            t->vm[mo] = w->chan[3 * m->code[r_mot + mo]];
+        for (i = 0; i < n; i++)
+            t->x1[i] = t->x[i] + 0.5 * hs * t->v[i];
+        angle = vsj__pivot_angle(m, w, t->x1);
+        if (angle != t->angle_mid) {
+            t->angle_mid = angle;
+            t->q_mid = vsj__pivot_at(m, w, angle);
+        }
+        for (i = 0; i < t->n_end_ch; i++)
+            vsj__eval_channel(m, w, t->end_ch[i], t1);
+        for (j = 0; j < s_n; j++) {
+            vsj__eval_source(m, w, j);
+            t->u1[j] = w->srcw[SRCW * j + U];
+            t->sg1[j] = w->srcw[SRCW * j + SG];
+        }
+
+        /* H v1 = r: inertia, springs (trapezoidal), smooth friction, motors */
+        for (i = 0; i < n; i++) {
+            double total = 0.0;
+            for (c = 0; c < n; c++) {
+                t->H[n * i + c] = m->mass[(n + s_n) * i + c] + hs * t->Bx[n * i + c];
+                total += m->mass[(n + s_n) * i + c] * t->v[c];
+            }
+            for (j = 0; j < s_n; j++)
+                total -= m->mass[(n + s_n) * i + n + j] * (t->u1[j] - t->u0[j])
+                         + hs * t->Bu[s_n * i + j] * t->u1[j];
+            t->r[i] = total;
+        }
+        for (k = 0; k < nk; k++) {
+            double d0 = 0.0, rate = 0.0, dsig = 0.0, kap, en, dvq, tau, c_k;
+            rr = nf + k;
+            for (i = 0; i < n; i++) {
+                d0 += t->DxT[cols * i + rr] * t->x[i];
+                rate += t->DxT[cols * i + rr] * t->v[i];
+            }
+            for (j = 0; j < s_n; j++) {
+                d0 += t->DuT[cols * j + rr] * t->sg0[j];
+                dsig += t->DuT[cols * j + rr] * (t->sg1[j] - t->sg0[j]);
+            }
+            tau = vsj__spring(m->code[rr], vsj__row(m, rr), d0, t->q_mid, &kap, &en, &dvq);
+            c_k = tau - 0.5 * kap * dsig - 0.25 * kap * hs * rate;
+            t->sp_c[k] = c_k;
+            t->sp_kap[k] = kap;
+            for (i = 0; i < n; i++) {
+                double di = t->DxT[cols * i + rr];
+                t->r[i] += hs * c_k * di;
+                for (c = 0; c < n; c++)
+                    t->H[n * i + c] += 0.25 * hs * hs * kap * di * t->DxT[cols * c + rr];
+            }
+        }
+        memcpy(t->s0, t->slip, (size_t)nf * sizeof(double));
+        for (i = 0; i < t->n_nonlinear; i++) {
+            const double *p;
+            double se, fe, dfe, cnst;
+            e = t->nonlinear[i];
+            p = vsj__row(m, e);
+            se = t->slip[e];
+            fe = vsj_friction_torque((int)m->code[e], p[0], p[1], p[2], p[3], se, &dfe);
+            t->f0[e] = fe;
+            t->df0[e] = dfe;
+            cnst = fe - dfe * se + dfe * vsj__udotv(m, e, t->u1);
+            vsj__xadd(m, e, t->r, -hs * cnst);
+            outer(m, e, t->H, hs * dfe);
+        }
+        for (ld = 0; ld < nl; ld++)
+            vsj__xadd(m, r_load + ld, t->r, hs * t->ldm[ld]);
+        for (mo = 0; mo < nm; mo++) {
+            const double *p;
+            double R, Lm, kt, g, cnst, damp;
+            rr = r_mot + mo;
+            p = vsj__row(m, rr);
+            R = p[0];
+            Lm = p[1];
+            kt = p[2];
+            g = 1.0 / (1.0 + hs * R / Lm);
+            cnst = kt * g * (t->cur[mo] + hs / Lm * (t->vm[mo] - kt * vsj__udotv(m, rr, t->u1)));
+            damp = kt * kt * g * hs / Lm;
+            vsj__xadd(m, rr, t->r, hs * cnst);
+            outer(m, rr, t->H, hs * damp);
+        }
+        /* H changes only with non-linear springs, smooth friction slopes or a
+         * moving pivot; while it stays within round-off of the matrix last
+         * factored, that factor and YlT are reused */
+        scale_h = 0.0;
+        for (i = 0; i < n * n; i++)
+            scale_h = dmax(scale_h, fabs(t->H_last[i]));
+        same = t->factored;
+        for (i = 0; i < n * n; i++)
+            same = same && fabs(t->H[i] - t->H_last[i]) <= H_REUSE * scale_h;
+        if (n > 0 && !same) {
+            memcpy(t->H_last, t->H, (size_t)(n * n) * sizeof(double));
+            if (!cholesky(t->H, t->Lc, n, n, 0)) {
+                status = VSJ_NOT_FINITE;
+                break;
+            }
+            for (a = 0; a < na; a++) {
+                for (i = 0; i < n; i++)
+                    t->drow[i] = t->DxA[na * i + a];
+                forward(t->Lc, t->drow, t->col, n, n); /* L^-1 d_e: W = Y Y^T */
+                for (i = 0; i < n; i++)
+                    t->YlT[na * i + a] = t->col[i];
+            }
+            t->memo[na] = 0.0; /* the impulse solver's memo was made with the old YlT */
+            t->factored = 1;
+        }
+        if (n > 0)
+            solve(t->Lc, t->r, t->vfree, n);
+
+        /* Coulomb impulses of the stiction elements, all together */
+        if (na > 0) {
+            for (a = 0; a < na; a++)
+                t->cap[a] = hs * t->level[a];
+            element_slips(t->DxA, t->DuA, na, na, t->vfree, n, t->u1, s_n, t->qv);
+            if (!solve_impulses(&im, t->qv, t->cap, t->p, t->state, t->involved, &iterations)) {
+                status = VSJ_FRICTION_SOLVER;
+                break;
+            }
+            /* the impulses change the speeds by H^-1 D^T p = L^-T (YlT p) */
+            backward(t->Lc, t->z, t->v1, n, n);
+            for (i = 0; i < n; i++)
+                t->v1[i] = t->vfree[i] - t->v1[i];
+        } else {
+            memcpy(t->v1, t->vfree, (size_t)n * sizeof(double));
+        }
+        for (i = 0; i < n; i++)
+            t->x1[i] = t->x[i] + 0.5 * hs * (t->v[i] + t->v1[i]);
+        for (mo = 0; mo < nm; mo++) {
+            const double *p;
+            double R, Lm, kt, g, omega1;
+            rr = r_mot + mo;
+            p = vsj__row(m, rr);
+            R = p[0];
+            Lm = p[1];
+            kt = p[2];
+            g = 1.0 / (1.0 + hs * R / Lm);
+            omega1 = vsj__xdot(m, rr, t->v1) + vsj__udotv(m, rr, t->u1);
+            t->i1[mo] = g * (t->cur[mo] + hs / Lm * (t->vm[mo] - kt * omega1));
+        }
+
+        /* energy bookkeeping against mid-step speeds */
+        for (j = 0; j < s_n; j++) {
+            t->um[j] = 0.5 * (t->u0[j] + t->u1[j]);
+            t->srcF[j] = 0.0;
+        }
+        element_slips(t->DxT, t->DuT, cols, nf, t->v1, n, t->u1, s_n, t->slip);
+        /* the elements' torques are wanted by the ledger and at the samples only */
+        sample_now = i_out < n_out && smp->t[i_out] <= t1 + 0.5 * h;
+        if (ledger || sample_now)
+            for (e = 0; e < nf; e++) {
+                double s1 = t->slip[e], fe;
+                fe = t->linear[e] ? vsj__row(m, e)[0] * s1
+                                  : t->f0[e] + t->df0[e] * (s1 - t->s0[e]);
+                if (t->active[e])
+                    fe += t->share[e] * t->p[t->slot[e]] / hs;
+                else if (t->driven[e] && s1 != 0.0)
+                    fe += coulomb_level(m, e) * (s1 > 0.0 ? 1.0 : -1.0);
+                t->force[e] = fe;
+                if (ledger) {
+                    y[a_fric + e] += hs * fe * 0.5 * (t->s0[e] + s1);
+                    vsj__uaddv(m, e, t->srcF, -fe);
+                }
+            }
+        q_end = t->q_prev;
+        if (moving_pivot && (ledger || step == steps_total - 1)) /* at t1, for the ledger */
+            q_end = vsj__pivot_position(m, w, t->x1);
+        if (ledger) { /* springs, loads, motors and sources */
+            for (k = 0; k < nk; k++) {
+                double tau_avg, dd;
+                rr = nf + k;
+                tau_avg = t->sp_c[k] - 0.25 * t->sp_kap[k] * hs * vsj__xdot(m, rr, t->v1);
+                dd = (vsj__xdot(m, rr, t->x1) - vsj__xdot(m, rr, t->x)
+                      + vsj__udotv(m, rr, t->sg1) - vsj__udotv(m, rr, t->sg0));
+                y[a_spr + k] += tau_avg * dd;
+                vsj__uaddv(m, rr, t->srcF, tau_avg);
+                if (q_end != t->q_prev) {
+                    double d1 = vsj__xdot(m, rr, t->x1) + vsj__udotv(m, rr, t->sg1);
+                    double st_, e1, e0, dq_;
+                    vsj__spring(m->code[rr], vsj__row(m, rr), d1, q_end, &st_, &e1, &dq_);
+                    vsj__spring(m->code[rr], vsj__row(m, rr), d1, t->q_prev, &st_, &e0, &dq_);
+                    y[a_piv + k] += e1 - e0;
+                }
+            }
+            for (ld = 0; ld < nl; ld++) {
+                double omega;
+                rr = r_load + ld;
+                omega = 0.5 * (vsj__xdot(m, rr, t->v) + vsj__xdot(m, rr, t->v1));
+                omega += vsj__udotv(m, rr, t->um);
+                y[a_load + ld] += hs * t->ldm[ld] * omega;
+                vsj__uaddv(m, rr, t->srcF, t->ldm[ld]);
+            }
+            for (mo = 0; mo < nm; mo++) {
+                double imid = 0.5 * (t->cur[mo] + t->i1[mo]);
+                rr = r_mot + mo;
+                y[a_elec + mo] += hs * t->vm[mo] * imid;
+                y[a_res + mo] += hs * vsj__row(m, rr)[0] * t->i1[mo] * imid;
+                vsj__uaddv(m, rr, t->srcF, vsj__row(m, rr)[2] * t->i1[mo]);
+            }
+            for (j = 0; j < s_n; j++) {
+                double impulse = -hs * t->srcF[j];
+                for (i = 0; i < n; i++)
+                    impulse += m->mass[(n + s_n) * (n + j) + i] * (t->v1[i] - t->v[i]);
+                for (c = 0; c < s_n; c++)
+                    impulse += m->mass[(n + s_n) * (n + j) + n + c] * (t->u1[c] - t->u0[c]);
+                y[a_src + j] += t->um[j] * impulse;
+            }
+        }
+
+        /* advance */
+        memcpy(t->x, t->x1, (size_t)n * sizeof(double));
+        memcpy(t->v, t->v1, (size_t)n * sizeof(double));
+        memcpy(t->cur, t->i1, (size_t)nm * sizeof(double));
+        memcpy(t->u0, t->u1, (size_t)s_n * sizeof(double));
+        memcpy(t->sg0, t->sg1, (size_t)s_n * sizeof(double));
+        tnow = t1;
+        t->t = t1;
+        t->q_prev = q_end;
+        for (i = 0; i < t->n_watched; i++) {
+            e = t->watched[i];
+            if (fabs(t->slip[e]) <= STUCK_SPEED) {
+                t->held[e]++;
+                if (t->held[e] == 2)
+                    t->transitions[e]++;
+            } else {
+                if (t->held[e] >= 2)
+                    t->transitions[e]++;
+                t->held[e] = 0;
+            }
+        }
+        rep.steps = step + 1;
+        if (w->status != VSJ_OK) {
+            status = w->status;
+            break;
+        }
+        finite_ = 1;
+        for (i = 0; i < n; i++) {
+            y[i] = t->x[i];
+            y[n + i] = t->v[i];
+            finite_ = finite_ && isfinite(t->x[i]) && isfinite(t->v[i]);
+        }
+        if (!finite_) {
+            status = VSJ_NOT_FINITE;
+            break;
+        }
+        for (mo = 0; mo < nm; mo++)
+            y[2 * n + mo] = t->cur[mo];
+        while (i_out < n_out && smp->t[i_out] <= tnow + 0.5 * h) {
+            sample(m, t, smp, i_out, y, n_col);
+            i_out++;
+        }
+    }
+    rep.status = status;
+    rep.t = tnow;
+    return rep;
+}
+
+vsj_report vsj_timestep(const vsj_model *m, vsj_work *w, double *y, double duration, double h,
+                        int64_t max_steps, int ledger, const vsj_samples *samples,
+                        int64_t *transitions) {
+    vsj_report rep;
+    int status = vsj_ts_prepare(m, w);
+    rep.status = status;
+    rep.t = 0.0;
+    rep.steps = 0;
+    rep.rejected = 0;
+    if (status != VSJ_OK)
+        return rep;
+    vsj_ts_begin(m, w, y, 0.0); /* a pivot out of range is reported by the advance */
+    rep = vsj_ts_advance(m, w, y, duration, h, max_steps, ledger, samples);
+    if (transitions)
+        vsj_ts_transitions(w, transitions);
+    return rep;
+}
+
+void vsj_ts_transitions(const vsj_work *w, int64_t *transitions) {
+    memcpy(transitions, w->ts.transitions, (size_t)w->f * sizeof(int64_t));
+}
+
+int64_t vsj_ts_stuck(const vsj_model *m, const vsj_work *w, unsigned char *stuck) {
+    int64_t e, count = 0;
+    for (e = 0; e < m->n_frictions; e++) {
+        int held = (w->ts.active[e] || w->ts.driven[e]) && fabs(w->ts.slip[e]) <= STUCK_SPEED;
+        if (stuck)
+            stuck[e] = (unsigned char)held;
+        count += held;
+    }
+    return count;
+}
+
+/* ---- the history, as bytes ------------------------------------------------- */
+
+typedef struct span {
+    void *data;
+    size_t bytes;
+} span;
+
+/* The parts of the history, in order; with w NULL only their sizes. */
+static int64_t history_spans(const vsj_model *m, const vsj_work *w, span *out) {
+    const ts_work *t = w ? &w->ts : NULL;
+    int64_t n = m->n, f = m->n_frictions, s = m->n_sources, nm = m->n_motors, count = 0;
+    size_t d = sizeof(double), l = sizeof(int64_t);
+#define SPAN(ptr, size)                                                                           \
+    do {                                                                                          \
+        out[count].data = t ? (void *)(ptr) : NULL;                                               \
+        out[count].bytes = (size);                                                                \
+        count++;                                                                                  \
+    } while (0)
+    SPAN(t->x, (size_t)n * d);
+    SPAN(t->v, (size_t)n * d);
+    SPAN(t->cur, (size_t)nm * d);
+    SPAN(t->u0, (size_t)s * d);
+    SPAN(t->sg0, (size_t)s * d);
+    SPAN(&t->t, d);
+    SPAN(&t->q_prev, d);
+    SPAN(&t->angle_mid, d);
+    SPAN(&t->q_mid, d);
+    SPAN(&t->factored, sizeof(int));
+    SPAN(&w->status, sizeof(int));
+    SPAN(t->H_last, (size_t)(n * n) * d);
+    SPAN(t->Lc, (size_t)(n * n) * d);
+    SPAN(t->YlT, (size_t)(n * f) * d);
+    SPAN(t->Gc, (size_t)(n * n) * d);
+    SPAN(t->Kc, (size_t)(n * n) * d);
+    SPAN(t->p, (size_t)f * d);
+    SPAN(t->state, (size_t)f * l);
+    SPAN(t->memo, (size_t)(f + 1) * d);
+    SPAN(t->slip, (size_t)f * d);
+    SPAN(t->held, (size_t)f * l);
+    SPAN(t->transitions, (size_t)f * l);
+#undef SPAN
+    return count;
+}
+
+#define MAX_SPANS 32
+
+size_t vsj_ts_history_size(const vsj_model *m) {
+    span spans[MAX_SPANS];
+    int64_t count = history_spans(m, NULL, spans), i;
+    size_t total = 0;
+    for (i = 0; i < count; i++)
+        total += spans[i].bytes;
+    return total;
+}
+
+void vsj_ts_save(const vsj_model *m, const vsj_work *w, unsigned char *buffer) {
+    span spans[MAX_SPANS];
+    int64_t count = history_spans(m, w, spans), i;
+    for (i = 0; i < count; i++) {
+        memcpy(buffer, spans[i].data, spans[i].bytes);
+        buffer += spans[i].bytes;
+    }
+}
+
+void vsj_ts_restore(const vsj_model *m, vsj_work *w, const unsigned char *buffer) {
+    span spans[MAX_SPANS];
+    int64_t count = history_spans(m, w, spans), i;
+    for (i = 0; i < count; i++) {
+        memcpy(spans[i].data, buffer, spans[i].bytes);
+        buffer += spans[i].bytes;
+    }
+}

@@ -1,0 +1,324 @@
+/*
+ * vsj: the simulation engine of the 2-DOF variable stiffness joint, in C99.
+ *
+ * The engine integrates an assembled network (vsj.network in Python): the
+ * rigid constraints are already eliminated, so every flange speed is
+ * omega = A v + B u, with v the generalised speeds and u the prescribed speeds
+ * of the velocity sources. What the engine needs of the network is a handful of
+ * arrays, described by `vsj_model`. The model is plain data owned by the
+ * caller; the run-time state of a computation lives in a `vsj_work`, allocated
+ * once per model and passed explicitly to every function. Nothing is global:
+ * any number of models and works may be used at once, from any number of
+ * threads, as long as each work is used by one thread at a time.
+ *
+ * State vector y = [x (n), v (n), i (motors), accumulators (optional)]:
+ * generalised angles and speeds, armature currents, then the energy
+ * accumulators of the ledger (see VSJ_ACC_* and vsj_n_acc).
+ *
+ * Element rows (one per friction element, spring, load, motor, and the pivot
+ * last) are stored in compressed sparse row form, split into the part that
+ * multiplies the generalised coordinates (xp, xc, xv) and the part that
+ * multiplies the sources (up, uc, uv). Row order: the friction elements, the
+ * springs, the loads, the motors, the pivot.
+ *
+ * Units are SI throughout. Report: J.D. Zult, "Modeling and characterization
+ * of a 2-DOF variable stiffness joint", University of Twente, 2016.
+ */
+#ifndef VSJ_H
+#define VSJ_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define VSJ_VERSION_MAJOR 1
+#define VSJ_VERSION_MINOR 0
+
+/* Columns of a row of `vsj_model.par`. */
+#define VSJ_NPAR 9
+
+/* Status of a computation. */
+enum vsj_status {
+    VSJ_OK = 0,
+    VSJ_NOT_FINITE = 1,      /* the state or a force became non-finite */
+    VSJ_PIVOT_RANGE = 2,     /* the pivot position left its allowed range */
+    VSJ_TOO_MANY_STEPS = 3,  /* the solver reached its maximum number of steps */
+    VSJ_STEP_TOO_SMALL = 4,  /* the adaptive step fell below the round-off limit */
+    VSJ_FRICTION_SOLVER = 5, /* the stiction impulse solver did not converge */
+    VSJ_BAD_ARGUMENT = 6,    /* an argument is out of range (see vsj_check_model) */
+    VSJ_NO_MEMORY = 7
+};
+
+/* Friction laws (vsj.friction): the resistive torque f(s) of a relative speed s. */
+enum vsj_friction_law {
+    VSJ_VISCOUS = 0,  /* b s */
+    VSJ_ARCTAN = 1,   /* b s + k atan(k_b s), report eq 3.17 */
+    VSJ_SIGN = 2,     /* b s + k pi/2 sign(s), eq 3.18 */
+    VSJ_SLOPE = 3,    /* b s + k pi/2 clip(s / w, -1, 1), fig 4.8 */
+    VSJ_STICTION = 4  /* b s plus a Coulomb impulse decided by the time-stepper */
+};
+
+/* Spring laws (vsj.components.elastic_element). */
+enum vsj_spring_law {
+    VSJ_LINEAR = 0,           /* par: k */
+    VSJ_EXPONENTIAL = 1,      /* par: a1, a2, a3, phi_stop, k_stop (eq 4.5) */
+    VSJ_GEOMETRIC = 2,        /* par: R, L, W, x0, y0, s0, k, phi_stop, k_stop: -dV/dphi */
+    VSJ_GEOMETRIC_REPORT = 3  /* same parameters, the ring torque of eq 3.8 */
+};
+
+/* The compiled form of an assembled network. Every pointer refers to memory
+ * the caller owns and keeps alive while the model is used; the engine never
+ * writes through them. Matrices are row-major. Sizes:
+ *   mass      (n + n_sources)^2    kinetic energy matrix over (v, u)
+ *   Minv      n^2                  inverse of its free block
+ *   xp, up    n_rows + 1           CSR row pointers (free / source parts)
+ *   xc, xv    xp[n_rows]           column (< n) and value
+ *   uc, uv    up[n_rows]           column (< n_sources) and value
+ *   par       n_rows * VSJ_NPAR    parameters of each row:
+ *             friction element: viscous b, stiction k, arctan sharpness k_b,
+ *                               slope width w (Coulomb level k pi/2)
+ *             spring:           the law's parameters (enum vsj_spring_law)
+ *             motor:            resistance, inductance, torque constant
+ *             pivot:            amplitude, fixed q, moving (1 or 0), q_min, q_max
+ *   code      n_rows               law code (friction, spring) or input channel
+ *                                  (load, motor); 0 for the pivot
+ *   src_ch    n_sources            input channel of each velocity source
+ *   src_pos0  n_sources            source angles at t = 0
+ *   first, count  n_channels       each channel's first spline piece and number
+ *   coef      n_pieces * 4         cubic coefficients c0 + c1 tau + c2 tau^2 + c3 tau^3
+ *   knots, cum  n_pieces + n_channels
+ *                                  knots of channel c at first[c] + c + j, and the
+ *                                  integral of the channel from its first knot
+ */
+typedef struct vsj_model {
+    int64_t n;           /* generalised coordinates */
+    int64_t n_sources;   /* velocity sources */
+    int64_t n_frictions;
+    int64_t n_springs;
+    int64_t n_loads;
+    int64_t n_motors;
+    int64_t n_channels;  /* input channels */
+    int64_t n_rows;      /* n_frictions + n_springs + n_loads + n_motors + 1 */
+    int64_t n_pieces;    /* spline pieces of all channels */
+    const double *mass;
+    const double *Minv;
+    const int64_t *xp;
+    const int64_t *xc;
+    const double *xv;
+    const int64_t *up;
+    const int64_t *uc;
+    const double *uv;
+    const double *par;
+    const int64_t *code;
+    const int64_t *src_ch;
+    const double *src_pos0;
+    const double *knots;
+    const double *coef;
+    const double *cum;
+    const int64_t *first;
+    const int64_t *count;
+} vsj_model;
+
+/* Run-time state of one computation (opaque; one per thread). */
+typedef struct vsj_work vsj_work;
+
+/* Checks sizes, indices, codes and finiteness of a model. Returns VSJ_OK, or
+ * VSJ_BAD_ARGUMENT with a message in `message` (of `size` bytes). */
+int vsj_check_model(const vsj_model *m, char *message, size_t size);
+
+/* A work for models of the sizes of `m` (NULL if out of memory). Any model of
+ * the same sizes may be used with it. */
+vsj_work *vsj_work_new(const vsj_model *m);
+void vsj_work_free(vsj_work *w);
+
+/* Lengths of the state vector without and with the ledger's accumulators. */
+int64_t vsj_n_state(const vsj_model *m);
+int64_t vsj_n_acc(const vsj_model *m);
+
+/* Accumulators, in this order after the state (counts in parentheses): work
+ * done by the sources (n_sources), loads (n_loads), motor supplies
+ * (n_motors); dissipation in friction (n_frictions) and armature resistance
+ * (n_motors); work done by the springs on the mechanism (n_springs) and by
+ * the pivot on the springs (n_springs). */
+
+/* Status text for enum vsj_status. */
+const char *vsj_status_text(int status);
+
+/* ---- element laws -------------------------------------------------------- */
+
+/* Smooth part of a friction law at slip speed s: returns f(s), with its slope
+ * in *slope if not NULL. For VSJ_STICTION this is the viscous part only. */
+double vsj_friction_torque(int law, double b, double k, double kb, double w, double s,
+                           double *slope);
+
+/* Spring law at deflection phi and pivot position q: out = (torque on the
+ * ring, stiffness -dtorque/dphi, stored energy V, dV/dq). Returns VSJ_OK, or
+ * VSJ_BAD_ARGUMENT for an unknown law. */
+int vsj_spring_law(int law, const double par[VSJ_NPAR], double phi, double q, double out[4]);
+
+/* Both geometric models at one point: out = (V, dV/dphi, d2V/dphi2, dV/dq,
+ * T_phi of eq 3.8, dT_phi/dphi). */
+void vsj_spring_geometry(const double par[VSJ_NPAR], double phi, double q, double out[6]);
+
+/* Extensions l - s0 [m] of springs a and b of the geometric element (negative: slack). */
+void vsj_spring_extensions(const double par[VSJ_NPAR], double phi, double q, double out[2]);
+
+/* ---- evaluation ---------------------------------------------------------- */
+
+/* dy/dt at (t, y). ny is 2n + n_motors (state only) or that plus vsj_n_acc
+ * (state, accumulators, and the torque each source supplies). Returns the
+ * status (VSJ_PIVOT_RANGE if the pivot is outside its range, VSJ_NOT_FINITE). */
+int vsj_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y, int64_t ny,
+                    double *dy);
+
+/* Source angles and speeds at each of n_out times: arrays of n_out * n_sources. */
+void vsj_source_signals(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_out,
+                        double *angles, double *speeds);
+
+/* Kinetic, spring and inductor energy [J] at (t, y) (y: the state, 2n + n_motors).
+ * `springs` (n_springs, may be NULL) receives each spring's energy. */
+void vsj_stored_energy(const vsj_model *m, vsj_work *w, double t, const double *y,
+                       double energy[3], double *springs);
+
+/* Number of columns of vsj_observe's rows. */
+int64_t vsj_observation_width(const vsj_model *m);
+
+/* Every internal signal at n_out samples: states from `out` (rows of ny,
+ * leading 2n + n_motors used), Coulomb torques of stiction elements from
+ * `coulomb` (n_out * n_frictions, or NULL); rows of vsj_observation_width
+ * columns into `raw`: x, v, i, a, source angles, speeds and accelerations, q,
+ * dq/dt, friction slips and torques, spring deflections, rates, torques,
+ * energies and stiffnesses, source torques, load torques and speeds, motor
+ * speeds and voltages. */
+int vsj_observe(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_out,
+                const double *out, int64_t ny, const double *coulomb, double *raw);
+
+/* ---- integration --------------------------------------------------------- */
+
+/* What an integration did. */
+typedef struct vsj_report {
+    int status;
+    double t;            /* time reached (of the failure, if any) */
+    int64_t steps;
+    int64_t rejected;    /* adaptive solver: rejected steps */
+} vsj_report;
+
+/* Adaptive Dormand-Prince 5(4) from t0 to t_end (smooth friction laws).
+ * y (ny values, see vsj_derivatives) is the initial state and receives the
+ * final one (the last good one on failure). The leading out_cols components
+ * are written to out (n_out rows) at each time of t_out (increasing). n_err
+ * leading components enter the error norm. */
+vsj_report vsj_dopri(const vsj_model *m, vsj_work *w, double *y, int64_t ny, double t0,
+                     double t_end, const double *t_out, int64_t n_out, double rtol, double atol,
+                     double h_max, int64_t max_steps, int64_t n_err, double *out,
+                     int64_t out_cols);
+
+/* Sampling of the time-stepper: state rows (out_cols leading components) and,
+ * if `coulomb` is not NULL, the Coulomb torque of each friction element and
+ * whether it held (rows of n_frictions). */
+typedef struct vsj_samples {
+    const double *t;     /* n times, multiples of the step */
+    int64_t n;
+    double *out;         /* n * out_cols */
+    int64_t out_cols;
+    double *coulomb;     /* n * n_frictions, or NULL */
+    unsigned char *stuck;
+} vsj_samples;
+
+/* Fixed-step time-stepping with exact Coulomb stiction from t = 0 to
+ * `duration` with step h (report section 4.1.3: true sticking). y holds
+ * 2n + n_motors state values and, with `ledger`, the vsj_n_acc accumulators
+ * after them; it receives the final state. transitions (n_frictions, may be
+ * NULL) receives the number of starts and ends of stick phases per element. */
+vsj_report vsj_timestep(const vsj_model *m, vsj_work *w, double *y, double duration, double h,
+                        int64_t max_steps, int ledger, const vsj_samples *samples,
+                        int64_t *transitions);
+
+/* The time-stepper, resumable: vsj_ts_prepare analyses the model (call it
+ * again when its parameters change) and clears the stick/slip history;
+ * vsj_ts_begin sets the state at time t0; vsj_ts_advance steps to t_end (the
+ * last step shortened to land on it). */
+int vsj_ts_prepare(const vsj_model *m, vsj_work *w);
+int vsj_ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0);
+vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_end, double h,
+                          int64_t max_steps, int ledger, const vsj_samples *samples);
+/* Per element: the stick-phase transitions counted since vsj_ts_prepare, and
+ * whether it holds now (after vsj_ts_advance). Arrays of n_frictions. */
+void vsj_ts_transitions(const vsj_work *w, int64_t *transitions);
+int64_t vsj_ts_stuck(const vsj_model *m, const vsj_work *w, unsigned char *stuck);
+/* The time-stepper's whole history (state, warm start, stick counters) as
+ * bytes, for FMU state get/set: size, save into `buffer`, restore. */
+size_t vsj_ts_history_size(const vsj_model *m);
+void vsj_ts_save(const vsj_model *m, const vsj_work *w, unsigned char *buffer);
+void vsj_ts_restore(const vsj_model *m, vsj_work *w, const unsigned char *buffer);
+
+/* The time-stepper's joint Coulomb impulse problem on its own: for each of
+ * `count` right-hand sides q (rows of qs, m values), impulses p with
+ * |p_e| <= cap_e such that the slips s = q - Y^T Y p (Y: the n x m matrix YT)
+ * satisfy the Coulomb conditions (s_e = 0 where |p_e| < cap_e, p_e = cap_e
+ * sign(s_e) where s_e != 0); unknowns with active[e] == 0 take no impulse.
+ * Each problem is warm-started from the previous solution. Writes ps and
+ * states (rows of m: -1, +1 slipping, 0 stuck, 2 not involved) and the
+ * active-set iterations of each (0: last pattern held, -1: no convergence). */
+int vsj_solve_impulses(int64_t n, int64_t m, const double *YT, int64_t count, const double *qs,
+                       const double *cap, const unsigned char *active, double *ps,
+                       int64_t *states, int64_t *iterations);
+
+/* ---- the step function --------------------------------------------------- */
+
+/* Inputs held over one control period (zero-order hold), one value per input
+ * channel. The stepper's state is s = [x (n), p (n), i (motors), sigma
+ * (sources)] with p = M v + M_su u the generalised momenta (continuous when a
+ * source speed jumps between periods) and sigma the source angles. */
+int64_t vsj_step_state_size(const vsj_model *m);
+
+/* Advance s in place by dt with adaptive DOPRI5 (unchanged on failure). */
+int vsj_step_dopri(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
+                   double rtol, double atol, int64_t max_steps);
+/* Advance s in place by dt with `substeps` classical Runge-Kutta steps. */
+int vsj_step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
+                 int64_t substeps);
+/* Advance s in place by dt with the time-stepper at step h (true stiction);
+ * vsj_ts_prepare must have been called for the model. The stick/slip history
+ * is kept in the work from one call to the next. */
+int vsj_step_timestep(const vsj_model *m, vsj_work *w, double *s, const double *inputs,
+                      double dt, double h);
+/* ds/dt at s for held inputs (the source speeds' derivatives drop out). */
+int vsj_step_rate(const vsj_model *m, vsj_work *w, const double *s, const double *inputs,
+                  double *ds);
+/* Generalised speeds v = M^-1 (p - M_su u) of state s for inputs. */
+void vsj_step_speeds(const vsj_model *m, const double *s, const double *inputs, double *v);
+
+/* ---- models from files ----------------------------------------------------- */
+
+/* A model read from a file written by `vsj export-model` (JSON), with the
+ * memory behind it, the names of its inputs and its default initial stepper
+ * state, and output rows: output k = sum_j rows[k * state_size + j] s[j]. */
+typedef struct vsj_loaded {
+    vsj_model model;
+    int64_t n_inputs;
+    char **input_names;
+    double *initial_state;      /* vsj_step_state_size values */
+    int64_t n_outputs;
+    char **output_names;
+    double *output_rows;        /* n_outputs * vsj_step_state_size */
+    int solver;                 /* 0: dopri, 1: rk4, 2: time-stepper */
+    double rtol, atol, step;    /* dopri tolerances, time-stepper step [s] */
+    int64_t substeps;           /* rk4 */
+    void *memory_;              /* private */
+} vsj_loaded;
+
+/* Reads a model file; NULL on failure with the reason in `message`. */
+vsj_loaded *vsj_load_model(const char *path, char *message, size_t size);
+/* The same from text in memory (`length` bytes). */
+vsj_loaded *vsj_parse_model(const char *text, size_t length, char *message, size_t size);
+void vsj_free_loaded(vsj_loaded *loaded);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* VSJ_H */
