@@ -25,6 +25,10 @@ reproduce: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n auto --dist loadfile
 
+# the engine under AddressSanitizer and UndefinedBehaviorSanitizer (also run by make test)
+sanitize: $(STAMP)
+	$(BIN)/python tests/sanitize.py build/sanitize
+
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
 	$(BIN)/python benchmarks/friction_laws.py

@@ -1,6 +1,7 @@
-"""The ``vsj linearize`` and ``vsj datasheet`` commands (a thin layer, no physics).
+"""The ``vsj linearize``, ``vsj datasheet`` and ``vsj export-model`` commands (a thin
+layer, no physics).
 
-`register` adds both to the ``vsj`` command's subparsers; each handler returns
+`register` adds them to the ``vsj`` command's subparsers; each handler returns
 the exit code (0) and raises `vsj.errors.InputError` for bad input (exit 2) or
 `vsj.errors.SimulationError` when a computation fails (exit 1).
 
@@ -108,8 +109,42 @@ def cmd_datasheet(args) -> int:
     return 0
 
 
+def cmd_export_model(args) -> int:
+    from . import export
+    from .simulate import InitialState, SimulationOptions
+    from .wrist import WristOptions
+
+    params = _params(args.params)
+    method = args.method or ("timestep" if args.friction == "stiction" else "dopri")
+    options = SimulationOptions(friction=args.friction,
+                                step=_quantity(args.step, "s", "--step"),
+                                rtol=args.rtol, atol=args.atol)
+    wrist_options = WristOptions(elastic=args.elastic, motors=args.motor_model,
+                                 pivot_drive=args.pivot_drive,
+                                 linear_stiffness=(_quantity(args.linear_stiffness, "N*m",
+                                                             "--linear-stiffness")
+                                                   if args.linear_stiffness else None))
+    wrist_options.validate()
+    stepper = export.wrist_stepper(params, wrist_options, options=options, method=method,
+                                   period=_quantity(args.period, "s", "--period"),
+                                   substeps=args.substeps)
+    initial = InitialState(q=_quantity(args.q, "m", "--q") if args.q is not None else None)
+    document = export.model_document(stepper, params=params, initial=initial,
+                                     wrist_options=wrist_options)
+    try:
+        export.write_model(Path(args.out), document)
+    except OSError as exc:
+        raise InputError(f"--out {args.out}: cannot write ({exc.strerror or exc})") from None
+    print(f"wrote {args.out}: {len(document['inputs'])} inputs "
+          f"({', '.join(i['name'] for i in document['inputs'])}), a state of "
+          f"{len(document['state'])}, {len(document['outputs'])} outputs; step function "
+          f"{method} over {stepper.period:g} s periods")
+    return 0
+
+
 def register(sub) -> None:
-    """Add ``linearize`` and ``datasheet`` to the ``vsj`` command's subparsers."""
+    """Add ``linearize``, ``datasheet`` and ``export-model`` to the ``vsj`` command's
+    subparsers."""
     from .linear import FRICTION_TREATMENTS
     from .wrist import DRIVES, ELASTIC_MODELS
 
@@ -161,6 +196,40 @@ def register(sub) -> None:
                    help="elastic element model (default geometric)")
     p.set_defaults(func=cmd_datasheet)
 
+    from .friction import LAWS
+    from .stepper import METHODS
 
-__all__ = ["register", "cmd_linearize", "cmd_datasheet"]
+    p = sub.add_parser(
+        "export-model", help="write the wrist as a model file for the C engine (vsj.h)",
+        description="Write the wrist, with a parameter set and model options, as a JSON file "
+                    "that the C library reads (vsj_load_model) and steps one control period "
+                    "at a time (examples/c/step_wrist.c).")
+    p.add_argument("--out", metavar="FILE", required=True, help="model file to write (JSON)")
+    p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
+    p.add_argument("--elastic", default="geometric", choices=list(ELASTIC_MODELS),
+                   help="elastic element model (default geometric)")
+    p.add_argument("--linear-stiffness", metavar="STIFFNESS",
+                   help="stiffness of the 'linear' elastic model, e.g. '0.8 N m/rad'")
+    p.add_argument("--motor-model", default="velocity", choices=list(DRIVES),
+                   help="primary motors: velocity sources or DC motors (default velocity)")
+    p.add_argument("--pivot-drive", default="velocity", choices=list(DRIVES),
+                   help="stiffness motor: velocity source or DC motor (default velocity)")
+    p.add_argument("--friction", default="arctan", choices=list(LAWS),
+                   help="friction law (default arctan)")
+    p.add_argument("--method", choices=list(METHODS),
+                   help="step function: dopri (adaptive), rk4 (fixed cost) or timestep (true "
+                        "stiction); default timestep with --friction stiction, else dopri")
+    p.add_argument("--period", default="1 ms", metavar="TIME",
+                   help="control period (default 1 ms)")
+    p.add_argument("--step", default="1 ms", metavar="TIME",
+                   help="time-stepper step (default 1 ms)")
+    p.add_argument("--substeps", type=int, default=4, help="rk4 substeps per period (default 4)")
+    p.add_argument("--rtol", type=float, default=1e-8, help="dopri relative tolerance")
+    p.add_argument("--atol", type=float, default=1e-10, help="dopri absolute tolerance")
+    p.add_argument("--q", metavar="LENGTH",
+                   help="pivot position of the initial state, e.g. --q=-1cm (default 0 cm)")
+    p.set_defaults(func=cmd_export_model)
+
+
+__all__ = ["register", "cmd_linearize", "cmd_datasheet", "cmd_export_model"]
 

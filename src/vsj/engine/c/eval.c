@@ -35,143 +35,6 @@ int64_t vsj_n_acc(const vsj_model *m) {
     return m->n_sources + m->n_loads + 2 * m->n_motors + m->n_frictions + 2 * m->n_springs;
 }
 
-/* ---- inputs ---------------------------------------------------------------- */
-
-void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c, double t) {
-    double *ch = w->chan + 3 * c;
-    int64_t p0, npieces, koff, j, p;
-    double t0, t_last, tau, c0, c1, c2, c3;
-    if (w->held) { /* held over a control period, from t = 0 */
-        double v = w->held[c];
-        ch[0] = v;
-        ch[1] = 0.0;
-        ch[2] = t * v;
-        return;
-    }
-    p0 = m->first[c];
-    npieces = m->count[c];
-    koff = p0 + c;
-    t0 = m->knots[koff];
-    if (t < t0) {
-        double v = m->coef[4 * p0];
-        ch[0] = v;
-        ch[1] = 0.0;
-        ch[2] = (t - t0) * v;
-        return;
-    }
-    t_last = m->knots[koff + npieces];
-    if (t >= t_last) {
-        const double *cf;
-        double v;
-        p = p0 + npieces - 1;
-        cf = m->coef + 4 * p;
-        tau = t_last - m->knots[koff + npieces - 1];
-        v = cf[0] + tau * (cf[1] + tau * (cf[2] + tau * cf[3]));
-        ch[0] = v;
-        ch[1] = 0.0;
-        ch[2] = m->cum[koff + npieces] + (t - t_last) * v;
-        return;
-    }
-    j = w->hint[c];
-    if (j < 0 || j >= npieces)
-        j = 0;
-    while (m->knots[koff + j + 1] <= t)
-        j++;
-    while (m->knots[koff + j] > t)
-        j--;
-    w->hint[c] = j;
-    tau = t - m->knots[koff + j];
-    p = p0 + j;
-    c0 = m->coef[4 * p];
-    c1 = m->coef[4 * p + 1];
-    c2 = m->coef[4 * p + 2];
-    c3 = m->coef[4 * p + 3];
-    ch[0] = c0 + tau * (c1 + tau * (c2 + tau * c3));
-    ch[1] = c1 + tau * (2.0 * c2 + 3.0 * c3 * tau);
-    ch[2] = m->cum[koff + j] + tau * (c0 + tau * (0.5 * c1 + tau * (c2 / 3.0 + 0.25 * c3 * tau)));
-}
-
-void vsj__eval_source(const vsj_model *m, vsj_work *w, int64_t j) {
-    const double *ch = w->chan + 3 * m->src_ch[j];
-    double *sw = w->srcw + SRCW * j;
-    sw[U] = ch[0];
-    sw[UD] = ch[1];
-    sw[SG] = (w->held ? w->pos0[j] : m->src_pos0[j]) + ch[2];
-}
-
-void vsj__eval_inputs(const vsj_model *m, vsj_work *w, double t) {
-    int64_t c, j;
-    for (c = 0; c < m->n_channels; c++)
-        vsj__eval_channel(m, w, c, t);
-    for (j = 0; j < m->n_sources; j++)
-        vsj__eval_source(m, w, j);
-}
-
-/* ---- sparse rows ----------------------------------------------------------- */
-
-double vsj__xdot(const vsj_model *m, int64_t r, const double *vec) {
-    double acc = 0.0;
-    int64_t k;
-    for (k = m->xp[r]; k < m->xp[r + 1]; k++)
-        acc += m->xv[k] * vec[m->xc[k]];
-    return acc;
-}
-
-double vsj__udot(const vsj_model *m, int64_t r, const double *srcw, int col) {
-    double acc = 0.0;
-    int64_t k;
-    for (k = m->up[r]; k < m->up[r + 1]; k++)
-        acc += m->uv[k] * srcw[SRCW * m->uc[k] + col];
-    return acc;
-}
-
-double vsj__udotv(const vsj_model *m, int64_t r, const double *vec) {
-    double acc = 0.0;
-    int64_t k;
-    for (k = m->up[r]; k < m->up[r + 1]; k++)
-        acc += m->uv[k] * vec[m->uc[k]];
-    return acc;
-}
-
-void vsj__xadd(const vsj_model *m, int64_t r, double *vec, double scale) {
-    int64_t k;
-    for (k = m->xp[r]; k < m->xp[r + 1]; k++)
-        vec[m->xc[k]] += scale * m->xv[k];
-}
-
-static void uadd(const vsj_model *m, int64_t r, double *srcw, int col, double scale) {
-    int64_t k;
-    for (k = m->up[r]; k < m->up[r + 1]; k++)
-        srcw[SRCW * m->uc[k] + col] += scale * m->uv[k];
-}
-
-void vsj__uaddv(const vsj_model *m, int64_t r, double *vec, double scale) {
-    int64_t k;
-    for (k = m->up[r]; k < m->up[r + 1]; k++)
-        vec[m->uc[k]] += scale * m->uv[k];
-}
-
-/* ---- the pivot --------------------------------------------------------------- */
-
-double vsj__pivot_at(const vsj_model *m, vsj_work *w, double angle) {
-    const double *p = vsj__row(m, m->n_rows - 1);
-    double moving = p[2]; /* 1 with a pivot mechanism, 0 for a fixed pivot */
-    double q = moving * p[0] * sin(angle) + (1.0 - moving) * p[1];
-    w->q = q;
-    if ((q < p[3] - 1e-12 || q > p[4] + 1e-12) && w->status < VSJ_PIVOT_RANGE)
-        w->status = VSJ_PIVOT_RANGE;
-    return q;
-}
-
-double vsj__pivot_angle(const vsj_model *m, const vsj_work *w, const double *x) {
-    int64_t r = m->n_rows - 1;
-    return vsj__xdot(m, r, x) + vsj__udot(m, r, w->srcw, SG);
-}
-
-double vsj__pivot_position(const vsj_model *m, vsj_work *w, const double *x) {
-    return vsj__pivot_at(m, w, vsj__pivot_angle(m, w, x));
-}
-
 /* Pivot position and rate; y holds the angles and then the speeds (offset n). */
 static double eval_pivot(const vsj_model *m, vsj_work *w, const double *y) {
     int64_t r = m->n_rows - 1;
@@ -219,7 +82,7 @@ static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int fu
         double tau = w->spw[SPW * kk + SPTAU];
         vsj__xadd(m, r, w->gen, tau);
         if (full)
-            uadd(m, r, w->srcw, SRCF, tau);
+            vsj__uadd(m, r, w->srcw, SRCF, tau);
     }
     for (e = 0; e < f; e++) {
         const double *p;
@@ -228,14 +91,14 @@ static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int fu
             continue;
         p = vsj__row(m, e);
         slip = vsj__xdot(m, e, y + n) + vsj__udot(m, e, w->srcw, U);
-        torque = vsj_friction_torque((int)m->code[e], p[0], p[1], p[2], p[3], slip, NULL);
+        torque = vsj__friction(m->code[e], p[0], p[1], p[2], p[3], slip, NULL);
         if (m->code[e] == VSJ_STICTION)
             torque += w->frw[FRW * e + EXTRA];
         w->frw[FRW * e + SLIP] = slip;
         w->frw[FRW * e + TORQUE] = torque;
         vsj__xadd(m, e, w->gen, -torque);
         if (full)
-            uadd(m, e, w->srcw, SRCF, -torque);
+            vsj__uadd(m, e, w->srcw, SRCF, -torque);
     }
     for (ld = 0; ld < nl; ld++) {
         int64_t r = f + k + ld;
@@ -244,7 +107,7 @@ static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int fu
         w->ldw[2 * ld + 1] = vsj__xdot(m, r, y + n) + vsj__udot(m, r, w->srcw, U);
         vsj__xadd(m, r, w->gen, tau);
         if (full)
-            uadd(m, r, w->srcw, SRCF, tau);
+            vsj__uadd(m, r, w->srcw, SRCF, tau);
     }
     for (mo = 0; mo < m->n_motors; mo++) {
         int64_t r = f + k + nl + mo;
@@ -253,7 +116,7 @@ static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int fu
         w->mow[2 * mo + 1] = w->chan[3 * m->code[r]];
         vsj__xadd(m, r, w->gen, torque);
         if (full)
-            uadd(m, r, w->srcw, SRCF, torque);
+            vsj__uadd(m, r, w->srcw, SRCF, torque);
     }
 }
 

@@ -2,6 +2,8 @@
 #ifndef VSJ_INTERNAL_H
 #define VSJ_INTERNAL_H
 
+#include <math.h>
+
 #include "vsj.h"
 
 /* columns of the work arrays */
@@ -63,29 +65,195 @@ struct vsj_work {
     void *block;           /* the one allocation behind all of the above */
 };
 
+/* Internal functions shared between the engine's files: not exported from a
+ * shared library (direct calls, no symbol interposition). */
+#if defined(__GNUC__) && !defined(_WIN32)
+#define VSJ_INTERNAL __attribute__((visibility("hidden")))
+#else
+#define VSJ_INTERNAL
+#endif
+
 /* evaluation (eval.c) */
-void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c, double t);
-void vsj__eval_source(const vsj_model *m, vsj_work *w, int64_t j);
-void vsj__eval_inputs(const vsj_model *m, vsj_work *w, double t);
-double vsj__xdot(const vsj_model *m, int64_t r, const double *vec);
-double vsj__udot(const vsj_model *m, int64_t r, const double *srcw, int col);
-double vsj__udotv(const vsj_model *m, int64_t r, const double *vec);
-void vsj__xadd(const vsj_model *m, int64_t r, double *vec, double scale);
-void vsj__uaddv(const vsj_model *m, int64_t r, double *vec, double scale);
-double vsj__pivot_at(const vsj_model *m, vsj_work *w, double angle);
-double vsj__pivot_angle(const vsj_model *m, const vsj_work *w, const double *x);
-double vsj__pivot_position(const vsj_model *m, vsj_work *w, const double *x);
-void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y,
+VSJ_INTERNAL void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y,
                            int64_t ny, double *dy);
 
 /* laws (laws.c) */
-double vsj__spring(int64_t law, const double *p, double phi, double q, double *stiff,
+VSJ_INTERNAL double vsj__spring(int64_t law, const double *p, double phi, double q, double *stiff,
                    double *energy, double *dvdq);
+
+#define VSJ_PI 3.14159265358979323846
 
 static inline const double *vsj__row(const vsj_model *m, int64_t r) {
     return m->par + r * VSJ_NPAR;
 }
 
-#define VSJ_PI 3.14159265358979323846
+/* The smooth part of a friction law (vsj_friction_torque). */
+static inline double vsj__friction(int64_t law, double b, double k, double kb, double w, double s,
+                                    double *slope) {
+    double f = b * s;
+    double df = b;
+    if (law == VSJ_ARCTAN) {
+        f += k * atan(kb * s);
+        df += k * kb / (1.0 + (kb * s) * (kb * s));
+    } else if (law == VSJ_SIGN) {
+        if (s > 0.0)
+            f += k * (0.5 * VSJ_PI);
+        else if (s < 0.0)
+            f -= k * (0.5 * VSJ_PI);
+    } else if (law == VSJ_SLOPE) {
+        double level = k * (0.5 * VSJ_PI);
+        if (s >= w) {
+            f += level;
+        } else if (s <= -w) {
+            f -= level;
+        } else {
+            f += level * s / w;
+            df += level / w;
+        }
+    }
+    if (slope)
+        *slope = df;
+    return f;
+}
+
+
+/* ---- inputs ---------------------------------------------------------------- */
+
+static inline void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c, double t) {
+    double *ch = w->chan + 3 * c;
+    int64_t p0, npieces, koff, j, p;
+    double t0, t_last, tau, c0, c1, c2, c3;
+    if (w->held) { /* held over a control period, from t = 0 */
+        double v = w->held[c];
+        ch[0] = v;
+        ch[1] = 0.0;
+        ch[2] = t * v;
+        return;
+    }
+    p0 = m->first[c];
+    npieces = m->count[c];
+    koff = p0 + c;
+    t0 = m->knots[koff];
+    if (t < t0) {
+        double v = m->coef[4 * p0];
+        ch[0] = v;
+        ch[1] = 0.0;
+        ch[2] = (t - t0) * v;
+        return;
+    }
+    t_last = m->knots[koff + npieces];
+    if (t >= t_last) {
+        const double *cf;
+        double v;
+        p = p0 + npieces - 1;
+        cf = m->coef + 4 * p;
+        tau = t_last - m->knots[koff + npieces - 1];
+        v = cf[0] + tau * (cf[1] + tau * (cf[2] + tau * cf[3]));
+        ch[0] = v;
+        ch[1] = 0.0;
+        ch[2] = m->cum[koff + npieces] + (t - t_last) * v;
+        return;
+    }
+    j = w->hint[c];
+    if (j < 0 || j >= npieces)
+        j = 0;
+    while (m->knots[koff + j + 1] <= t)
+        j++;
+    while (m->knots[koff + j] > t)
+        j--;
+    w->hint[c] = j;
+    tau = t - m->knots[koff + j];
+    p = p0 + j;
+    c0 = m->coef[4 * p];
+    c1 = m->coef[4 * p + 1];
+    c2 = m->coef[4 * p + 2];
+    c3 = m->coef[4 * p + 3];
+    ch[0] = c0 + tau * (c1 + tau * (c2 + tau * c3));
+    ch[1] = c1 + tau * (2.0 * c2 + 3.0 * c3 * tau);
+    ch[2] = m->cum[koff + j] + tau * (c0 + tau * (0.5 * c1 + tau * (c2 / 3.0 + 0.25 * c3 * tau)));
+}
+
+static inline void vsj__eval_source(const vsj_model *m, vsj_work *w, int64_t j) {
+    const double *ch = w->chan + 3 * m->src_ch[j];
+    double *sw = w->srcw + SRCW * j;
+    sw[U] = ch[0];
+    sw[UD] = ch[1];
+    sw[SG] = (w->held ? w->pos0[j] : m->src_pos0[j]) + ch[2];
+}
+
+static inline void vsj__eval_inputs(const vsj_model *m, vsj_work *w, double t) {
+    int64_t c, j;
+    for (c = 0; c < m->n_channels; c++)
+        vsj__eval_channel(m, w, c, t);
+    for (j = 0; j < m->n_sources; j++)
+        vsj__eval_source(m, w, j);
+}
+
+/* ---- sparse rows ----------------------------------------------------------- */
+
+static inline double vsj__xdot(const vsj_model *m, int64_t r, const double *vec) {
+    double acc = 0.0;
+    int64_t k;
+    for (k = m->xp[r]; k < m->xp[r + 1]; k++)
+        acc += m->xv[k] * vec[m->xc[k]];
+    return acc;
+}
+
+static inline double vsj__udot(const vsj_model *m, int64_t r, const double *srcw, int col) {
+    double acc = 0.0;
+    int64_t k;
+    for (k = m->up[r]; k < m->up[r + 1]; k++)
+        acc += m->uv[k] * srcw[SRCW * m->uc[k] + col];
+    return acc;
+}
+
+static inline double vsj__udotv(const vsj_model *m, int64_t r, const double *vec) {
+    double acc = 0.0;
+    int64_t k;
+    for (k = m->up[r]; k < m->up[r + 1]; k++)
+        acc += m->uv[k] * vec[m->uc[k]];
+    return acc;
+}
+
+static inline void vsj__xadd(const vsj_model *m, int64_t r, double *vec, double scale) {
+    int64_t k;
+    for (k = m->xp[r]; k < m->xp[r + 1]; k++)
+        vec[m->xc[k]] += scale * m->xv[k];
+}
+
+static inline void vsj__uadd(const vsj_model *m, int64_t r, double *srcw, int col, double scale) {
+    int64_t k;
+    for (k = m->up[r]; k < m->up[r + 1]; k++)
+        srcw[SRCW * m->uc[k] + col] += scale * m->uv[k];
+}
+
+static inline void vsj__uaddv(const vsj_model *m, int64_t r, double *vec, double scale) {
+    int64_t k;
+    for (k = m->up[r]; k < m->up[r + 1]; k++)
+        vec[m->uc[k]] += scale * m->uv[k];
+}
+
+/* ---- the pivot --------------------------------------------------------------- */
+
+static inline double vsj__pivot_at(const vsj_model *m, vsj_work *w, double angle) {
+    const double *p = vsj__row(m, m->n_rows - 1);
+    double moving = p[2]; /* 1 with a pivot mechanism, 0 for a fixed pivot */
+    double q = moving * p[0] * sin(angle) + (1.0 - moving) * p[1];
+    w->q = q;
+    if ((q < p[3] - 1e-12 || q > p[4] + 1e-12) && w->status < VSJ_PIVOT_RANGE)
+        w->status = VSJ_PIVOT_RANGE;
+    return q;
+}
+
+static inline double vsj__pivot_angle(const vsj_model *m, const vsj_work *w, const double *x) {
+    int64_t r = m->n_rows - 1;
+    return vsj__xdot(m, r, x) + vsj__udot(m, r, w->srcw, SG);
+}
+
+static inline double vsj__pivot_position(const vsj_model *m, vsj_work *w, const double *x) {
+    return vsj__pivot_at(m, w, vsj__pivot_angle(m, w, x));
+}
+
+
 
 #endif

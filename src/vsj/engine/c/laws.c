@@ -15,30 +15,7 @@
 
 double vsj_friction_torque(int law, double b, double k, double kb, double w, double s,
                            double *slope) {
-    double f = b * s;
-    double df = b;
-    if (law == VSJ_ARCTAN) {
-        f += k * atan(kb * s);
-        df += k * kb / (1.0 + (kb * s) * (kb * s));
-    } else if (law == VSJ_SIGN) {
-        if (s > 0.0)
-            f += k * (0.5 * VSJ_PI);
-        else if (s < 0.0)
-            f -= k * (0.5 * VSJ_PI);
-    } else if (law == VSJ_SLOPE) {
-        double level = k * (0.5 * VSJ_PI);
-        if (s >= w) {
-            f += level;
-        } else if (s <= -w) {
-            f -= level;
-        } else {
-            f += level * s / w;
-            df += level / w;
-        }
-    }
-    if (slope)
-        *slope = df;
-    return f;
+    return vsj__friction(law, b, k, kb, w, s, slope);
 }
 
 /* Lever of eq 3.1: sines and cosines of phi and alpha, dalpha/dphi, dalpha/dq,

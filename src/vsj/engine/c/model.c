@@ -139,6 +139,15 @@ int vsj_check_model(const vsj_model *m, char *message, size_t size) {
 
 /* ---- the work -------------------------------------------------------------- */
 
+/* Under AddressSanitizer, a poisoned gap follows every array carved out of the
+ * work's block, so that an overrun into the next array is reported. */
+#if defined(__SANITIZE_ADDRESS__)
+#include <sanitizer/asan_interface.h>
+#define GUARD 32u
+#else
+#define GUARD 0u
+#endif
+
 /* Carves arrays out of one block: first with base NULL to size it, then for real. */
 typedef struct carver {
     unsigned char *base;
@@ -151,6 +160,13 @@ static void *carve(carver *cv, int64_t count, size_t item) {
     cv->used = (cv->used + 31u) & ~(size_t)31u;
     p = cv->base ? cv->base + cv->used : NULL;
     cv->used += bytes;
+#if defined(__SANITIZE_ADDRESS__)
+    if (cv->base) {
+        size_t end = (cv->used + 7u) & ~(size_t)7u;
+        ASAN_POISON_MEMORY_REGION(cv->base + end, GUARD);
+    }
+#endif
+    cv->used += GUARD;
     return p;
 }
 
@@ -285,6 +301,13 @@ vsj_work *vsj_work_new(const vsj_model *m) {
 void vsj_work_free(vsj_work *w) {
     if (!w)
         return;
+#if defined(__SANITIZE_ADDRESS__)
+    {
+        carver cv = {NULL, 0};
+        layout(w, &cv); /* the block's size */
+        ASAN_UNPOISON_MEMORY_REGION(w->block, cv.used + 32u);
+    }
+#endif
     free(w->block);
     free(w);
 }

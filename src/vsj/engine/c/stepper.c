@@ -85,6 +85,13 @@ void vsj_step_speeds(const vsj_model *m, const double *s, const double *inputs, 
     }
 }
 
+double vsj_step_pivot_position(const vsj_model *m, const double *s) {
+    int64_t r = m->n_rows - 1;
+    const double *p = vsj__row(m, r);
+    double angle = vsj__xdot(m, r, s) + vsj__udotv(m, r, s + 2 * m->n + m->n_motors);
+    return p[2] * p[0] * sin(angle) + (1.0 - p[2]) * p[1];
+}
+
 int vsj_step_dopri(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
                    double rtol, double atol, int64_t max_steps) {
     int64_t ny = vsj_n_state(m);

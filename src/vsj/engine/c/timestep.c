@@ -881,7 +881,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
             e = t->nonlinear[i];
             p = vsj__row(m, e);
             se = t->slip[e];
-            fe = vsj_friction_torque((int)m->code[e], p[0], p[1], p[2], p[3], se, &dfe);
+            fe = vsj__friction(m->code[e], p[0], p[1], p[2], p[3], se, &dfe);
             t->f0[e] = fe;
             t->df0[e] = dfe;
             cnst = fe - dfe * se + dfe * vsj__udotv(m, e, t->u1);

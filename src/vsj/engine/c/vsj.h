@@ -291,6 +291,8 @@ int vsj_step_rate(const vsj_model *m, vsj_work *w, const double *s, const double
                   double *ds);
 /* Generalised speeds v = M^-1 (p - M_su u) of state s for inputs. */
 void vsj_step_speeds(const vsj_model *m, const double *s, const double *inputs, double *v);
+/* Pivot position q [m] of state s. */
+double vsj_step_pivot_position(const vsj_model *m, const double *s);
 
 /* ---- models from files ----------------------------------------------------- */
 
@@ -306,9 +308,9 @@ typedef struct vsj_loaded {
     char **output_names;
     double *output_rows;        /* n_outputs * vsj_step_state_size */
     int solver;                 /* 0: dopri, 1: rk4, 2: time-stepper */
+    double period;              /* the control period it was exported for [s] */
     double rtol, atol, step;    /* dopri tolerances, time-stepper step [s] */
     int64_t substeps;           /* rk4 */
-    void *memory_;              /* private */
 } vsj_loaded;
 
 /* Reads a model file; NULL on failure with the reason in `message`. */

@@ -1,0 +1,154 @@
+"""The engine under AddressSanitizer and UndefinedBehaviorSanitizer (``make sanitize``).
+
+Builds the extension and the C example with ``-fsanitize=address,undefined``
+into a scratch directory, then, in a process that preloads the sanitizer
+runtime, runs what the engine does for users: every regression scenario
+(smooth, stiction, both elastic models, benches), batches on two threads with
+both solvers, the step function with all three methods, the C example on
+good and bad model files, and the binding's refusal of bad arrays. Any
+sanitizer report ends the run with a non-zero exit code.
+
+    python tests/sanitize.py [SCRATCH_DIR]
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+ENGINE = ROOT / "src" / "vsj" / "engine"
+FLAGS = ["-fsanitize=address,undefined", "-fno-sanitize-recover=undefined",
+         "-fno-omit-frame-pointer", "-g", "-O1"]
+
+
+def compiler() -> str:
+    for cc in ("gcc", "cc", "clang"):
+        if shutil.which(cc):
+            return cc
+    raise SystemExit("sanitize: no C compiler")
+
+
+def build(scratch: Path) -> tuple[Path, Path]:
+    """The package with an instrumented engine (in scratch/pkg) and the example."""
+    cc = compiler()
+    pkg = scratch / "pkg"
+    shutil.rmtree(pkg, ignore_errors=True)
+    shutil.copytree(ROOT / "src" / "vsj", pkg / "vsj",
+                    ignore=shutil.ignore_patterns("*.so", "__pycache__"))
+    sources = [ENGINE / "_core.c"] + sorted((ENGINE / "c").glob("*.c"))
+    include = sysconfig.get_paths()["include"]
+    suffix = sysconfig.get_config_var("EXT_SUFFIX")
+    subprocess.run([cc, *FLAGS, "-shared", "-fPIC", "-I", include, "-o",
+                    str(pkg / "vsj" / "engine" / f"_core{suffix}"), *map(str, sources), "-lm"],
+                   check=True)
+    example = scratch / "step_wrist"
+    subprocess.run([cc, "-std=c99", *FLAGS, "-I", str(ENGINE / "c"), "-o", str(example),
+                    str(ROOT / "examples" / "c" / "step_wrist.c"),
+                    *map(str, sorted((ENGINE / "c").glob("*.c"))), "-lm"], check=True)
+    return pkg, example
+
+
+WORKLOAD = r'''
+import json, subprocess, sys
+from pathlib import Path
+import numpy as np
+sys.path.insert(0, str(Path(sys.argv[1])))
+import vsj
+from vsj import export, scenario as scenarios
+from vsj.engine import _core
+from vsj.simulate import InitialState, SimulationOptions, simulate_batch
+from vsj.stepper import Stepper
+
+spec = __import__("importlib.util").util.spec_from_file_location(
+    "make_references", sys.argv[2] + "/tests/references/make_references.py")
+refs = __import__("importlib.util").util.module_from_spec(spec)
+spec.loader.exec_module(refs)
+assert "pkg" in vsj.engine._core.__file__, vsj.engine._core.__file__
+
+for name in refs.REFERENCES:                      # the scenarios
+    refs.run(name)
+    print("scenario", name, flush=True)
+
+params = vsj.params.default()
+scen = scenarios.load("fig-4.15")
+_, structure, inputs, rng = scenarios.prepare_case(scen, scen.cases[0], params)
+for friction in ("arctan", "stiction"):           # batches on two threads
+    b = simulate_batch(structure, inputs, 1.0, initials=[InitialState(q=q) for q in
+                       np.linspace(-0.02, 0.015, 6)],
+                       options=SimulationOptions(friction=friction, output_step=0.01),
+                       pivot_range=rng, threads=2)
+    assert b.success.all()
+    print("batch", friction, flush=True)
+
+for method, friction in (("dopri", "arctan"), ("rk4", "arctan"), ("timestep", "stiction")):
+    stepper = Stepper.wrist(params, period=1e-3, method=method,
+                            options=SimulationOptions(friction=friction))
+    state = stepper.initial_state(InitialState(q=-0.01))
+    for k in range(50):
+        stepper.step(state, [0.3 * np.sin(k / 7), 0.2, 0.0, 0.02, -0.01], out=state)
+    stepper.jacobian(state, [0.0] * 5)
+    print("step", method, flush=True)
+    document = export.model_document(stepper, params=params, initial=InitialState(q=-0.01))
+    path = Path(sys.argv[3]) / f"wrist-{method}.json"
+    export.write_model(path, document)
+    done = subprocess.run([sys.argv[4], str(path), "100"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    document["engine"]["xc"] = [7] * len(document["engine"]["xc"])  # a column out of range
+    path.write_text(json.dumps(document))
+    done = subprocess.run([sys.argv[4], str(path), "3"], capture_output=True, text=True)
+    assert done.returncode == 2 and "column" in done.stderr, done.stderr
+    print("example", method, flush=True)
+
+model = stepper.model                              # the binding refuses bad arrays
+for change in ({"xc": np.full_like(model.xc, 10 ** 9)}, {"first": model.first + 10 ** 6},
+               {"code": np.full_like(model.code, -5)}, {"mass": model.mass[:-1]},
+               {"par": np.full_like(model.par, np.nan)}, {"xp": model.xp[::-1].copy()}):
+    try:
+        vsj.engine.core.native(model._replace(**change))
+    except (ValueError, TypeError):
+        pass
+    else:
+        raise AssertionError(f"accepted a bad model: {list(change)}")
+print("refusals", flush=True)
+'''
+
+
+def main(argv: list[str]) -> int:
+    scratch = Path(argv[1]) if len(argv) > 1 else Path(tempfile.mkdtemp(prefix="vsj-san-"))
+    scratch.mkdir(parents=True, exist_ok=True)
+    pkg, example = build(scratch)
+    env = dict(os.environ)
+    runtime = subprocess.run([compiler(), "-print-file-name=libasan.so"], capture_output=True,
+                             text=True, check=True).stdout.strip()
+    env["LD_PRELOAD"] = runtime
+    # Python's allocator keeps memory at exit by design: leak reports would be its own
+    env["ASAN_OPTIONS"] = "detect_leaks=0:abort_on_error=1"
+    env["UBSAN_OPTIONS"] = "halt_on_error=1:print_stacktrace=1"
+    env["PYTHONMALLOC"] = "malloc"
+    # the C example is a plain program: there leaks count
+    example_env = "ASAN_OPTIONS=detect_leaks=1"
+    wrapper = scratch / "step_wrist.sh"
+    wrapper.write_text(f"#!/bin/sh\n{example_env} exec {example} \"$@\"\n")
+    wrapper.chmod(0o755)
+    done = subprocess.run([sys.executable, "-c", WORKLOAD, str(pkg), str(ROOT), str(scratch),
+                           str(wrapper)], env=env, capture_output=True, text=True)
+    sys.stdout.write(done.stdout)
+    sys.stderr.write(done.stderr)
+    reports = [line for line in (done.stdout + done.stderr).splitlines()
+               if "Sanitizer" in line or "runtime error:" in line]
+    if done.returncode != 0 or reports:
+        print(f"sanitize: FAILED (exit {done.returncode}, {len(reports)} sanitizer lines)",
+              file=sys.stderr)
+        return 1
+    print("sanitize: no error reported (AddressSanitizer, UndefinedBehaviorSanitizer)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
