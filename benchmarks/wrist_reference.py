@@ -11,16 +11,20 @@ elimination:
     end-effector         theta' = J psi',  J = [[1, 1], [1, -1]] / 2
 
 Two integrators use them: `python_rhs` (a plain Python right-hand side, the
-way one would write it for scipy's `solve_ivp`) and `compiled_rk4` (a
-hand-written, numba-compiled fixed-step Runge-Kutta loop).
+way one would write it for scipy's `solve_ivp`) and `compiled_rk4` (the same
+equations by hand in C, ``wrist_rk4.c``, with a fixed-step Runge-Kutta loop).
 """
 
 from __future__ import annotations
 
+import ctypes
 import math
+import subprocess
+import sysconfig
+import tempfile
+from pathlib import Path
 
 import numpy as np
-from numba import njit
 
 
 def constants(params, q: float, amplitude: float, frequency: float, fade: float):
@@ -96,16 +100,6 @@ def _body(t, y, c, dy, _fade, _arctan):
     dy[3] = Minv[2] * F[0] + Minv[3] * F[1]
 
 
-_compiled_body = njit(_body)
-_compiled_fade = njit(_fade)
-_compiled_arctan = njit(_arctan)
-
-
-@njit
-def derivatives(t, y, c, dy):
-    _compiled_body(t, y, c, dy, _compiled_fade, _compiled_arctan)
-
-
 def python_rhs(c):
     """A plain Python right-hand side for scipy (the same equations, interpreted)."""
 
@@ -117,34 +111,34 @@ def python_rhs(c):
     return rhs
 
 
-@njit
+_LIBRARY = None
+
+
+def _library():
+    """wrist_rk4.c, compiled once per process with the flags of Python's own extensions."""
+    global _LIBRARY
+    if _LIBRARY is None:
+        out = Path(tempfile.mkdtemp(prefix="vsj-bench-")) / "wrist_rk4.so"
+        flags = (sysconfig.get_config_var("CFLAGS") or "-O3").split()
+        cc = (sysconfig.get_config_var("CC") or "cc").split()[0]
+        subprocess.run([cc, *flags, "-shared", "-fPIC", "-o", str(out),
+                        str(Path(__file__).with_name("wrist_rk4.c")), "-lm"], check=True)
+        _LIBRARY = ctypes.CDLL(str(out))
+        _LIBRARY.rk4.restype = ctypes.c_long
+        _LIBRARY.rk4.argtypes = [ctypes.POINTER(ctypes.c_double), ctypes.c_double,
+                                 ctypes.c_double, ctypes.c_long,
+                                 ctypes.POINTER(ctypes.c_double)]
+    return _LIBRARY
+
+
 def compiled_rk4(c, h, t_end, every):
-    """Classical RK4 with fixed step ``h``; returns the states every ``every`` steps."""
+    """Classical RK4 in C with fixed step ``h``; the states every ``every`` steps."""
+    lib = _library()
     steps = int(round(t_end / h))
     out = np.empty((steps // every + 1, 4))
-    y = np.zeros(4)
-    k1 = np.empty(4)
-    k2 = np.empty(4)
-    k3 = np.empty(4)
-    k4 = np.empty(4)
-    yt = np.empty(4)
-    out[0] = y
-    for n in range(steps):
-        t = n * h
-        derivatives(t, y, c, k1)
-        for i in range(4):
-            yt[i] = y[i] + 0.5 * h * k1[i]
-        derivatives(t + 0.5 * h, yt, c, k2)
-        for i in range(4):
-            yt[i] = y[i] + 0.5 * h * k2[i]
-        derivatives(t + 0.5 * h, yt, c, k3)
-        for i in range(4):
-            yt[i] = y[i] + h * k3[i]
-        derivatives(t + h, yt, c, k4)
-        for i in range(4):
-            y[i] += h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i])
-        if (n + 1) % every == 0:
-            out[(n + 1) // every] = y
+    c = np.ascontiguousarray(c, dtype=float)
+    pointer = ctypes.POINTER(ctypes.c_double)
+    lib.rk4(c.ctypes.data_as(pointer), h, t_end, every, out.ctypes.data_as(pointer))
     return out
 
 

@@ -19,6 +19,7 @@ typedef struct ts_work {
     int factored;          /* H_last and its factor are valid */
     double t;              /* time reached */
     double q_prev;         /* pivot position at t */
+    double angle_prev;     /* pivot mechanism's angle at t */
     double angle_mid, q_mid;
     /* n x n */
     double *H, *H_last, *Lc, *Bx, *G, *Lg, *Gc, *Kc;

@@ -26,18 +26,20 @@ typedef struct lever {
 
 static lever lever_at(double phi, double q, double R) {
     lever l;
-    double n, d, r2sq;
+    double n, d, r2sq, inv_sq, inv;
     l.sp = sin(phi);
     l.cp = cos(phi);
     n = R * l.sp;
     d = q + R * l.cp;
     r2sq = n * n + d * d;
+    inv_sq = 1.0 / r2sq;
     l.r2 = sqrt(r2sq);
-    l.sa = n / l.r2;
-    l.ca = d / l.r2;
-    l.a_phi = R * (R + q * l.cp) / r2sq;
-    l.a_q = -R * l.sp / r2sq;
-    l.a_pp = R * q * l.sp * (R * R - q * q) / (r2sq * r2sq);
+    inv = 1.0 / l.r2;
+    l.sa = n * inv;
+    l.ca = d * inv;
+    l.a_phi = R * (R + q * l.cp) * inv_sq;
+    l.a_q = -R * l.sp * inv_sq;
+    l.a_pp = R * q * l.sp * (R * R - q * q) * inv_sq * inv_sq;
     return l;
 }
 
@@ -58,7 +60,10 @@ void vsj_spring_extensions(const double p[VSJ_NPAR], double phi, double q, doubl
     out[1] = sqrt((Xb + x0) * (Xb + x0) + (Yb - y0) * (Yb - y0)) - s0;
 }
 
-void vsj_spring_geometry(const double p[VSJ_NPAR], double phi, double q, double out[6]) {
+/* What to compute of the geometric element: the potential form, eq 3.8, or both. */
+enum { POTENTIAL = 1, REPORT = 2 };
+
+static void geometry(const double p[VSJ_NPAR], double phi, double q, int which, double out[6]) {
     double R = p[0], L = p[1], W = p[2], x0 = p[3], y0 = p[4], s0 = p[5], k = p[6];
     lever l = lever_at(phi, q, R);
     double V = 0.0, dV = 0.0, d2V = 0.0, dVq = 0.0, t_sum = 0.0, dt_sum = 0.0;
@@ -68,16 +73,8 @@ void vsj_spring_geometry(const double p[VSJ_NPAR], double phi, double q, double 
         /* derivatives of the lever end with u_L = (-sa, ca), u_W = (ca, sa) */
         double lx = -L * l.ca + side * W * (-l.sa);
         double ly = -L * l.sa + side * W * l.ca;
-        double mx = L * l.sa - side * W * l.ca;
-        double my = -L * l.ca - side * W * l.sa;
-        double X, Y, Xp, Yp, Xpp, Ypp, Xq, Yq, ax, gx, gy, ell, e, gxp, c, dc, arm, darm;
+        double X, Y, Xp, Yp, Xq, Yq, ax, gx, gy, ell, inv, e, gxp, gxp_l;
         lever_end(R, L, W, &l, side, &X, &Y);
-        Xp = R * l.cp + lx * l.a_phi;
-        Yp = R * l.sp + ly * l.a_phi;
-        Xpp = -R * l.sp + mx * l.a_phi * l.a_phi + lx * l.a_pp;
-        Ypp = R * l.cp + my * l.a_phi * l.a_phi + ly * l.a_pp;
-        Xq = lx * l.a_q;
-        Yq = ly * l.a_q;
         ax = side * x0;
         gx = X - ax;
         gy = Y - y0;
@@ -85,20 +82,33 @@ void vsj_spring_geometry(const double p[VSJ_NPAR], double phi, double q, double 
         e = ell - s0;
         if (e <= 0.0)
             continue; /* slack: a spring only pulls */
+        inv = 1.0 / ell;
+        Xp = R * l.cp + lx * l.a_phi;
+        Yp = R * l.sp + ly * l.a_phi;
+        Xq = lx * l.a_q;
+        Yq = ly * l.a_q;
         gxp = gx * Xp + gy * Yp;
+        gxp_l = gxp * inv; /* the spring's rate of extension per unit phi */
         V += 0.5 * k * e * e;
-        dV += k * e * gxp / ell;
-        d2V += k * (gxp * gxp / (ell * ell)
-                    + e * ((Xp * Xp + Yp * Yp + gx * Xpp + gy * Ypp) / ell
-                           - gxp * gxp / (ell * ell * ell)));
-        dVq += k * e * (gx * Xq + gy * Yq) / ell;
-        /* eq 3.5-3.7: moment arm of the spring force about the pivot (0, q) */
-        c = gy * ax - gx * (y0 - q);
-        dc = Yp * ax - Xp * (y0 - q);
-        arm = c / ell;
-        darm = dc / ell - c * gxp / (ell * ell * ell);
-        t_sum += k * e * arm;
-        dt_sum += k * (gxp / ell * arm + e * darm);
+        dVq += k * e * (gx * Xq + gy * Yq) * inv;
+        if (which & POTENTIAL) {
+            double mx = L * l.sa - side * W * l.ca;
+            double my = -L * l.ca - side * W * l.sa;
+            double Xpp = -R * l.sp + mx * l.a_phi * l.a_phi + lx * l.a_pp;
+            double Ypp = R * l.cp + my * l.a_phi * l.a_phi + ly * l.a_pp;
+            dV += k * e * gxp_l;
+            d2V += k * (gxp_l * gxp_l
+                        + e * ((Xp * Xp + Yp * Yp + gx * Xpp + gy * Ypp) - gxp_l * gxp_l) * inv);
+        }
+        if (which & REPORT) {
+            /* eq 3.5-3.7: moment arm of the spring force about the pivot (0, q) */
+            double c = gy * ax - gx * (y0 - q);
+            double dc = Yp * ax - Xp * (y0 - q);
+            double arm = c * inv;
+            double darm = (dc - c * gxp_l * inv) * inv;
+            t_sum += k * e * arm;
+            dt_sum += k * (gxp_l * arm + e * darm);
+        }
     }
     {
         double scale = R / l.r2; /* sin(alpha) / sin(phi) of eq 3.8 */
@@ -109,6 +119,10 @@ void vsj_spring_geometry(const double p[VSJ_NPAR], double phi, double q, double 
         out[4] = t_sum * scale;
         out[5] = dt_sum * scale + t_sum * R * q * R * l.sp / (l.r2 * l.r2 * l.r2);
     }
+}
+
+void vsj_spring_geometry(const double p[VSJ_NPAR], double phi, double q, double out[6]) {
+    geometry(p, phi, q, POTENTIAL | REPORT, out);
 }
 
 double vsj__spring(int64_t law, const double *p, double phi, double q, double *stiff,
@@ -131,7 +145,7 @@ double vsj__spring(int64_t law, const double *p, double phi, double q, double *s
         k_stop = p[4];
     } else {
         double g[6];
-        vsj_spring_geometry(p, phi, q, g);
+        geometry(p, phi, q, law == VSJ_GEOMETRIC ? POTENTIAL : REPORT, g);
         if (law == VSJ_GEOMETRIC) {
             tau = -g[1];
             k_ = g[2];

@@ -728,7 +728,8 @@ int vsj_ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
         t->sg0[j] = w->srcw[SRCW * j + SG];
     }
     w->status = VSJ_OK;
-    t->q_prev = vsj__pivot_position(m, w, t->x);
+    t->angle_prev = vsj__pivot_angle(m, w, t->x);
+    t->q_prev = vsj__pivot_at(m, w, t->angle_prev);
     /* the mid-step pivot position is recomputed only when its angle changes */
     t->angle_mid = NAN;
     t->q_mid = t->q_prev;
@@ -971,13 +972,14 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
         element_slips(t->DxT, t->DuT, cols, nf, t->v1, n, t->u1, s_n, t->slip);
         /* the elements' torques are wanted by the ledger and at the samples only */
         sample_now = i_out < n_out && smp->t[i_out] <= t1 + 0.5 * h;
-        if (ledger || sample_now)
+        if (ledger || sample_now) {
+            double inv_hs = 1.0 / hs;
             for (e = 0; e < nf; e++) {
                 double s1 = t->slip[e], fe;
                 fe = t->linear[e] ? vsj__row(m, e)[0] * s1
                                   : t->f0[e] + t->df0[e] * (s1 - t->s0[e]);
                 if (t->active[e])
-                    fe += t->share[e] * t->p[t->slot[e]] / hs;
+                    fe += t->share[e] * t->p[t->slot[e]] * inv_hs;
                 else if (t->driven[e] && s1 != 0.0)
                     fe += coulomb_level(m, e) * (s1 > 0.0 ? 1.0 : -1.0);
                 t->force[e] = fe;
@@ -986,9 +988,14 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                     vsj__uaddv(m, e, t->srcF, -fe);
                 }
             }
+        }
         q_end = t->q_prev;
-        if (moving_pivot && (ledger || step == steps_total - 1)) /* at t1, for the ledger */
-            q_end = vsj__pivot_position(m, w, t->x1);
+        if (moving_pivot && (ledger || step == steps_total - 1)) { /* at t1, for the ledger */
+            double angle_end = vsj__pivot_angle(m, w, t->x1);
+            if (angle_end != t->angle_prev) /* a pivot held still costs no sine */
+                q_end = vsj__pivot_at(m, w, angle_end);
+            t->angle_prev = angle_end;
+        }
         if (ledger) { /* springs, loads, motors and sources */
             for (k = 0; k < nk; k++) {
                 double tau_avg, dd;
@@ -1137,6 +1144,7 @@ static int64_t history_spans(const vsj_model *m, const vsj_work *w, span *out) {
     SPAN(t->sg0, (size_t)s * d);
     SPAN(&t->t, d);
     SPAN(&t->q_prev, d);
+    SPAN(&t->angle_prev, d);
     SPAN(&t->angle_mid, d);
     SPAN(&t->q_mid, d);
     SPAN(&t->factored, sizeof(int));
