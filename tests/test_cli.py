@@ -33,7 +33,7 @@ def write(tmp_path, text, name="scen.toml"):
 
 def test_simulate_writes_trajectory_meta_and_plot(tmp_path, capsys):
     out = tmp_path / "out"
-    assert main(["simulate", str(write(tmp_path, SHORT)), "--out", str(out)]) == 0
+    assert main(["simulate", str(write(tmp_path, SHORT)), "--out", str(out), "--csv"]) == 0
     header, data = read_trajectory(out / "trajectory.csv")
     assert header[0] == "time [s]"
     assert all(h.endswith("]") and " [" in h for h in header)
@@ -46,6 +46,19 @@ def test_simulate_writes_trajectory_meta_and_plot(tmp_path, capsys):
     assert meta["scenario"]["definition"]["duration"] == "0.3 s"
     assert (out / "trajectory.png").stat().st_size > 1000
     assert "success" in capsys.readouterr().out
+    # the netCDF file holds the same signals, with their units
+    import xarray as xr
+
+    with xr.open_dataset(out / "trajectory.nc") as ds:
+        assert ds["theta_x"].attrs["units"] == "rad" and ds["time"].attrs["units"] == "s"
+        assert np.array_equal(ds["theta_x"].values[0], data[:, header.index("theta_x [rad]")])
+        assert ds["success"].values.tolist() == [1]
+
+
+def test_csv_is_written_only_on_request(tmp_path):
+    out = tmp_path / "out"
+    assert main(["simulate", str(write(tmp_path, SHORT)), "--out", str(out), "--no-plot"]) == 0
+    assert (out / "trajectory.nc").exists() and not (out / "trajectory.csv").exists()
 
 
 def test_failed_simulation_exits_1_with_time_and_state(tmp_path, capsys):
@@ -89,8 +102,14 @@ def test_multi_case_columns_carry_the_case_label(tmp_path):
     text = SHORT + '[[cases]]\nlabel = "stiff"\ninitial = { q = "-2 cm" }\n' \
                    '[[cases]]\nlabel = "soft"\ninitial = { q = "1 cm" }\n'
     out = tmp_path / "out"
-    assert main(["simulate", str(write(tmp_path, text)), "--out", str(out), "--no-plot"]) == 0
+    assert main(["simulate", str(write(tmp_path, text)), "--out", str(out), "--no-plot",
+                 "--csv"]) == 0
     header, data = read_trajectory(out / "trajectory.csv")
     stiff = data[:, header.index("phi_1@stiff [rad]")]
     soft = data[:, header.index("phi_1@soft [rad]")]
     assert np.max(np.abs(soft)) > 2 * np.max(np.abs(stiff))  # softer deflects more
+    import xarray as xr
+
+    with xr.open_dataset(out / "trajectory.nc") as ds:
+        assert ds["case"].values.tolist() == ["stiff", "soft"]
+        assert np.array_equal(ds["phi_1"].sel(case="soft").values, soft)

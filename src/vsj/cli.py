@@ -35,7 +35,8 @@ def cmd_params(args) -> int:
 
 def cmd_simulate(args) -> int:
     from . import scenario as scenarios
-    from .output import ensure_output_dir, parameters_record, write_meta, write_trajectory
+    from .output import (cases_dataset, ensure_output_dir, parameters_record, write_dataset,
+                         write_meta, write_trajectory)
     from .progress import progress
     from .simulate import simulate
 
@@ -58,7 +59,11 @@ def cmd_simulate(args) -> int:
                         "ledger": result.ledger, "stick_slip_transitions": result.transitions,
                         "parameters_hash": resolved.hash(),
                         "parameter_overrides": dict(case.params)})
-    write_trajectory(out / "trajectory.csv", runs)
+    written = [out / "trajectory.nc"]
+    write_dataset(written[0], cases_dataset(runs))
+    if args.csv:
+        written.append(out / "trajectory.csv")
+        write_trajectory(written[-1], runs)
     ok = all(r.success for _, r in runs)
     write_meta(out / "meta.json", {
         "scenario": {"name": scen.name, "description": scen.description, "origin": scen.origin,
@@ -72,8 +77,10 @@ def cmd_simulate(args) -> int:
     for label, result in runs:
         prefix = f"[{label}] " if len(runs) > 1 else ""
         print(prefix + result.summary().replace("\n", "\n" + prefix))
-    print(f"wrote {out / 'trajectory.csv'}, {out / 'meta.json'}"
-          + ("" if args.no_plot else f", {out / 'trajectory.png'}"))
+    written.append(out / "meta.json")
+    if not args.no_plot:
+        written.append(out / "trajectory.png")
+    print(f"wrote {', '.join(str(path) for path in written)}")
     if not ok:
         failed = [f"{label}: {r.message}" for label, r in runs if not r.success]
         print("simulation failed:\n  " + "\n  ".join(failed), file=sys.stderr)
@@ -131,6 +138,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
     p.add_argument("--out", metavar="DIR", default="out", help="output directory (default out)")
     p.add_argument("--no-plot", action="store_true", help="skip the PNG")
+    p.add_argument("--csv", action="store_true",
+                   help="also write trajectory.csv (a spreadsheet's format; slower to write)")
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("scenarios", help="list the built-in scenarios")

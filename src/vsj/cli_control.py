@@ -145,7 +145,7 @@ def cmd_export_model(args) -> int:
 def register(sub) -> None:
     """Add ``linearize``, ``datasheet`` and ``export-model`` to the ``vsj`` command's
     subparsers."""
-    from .linear import FRICTION_TREATMENTS
+    from .friction import LINEAR_TREATMENTS as FRICTION_TREATMENTS
     from .wrist import DRIVES, ELASTIC_MODELS
 
     p = sub.add_parser(

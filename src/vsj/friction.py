@@ -47,6 +47,14 @@ LAW_NAMES = {code: name for name, code in LAWS.items()}
 #: Column order of a friction element's parameter row.
 PARAMETERS = ("viscous", "stiction", "sharpness", "width")
 
+#: How friction can enter a linear model (`vsj.linear`).
+LINEAR_TREATMENTS = {
+    "linearised": "smooth arctan law b s + k atan(k_b s) (report eq 3.17) linearised at zero "
+                  "speed: viscous slope b + k k_b on every friction element",
+    "viscous": "Coulomb-like part removed; the viscous part b s (report eq 3.19) kept",
+    "removed": "all friction removed (undamped mechanics; only armature resistance dissipates)",
+}
+
 
 def law_code(name: str) -> int:
     """The engine's code of a friction law; `InputError` names the choices."""

@@ -18,8 +18,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import CubicSpline
-
 from .errors import InputError
 
 #: Coefficient rows are (c0, c1, c2, c3) of c0 + c1 tau + c2 tau^2 + c3 tau^3, tau = t - knot.
@@ -43,7 +41,7 @@ class Input:
         return repr(self)
 
 
-def _spline_pieces(spline: CubicSpline) -> Pieces:
+def _spline_pieces(spline) -> Pieces:
     knots = np.asarray(spline.x, dtype=float)
     c = np.asarray(spline.c, dtype=float)  # descending powers, shape (4, K)
     return knots, np.ascontiguousarray(c[::-1].T)
@@ -52,6 +50,8 @@ def _spline_pieces(spline: CubicSpline) -> Pieces:
 def _sampled(fun, t_end: float, step: float) -> Pieces:
     n = max(int(math.ceil(t_end / step)), 4)
     t = np.linspace(0.0, max(t_end, 1e-9), n + 1)
+    from scipy.interpolate import CubicSpline  # imported where needed: a slow import
+
     return _spline_pieces(CubicSpline(t, fun(t), bc_type="not-a-knot"))
 
 
@@ -151,12 +151,16 @@ class Table(Input):
         if self.interpolation == "linear":
             return np.interp(t, self.times, self.values)
         t = np.clip(np.asarray(t, dtype=float), self.times[0], self.times[-1])
+        from scipy.interpolate import CubicSpline
+
         return CubicSpline(self.times, self.values)(t)
 
     def pieces(self, t_end: float) -> Pieces:
         t = np.asarray(self.times, dtype=float)
         v = np.asarray(self.values, dtype=float)
         if self.interpolation == "cubic":
+            from scipy.interpolate import CubicSpline
+
             knots, coef = _spline_pieces(CubicSpline(t, v))
         else:
             slope = np.diff(v) / np.diff(t)

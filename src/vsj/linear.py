@@ -61,17 +61,13 @@ import control
 import numpy as np
 
 from .errors import InputError, SimulationError
+from .friction import LINEAR_TREATMENTS
 from .network import Signal, Structure
 from .simulate import SimulationOptions
 from .stepper import JACOBIAN_STEP, Stepper
 
 #: How friction enters the linear model (see the module docstring).
-FRICTION_TREATMENTS = {
-    "linearised": "smooth arctan law b s + k atan(k_b s) (report eq 3.17) linearised at zero "
-                  "speed: viscous slope b + k k_b on every friction element",
-    "viscous": "Coulomb-like part removed; the viscous part b s (report eq 3.19) kept",
-    "removed": "all friction removed (undamped mechanics; only armature resistance dissipates)",
-}
+FRICTION_TREATMENTS = LINEAR_TREATMENTS
 _ENGINE_LAW = {"linearised": "arctan", "viscous": "viscous", "removed": "viscous"}
 
 #: Name of the pivot-position input.

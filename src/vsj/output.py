@@ -78,6 +78,52 @@ def write_trajectory(path: Path, runs: Sequence[tuple[str, Result]]) -> None:
         handle.write(buffer.getvalue())
 
 
+def cases_dataset(runs: Sequence[tuple[str, Result]]):
+    """Several runs on one time grid as one `xarray.Dataset` with a ``case``
+    dimension (a failed run's missing samples are NaN), each signal with its
+    unit; each case's success is the variable ``success``."""
+    import xarray as xr
+
+    if not runs:
+        raise ValueError("no runs to write")
+    time = max(runs, key=lambda r: len(r[1].time))[1].time
+    names = list(dict.fromkeys(name for _, result in runs for name in result.columns()))
+    units = {}
+    data = {}
+    for name in names:
+        values = np.full((len(runs), len(time)), np.nan)
+        for k, (_, result) in enumerate(runs):
+            if name in result.signals:
+                values[k, :len(result.time)] = result.signals[name]
+                units[name] = result.units[name]
+        data[name] = (("case", "time"), values, {"units": units[name]})
+    data["success"] = ("case", np.array([int(r.success) for _, r in runs], dtype=np.int32))
+    ds = xr.Dataset(data, coords={"case": ("case", [label for label, _ in runs]),
+                                  "time": ("time", time, {"units": "s"})})
+    ds.attrs.update(vsj_version=__version__,
+                    description="vsj simulate: signals [SI units] of each case over time")
+    return ds
+
+
+def write_dataset(path: Path, ds) -> None:
+    """Write a dataset as netCDF (classic format, which MATLAB's ncread, xarray,
+    netCDF4 and most tools read), through a temporary file that replaces
+    ``path`` on success."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    os.close(fd)
+    try:
+        ds.to_netcdf(tmp, engine="scipy", format="NETCDF3_64BIT")
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
 def read_trajectory(path: Path) -> tuple[list[str], np.ndarray]:
     """Header and data of a trajectory CSV written by `write_trajectory`."""
     with open(path, newline="", encoding="utf-8") as handle:

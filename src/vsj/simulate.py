@@ -106,6 +106,22 @@ class Result:
     def columns(self) -> list[str]:
         return list(self.signals)
 
+    def to_xarray(self):
+        """The run as an `xarray.Dataset`: one variable per signal over ``time`` [s],
+        each with its unit (``units``, as CF names it); the run's success, message
+        and solver as attributes."""
+        import xarray as xr
+
+        from . import __version__
+
+        data = {name: ("time", values, {"units": self.units[name]})
+                for name, values in self.signals.items()}
+        ds = xr.Dataset(data, coords={"time": ("time", self.time, {"units": "s"})})
+        ds.attrs.update(success=int(self.success), message=self.message,
+                        solver=str(self.solver.get("name", "")),
+                        steps=int(self.solver.get("steps", 0)), vsj_version=__version__)
+        return ds
+
     def summary(self) -> str:
         lines = [f"{'success' if self.success else 'FAILED'}: {self.message}",
                  f"solver {self.solver['name']}: {self.solver['steps']} steps in "

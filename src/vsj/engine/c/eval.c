@@ -41,8 +41,24 @@ static double eval_pivot(const vsj_model *m, vsj_work *w, const double *y) {
     const double *p = vsj__row(m, r);
     double angle = vsj__pivot_angle(m, w, y);
     double rate = vsj__xdot(m, r, y + m->n) + vsj__udot(m, r, w->srcw, U);
-    double q = vsj__pivot_at(m, w, angle);
-    w->qdot = p[2] * p[0] * cos(angle) * rate;
+    double q;
+    /* a pivot held still (the usual case) costs no sine and cosine */
+    if (angle == w->pivot_key[0] && p[0] == w->pivot_key[1] && p[1] == w->pivot_key[2]
+        && p[2] == w->pivot_key[3]) {
+        q = w->pivot_q;
+        w->q = q;
+        if ((q < p[3] - 1e-12 || q > p[4] + 1e-12) && w->status < VSJ_PIVOT_RANGE)
+            w->status = VSJ_PIVOT_RANGE;
+    } else {
+        q = vsj__pivot_at(m, w, angle);
+        w->pivot_key[0] = angle;
+        w->pivot_key[1] = p[0];
+        w->pivot_key[2] = p[1];
+        w->pivot_key[3] = p[2];
+        w->pivot_q = q;
+        w->pivot_cos = cos(angle);
+    }
+    w->qdot = p[2] * p[0] * w->pivot_cos * rate;
     return q;
 }
 
@@ -56,7 +72,8 @@ static void eval_springs(const vsj_model *m, vsj_work *w, const double *y) {
         double *sp = w->spw + SPW * kk;
         double d = vsj__xdot(m, r, y) + vsj__udot(m, r, w->srcw, SG);
         double stiff, energy, dvq;
-        double tau = vsj__spring(m->code[r], vsj__row(m, r), d, q, &stiff, &energy, &dvq);
+        double tau = vsj__spring(m->code[r], vsj__row(m, r), d, q, &stiff, &energy, &dvq,
+                                 w->spcache + 4 * kk);
         sp[DEFL] = d;
         sp[RATE] = vsj__xdot(m, r, y + n) + vsj__udot(m, r, w->srcw, U);
         sp[SPTAU] = tau;

@@ -54,6 +54,9 @@ struct vsj_work {
     double *mow;           /* nm x 2: rotor speed, voltage */
     double *gen;           /* n: generalised force */
     double q, qdot;        /* pivot position and rate */
+    double pivot_key[4];   /* angle and pivot parameters of the cached q and cos(angle) */
+    double pivot_q, pivot_cos;
+    double *spcache;       /* k x 4: each spring law's cache (vsj__spring) */
     int status;
     const double *held;    /* NULL: inputs from the splines; else held values (stepper) */
     double *pos0;          /* s: source angles at t = 0 with held inputs */
@@ -79,8 +82,8 @@ VSJ_INTERNAL void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double 
                            int64_t ny, double *dy);
 
 /* laws (laws.c) */
-VSJ_INTERNAL double vsj__spring(int64_t law, const double *p, double phi, double q, double *stiff,
-                   double *energy, double *dvdq);
+VSJ_INTERNAL double vsj__spring(int64_t law, const double *p, double phi, double q,
+                                double *stiff, double *energy, double *dvdq, double *cache);
 
 #define VSJ_PI 3.14159265358979323846
 

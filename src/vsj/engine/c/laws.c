@@ -126,7 +126,7 @@ void vsj_spring_geometry(const double p[VSJ_NPAR], double phi, double q, double 
 }
 
 double vsj__spring(int64_t law, const double *p, double phi, double q, double *stiff,
-                   double *energy, double *dvdq) {
+                   double *energy, double *dvdq, double *cache) {
     double tau, k_, en, dvq, stop, k_stop, excess;
     if (law == VSJ_LINEAR) {
         double k = p[0];
@@ -136,7 +136,19 @@ double vsj__spring(int64_t law, const double *p, double phi, double q, double *s
         return -k * phi;
     }
     if (law == VSJ_EXPONENTIAL) {
-        double growth = p[0] * exp(p[1] * q);
+        double growth;
+        /* a1 exp(a2 q) depends on the pivot only: cached while q and a1, a2 stay */
+        if (cache && cache[0] == q && cache[1] == p[0] && cache[2] == p[1]) {
+            growth = cache[3];
+        } else {
+            growth = p[0] * exp(p[1] * q);
+            if (cache) {
+                cache[0] = q;
+                cache[1] = p[0];
+                cache[2] = p[1];
+                cache[3] = growth;
+            }
+        }
         k_ = growth + p[2];
         tau = -k_ * phi;
         en = 0.5 * k_ * phi * phi;
@@ -174,6 +186,6 @@ double vsj__spring(int64_t law, const double *p, double phi, double q, double *s
 int vsj_spring_law(int law, const double par[VSJ_NPAR], double phi, double q, double out[4]) {
     if (law < VSJ_LINEAR || law > VSJ_GEOMETRIC_REPORT)
         return VSJ_BAD_ARGUMENT;
-    out[0] = vsj__spring(law, par, phi, q, &out[1], &out[2], &out[3]);
+    out[0] = vsj__spring(law, par, phi, q, &out[1], &out[2], &out[3], NULL);
     return VSJ_OK;
 }

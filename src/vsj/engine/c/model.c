@@ -185,6 +185,7 @@ static void layout(vsj_work *w, carver *cv) {
     w->ldw = DOUBLES(2 * nl);
     w->mow = DOUBLES(2 * nm);
     w->gen = DOUBLES(n);
+    w->spcache = DOUBLES(4 * k);
     w->pos0 = DOUBLES(s);
     w->K = DOUBLES(7 * w->ny_max);
     w->yt = DOUBLES(w->ny_max);
@@ -295,6 +296,14 @@ vsj_work *vsj_work_new(const vsj_model *m) {
     cv.base += (32u - ((size_t)cv.base & 31u)) & 31u;
     cv.used = 0;
     layout(w, &cv);
+    {
+        /* caches start empty: NaN equals nothing */
+        int64_t i;
+        for (i = 0; i < 4 * w->k; i++)
+            w->spcache[i] = NAN;
+        for (i = 0; i < 4; i++)
+            w->pivot_key[i] = NAN;
+    }
     return w;
 }
 

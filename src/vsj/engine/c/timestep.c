@@ -864,7 +864,8 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                 d0 += t->DuT[cols * j + rr] * t->sg0[j];
                 dsig += t->DuT[cols * j + rr] * (t->sg1[j] - t->sg0[j]);
             }
-            tau = vsj__spring(m->code[rr], vsj__row(m, rr), d0, t->q_mid, &kap, &en, &dvq);
+            tau = vsj__spring(m->code[rr], vsj__row(m, rr), d0, t->q_mid, &kap, &en, &dvq,
+                              w->spcache + 4 * k);
             c_k = tau - 0.5 * kap * dsig - 0.25 * kap * hs * rate;
             t->sp_c[k] = c_k;
             t->sp_kap[k] = kap;
@@ -1008,8 +1009,9 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                 if (q_end != t->q_prev) {
                     double d1 = vsj__xdot(m, rr, t->x1) + vsj__udotv(m, rr, t->sg1);
                     double st_, e1, e0, dq_;
-                    vsj__spring(m->code[rr], vsj__row(m, rr), d1, q_end, &st_, &e1, &dq_);
-                    vsj__spring(m->code[rr], vsj__row(m, rr), d1, t->q_prev, &st_, &e0, &dq_);
+                    vsj__spring(m->code[rr], vsj__row(m, rr), d1, q_end, &st_, &e1, &dq_, NULL);
+                    vsj__spring(m->code[rr], vsj__row(m, rr), d1, t->q_prev, &st_, &e0, &dq_,
+                                NULL);
                     y[a_piv + k] += e1 - e0;
                 }
             }
