@@ -14,7 +14,6 @@ install: $(STAMP)
 # the engine is C: (re)installing compiles it, so the stamp follows its sources
 $(STAMP): pyproject.toml setup.py $(ENGINE)
 	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 

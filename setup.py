@@ -2,12 +2,36 @@
 header vsj.h) and the Python binding around it, built by the system C compiler
 when the package is installed. Everything else is in pyproject.toml."""
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from setuptools import Extension, setup
+from setuptools.command.build_ext import build_ext
 
 ENGINE = Path("src/vsj/engine")
 SOURCES = [str(ENGINE / "_core.c")] + sorted(str(p) for p in (ENGINE / "c").glob("*.c"))
 
+
+class BuildOnEveryCore(build_ext):
+    """Compiles the engine's source files in parallel, one per core (setuptools
+    itself runs only separate extensions in parallel)."""
+
+    def build_extension(self, ext):
+        compile_all = self.compiler.compile
+
+        def compile_each(sources, *args, **kwargs):
+            with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+                parts = pool.map(lambda source: compile_all([source], *args, **kwargs), sources)
+                return [obj for objects in parts for obj in objects]
+
+        self.compiler.compile = compile_each
+        try:
+            super().build_extension(ext)
+        finally:
+            self.compiler.compile = compile_all
+
+
 setup(ext_modules=[Extension("vsj.engine._core", sources=SOURCES,
-                             depends=[str(p) for p in (ENGINE / "c").glob("*.h")])])
+                             depends=[str(p) for p in (ENGINE / "c").glob("*.h")])],
+      cmdclass={"build_ext": BuildOnEveryCore})

@@ -222,4 +222,10 @@ def test_bad_calls(params):
         stepper.step(state[:3], None)
     with pytest.raises(InputError, match="unknown signal"):
         stepper.angle_rows(["theta_z"])
+    with pytest.raises(InputError, match="tau_x must be finite"):
+        stepper.step(state, [0.0, 0.0, 0.0, math.nan, 0.0])
+    bad = state.copy()
+    bad[0] = math.inf
+    with pytest.raises(InputError, match="vsm_1.ring.angle must be finite"):
+        stepper.step(bad, None)
     assert math.isfinite(stepper.step(state, None)[0])

@@ -36,12 +36,19 @@ def pyplot():
     return plt
 
 
-def save(fig, path: Path, *, svg: bool = False) -> None:
+#: Largest number of points drawn per line of a time plot: more than the figure
+#: has pixels across, and drawing every sample of a long run is slow.
+MAX_POINTS = 2000
+
+
+def save(fig, path: Path, *, svg: bool = False, tight: bool = True) -> None:
+    """Write ``fig`` as PNG (and SVG); ``tight`` crops it to its contents (an extra
+    drawing pass: figures laid out with ``tight_layout`` do without)."""
     from .output import atomic_write
 
     path = Path(path)
     with atomic_write(path, "wb") as handle:
-        fig.savefig(handle, format="png", dpi=120, bbox_inches="tight")
+        fig.savefig(handle, format="png", dpi=120, bbox_inches="tight" if tight else None)
     if svg:
         with atomic_write(path.with_suffix(".svg"), "wb") as handle:
             fig.savefig(handle, format="svg", bbox_inches="tight")
@@ -60,7 +67,8 @@ def trajectory_figure(runs: Sequence[tuple[str, Result]], network: str, path: Pa
     alphas = np.linspace(0.35, 1.0, len(runs)) if len(runs) > 1 else [1.0]
     for ax, (name, unit, text) in zip(axes[:, 0], signals):
         for (label, result), alpha in zip(runs, alphas):
-            ax.plot(result.time, result.signals[name], alpha=alpha, lw=1.2,
+            every = max(1, -(-len(result.time) // MAX_POINTS))
+            ax.plot(result.time[::every], result.signals[name][::every], alpha=alpha, lw=1.2,
                     label=label if len(runs) > 1 else None)
         ax.set_ylabel(f"{text}\n[{unit}]")
         ax.grid(alpha=0.3)
@@ -70,4 +78,4 @@ def trajectory_figure(runs: Sequence[tuple[str, Result]], network: str, path: Pa
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    save(fig, path)
+    save(fig, path, tight=False)

@@ -185,18 +185,21 @@ class Stepper:
         if u.shape != (self.n_inputs,):
             raise InputError(f"stepper: expected {self.n_inputs} inputs "
                              f"({', '.join(self.input_names)}), got shape {u.shape}")
-        if not np.all(np.isfinite(u)):
-            bad = [name for name, v in zip(self.input_names, u) if not math.isfinite(v)]
-            raise InputError(f"stepper: input(s) {', '.join(bad)} must be finite")
         return u
+
+    def _check_finite(self, state: np.ndarray, inputs: np.ndarray) -> None:
+        """InputError naming what is not finite (the engine refuses it too; this
+        only finds the names)."""
+        bad = [name for name, v in zip(self.input_names, inputs) if not math.isfinite(v)]
+        bad += [name for name, v in zip(self.state_names, state) if not math.isfinite(v)]
+        if bad:
+            raise InputError(f"stepper: {', '.join(bad)} must be finite")
 
     def _state_vector(self, state) -> np.ndarray:
         y = np.ascontiguousarray(state, dtype=float)
         if y.shape != (self.n_state,):
             raise InputError(f"stepper: expected a state of {self.n_state} values "
                              f"({', '.join(self.state_names)}), got shape {y.shape}")
-        if not np.all(np.isfinite(y)):
-            raise InputError("stepper: the state must be finite")
         return y
 
     # -- states -------------------------------------------------------------------------
@@ -258,8 +261,13 @@ class Stepper:
             out = y.copy()
         elif out is not y:
             out[:] = y
-        status = _core.step(_METHOD_CODE[self.method], self._c, self._work, out, u, self.period,
-                            self.rtol, self.atol, self.max_steps, self.substeps, self.step_size)
+        try:
+            status = _core.step(_METHOD_CODE[self.method], self._c, self._work, out, u,
+                                self.period, self.rtol, self.atol, self.max_steps, self.substeps,
+                                self.step_size)
+        except ValueError:
+            self._check_finite(y, u)
+            raise
         if status != OK:
             values = ", ".join(f"{name}={v:.6g}" for name, v in zip(self.state_names, y))
             raise SimulationError(f"stepper: {STATUS_TEXT[status]} within a period of "
@@ -271,7 +279,11 @@ class Stepper:
         y = self._state_vector(state).copy()
         u = self.input_vector(inputs)
         dstate = np.empty(self.n_state)
-        status = _core.step_rate(self._c, self._work, y, u, dstate)
+        try:
+            status = _core.step_rate(self._c, self._work, y, u, dstate)
+        except ValueError:
+            self._check_finite(y, u)
+            raise
         if status != OK:
             raise SimulationError(f"stepper: {STATUS_TEXT[status]} at the state {y}")
         return dstate
