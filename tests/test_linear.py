@@ -349,3 +349,20 @@ def test_cli_linearize_writes_a_file_and_a_summary(tmp_path, capsys):
 def test_cli_linearize_rejects_bad_input(argv, match):
     with pytest.raises(InputError, match=match):
         _run(argv)
+
+
+def test_the_linearize_command_does_not_import_python_control(tmp_path):
+    """python-control is slow to import; the command works on `LinearData` (and its
+    files load back as python-control models)."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "lin.json"
+    code = ("import sys; from vsj.cli import main; "
+            f"code = main(['linearize', '--q=-0.4cm', '--out', {str(out)!r}]); "
+            "print('control' in sys.modules); sys.exit(code)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == "False"
+    model = linear.load(out)
+    assert isinstance(model, control.StateSpace) and model.operating_point["q"] == -0.004

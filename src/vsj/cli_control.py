@@ -66,7 +66,7 @@ def cmd_linearize(args) -> int:
                 _quantity(args.motor_2, "rad", "--motor-2")),
         load=(_quantity(args.tau_x, "N*m", "--tau-x"), _quantity(args.tau_y, "N*m", "--tau-y")),
         wrist_options=_wrist_options(args), friction=args.friction, inputs=_names(args.inputs),
-        outputs=_names(args.outputs))
+        outputs=_names(args.outputs), statespace=False)
     if args.out is not None:
         linear.save(model, Path(args.out))
     if args.json:
