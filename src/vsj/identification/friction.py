@@ -163,18 +163,47 @@ def _fourier(angle: np.ndarray) -> np.ndarray:
 
 def _profile_c3(w, T, extra=None):
     """The best c3 on a log grid, with c1, c2 >= 0 (and any extra linear columns) solved
-    exactly for each: the model is linear in everything but c3."""
-    from scipy.optimize import lsq_linear
+    exactly for each: the model is linear in everything but c3.
 
-    n_extra = 0 if extra is None else extra.shape[1]
-    lower = np.concatenate([[0.0, 0.0], np.full(n_extra, -np.inf)])
+    A starting point for the full fit. Only the arctan column changes with c3, so
+    the normal equations are updated per grid point in O(samples). The bounds
+    c1, c2 >= 0: the bounded optimum is the unconstrained minimum on one of the
+    four faces (c1 and c2 each free or zero), so the best feasible face minimum
+    is it.
+    """
+    E = np.zeros((len(w), 0)) if extra is None else np.asarray(extra, dtype=float)
+    fixed = np.column_stack([w, E])             # the columns that do not depend on c3
+    G_fixed = fixed.T @ fixed
+    b_fixed = fixed.T @ T
+    TT = float(T @ T)
+    k = fixed.shape[1] + 1                      # unknowns: c1, c2, then the extra columns
     best = (math.inf, None, None)
     for c3 in np.logspace(-2, 4, 121):
-        cols = [w, np.arctan(c3 * w)] + ([] if extra is None else [extra])
-        A = np.column_stack(cols)
-        sol = lsq_linear(A, T, bounds=(lower, np.inf))
-        if sol.cost < best[0]:
-            best = (sol.cost, c3, sol.x)
+        a = np.arctan(c3 * w)
+        G = np.empty((k, k))
+        b = np.empty(k)
+        # unknown order: c1 (w), c2 (a), extra columns
+        G[0, 0] = G_fixed[0, 0]
+        G[0, 2:] = G[2:, 0] = G_fixed[0, 1:]
+        G[2:, 2:] = G_fixed[1:, 1:]
+        G[1, 1] = a @ a
+        G[0, 1] = G[1, 0] = a @ w
+        G[1, 2:] = G[2:, 1] = a @ E
+        b[0], b[1], b[2:] = b_fixed[0], a @ T, b_fixed[1:]
+        for free in ((0, 1), (1,), (0,), ()):
+            keep = list(free) + list(range(2, k))
+            x = np.zeros(k)
+            if keep:
+                sub = np.ix_(keep, keep)
+                try:
+                    x[keep] = np.linalg.solve(G[sub], b[keep])
+                except np.linalg.LinAlgError:
+                    x[keep] = np.linalg.lstsq(G[sub], b[keep], rcond=None)[0]
+            if x[0] < 0.0 or x[1] < 0.0:
+                continue
+            cost = 0.5 * (TT - 2.0 * b @ x + x @ G @ x)
+            if cost < best[0]:
+                best = (cost, c3, x)
     _, c3, lin = best
     return np.concatenate([[lin[0], lin[1], c3], lin[2:]])
 
