@@ -151,7 +151,8 @@ def test_a_bad_model_file_is_refused_with_the_key(step_wrist, params, tmp_path, 
 
 
 @pytest.mark.parametrize("text, message", [
-    ('{"format": "vsj-model",\n "version": 1,\n "engine": [1, 2,', "line 3, column 18: unexpected end"),
+    ('{"format": "vsj-model",\n "version": 1,\n "engine": [1, 2,',
+     "line 3, column 18: unexpected end"),
     ("[" * 100, "nested too deeply"),
     ('{"format": "vsj-model" "version": 1}', "expected ',' or '}'"),
     ('{"format": "\\q"}', "unknown escape"),

@@ -44,14 +44,26 @@ def _names(text: str | None) -> list[str] | None:
 
 
 def _wrist_options(args):
+    """WristOptions from the options `_add_wrist_arguments` adds."""
     from .wrist import WristOptions
 
     options = WristOptions(elastic=args.elastic, motors=args.motor_model,
+                           pivot_drive=getattr(args, "pivot_drive", "velocity"),
                            linear_stiffness=(_quantity(args.linear_stiffness, "N*m",
                                                        "--linear-stiffness")
                                              if args.linear_stiffness else None))
     options.validate()
     return options
+
+
+def _add_wrist_arguments(p, elastic_models, drives) -> None:
+    """The wrist's sub-model options (`vsj.wrist.WristOptions`) of a command."""
+    p.add_argument("--elastic", default="geometric", choices=list(elastic_models),
+                   help="elastic element model (default geometric)")
+    p.add_argument("--linear-stiffness", metavar="STIFFNESS",
+                   help="stiffness of the 'linear' elastic model, e.g. '0.8 N m/rad'")
+    p.add_argument("--motor-model", default="velocity", choices=list(drives),
+                   help="primary motors: velocity sources or DC motors (default velocity)")
 
 
 def cmd_linearize(args) -> int:
@@ -112,19 +124,13 @@ def cmd_datasheet(args) -> int:
 def cmd_export_model(args) -> int:
     from . import export
     from .simulate import InitialState, SimulationOptions
-    from .wrist import WristOptions
 
     params = _params(args.params)
     method = args.method or ("timestep" if args.friction == "stiction" else "dopri")
     options = SimulationOptions(friction=args.friction,
                                 step=_quantity(args.step, "s", "--step"),
                                 rtol=args.rtol, atol=args.atol)
-    wrist_options = WristOptions(elastic=args.elastic, motors=args.motor_model,
-                                 pivot_drive=args.pivot_drive,
-                                 linear_stiffness=(_quantity(args.linear_stiffness, "N*m",
-                                                             "--linear-stiffness")
-                                                   if args.linear_stiffness else None))
-    wrist_options.validate()
+    wrist_options = _wrist_options(args)
     stepper = export.wrist_stepper(params, wrist_options, options=options, method=method,
                                    period=_quantity(args.period, "s", "--period"),
                                    substeps=args.substeps)
@@ -166,12 +172,7 @@ def register(sub) -> None:
                    help="static external torque about theta_y (default 0 N m)")
     p.add_argument("--friction", default="linearised", choices=list(FRICTION_TREATMENTS),
                    help="friction treatment (default linearised)")
-    p.add_argument("--elastic", default="geometric", choices=list(ELASTIC_MODELS),
-                   help="elastic element model (default geometric)")
-    p.add_argument("--linear-stiffness", metavar="STIFFNESS",
-                   help="stiffness of the 'linear' elastic model, e.g. '0.8 N m/rad'")
-    p.add_argument("--motor-model", default="velocity", choices=list(DRIVES),
-                   help="primary motors: velocity sources or DC motors (default velocity)")
+    _add_wrist_arguments(p, ELASTIC_MODELS, DRIVES)
     p.add_argument("--inputs", metavar="NAMES", help="comma-separated inputs to keep")
     p.add_argument("--outputs", metavar="NAMES", help="comma-separated outputs to keep")
     p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
@@ -206,12 +207,7 @@ def register(sub) -> None:
                     "at a time (examples/c/step_wrist.c).")
     p.add_argument("--out", metavar="FILE", required=True, help="model file to write (JSON)")
     p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
-    p.add_argument("--elastic", default="geometric", choices=list(ELASTIC_MODELS),
-                   help="elastic element model (default geometric)")
-    p.add_argument("--linear-stiffness", metavar="STIFFNESS",
-                   help="stiffness of the 'linear' elastic model, e.g. '0.8 N m/rad'")
-    p.add_argument("--motor-model", default="velocity", choices=list(DRIVES),
-                   help="primary motors: velocity sources or DC motors (default velocity)")
+    _add_wrist_arguments(p, ELASTIC_MODELS, DRIVES)
     p.add_argument("--pivot-drive", default="velocity", choices=list(DRIVES),
                    help="stiffness motor: velocity source or DC motor (default velocity)")
     p.add_argument("--friction", default="arctan", choices=list(LAWS),

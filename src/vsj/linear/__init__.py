@@ -70,7 +70,8 @@ def __getattr__(name):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["FRICTION_TREATMENTS", "LinearData", "LinearModel", "PIVOT_INPUT", "bandwidth",
+__all__ = ["EQUILIBRIUM_ITERATIONS", "EQUILIBRIUM_TOL", "FORMAT", "FORMAT_VERSION",
+           "FRICTION_TREATMENTS", "LinearData", "LinearModel", "PIVOT_INPUT", "bandwidth",
            "dynamic_states", "from_dict", "linearize", "linearize_structure", "load", "modes",
            "natural_frequencies", "output_stiffness", "save", "signal_name", "static_gain",
            "sweep", "to_dict", "transfer"]

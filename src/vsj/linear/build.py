@@ -238,12 +238,13 @@ def linearize_structure(structure: Structure, *, angles: Mapping[str, float] | N
             if fixed_pivot else "moving pivot: its drive is part of the state",
             "coordinates": "momenta p = M v + M_su u (see vsj.linear)"}
     data = LinearData(jx, B_all[:, in_idx], C_all[out_idx], D_all[np.ix_(out_idx, in_idx)],
-                       state_labels=list(stepper.state_names),
+                      state_labels=list(stepper.state_names),
                       input_labels=[input_names[i] for i in in_idx],
-                       output_labels=[out_names[i] for i in out_idx], state_units=stepper.state_units,
-                       input_units=[input_units[i] for i in in_idx],
-                       output_units=[table[i][2] for i in out_idx], operating_point=op,
-                       friction=friction, info=info, name=name or structure.name)
+                      output_labels=[out_names[i] for i in out_idx],
+                      state_units=stepper.state_units,
+                      input_units=[input_units[i] for i in in_idx],
+                      output_units=[table[i][2] for i in out_idx], operating_point=op,
+                      friction=friction, info=info, name=name or structure.name)
     return data.statespace() if statespace else data
 
 

@@ -91,6 +91,13 @@ static inline const double *vsj__row(const vsj_model *m, int64_t r) {
     return m->par + r * VSJ_NPAR;
 }
 
+/* Whether work w was made for models of the sizes of m. */
+static inline int vsj__fits(const vsj_model *m, const vsj_work *w) {
+    return m && w && m->n == w->n && m->n_sources == w->s && m->n_frictions == w->f
+           && m->n_springs == w->k && m->n_loads == w->nl && m->n_motors == w->nm
+           && m->n_channels == w->nch && m->n_rows == w->rows;
+}
+
 /* The smooth part of a friction law (vsj_friction_torque). */
 static inline double vsj__friction(int64_t law, double b, double k, double kb, double w, double s,
                                     double *slope) {

@@ -15,12 +15,6 @@ int64_t vsj_step_state_size(const vsj_model *m) {
     return 2 * m->n + m->n_motors + m->n_sources;
 }
 
-static int fits(const vsj_model *m, const vsj_work *w) {
-    return m && w && m->n == w->n && m->n_sources == w->s && m->n_frictions == w->f
-           && m->n_springs == w->k && m->n_loads == w->nl && m->n_motors == w->nm
-           && m->n_channels == w->nch && m->n_rows == w->rows;
-}
-
 /* Hold the inputs over the period and start the sources at s[base:]. */
 static void hold(const vsj_model *m, vsj_work *w, const double *s, const double *inputs) {
     w->held = inputs;
@@ -96,7 +90,7 @@ int vsj_step_dopri(const vsj_model *m, vsj_work *w, double *s, const double *inp
                    double rtol, double atol, int64_t max_steps) {
     int64_t ny = vsj_n_state(m);
     vsj_report rep;
-    if (!fits(m, w) || !(dt > 0.0))
+    if (!vsj__fits(m, w) || !(dt > 0.0))
         return VSJ_BAD_ARGUMENT;
     hold(m, w, s, inputs);
     to_engine(m, s, inputs, w->sy);
@@ -116,7 +110,7 @@ int vsj_step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *input
     int64_t ny = vsj_n_state(m), sub, stage, i;
     double *y = w->sy, *k = w->sk, *acc = w->sacc, *yt = w->yt, h;
     int status;
-    if (!fits(m, w) || !(dt > 0.0) || substeps < 1)
+    if (!vsj__fits(m, w) || !(dt > 0.0) || substeps < 1)
         return VSJ_BAD_ARGUMENT;
     hold(m, w, s, inputs);
     to_engine(m, s, inputs, y);
@@ -157,7 +151,7 @@ int vsj_step_timestep(const vsj_model *m, vsj_work *w, double *s, const double *
     int64_t steps = (int64_t)ceil(dt / h - 1e-9);
     vsj_report rep;
     int status;
-    if (!fits(m, w) || !w->ts.prepared || !(dt > 0.0) || !(h > 0.0))
+    if (!vsj__fits(m, w) || !w->ts.prepared || !(dt > 0.0) || !(h > 0.0))
         return VSJ_BAD_ARGUMENT;
     hold(m, w, s, inputs);
     to_engine(m, s, inputs, w->sy);
@@ -175,7 +169,7 @@ int vsj_step_rate(const vsj_model *m, vsj_work *w, const double *s, const double
                   double *ds) {
     int64_t n = m->n, nm = m->n_motors, ny = 2 * n + nm, sz = n + m->n_sources, i, r, j;
     int status;
-    if (!fits(m, w))
+    if (!vsj__fits(m, w))
         return VSJ_BAD_ARGUMENT;
     hold(m, w, s, inputs);
     to_engine(m, s, inputs, w->sy);

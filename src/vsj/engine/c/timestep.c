@@ -504,12 +504,6 @@ static impulses impulses_of(vsj_work *w) {
     return im;
 }
 
-static int fits(const vsj_model *m, const vsj_work *w) {
-    return m && w && m->n == w->n && m->n_sources == w->s && m->n_frictions == w->f
-           && m->n_springs == w->k && m->n_loads == w->nl && m->n_motors == w->nm
-           && m->n_channels == w->nch && m->n_rows == w->rows;
-}
-
 /* alpha with row e = alpha row g (free and source parts, to round-off), or 0 */
 static double parallel(const ts_work *t, int64_t cols, int64_t n, int64_t s, int64_t e,
                        int64_t g) {
@@ -545,7 +539,7 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
     ts_work *t = &w->ts;
     int64_t n, s, nf, nk, nl, nm, cols, e, i, j, c, k, a, rr, na = 0;
     int64_t r_load, r_piv;
-    if (!fits(m, w))
+    if (!vsj__fits(m, w))
         return VSJ_BAD_ARGUMENT;
     n = m->n;
     s = m->n_sources;
@@ -715,7 +709,7 @@ static void outer(const vsj_model *m, int64_t r, double *H, double scale) {
 int vsj_ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
     ts_work *t = &w->ts;
     int64_t n, nm, j;
-    if (!fits(m, w) || !t->prepared)
+    if (!vsj__fits(m, w) || !t->prepared)
         return VSJ_BAD_ARGUMENT;
     n = m->n;
     nm = m->n_motors;
@@ -767,7 +761,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
     rep.t = t0;
     rep.steps = 0;
     rep.rejected = 0;
-    if (!fits(m, w) || !t->prepared || !(h > 0.0) || !(t_end >= t0)) {
+    if (!vsj__fits(m, w) || !t->prepared || !(h > 0.0) || !(t_end >= t0)) {
         rep.status = VSJ_BAD_ARGUMENT;
         return rep;
     }
