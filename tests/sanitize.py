@@ -76,6 +76,17 @@ for name in refs.REFERENCES:                      # the scenarios
     print("scenario", name, flush=True)
 
 params = vsj.params.default()
+from vsj.inputs import Table                       # end stops: compliant and rigid
+from vsj.simulate import simulate
+from vsj.wrist import WristOptions, build_wrist
+for stiffness in ("50 N m/rad", "1e7 N m/rad"):
+    p = params.with_overrides({"elastic_element.end_stop_stiffness": stiffness}, origin="s")
+    r = simulate(build_wrist(p, WristOptions(elastic="geometric")).assemble(),
+                 {"tau_x": Table((0.0, 1.0, 2.0), (0.0, 20.0, 20.0))}, 2.0,
+                 initial=InitialState(q=-0.01),
+                 options=SimulationOptions(friction="stiction", output_step=0.01))
+    assert r.success and "end stop vsm_1" in r.ledger["dissipated"], r.message
+print("end stops", flush=True)
 scen = scenarios.load("fig-4.15")
 _, structure, inputs, rng = scenarios.prepare_case(scen, scen.cases[0], params)
 for friction in ("arctan", "stiction"):           # batches on two threads

@@ -366,3 +366,10 @@ def test_the_linearize_command_does_not_import_python_control(tmp_path):
     assert done.stdout.strip().splitlines()[-1] == "False"
     model = linear.load(out)
     assert isinstance(model, control.StateSpace) and model.operating_point["q"] == -0.004
+
+
+def test_an_operating_point_past_the_end_stop_is_warned_about(params):
+    pressed = linear.linearize(params, -0.01, load=(20.0, 0.0), statespace=False)
+    assert any("past its 1.4 rad end stop" in w for w in pressed.info["warnings"])
+    assert linear.linearize(params, -0.01, load=(0.2, 0.0),
+                            statespace=False).info["warnings"] == []

@@ -21,6 +21,6 @@ def test_engine_runs_clean_under_the_sanitizers(tmp_path):
     assert done.returncode == 0, output[-4000:]
     assert "AddressSanitizer:" not in output and "runtime error:" not in output
     # every part of the workload ran
-    for part in ("scenario fig-4.15-stiction", "batch stiction", "step timestep",
+    for part in ("scenario fig-4.15-stiction", "end stops", "batch stiction", "step timestep",
                  "example timestep", "refusals"):
         assert part in output

@@ -101,7 +101,8 @@ class Motor:
     """Armature circuit of a DC motor driving the rotor ``flange``.
 
     ``L di/dt = V - R i - k omega`` and the torque ``k i`` on the rotor, with
-    the voltage ``V`` from input ``channel`` (SI: ``k`` in N m/A = V s/rad).
+    the voltage ``V`` from input ``channel`` (SI: ``k`` in N m/A = V s/rad);
+    ``voltage_limit`` [V] is its rating (a run above it is warned about).
     """
 
     name: str
@@ -110,6 +111,7 @@ class Motor:
     resistance: float
     inductance: float
     torque_constant: float
+    voltage_limit: float = math.inf
 
 
 @dataclass(frozen=True)

@@ -37,13 +37,31 @@ from .inputs import Input
 from .network import Signal, Structure
 
 
+#: Sane ranges of the numerical settings (SI): outside them a run cannot be trusted
+#: (a relative tolerance of 0.5 gives no accuracy at all) and is refused up front.
+RANGES = {"rtol": (1e-14, 1e-2), "atol": (1e-20, 1e-2), "step": (1e-7, 0.05),
+          "output_step": (1e-7, math.inf), "slope_width": (1e-12, 1e3),
+          "max_step": (1e-9, math.inf), "ledger_tolerance": (1e-15, 1.0)}
+#: A run fails when its energy ledger's residual exceeds this fraction of the energy
+#: in play (the work done, the energy dissipated, or the energy the mechanism holds;
+#: a sound run closes it to 1e-15 with the time-stepper, to about rtol with dopri;
+#: the default tolerance of 1e-8 gives about 1e-11).
+LEDGER_TOLERANCE = 1e-3
+#: A spring pressed this far [rad] into its end stop has left what the parameter set
+#: describes (a warning); ten turns past it, a run has diverged (a failure).
+INTO_STOP = 0.1
+DIVERGED = 20 * math.pi
+
+
 @dataclass(frozen=True)
 class SimulationOptions:
     """How to simulate: friction law, solver and numerical knobs (SI units).
 
     ``slope_width`` is the report's ``w`` of fig 4.8 (a numerical knob, not a
     property of the prototype). ``rtol``/``atol`` steer ``dopri``; ``step`` is
-    the fixed step of ``timestep``. ``output_step`` sets the sample grid.
+    the fixed step of ``timestep``. ``output_step`` sets the sample grid. A run
+    whose energy ledger leaves a residual above ``ledger_tolerance`` (a fraction
+    of the energy in play) is reported as failed. `RANGES` bounds every number.
     """
 
     friction: str = "arctan"
@@ -56,17 +74,22 @@ class SimulationOptions:
     step: float = 1e-3
     output_step: float = 1e-3
     max_steps: int = 20_000_000
+    ledger_tolerance: float = LEDGER_TOLERANCE
 
     def validate(self) -> None:
         friction_laws.law_code(self.friction)
         if self.solver not in ("auto", "dopri", "timestep"):
             raise InputError(f"solver must be 'auto', 'dopri' or 'timestep', got {self.solver!r}")
-        for name in ("slope_width", "rtol", "atol", "step", "output_step", "max_step"):
+        for name, (lo, hi) in RANGES.items():
             value = getattr(self, name)
-            if not (value > 0.0):
-                raise InputError(f"option {name} must be > 0, got {value!r}")
-        if self.max_steps < 1:
-            raise InputError(f"option max_steps must be >= 1, got {self.max_steps!r}")
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not lo <= value <= hi:
+                raise InputError(f"option {name} must be a number in [{lo:g}, {hi:g}], got "
+                                 f"{value!r}")
+        if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, int) \
+                or not 1 <= self.max_steps <= 10 ** 10:
+            raise InputError(f"option max_steps must be a whole number in [1, 1e10], got "
+                             f"{self.max_steps!r}")
 
 
 @dataclass(frozen=True)
@@ -95,6 +118,8 @@ class Result:
     message: str
     solver: dict
     transitions: dict[str, int] = field(default_factory=dict)
+    #: Where the run left what the parameter set describes (it still succeeded).
+    warnings: list[str] = field(default_factory=list)
 
     def __getitem__(self, name: str) -> np.ndarray:
         try:
@@ -131,9 +156,10 @@ class Result:
             lines.append(f"energy ledger: work in {led['total_in']:.6g} J = stored "
                          f"{led['total_stored']:.6g} J + dissipated {led['total_dissipated']:.6g} J"
                          f" + residual {led['residual']:.3g} J "
-                         f"({led['relative_residual']:.2g} of the work done)")
+                         f"({led['relative_residual']:.2g} of the energy in play)")
         if self.transitions:
             lines.append(f"stick/slip transitions: {sum(self.transitions.values())}")
+        lines += [f"warning: {text}" for text in self.warnings]
         return "\n".join(lines)
 
 
@@ -161,14 +187,29 @@ def _initial(structure: Structure, inputs: Mapping[str, Input], initial: Initial
     return x0, v0, sigma0, currents
 
 
+def rigid_stops(structure: Structure) -> list[str]:
+    """Springs of ``structure`` whose end stop is rigid (infinite stiffness)."""
+    from .components.elastic_element import end_stop
+
+    return [sp.name for sp in structure.springs
+            if (stop := end_stop(sp.law, sp.parameters)) is not None and math.isinf(stop[1])]
+
+
 def choose_solver(structure: Structure, options: SimulationOptions) -> str:
+    """The solver a run uses: ``timestep`` where true stiction or a rigid end stop
+    needs it (with ``solver="auto"``), else ``dopri``."""
     laws = friction_laws_for(structure, options.friction, options.friction_overrides)
     sticky = "stiction" in laws
+    rigid = rigid_stops(structure)
     if options.solver == "dopri" and sticky:
         raise InputError("the stiction law needs the time-stepping solver (solver = "
                          "'timestep' or 'auto'); dopri integrates smooth laws only")
+    if options.solver == "dopri" and rigid:
+        raise InputError(f"a rigid end stop ({', '.join(rigid)}) is a constraint that only the "
+                         "time-stepping solver handles (solver = 'timestep' or 'auto'); dopri "
+                         "needs a finite elastic_element.end_stop_stiffness")
     if options.solver == "auto":
-        return "timestep" if sticky else "dopri"
+        return "timestep" if sticky or rigid else "dopri"
     return options.solver
 
 
@@ -203,14 +244,10 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
     options = options or SimulationOptions()
     initial = initial or InitialState()
     solver = choose_solver(structure, options)
+    check_run_size(structure, duration, options, solver)
     model, layout, y0 = prepare(structure, inputs, duration, options, initial, pivot_range)
     n_out = int(math.floor(duration / options.output_step + 1e-9)) + 1
     t_out = np.arange(n_out) * options.output_step
-    if solver == "timestep":
-        ratio = options.output_step / options.step
-        if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
-            raise InputError(f"output_step ({options.output_step:g} s) must be a whole multiple "
-                             f"of the time step ({options.step:g} s)")
     started = _time.perf_counter()
     engine = Engine(model)
     out = np.full((n_out, y0.shape[0]), np.nan)
@@ -237,19 +274,133 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
     result = collect(structure, engine, layout, t_out, out, coulomb, stuck, ports=ports)
     result.transitions = {fr.name: int(flips[e]) for e, fr in enumerate(structure.frictions)
                           if flips[e]}
+    n_state = 2 * layout.n + layout.n_motors
     if status == core.OK:
-        result.success = True
-        result.message = f"simulated {duration:g} s"
         result.ledger = ledger(structure, engine, layout, y0, y_end, duration)
+        problem = judge(structure, result, options)
+        if problem is None:
+            result.success = True
+            result.message = f"simulated {duration:g} s"
+        else:  # the run ended, but its result cannot be trusted
+            when, reason = problem
+            k = int(np.searchsorted(result.time, when))
+            state = ", ".join(f"{name}={value:.6g}" for name, value in
+                              zip(state_names(structure), out[min(k, len(out) - 1), :n_state]))
+            result.success = False
+            result.message = f"{reason} at t = {when:.6g} s; state: {state}"
     else:
-        n_state = 2 * layout.n + layout.n_motors
         state = ", ".join(f"{name}={value:.6g}" for name, value in
                           zip(state_names(structure), y_end[:n_state]))
         result.success = False
         result.message = (f"{STATUS_TEXT[status]} at t = {t_stop:.6g} s; state: {state}")
         result.ledger = {}
+    result.warnings = warnings_of(structure, result)
     result.solver = report
     return result
+
+
+def _available_memory() -> float:
+    """Bytes this machine can still give a process (MemAvailable on Linux)."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as handle:
+            for line in handle:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except OSError:
+        pass
+    return 8.0 * 2 ** 30
+
+
+def check_run_size(structure: Structure, duration: float, options: SimulationOptions,
+                   solver: str) -> None:
+    """`InputError` before anything is allocated when a run's samples would not fit
+    in memory, or its steps exceed ``max_steps`` or do not land on the samples."""
+    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0.0):
+        raise InputError(f"duration must be a finite time > 0 s, got {duration!r}")
+    options.validate()
+    if solver == "timestep":
+        if options.step > duration:
+            raise InputError(f"option step ({options.step:g} s) is longer than the duration "
+                             f"({duration:g} s)")
+        ratio = options.output_step / options.step
+        if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
+            raise InputError(f"output_step ({options.output_step:g} s) must be a whole multiple "
+                             f"of the time step ({options.step:g} s)")
+        if duration / options.step > options.max_steps:
+            raise InputError(f"{duration:g} s in steps of {options.step:g} s are "
+                             f"{duration / options.step:.3g} steps, more than max_steps "
+                             f"({options.max_steps})")
+    samples = math.floor(duration / options.output_step + 1e-9) + 1
+    n, s = structure.n, len(structure.sources)
+    f, k = len(structure.frictions), len(structure.springs)
+    # state and ledger rows, every internal signal, the named signals (about as many)
+    # and the friction samples, in float64
+    width = 2 * (4 * n + 4 * s + 4 * f + 8 * k + 8 * len(structure.motors) + 4) + f
+    need = samples * width * 8.0
+    available = _available_memory()
+    if need > 0.5 * available:
+        raise InputError(
+            f"{duration:g} s sampled every {options.output_step:g} s are {samples:.3g} "
+            f"samples of about {width} values: {need / 2 ** 30:.3g} GiB, more than half the "
+            f"memory available ({available / 2 ** 30:.3g} GiB); raise output_step or shorten "
+            f"the duration")
+
+
+def _stop_angles(structure: Structure) -> dict[str, float]:
+    from .components.elastic_element import end_stop
+
+    angles = {}
+    for sp in structure.springs:
+        stop = end_stop(sp.law, sp.parameters)
+        if stop is not None and stop[0] > 0.0:
+            angles[sp.name] = stop[0]
+    return angles
+
+
+def judge(structure: Structure, result: Result, options: SimulationOptions
+          ) -> tuple[float, str] | None:
+    """Why a run that ended cannot be trusted, with the time it shows: an energy
+    ledger that does not close, or a spring `DIVERGED` past its end stop; None if
+    neither."""
+    for name, stop in _stop_angles(structure).items():
+        past = np.abs(result[f"spring.{name}.deflection"]) - stop
+        over = np.flatnonzero(past > DIVERGED)
+        if over.size:
+            k = int(over[0])
+            return float(result.time[k]), (
+                f"spring {name} deflected {past[k] + stop:.4g} rad, ten turns past its "
+                f"{stop:.4g} rad end stop: the run diverged")
+    residual = result.ledger.get("relative_residual", 0.0)
+    if not residual <= options.ledger_tolerance:
+        return float(result.time[-1]), (
+            f"the energy ledger does not close: its residual is {residual:.3g} of the energy "
+            f"in play, above the ledger tolerance {options.ledger_tolerance:g} (the numerical "
+            f"settings are too coarse for this run: tighten rtol, or shorten the step)")
+    return None
+
+
+def warnings_of(structure: Structure, result: Result) -> list[str]:
+    """Where a run left what the parameter set describes: a spring pressed more than
+    `INTO_STOP` into its end stop, a DC motor above its voltage limit."""
+    out = []
+    for name, stop in _stop_angles(structure).items():
+        deflection = result.signals.get(f"spring.{name}.deflection")
+        if deflection is None or not len(deflection):
+            continue
+        k = int(np.argmax(np.abs(deflection)))
+        if abs(deflection[k]) - stop > INTO_STOP:
+            out.append(f"spring {name} was driven to {deflection[k]:.4g} rad at t = "
+                       f"{result.time[k]:.4g} s, {abs(deflection[k]) - stop:.3g} rad past its "
+                       f"{stop:.4g} rad end stop: the loads exceed what the mechanism takes")
+    for mo in structure.motors:
+        voltage = result.signals.get(f"motor.{mo.name}.voltage")
+        if voltage is None or not len(voltage) or not math.isfinite(mo.voltage_limit):
+            continue
+        k = int(np.argmax(np.abs(voltage)))
+        if abs(voltage[k]) > mo.voltage_limit:
+            out.append(f"motor {mo.name} was driven at {voltage[k]:.4g} V at t = "
+                       f"{result.time[k]:.4g} s, beyond its {mo.voltage_limit:g} V limit")
+    return out
 
 
 def state_names(structure: Structure) -> list[str]:
@@ -365,6 +516,10 @@ def ledger(structure: Structure, engine: Engine, layout: Layout, y0, y_end, dura
                   for e, fr in enumerate(structure.frictions)}
     for j, mo in enumerate(structure.motors):
         dissipated[f"resistance {mo.name}"] = float(acc[slices["resistance"]][j])
+    stops = acc[slices["stops"]]
+    for k, sp in enumerate(structure.springs):
+        if stops[k] != 0.0:
+            dissipated[f"end stop {sp.name}"] = float(stops[k])
     stored = {"kinetic": float(kin1 - kin0), "springs": float(pot1 - pot0),
               "inductors": float(ind1 - ind0)}
     nonconservative = {}
@@ -376,13 +531,16 @@ def ledger(structure: Structure, engine: Engine, layout: Layout, y0, y_end, dura
             w_spring = float(acc[slices["spring"]][k])
             w_pivot = float(acc[slices["pivot"]][k])
             nonconservative[f"spring {sp.name} (eq 3.8 is not a potential force)"] = float(
-                w_pivot - w_spring - dv)
+                w_pivot - w_spring - dv - stops[k])
     total_in = sum(work_in.values())
     total_stored = sum(stored.values())
     total_diss = sum(dissipated.values()) + sum(nonconservative.values())
     residual = total_in - total_stored - total_diss
+    # the energy in play: what flowed in or out, or what the mechanism holds (a run
+    # that rests under a load does almost no work, but its springs hold energy)
+    held = max(abs(kin0) + abs(pot0) + abs(ind0), abs(kin1) + abs(pot1) + abs(ind1))
     scale = max(sum(abs(v) for v in work_in.values()), sum(abs(v) for v in dissipated.values()),
-                abs(total_stored), 1e-300)
+                abs(total_stored), held, 1e-300)
     return {"work_in": work_in, "stored_change": stored, "dissipated": dissipated,
             "nonconservative": nonconservative, "total_in": total_in,
             "total_stored": total_stored, "total_dissipated": total_diss,

@@ -109,7 +109,8 @@ def motor(name: str, params: Parameters, drive: str, channel: str):
     mo = params.motor
     return DCMotor(name, resistance=mo.resistance, inductance=mo.inductance,
                    torque_constant=mo.torque_constant, rotor_inertia=mo.rotor_inertia,
-                   gear_ratio=mo.gear_ratio, viscous=mo.viscous, channel=f"voltage_{channel}")
+                   gear_ratio=mo.gear_ratio, viscous=mo.viscous, channel=f"voltage_{channel}",
+                   voltage_limit=mo.voltage_limit)
 
 
 def build_wrist(params: Parameters, options: WristOptions | None = None) -> Network:

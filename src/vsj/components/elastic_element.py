@@ -63,6 +63,17 @@ GEOMETRY_FIELDS = ("ring_radius", "lever_length", "lever_width", "anchor_x", "an
 #: EXPONENTIAL: a1, a2, a3, phi_stop, k_stop (N m/rad, 1/m, N m/rad, rad, N m/rad).
 EXPONENTIAL_FIELDS = ("a1", "a2", "a3", "end_stop", "end_stop_stiffness")
 
+def end_stop(law: int, parameters) -> tuple[float, float] | None:
+    """``(angle [rad], stiffness [N m/rad])`` of a law's end stop (stiffness infinite
+    for a rigid stop), or None for a law without one."""
+    fields = {EXPONENTIAL: EXPONENTIAL_FIELDS, GEOMETRIC: GEOMETRY_FIELDS,
+              GEOMETRIC_REPORT: GEOMETRY_FIELDS}.get(law)
+    if fields is None:
+        return None
+    return (float(parameters[fields.index("end_stop")]),
+            float(parameters[fields.index("end_stop_stiffness")]))
+
+
 # The laws themselves are the engine's (engine/c/laws.c); these are their
 # Python entry points, evaluated by the same compiled code the simulator runs.
 

@@ -17,13 +17,14 @@ from .basic import _positive
 
 
 class DCMotor(Component):
-    """Brushed DC motor with gearhead."""
+    """Brushed DC motor with gearhead; ``voltage_limit`` [V] is its rating."""
 
     ports = ("flange",)
 
     def __init__(self, name: str, *, resistance: float, inductance: float,
                  torque_constant: float, rotor_inertia: float, gear_ratio: float = 1.0,
-                 viscous: float = 0.0, channel: str | None = None):
+                 viscous: float = 0.0, channel: str | None = None,
+                 voltage_limit: float = math.inf):
         super().__init__(name)
         self.resistance = _positive(f"{name}: resistance", resistance, allow_zero=False)
         self.inductance = _positive(f"{name}: inductance", inductance, allow_zero=False)
@@ -34,6 +35,7 @@ class DCMotor(Component):
             raise ValueError(f"{name}: gear_ratio must be finite and nonzero")
         self.gear_ratio = float(gear_ratio)
         self.viscous = _positive(f"{name}: viscous", viscous)
+        self.voltage_limit = _positive(f"{name}: voltage_limit", voltage_limit, allow_zero=False)
         self.channel = channel or name
 
     def parts(self) -> Parts:
@@ -46,6 +48,6 @@ class DCMotor(Component):
             frictions=[Friction(f"{self.name}.rotor", {rotor: 1.0}, self.viscous, 0.0, 1.0,
                                 law="viscous")],
             motors=[Motor(self.name, rotor, self.channel, self.resistance, self.inductance,
-                          self.torque_constant)],
+                          self.torque_constant, self.voltage_limit)],
             priority={rotor: 3},
         )

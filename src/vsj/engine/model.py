@@ -77,16 +77,18 @@ class Layout:
     @property
     def n_acc(self) -> int:
         return (self.n_sources + self.n_loads + 2 * self.n_motors + self.n_frictions
-                + 2 * self.n_springs)
+                + 3 * self.n_springs)
 
     def acc_slices(self) -> dict[str, slice]:
         """Accumulated energies [J]: work done by sources, loads and motor supplies,
         dissipation in friction and armature resistance, work done by the springs on
-        the mechanism and by the pivot on the springs."""
+        the mechanism and by the pivot on the springs, and the energy the springs'
+        end stops take out of the mechanism (time-stepper: impacts, and the implicit
+        treatment of compliant stops)."""
         sizes = [("sources", self.n_sources), ("loads", self.n_loads),
                  ("electric", self.n_motors), ("friction", self.n_frictions),
                  ("resistance", self.n_motors), ("spring", self.n_springs),
-                 ("pivot", self.n_springs)]
+                 ("pivot", self.n_springs), ("stops", self.n_springs)]
         out, start = {}, 0
         for name, size in sizes:
             out[name] = slice(start, start + size)

@@ -15,6 +15,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from ..components.elastic_element import end_stop
 from ..errors import InputError, SimulationError
 from ..network import Signal, Structure
 from ..simulate import SimulationOptions
@@ -200,6 +201,7 @@ def linearize_structure(structure: Structure, *, angles: Mapping[str, float] | N
     Minv, Msu = stepper.model.Minv, stepper.model.mass[:n, n:]
     src_cols = stepper.model.src_ch
     spring_index = {sp.name: k for k, sp in enumerate(structure.springs)}
+    warnings = []
     AB = np.hstack([structure.A, structure.B])
     for k, (_, kind, _, ref) in enumerate(table):
         if kind == "angle":
@@ -223,6 +225,11 @@ def linearize_structure(structure: Structure, *, angles: Mapping[str, float] | N
                 D_all[k, -1] = (_spring_torque(sp, deflection, q0 + h)[0]
                                 - _spring_torque(sp, deflection, q0 - h)[0]) / (2 * h)
             y0[k] = tau
+            stop = end_stop(sp.law, sp.parameters)
+            if stop is not None and abs(deflection) > stop[0]:
+                warnings.append(f"spring {sp.name} is deflected {deflection:.4g} rad at the "
+                                f"operating point, past its {stop[0]:.4g} rad end stop: the "
+                                f"model there is the stop's, not the mechanism's")
 
     in_idx = select("input", inputs, input_names)
     out_names = [t[0] for t in table]
@@ -236,7 +243,7 @@ def linearize_structure(structure: Structure, *, angles: Mapping[str, float] | N
             "pivot": ("held at q (a parameter; input 'q' is its sensitivity); the pivot "
                       "mechanism is not back-driven and is not part of the model")
             if fixed_pivot else "moving pivot: its drive is part of the state",
-            "coordinates": "momenta p = M v + M_su u (see vsj.linear)"}
+            "coordinates": "momenta p = M v + M_su u (see vsj.linear)", "warnings": warnings}
     data = LinearData(jx, B_all[:, in_idx], C_all[out_idx], D_all[np.ix_(out_idx, in_idx)],
                       state_labels=list(stepper.state_names),
                       input_labels=[input_names[i] for i in in_idx],

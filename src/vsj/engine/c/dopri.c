@@ -66,7 +66,7 @@ vsj_report vsj_dopri(const vsj_model *m, vsj_work *w, double *y0, int64_t ny, do
     int64_t i_out = 0, i, j, st, n_steps = 0, n_rejected = 0;
     double t = t0, d0, d1, d2, h, big, h1, err_old = 1e-4;
     int rejected_last = 0;
-    if (ny > w->ny_max || n_err > ny || n_err < 0)
+    if (ny > w->ny_max || n_err > ny || n_err < 0 || vsj__rigid_stop(m))
         return done(VSJ_BAD_ARGUMENT, t0, 0, 0);
     memcpy(y, y0, (size_t)ny * sizeof(double));
     while (i_out < n_out && t_out[i_out] <= t0) {

@@ -32,7 +32,7 @@ const char *vsj_status_text(int status) {
 int64_t vsj_n_state(const vsj_model *m) { return 2 * m->n + m->n_motors; }
 
 int64_t vsj_n_acc(const vsj_model *m) {
-    return m->n_sources + m->n_loads + 2 * m->n_motors + m->n_frictions + 2 * m->n_springs;
+    return m->n_sources + m->n_loads + 2 * m->n_motors + m->n_frictions + 3 * m->n_springs;
 }
 
 /* Pivot position and rate; y holds the angles and then the speeds (offset n). */
@@ -62,6 +62,17 @@ static double eval_pivot(const vsj_model *m, vsj_work *w, const double *y) {
     return q;
 }
 
+int vsj__rigid_stop(const vsj_model *m) {
+    int64_t kk;
+    for (kk = 0; kk < m->n_springs; kk++) {
+        int64_t r = m->n_frictions + kk;
+        double angle, stiffness;
+        if (vsj__stop(m->code[r], vsj__row(m, r), &angle, &stiffness) && isinf(stiffness))
+            return 1;
+    }
+    return 0;
+}
+
 /* ---- forces ----------------------------------------------------------------- */
 
 static void eval_springs(const vsj_model *m, vsj_work *w, const double *y) {
@@ -73,7 +84,7 @@ static void eval_springs(const vsj_model *m, vsj_work *w, const double *y) {
         double d = vsj__xdot(m, r, y) + vsj__udot(m, r, w->srcw, SG);
         double stiff, energy, dvq;
         double tau = vsj__spring(m->code[r], vsj__row(m, r), d, q, &stiff, &energy, &dvq,
-                                 w->spcache + 4 * kk);
+                                 w->spcache + 4 * kk, 1);
         sp[DEFL] = d;
         sp[RATE] = vsj__xdot(m, r, y + n) + vsj__udot(m, r, w->srcw, U);
         sp[SPTAU] = tau;
@@ -186,6 +197,8 @@ void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const doub
             dy[p++] = w->spw[SPW * kk + SPTAU] * w->spw[SPW * kk + RATE];
         for (kk = 0; kk < m->n_springs; kk++)
             dy[p++] = w->spw[SPW * kk + DVDQ] * w->qdot;
+        for (kk = 0; kk < m->n_springs; kk++)
+            dy[p++] = 0.0; /* end stops: here elastic forces of the springs, no constraints */
     }
     for (i = 0; i < ny; i++)
         if (!isfinite(dy[i]))

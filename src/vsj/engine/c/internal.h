@@ -14,22 +14,30 @@ enum { DEFL = 0, RATE = 1, SPTAU = 2, STIFF = 3, ENERGY = 4, DVDQ = 5, SPW = 6 }
 /* Scratch of the time-stepper (timestep.c); sized for the model at vsj_work_new. */
 typedef struct ts_work {
     int prepared;
-    int64_t na;            /* impulse unknowns (groups of parallel stiction elements) */
+    int64_t na;            /* impulse unknowns of friction (groups of parallel elements) */
+    int64_t nc;            /* impulse unknowns of end stops: two per spring with a stop */
+    int64_t ncomp;         /* compliant ones among them: one extra row of YlT each */
+    double hs_prev;        /* the previous step's length (the compliance rows depend on it) */
     int64_t n_nonlinear, n_watched, n_mid_ch, n_mid_src, n_end_ch;
     int factored;          /* H_last and its factor are valid */
     double t;              /* time reached */
     double q_prev;         /* pivot position at t */
     double angle_prev;     /* pivot mechanism's angle at t */
     double angle_mid, q_mid;
-    /* n x n */
+    /* n x n; G, Lg, Gc, Kc: (n + 2 k)^2, the impulse problem's rows */
     double *H, *H_last, *Lc, *Bx, *G, *Lg, *Gc, *Kc;
-    /* n */
+    /* n; tv, cv, z: n + 2 k */
     double *x, *v, *r, *vfree, *v1, *x1, *col, *drow, *tv, *cv, *z;
     double *Bu;            /* n x s */
     double *DxT, *DuT;     /* n x (f + k), s x (f + k) */
-    double *DxA, *DuA, *YlT; /* n x f, s x f, n x f (first na columns used) */
-    /* per impulse unknown (f) */
-    double *qv, *cap, *p, *mask, *d, *g, *level, *memo; /* memo: f + 1 */
+    double *DxA, *DuA, *YlT; /* n x m, s x m, (n + 2 k) x m with m = f + 2 k (used: na + nc) */
+    /* per end-stop unknown (2 k): spring, side (+1, -1), stop angle and stiffness, row
+     * of its compliance (-1: rigid), and the largest end speed that keeps it closed */
+    int64_t *cspring, *ccomp;
+    double *csign, *cstop, *ckstop, *cb;
+    unsigned char *has_stop; /* per spring */
+    /* per impulse unknown (f + 2 k): friction groups, then end stops */
+    double *qv, *lo, *hi, *p, *mask, *d, *g, *level, *memo; /* memo: one more */
     int64_t *state;
     unsigned char *involved;
     /* per friction element */
@@ -81,9 +89,20 @@ struct vsj_work {
 VSJ_INTERNAL void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y,
                            int64_t ny, double *dy);
 
+/* Whether a spring of m has a rigid end stop (only the time-stepper can run it). */
+VSJ_INTERNAL int vsj__rigid_stop(const vsj_model *m);
+
 /* laws (laws.c) */
+/* A spring law (vsj_spring_law); `cache` (4 doubles, or NULL) keeps the
+ * exponential law's pivot-dependent factor between calls; without `with_stop`
+ * the end stop's torque, stiffness and energy are left out (the time-stepper
+ * treats stops as constraints). A rigid stop never adds a force. */
 VSJ_INTERNAL double vsj__spring(int64_t law, const double *p, double phi, double q,
-                                double *stiff, double *energy, double *dvdq, double *cache);
+                                double *stiff, double *energy, double *dvdq, double *cache,
+                                int with_stop);
+/* The end stop of a spring law: its angle [rad] and stiffness [N m/rad] (infinite:
+ * rigid); 0 if the law has none. */
+VSJ_INTERNAL int vsj__stop(int64_t law, const double *p, double *angle, double *stiffness);
 
 #define VSJ_PI 3.14159265358979323846
 

@@ -125,8 +125,21 @@ void vsj_spring_geometry(const double p[VSJ_NPAR], double phi, double q, double 
     geometry(p, phi, q, POTENTIAL | REPORT, out);
 }
 
+int vsj__stop(int64_t law, const double *p, double *angle, double *stiffness) {
+    if (law == VSJ_EXPONENTIAL) {
+        *angle = p[3];
+        *stiffness = p[4];
+    } else if (law == VSJ_GEOMETRIC || law == VSJ_GEOMETRIC_REPORT) {
+        *angle = p[7];
+        *stiffness = p[8];
+    } else {
+        return 0;
+    }
+    return *angle > 0.0 && isfinite(*angle) && *stiffness > 0.0;
+}
+
 double vsj__spring(int64_t law, const double *p, double phi, double q, double *stiff,
-                   double *energy, double *dvdq, double *cache) {
+                   double *energy, double *dvdq, double *cache, int with_stop) {
     double tau, k_, en, dvq, stop, k_stop, excess;
     if (law == VSJ_LINEAR) {
         double k = p[0];
@@ -171,7 +184,9 @@ double vsj__spring(int64_t law, const double *p, double phi, double q, double *s
         k_stop = p[8];
     }
     excess = fabs(phi) - stop;
-    if (excess > 0.0) {
+    /* a rigid stop (infinite stiffness) is a constraint of the time-stepper, not a
+     * force: it stores no energy */
+    if (with_stop && excess > 0.0 && isfinite(k_stop)) {
         double sign = phi > 0.0 ? 1.0 : -1.0;
         tau -= k_stop * excess * sign;
         k_ += k_stop;
@@ -186,6 +201,6 @@ double vsj__spring(int64_t law, const double *p, double phi, double q, double *s
 int vsj_spring_law(int law, const double par[VSJ_NPAR], double phi, double q, double out[4]) {
     if (law < VSJ_LINEAR || law > VSJ_GEOMETRIC_REPORT)
         return VSJ_BAD_ARGUMENT;
-    out[0] = vsj__spring(law, par, phi, q, &out[1], &out[2], &out[3], NULL);
+    out[0] = vsj__spring(law, par, phi, q, &out[1], &out[2], &out[3], NULL, 1);
     return VSJ_OK;
 }

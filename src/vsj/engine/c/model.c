@@ -85,7 +85,14 @@ int vsj_check_model(const vsj_model *m, char *message, size_t size) {
     for (r = 0; r < rows; r++)
         for (c = 0; c < VSJ_NPAR; c++) {
             double v = m->par[VSJ_NPAR * r + c];
+            /* unbounded: the pivot's range; a rigid end stop (infinite stiffness) */
             int range = r == rows - 1 && (c == 3 || c == 4);
+            int law = r >= f && r < f + k ? (int)m->code[r] : -1;
+            int rigid = v == INFINITY && ((law == VSJ_EXPONENTIAL && c == 4)
+                                          || ((law == VSJ_GEOMETRIC
+                                               || law == VSJ_GEOMETRIC_REPORT) && c == 8));
+            if (rigid)
+                continue;
             if (range ? isnan(v) : !isfinite(v))
                 return fail(message, size, "model array par: row %lld column %lld is %g",
                             (long long)r, (long long)c, v);
@@ -176,6 +183,7 @@ static void *carve(carver *cv, int64_t count, size_t item) {
 
 static void layout(vsj_work *w, carver *cv) {
     int64_t n = w->n, s = w->s, f = w->f, k = w->k, nl = w->nl, nm = w->nm, nch = w->nch;
+    int64_t nr = n + 2 * k, mu = f + 2 * k; /* the impulse problem's rows and unknowns */
     ts_work *t = &w->ts;
     w->hint = INTS(nch);
     w->chan = DOUBLES(3 * nch);
@@ -203,10 +211,10 @@ static void layout(vsj_work *w, carver *cv) {
     t->H_last = DOUBLES(n * n);
     t->Lc = DOUBLES(n * n);
     t->Bx = DOUBLES(n * n);
-    t->G = DOUBLES(n * n);
-    t->Lg = DOUBLES(n * n);
-    t->Gc = DOUBLES(n * n);
-    t->Kc = DOUBLES(n * n);
+    t->G = DOUBLES(nr * nr);
+    t->Lg = DOUBLES(nr * nr);
+    t->Gc = DOUBLES(nr * nr);
+    t->Kc = DOUBLES(nr * nr);
     t->x = DOUBLES(n);
     t->v = DOUBLES(n);
     t->r = DOUBLES(n);
@@ -215,25 +223,33 @@ static void layout(vsj_work *w, carver *cv) {
     t->x1 = DOUBLES(n);
     t->col = DOUBLES(n);
     t->drow = DOUBLES(n);
-    t->tv = DOUBLES(n);
-    t->cv = DOUBLES(n);
-    t->z = DOUBLES(n);
+    t->tv = DOUBLES(nr);
+    t->cv = DOUBLES(nr);
+    t->z = DOUBLES(nr);
     t->Bu = DOUBLES(n * s);
     t->DxT = DOUBLES(n * (f + k));
     t->DuT = DOUBLES(s * (f + k));
-    t->DxA = DOUBLES(n * f);
-    t->DuA = DOUBLES(s * f);
-    t->YlT = DOUBLES(n * f);
-    t->qv = DOUBLES(f);
-    t->cap = DOUBLES(f);
-    t->p = DOUBLES(f);
-    t->mask = DOUBLES(f);
-    t->d = DOUBLES(f);
-    t->g = DOUBLES(f);
+    t->DxA = DOUBLES(n * mu);
+    t->DuA = DOUBLES(s * mu);
+    t->YlT = DOUBLES(nr * mu);
+    t->qv = DOUBLES(mu);
+    t->lo = DOUBLES(mu);
+    t->hi = DOUBLES(mu);
+    t->p = DOUBLES(mu);
+    t->mask = DOUBLES(mu);
+    t->d = DOUBLES(mu);
+    t->g = DOUBLES(mu);
     t->level = DOUBLES(f);
-    t->memo = DOUBLES(f + 1);
-    t->state = INTS(f);
-    t->involved = BYTES(f);
+    t->memo = DOUBLES(mu + 1);
+    t->state = INTS(mu);
+    t->involved = BYTES(mu);
+    t->cspring = INTS(2 * k);
+    t->ccomp = INTS(2 * k);
+    t->csign = DOUBLES(2 * k);
+    t->cstop = DOUBLES(2 * k);
+    t->ckstop = DOUBLES(2 * k);
+    t->cb = DOUBLES(2 * k);
+    t->has_stop = BYTES(k);
     t->slip = DOUBLES(f);
     t->s0 = DOUBLES(f);
     t->f0 = DOUBLES(f);

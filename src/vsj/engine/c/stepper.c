@@ -110,7 +110,7 @@ int vsj_step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *input
     int64_t ny = vsj_n_state(m), sub, stage, i;
     double *y = w->sy, *k = w->sk, *acc = w->sacc, *yt = w->yt, h;
     int status;
-    if (!vsj__fits(m, w) || !(dt > 0.0) || substeps < 1)
+    if (!vsj__fits(m, w) || !(dt > 0.0) || substeps < 1 || vsj__rigid_stop(m))
         return VSJ_BAD_ARGUMENT;
     hold(m, w, s, inputs);
     to_engine(m, s, inputs, y);

@@ -158,22 +158,22 @@ static void slips(const impulses *im, const double *q, const double *z, double *
 /* Classify the warm start: impulses at (this step's) bound keep their sign,
  * the others are free (stuck); uninvolved unknowns get state 2. Fills mask (1
  * for free); returns the number free, and the largest free slip in *scale. */
-static int64_t snap(const impulses *im, const double *q, const double *cap, double *p,
-                    int64_t *state, const unsigned char *active, double *scale) {
+static int64_t snap(const impulses *im, const double *q, const double *lo, const double *hi,
+                    double *p, int64_t *state, const unsigned char *active, double *scale) {
     int64_t e, n_free = 0;
     double sc = 0.0;
     for (e = 0; e < im->m; e++) {
-        double ce = cap[e];
         im->mask[e] = 0.0;
-        if (active[e] && ce > 0.0) {
+        if (active[e] && hi[e] > lo[e]) {
             sc = dmax(sc, fabs(q[e]));
-            /* the cap varies in its last bits from step to step (the step length
-             * does): an impulse at last step's bound is at this step's bound */
-            if (p[e] >= ce * (1.0 - 1e-9)) {
-                p[e] = ce;
+            /* the bounds vary in their last bits from step to step (the step length
+             * does): an impulse at last step's bound is at this step's bound
+             * (lo <= 0 < hi, hi possibly infinite) */
+            if (p[e] >= hi[e] * (1.0 - 1e-9)) {
+                p[e] = hi[e];
                 state[e] = 1;
-            } else if (p[e] <= -ce * (1.0 - 1e-9)) {
-                p[e] = -ce;
+            } else if (p[e] <= lo[e] * (1.0 - 1e-9)) {
+                p[e] = lo[e];
                 state[e] = -1;
             } else {
                 state[e] = 0;
@@ -246,12 +246,12 @@ static void stuck_map(impulses *im) {
  * solution). With z_B = Y_B p_B the stuck impulses are Y_F^T c with
  * c = K (Y_F q_F - Gc z_B), and they add Gc c to z. Gc and K change only with
  * the stuck set or YT and are kept between calls (memo). */
-static int same_pattern(impulses *im, const double *q, const double *cap, double *p,
-                        int64_t *state, const unsigned char *active) {
+static int same_pattern(impulses *im, const double *q, const double *lo, const double *hi,
+                        double *p, int64_t *state, const unsigned char *active) {
     int64_t e, i, j, n = im->n, m = im->m, n_free;
     double scale, tol;
     int holds = 1;
-    n_free = snap(im, q, cap, p, state, active, &scale);
+    n_free = snap(im, q, lo, hi, p, state, active, &scale);
     tol = IMPULSE_ABS + IMPULSE_REL * scale;
     for (e = 0; e < m; e++)
         im->d[e] = p[e] * (1.0 - im->mask[e]);
@@ -291,7 +291,7 @@ static int same_pattern(impulses *im, const double *q, const double *cap, double
         }
         for (e = 0; e < m; e++)
             if (im->mask[e] > 0.0) {
-                fits = fits && fabs(im->d[e]) <= cap[e];
+                fits = fits && im->d[e] >= lo[e] && im->d[e] <= hi[e];
                 p[e] = im->d[e];
             }
         if (!fits)
@@ -321,12 +321,13 @@ static int same_pattern(impulses *im, const double *q, const double *cap, double
  *    steps, each an n x n solve by Woodbury's identity;
  * 2. polish: the stuck unknowns' remaining slips (of order eps p) are removed
  *    by the minimum-norm correction of their impulses. */
-static int active_set(impulses *im, const double *q, const double *cap, double *p,
-                      int64_t *state, const unsigned char *active, int64_t *iterations) {
+static int active_set(impulses *im, const double *q, const double *lo, const double *hi,
+                      double *p, int64_t *state, const unsigned char *active,
+                      int64_t *iterations) {
     int64_t n = im->n, m = im->m, e, i, it, n_free;
     double scale, w_max = 0.0, eps, tol;
     int converged = 0, at_optimum = 0;
-    snap(im, q, cap, p, state, active, &scale);
+    snap(im, q, lo, hi, p, state, active, &scale);
     for (e = 0; e < m; e++)
         if (state[e] != 2) {
             double norm = 0.0;
@@ -370,10 +371,10 @@ static int active_set(impulses *im, const double *q, const double *cap, double *
                     continue;
                 de = -im->d[e] / eps;
                 im->d[e] = de;
-                if (de > 0.0 && p[e] + de > cap[e])
-                    a = (cap[e] - p[e]) / de;
-                else if (de < 0.0 && p[e] + de < -cap[e])
-                    a = (-cap[e] - p[e]) / de;
+                if (de > 0.0 && p[e] + de > hi[e])
+                    a = (hi[e] - p[e]) / de;
+                else if (de < 0.0 && p[e] + de < lo[e])
+                    a = (lo[e] - p[e]) / de;
                 else
                     continue;
                 if (a < alpha) {
@@ -383,9 +384,9 @@ static int active_set(impulses *im, const double *q, const double *cap, double *
             }
             for (e = 0; e < m; e++)
                 if (state[e] == 0)
-                    p[e] = dmin(cap[e], dmax(-cap[e], p[e] + alpha * im->d[e]));
+                    p[e] = dmin(hi[e], dmax(lo[e], p[e] + alpha * im->d[e]));
             if (block >= 0) {
-                p[block] = im->d[block] > 0.0 ? cap[block] : -cap[block];
+                p[block] = im->d[block] > 0.0 ? hi[block] : lo[block];
                 state[block] = im->d[block] > 0.0 ? 1 : -1;
             } else {
                 at_optimum = 1;
@@ -423,7 +424,7 @@ static int active_set(impulses *im, const double *q, const double *cap, double *
         stuck_impulses(im, im->g);
         for (e = 0; e < m; e++)
             if (state[e] == 0)
-                p[e] = dmin(cap[e], dmax(-cap[e], p[e] + im->d[e]));
+                p[e] = dmin(hi[e], dmax(lo[e], p[e] + im->d[e]));
     }
     project(im, p, im->z);
     return 1;
@@ -432,23 +433,24 @@ static int active_set(impulses *im, const double *q, const double *cap, double *
 /* Exact Coulomb impulses: slips s = q - Y Y^T p with |p_e| <= cap_e. state
  * (-1, 0 stuck, +1; 2 not involved) and p carry the previous step's solution
  * as a warm start; im->z holds YT p on return. */
-static int solve_impulses(impulses *im, const double *q, const double *cap, double *p,
-                          int64_t *state, const unsigned char *active, int64_t *iterations) {
+static int solve_impulses(impulses *im, const double *q, const double *lo, const double *hi,
+                          double *p, int64_t *state, const unsigned char *active,
+                          int64_t *iterations) {
     *iterations = 0;
-    if (same_pattern(im, q, cap, p, state, active))
+    if (same_pattern(im, q, lo, hi, p, state, active))
         return 1;
-    return active_set(im, q, cap, p, state, active, iterations);
+    return active_set(im, q, lo, hi, p, state, active, iterations);
 }
 
 int vsj_solve_impulses(int64_t n, int64_t m, const double *YT, int64_t count, const double *qs,
                        const double *cap, const unsigned char *active, double *ps,
                        int64_t *states, int64_t *iterations) {
     impulses im;
-    double *block, *p;
+    double *block, *p, *lo, *hi;
     int64_t *state, k;
     if (n < 0 || m < 0 || count < 0)
         return VSJ_BAD_ARGUMENT;
-    block = (double *)calloc((size_t)(5 * n * n + 4 * n + 5 * m + 2), sizeof(double));
+    block = (double *)calloc((size_t)(5 * n * n + 4 * n + 7 * m + 2), sizeof(double));
     state = (int64_t *)calloc((size_t)(m + 1), sizeof(int64_t));
     if (!block || !state) {
         free(block);
@@ -470,9 +472,15 @@ int vsj_solve_impulses(int64_t n, int64_t m, const double *YT, int64_t count, co
     im.g = im.d + m;
     im.memo = im.g + m; /* m + 1 */
     p = im.memo + m + 1;
+    lo = p + m;
+    hi = lo + m;
+    for (k = 0; k < m; k++) {
+        lo[k] = -cap[k];
+        hi[k] = cap[k];
+    }
     for (k = 0; k < count; k++) {
         int64_t it;
-        int ok = solve_impulses(&im, qs + m * k, cap, p, state, active, &it);
+        int ok = solve_impulses(&im, qs + m * k, lo, hi, p, state, active, &it);
         iterations[k] = ok ? it : -1;
         memcpy(ps + m * k, p, (size_t)m * sizeof(double));
         memcpy(states + m * k, state, (size_t)m * sizeof(int64_t));
@@ -488,8 +496,8 @@ static impulses impulses_of(vsj_work *w) {
     ts_work *t = &w->ts;
     impulses im;
     im.YT = t->YlT;
-    im.n = w->n;
-    im.m = t->na;
+    im.n = w->n + t->ncomp;
+    im.m = t->na + t->nc;
     im.mask = t->mask;
     im.G = t->G;
     im.Lg = t->Lg;
@@ -537,7 +545,7 @@ static double coulomb_level(const vsj_model *m, int64_t e) {
 
 int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
     ts_work *t = &w->ts;
-    int64_t n, s, nf, nk, nl, nm, cols, e, i, j, c, k, a, rr, na = 0;
+    int64_t n, s, nf, nk, nl, nm, cols, e, i, j, c, k, a, rr, mt, na = 0;
     int64_t r_load, r_piv;
     if (!vsj__fits(m, w))
         return VSJ_BAD_ARGUMENT;
@@ -604,14 +612,40 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
         }
     }
     t->na = na;
-    for (a = 0; a < na; a++) {
-        for (i = 0; i < n; i++)
-            t->DxA[na * i + a] = t->DxT[cols * i + t->lead[a]];
-        for (j = 0; j < s; j++)
-            t->DuA[na * j + a] = t->DuT[cols * j + t->lead[a]];
-        t->involved[a] = 1;
-        t->level[a] = 0.0;
+    /* end stops: a spring whose law has one, and whose deflection the free
+     * coordinates move, gets two unilateral constraints (|d| <= stop), appended
+     * to the impulse unknowns with bounds [0, inf); a compliant stop adds its
+     * compliance as a row of its own to YlT (one more row of the problem) */
+    t->nc = 0;
+    t->ncomp = 0;
+    for (k = 0; k < nk; k++) {
+        double angle, stiffness, side;
+        rr = nf + k;
+        t->has_stop[k] = vsj__stop(m->code[rr], vsj__row(m, rr), &angle, &stiffness)
+                         && m->xp[rr + 1] > m->xp[rr];
+        if (!t->has_stop[k])
+            continue;
+        for (side = 1.0; side >= -1.0; side -= 2.0) {
+            int64_t c = t->nc++;
+            t->cspring[c] = k;
+            t->csign[c] = side;
+            t->cstop[c] = angle;
+            t->ckstop[c] = stiffness;
+            t->ccomp[c] = isfinite(stiffness) ? t->ncomp++ : -1;
+        }
     }
+    mt = na + t->nc;
+    for (a = 0; a < mt; a++) {
+        int64_t from = a < na ? t->lead[a] : nf + t->cspring[a - na];
+        double side = a < na ? 1.0 : t->csign[a - na];
+        for (i = 0; i < n; i++)
+            t->DxA[mt * i + a] = side * t->DxT[cols * i + from];
+        for (j = 0; j < s; j++)
+            t->DuA[mt * j + a] = side * t->DuT[cols * j + from];
+        t->involved[a] = a < na; /* end stops: decided step by step */
+    }
+    for (a = 0; a < na; a++)
+        t->level[a] = 0.0;
     for (e = 0; e < nf; e++)
         if (t->slot[e] >= 0)
             t->level[t->slot[e]] += fabs(t->ratio[e]) * coulomb_level(m, e);
@@ -659,20 +693,26 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
         if (t->wanted[c])
             t->end_ch[t->n_end_ch++] = c;
     /* history */
-    memset(t->H_last, 0, (size_t)(n * n) * sizeof(double));
-    memset(t->YlT, 0, (size_t)(n * nf) * sizeof(double));
-    memset(t->qv, 0, (size_t)nf * sizeof(double));
-    memset(t->cap, 0, (size_t)nf * sizeof(double));
-    memset(t->p, 0, (size_t)nf * sizeof(double));
-    memset(t->mask, 0, (size_t)nf * sizeof(double));
-    memset(t->memo, 0, (size_t)(nf + 1) * sizeof(double));
-    memset(t->Gc, 0, (size_t)(n * n) * sizeof(double));
-    memset(t->Kc, 0, (size_t)(n * n) * sizeof(double));
+    {
+        int64_t nr = n + 2 * nk, mu = nf + 2 * nk;
+        memset(t->H_last, 0, (size_t)(n * n) * sizeof(double));
+        memset(t->YlT, 0, (size_t)(nr * mu) * sizeof(double));
+        memset(t->qv, 0, (size_t)mu * sizeof(double));
+        memset(t->lo, 0, (size_t)mu * sizeof(double));
+        memset(t->hi, 0, (size_t)mu * sizeof(double));
+        memset(t->p, 0, (size_t)mu * sizeof(double));
+        memset(t->mask, 0, (size_t)mu * sizeof(double));
+        memset(t->memo, 0, (size_t)(mu + 1) * sizeof(double));
+        memset(t->Gc, 0, (size_t)(nr * nr) * sizeof(double));
+        memset(t->Kc, 0, (size_t)(nr * nr) * sizeof(double));
+        for (a = 0; a < mu; a++)
+            t->state[a] = 0;
+    }
     for (e = 0; e < nf; e++) {
-        t->state[e] = 0;
         t->held[e] = 0;
         t->transitions[e] = 0;
     }
+    t->hs_prev = NAN;
     t->factored = 0;
     t->prepared = 1;
     return VSJ_OK;
@@ -753,8 +793,8 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
     vsj_report rep;
     impulses im;
     int64_t n, s_n, nf, nk, nl, nm, na, cols, r_load, r_mot, n_state, a_src, a_load, a_elec;
-    int64_t a_fric, a_res, a_spr, a_piv, n_out, n_col, i_out = 0, steps_total, step, i, j, c;
-    int64_t e, k, mo, ld, rr, a, iterations;
+    int64_t a_fric, a_res, a_spr, a_piv, a_stop, n_out, n_col, i_out = 0, steps_total, step, i;
+    int64_t j, c, e, k, mo, ld, rr, a, mt, iterations;
     int moving_pivot, status = VSJ_OK;
     double t0 = t->t, tnow = t0;
     rep.status = VSJ_OK;
@@ -772,6 +812,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
     nl = m->n_loads;
     nm = m->n_motors;
     na = t->na;
+    mt = na + t->nc;
     cols = nf + nk;
     im = impulses_of(w);
     r_load = nf + nk;
@@ -785,6 +826,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
     a_res = a_fric + nf;
     a_spr = a_res + nm;
     a_piv = a_spr + nk;
+    a_stop = a_piv + nk;
     n_out = smp ? smp->n : 0;
     n_col = smp ? (smp->out_cols < n_state + (ledger ? vsj_n_acc(m) : 0)
                        ? smp->out_cols
@@ -859,7 +901,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                 dsig += t->DuT[cols * j + rr] * (t->sg1[j] - t->sg0[j]);
             }
             tau = vsj__spring(m->code[rr], vsj__row(m, rr), d0, t->q_mid, &kap, &en, &dvq,
-                              w->spcache + 4 * k);
+                              w->spcache + 4 * k, !t->has_stop[k]);
             c_k = tau - 0.5 * kap * dsig - 0.25 * kap * hs * rate;
             t->sp_c[k] = c_k;
             t->sp_kap[k] = kap;
@@ -915,28 +957,87 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                 status = VSJ_NOT_FINITE;
                 break;
             }
-            for (a = 0; a < na; a++) {
+            for (a = 0; a < mt; a++) {
                 for (i = 0; i < n; i++)
-                    t->drow[i] = t->DxA[na * i + a];
+                    t->drow[i] = t->DxA[mt * i + a];
                 forward(t->Lc, t->drow, t->col, n, n); /* L^-1 d_e: W = Y Y^T */
                 for (i = 0; i < n; i++)
-                    t->YlT[na * i + a] = t->col[i];
+                    t->YlT[mt * i + a] = t->col[i];
             }
-            t->memo[na] = 0.0; /* the impulse solver's memo was made with the old YlT */
+            t->memo[mt] = 0.0; /* the impulse solver's memo was made with the old YlT */
             t->factored = 1;
+            t->hs_prev = NAN; /* the compliance rows below are written afresh */
         }
         if (n > 0)
             solve(t->Lc, t->r, t->vfree, n);
+        /* a compliant stop of stiffness k adds 2 / (h^2 k) to the Delassus matrix's
+         * diagonal: a row of its own in YlT, so that W = Y Y^T still */
+        if (t->ncomp > 0 && hs != t->hs_prev) {
+            memset(t->YlT + mt * n, 0, (size_t)(t->ncomp * mt) * sizeof(double));
+            for (c = 0; c < t->nc; c++)
+                if (t->ccomp[c] >= 0)
+                    t->YlT[mt * (n + t->ccomp[c]) + na + c] =
+                        sqrt(2.0 / (hs * hs * t->ckstop[c]));
+            t->memo[mt] = 0.0;
+        }
+        t->hs_prev = hs;
 
-        /* Coulomb impulses of the stiction elements, all together */
-        if (na > 0) {
-            for (a = 0; a < na; a++)
-                t->cap[a] = hs * t->level[a];
-            element_slips(t->DxA, t->DuA, na, na, t->vfree, n, t->u1, s_n, t->qv);
-            if (!solve_impulses(&im, t->qv, t->cap, t->p, t->state, t->involved, &iterations)) {
-                status = VSJ_FRICTION_SOLVER;
-                break;
+        /* Coulomb impulses of the stiction elements and the end stops' impulses,
+         * all together */
+        if (mt > 0) {
+            int pass;
+            for (a = 0; a < na; a++) {
+                t->lo[a] = -hs * t->level[a];
+                t->hi[a] = hs * t->level[a];
             }
+            element_slips(t->DxA, t->DuA, mt, mt, t->vfree, n, t->u1, s_n, t->qv);
+            for (c = 0; c < t->nc; c++) {
+                /* |d| <= stop at the step's end: with d1 = d0 + h/2 (d0' + d1') the
+                 * end speed side d1' may be at most cb (the trapezoidal position update) */
+                double d0 = 0.0, rate0 = 0.0, side = t->csign[c];
+                rr = nf + t->cspring[c];
+                for (i = 0; i < n; i++) {
+                    d0 += t->DxT[cols * i + rr] * t->x[i];
+                    rate0 += t->DxT[cols * i + rr] * t->v[i];
+                }
+                for (j = 0; j < s_n; j++) {
+                    d0 += t->DuT[cols * j + rr] * t->sg0[j];
+                    rate0 += t->DuT[cols * j + rr] * t->u0[j];
+                }
+                t->cb[c] = 2.0 / hs * (t->cstop[c] - side * d0) - side * rate0;
+                a = na + c;
+                t->qv[a] -= t->cb[c];
+                t->lo[a] = 0.0;
+                t->hi[a] = INFINITY;
+                /* in the problem if the free motion would pass the stop, or the stop
+                 * pushed last step; the others are checked after the solve */
+                t->involved[a] = t->qv[a] > 0.0 || t->p[a] > 0.0;
+            }
+            for (pass = 0;; pass++) {
+                int added = 0;
+                if (!solve_impulses(&im, t->qv, t->lo, t->hi, t->p, t->state, t->involved,
+                                    &iterations)) {
+                    status = VSJ_FRICTION_SOLVER;
+                    break;
+                }
+                for (c = 0; c < t->nc; c++) {
+                    double slip;
+                    a = na + c;
+                    if (t->involved[a])
+                        continue;
+                    slip = t->qv[a];
+                    for (i = 0; i < im.n; i++)
+                        slip -= t->YlT[mt * i + a] * t->z[i];
+                    if (slip > 0.0) { /* the impulses drove it into its stop */
+                        t->involved[a] = 1;
+                        added = 1;
+                    }
+                }
+                if (!added || pass > t->nc)
+                    break;
+            }
+            if (status != VSJ_OK)
+                break;
             /* the impulses change the speeds by H^-1 D^T p = L^-T (YlT p) */
             backward(t->Lc, t->z, t->v1, n, n);
             for (i = 0; i < n; i++)
@@ -1003,10 +1104,40 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                 if (q_end != t->q_prev) {
                     double d1 = vsj__xdot(m, rr, t->x1) + vsj__udotv(m, rr, t->sg1);
                     double st_, e1, e0, dq_;
-                    vsj__spring(m->code[rr], vsj__row(m, rr), d1, q_end, &st_, &e1, &dq_, NULL);
+                    vsj__spring(m->code[rr], vsj__row(m, rr), d1, q_end, &st_, &e1, &dq_, NULL,
+                                1);
                     vsj__spring(m->code[rr], vsj__row(m, rr), d1, t->q_prev, &st_, &e0, &dq_,
-                                NULL);
+                                NULL, 1);
                     y[a_piv + k] += e1 - e0;
+                }
+            }
+            /* end stops: the work their impulses take from the mechanism (booked
+             * against the mid-step speed, as every force), less the change of the
+             * energy a compliant stop stores, is what they dissipate: at impacts,
+             * and by the implicit step */
+            for (c = 0; c < t->nc; c++) {
+                double side = t->csign[c], push = t->p[na + c], rate0 = 0.0, rate1 = 0.0;
+                double work;
+                k = t->cspring[c];
+                rr = nf + k;
+                for (i = 0; i < n; i++) {
+                    rate0 += t->DxT[cols * i + rr] * t->v[i];
+                    rate1 += t->DxT[cols * i + rr] * t->v1[i];
+                }
+                for (j = 0; j < s_n; j++) {
+                    rate0 += t->DuT[cols * j + rr] * t->u0[j];
+                    rate1 += t->DuT[cols * j + rr] * t->u1[j];
+                }
+                work = push * side * 0.5 * (rate0 + rate1);
+                y[a_stop + k] += work;
+                y[a_spr + k] -= work;
+                vsj__uaddv(m, rr, t->srcF, -side * push / hs);
+                if (side > 0.0 && isfinite(t->ckstop[c])) { /* once per spring */
+                    double d0 = vsj__xdot(m, rr, t->x) + vsj__udotv(m, rr, t->sg0);
+                    double d1 = vsj__xdot(m, rr, t->x1) + vsj__udotv(m, rr, t->sg1);
+                    double e0 = dmax(fabs(d0) - t->cstop[c], 0.0);
+                    double e1 = dmax(fabs(d1) - t->cstop[c], 0.0);
+                    y[a_stop + k] -= 0.5 * t->ckstop[c] * (e1 * e1 - e0 * e0);
                 }
             }
             for (ld = 0; ld < nl; ld++) {
@@ -1126,6 +1257,7 @@ typedef struct span {
 static int64_t history_spans(const vsj_model *m, const vsj_work *w, span *out) {
     const ts_work *t = w ? &w->ts : NULL;
     int64_t n = m->n, f = m->n_frictions, s = m->n_sources, nm = m->n_motors, count = 0;
+    int64_t nr = n + 2 * m->n_springs, mu = f + 2 * m->n_springs;
     size_t d = sizeof(double), l = sizeof(int64_t);
 #define SPAN(ptr, size)                                                                           \
     do {                                                                                          \
@@ -1145,14 +1277,15 @@ static int64_t history_spans(const vsj_model *m, const vsj_work *w, span *out) {
     SPAN(&t->q_mid, d);
     SPAN(&t->factored, sizeof(int));
     SPAN(&w->status, sizeof(int));
+    SPAN(&t->hs_prev, d);
     SPAN(t->H_last, (size_t)(n * n) * d);
     SPAN(t->Lc, (size_t)(n * n) * d);
-    SPAN(t->YlT, (size_t)(n * f) * d);
-    SPAN(t->Gc, (size_t)(n * n) * d);
-    SPAN(t->Kc, (size_t)(n * n) * d);
-    SPAN(t->p, (size_t)f * d);
-    SPAN(t->state, (size_t)f * l);
-    SPAN(t->memo, (size_t)(f + 1) * d);
+    SPAN(t->YlT, (size_t)(nr * mu) * d);
+    SPAN(t->Gc, (size_t)(nr * nr) * d);
+    SPAN(t->Kc, (size_t)(nr * nr) * d);
+    SPAN(t->p, (size_t)mu * d);
+    SPAN(t->state, (size_t)mu * l);
+    SPAN(t->memo, (size_t)(mu + 1) * d);
     SPAN(t->slip, (size_t)f * d);
     SPAN(t->held, (size_t)f * l);
     SPAN(t->transitions, (size_t)f * l);

@@ -13,7 +13,7 @@
  *
  * State vector y = [x (n), v (n), i (motors), accumulators (optional)]:
  * generalised angles and speeds, armature currents, then the energy
- * accumulators of the ledger (see VSJ_ACC_* and vsj_n_acc).
+ * accumulators of the ledger (see vsj_n_acc).
  *
  * Element rows (one per friction element, spring, load, motor, and the pivot
  * last) are stored in compressed sparse row form, split into the part that
@@ -142,7 +142,9 @@ int64_t vsj_n_acc(const vsj_model *m);
  * done by the sources (n_sources), loads (n_loads), motor supplies
  * (n_motors); dissipation in friction (n_frictions) and armature resistance
  * (n_motors); work done by the springs on the mechanism (n_springs) and by
- * the pivot on the springs (n_springs). */
+ * the pivot on the springs (n_springs); energy the springs' end stops take
+ * out of the mechanism (n_springs: impacts on a stop and the implicit
+ * treatment of a compliant one, in the time-stepper). */
 
 /* Status text for enum vsj_status. */
 const char *vsj_status_text(int status);
@@ -206,7 +208,8 @@ typedef struct vsj_report {
     int64_t rejected;    /* adaptive solver: rejected steps */
 } vsj_report;
 
-/* Adaptive Dormand-Prince 5(4) from t0 to t_end (smooth friction laws).
+/* Adaptive Dormand-Prince 5(4) from t0 to t_end (smooth friction laws; not for
+ * a model with a rigid end stop, which is a constraint of the time-stepper).
  * y (ny values, see vsj_derivatives) is the initial state and receives the
  * final one (the last good one on failure). The leading out_cols components
  * are written to out (n_out rows) at each time of t_out (increasing). n_err
@@ -229,7 +232,9 @@ typedef struct vsj_samples {
 } vsj_samples;
 
 /* Fixed-step time-stepping with exact Coulomb stiction from t = 0 to
- * `duration` with step h (report section 4.1.3: true sticking). y holds
+ * `duration` with step h (report section 4.1.3: true sticking). Springs' end
+ * stops are unilateral constraints solved with the friction impulses (any
+ * stiffness, rigid included), so a stiff stop cannot destabilise a step. y holds
  * 2n + n_motors state values and, with `ledger`, the vsj_n_acc accumulators
  * after them; it receives the final state. transitions (n_frictions, may be
  * NULL) receives the number of starts and ends of stick phases per element. */
@@ -278,7 +283,8 @@ int64_t vsj_step_state_size(const vsj_model *m);
 /* Advance s in place by dt with adaptive DOPRI5 (unchanged on failure). */
 int vsj_step_dopri(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
                    double rtol, double atol, int64_t max_steps);
-/* Advance s in place by dt with `substeps` classical Runge-Kutta steps. */
+/* Advance s in place by dt with `substeps` classical Runge-Kutta steps (as
+ * vsj_dopri: no rigid end stops). */
 int vsj_step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
                  int64_t substeps);
 /* Advance s in place by dt with the time-stepper at step h (true stiction);
