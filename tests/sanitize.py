@@ -110,10 +110,14 @@ for method, friction in (("dopri", "arctan"), ("rk4", "arctan"), ("timestep", "s
     export.write_model(path, document)
     done = subprocess.run([sys.argv[4], str(path), "100"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
-    document["engine"]["xc"] = [7] * len(document["engine"]["xc"])  # a column out of range
-    path.write_text(json.dumps(document))
-    done = subprocess.run([sys.argv[4], str(path), "3"], capture_output=True, text=True)
-    assert done.returncode == 2 and "column" in done.stderr, done.stderr
+    for key, bad, message in (("xc", [7] * len(document["engine"]["xc"]), "column"),
+                              ("xp", [0, 10 ** 15] + document["engine"]["xp"][2:],
+                               "must not decrease")):
+        broken = json.loads(json.dumps(document))
+        broken["engine"][key] = bad  # a column out of range; pointers past the columns
+        path.write_text(json.dumps(broken))
+        done = subprocess.run([sys.argv[4], str(path), "3"], capture_output=True, text=True)
+        assert done.returncode == 2 and message in done.stderr, done.stderr
     print("example", method, flush=True)
 
 model = stepper.model                              # the binding refuses bad arrays

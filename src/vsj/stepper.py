@@ -77,6 +77,10 @@ from .simulate import InitialState, SimulationOptions, prepare
 METHODS = ("dopri", "rk4", "timestep")
 _METHOD_CODE = {"dopri": 0, "rk4": 1, "timestep": 2}
 
+#: The most steps one period may take (rk4 substeps, time-stepper steps; vsj.h's
+#: VSJ_MAX_PERIOD_STEPS).
+MAX_PERIOD_STEPS = 10_000_000
+
 #: Relative step of the central differences in `Stepper.jacobian` (times each
 #: variable's scale); with Richardson extrapolation the truncation error is
 #: O(h^4) and the round-off about 1e-16 / 1e-5 of the derivative's scale.
@@ -109,8 +113,12 @@ class Stepper:
         if method not in METHODS:
             raise InputError(f"stepper: method must be one of {', '.join(METHODS)}, got "
                              f"{method!r}")
-        if not (isinstance(substeps, int) and substeps >= 1):
-            raise InputError(f"stepper: substeps must be an integer >= 1, got {substeps!r}")
+        if not (isinstance(substeps, int) and 1 <= substeps <= MAX_PERIOD_STEPS):
+            raise InputError(f"stepper: substeps must be an integer in 1..{MAX_PERIOD_STEPS}, "
+                             f"got {substeps!r}")
+        if method == "timestep" and not period / options.step <= MAX_PERIOD_STEPS:
+            raise InputError(f"stepper: a period of {period:g} s is {period / options.step:.3g} "
+                             f"steps of {options.step:g} s, more than {MAX_PERIOD_STEPS}")
         if not (isinstance(max_steps, int) and max_steps >= 1):
             raise InputError(f"stepper: max_steps must be an integer >= 1, got {max_steps!r}")
         if method != "timestep" and "stiction" in friction_laws_for(

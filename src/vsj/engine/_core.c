@@ -427,6 +427,19 @@ static PyObject *py_dopri(PyObject *mod, PyObject *args) {
     return report_tuple(r);
 }
 
+/* The time-stepper samples at whole steps: the times must be multiples of h. */
+static int multiples(const double *t, Py_ssize_t n, double h) {
+    Py_ssize_t i;
+    for (i = 0; i < n; i++) {
+        double k = t[i] / h;
+        if (!isfinite(k) || fabs(k - floor(k + 0.5)) > 1e-6 * (1.0 + fabs(k))) {
+            PyErr_SetString(PyExc_ValueError, "t_out: sample times must be multiples of the step");
+            return -1;
+        }
+    }
+    return 0;
+}
+
 /* Optional samples of the time-stepper. */
 typedef struct ts_args {
     arg t_out, out, coulomb, stuck;
@@ -442,7 +455,7 @@ static void ts_release(ts_args *a) {
 
 static int ts_samples(ts_args *a, const vsj_model *m, PyObject *ot, PyObject *oout,
                       PyObject *oc, PyObject *os, double h) {
-    Py_ssize_t n_out, i;
+    Py_ssize_t n_out;
     const double *t;
     memset(a, 0, sizeof *a);
     if (get(ot, &a->t_out, DOUBLES, 0, -1, "t_out") < 0)
@@ -451,13 +464,8 @@ static int ts_samples(ts_args *a, const vsj_model *m, PyObject *ot, PyObject *oo
     t = (const double *)a->t_out.view.buf;
     if (increasing(t, n_out, "t_out") < 0)
         return -1;
-    for (i = 0; i < n_out; i++) {
-        double k = t[i] / h;
-        if (fabs(k - floor(k + 0.5)) > 1e-6 * (1.0 + fabs(k))) {
-            PyErr_SetString(PyExc_ValueError, "t_out: sample times must be multiples of the step");
-            return -1;
-        }
-    }
+    if (multiples(t, n_out, h) < 0)
+        return -1;
     if (get(oout, &a->out, DOUBLES, 1, -1, "out") < 0)
         return -1;
     a->samples.t = t;
@@ -557,6 +565,15 @@ static PyObject *py_observe(PyObject *mod, PyObject *args) {
     if (get(ot, &t_out, DOUBLES, 0, -1, "t_out") < 0)
         return NULL;
     n_out = items(&t_out);
+    {
+        Py_ssize_t i;
+        for (i = 0; i < n_out; i++)
+            if (!isfinite(((const double *)t_out.view.buf)[i])) {
+                PyErr_SetString(PyExc_ValueError, "t_out: times must be finite");
+                release(&t_out);
+                return NULL;
+            }
+    }
     if (get(oout, &out, DOUBLES, 0, -1, "out") < 0) {
         release(&t_out);
         return NULL;
@@ -762,19 +779,36 @@ static PyObject *py_step(PyObject *mod, PyObject *const *argv, Py_ssize_t argc) 
     }
     model = (ModelObject *)argv[1];
     work = (WorkObject *)argv[2];
-    method = (int)PyLong_AsLong(argv[0]);
-    dt = PyFloat_AsDouble(argv[5]);
-    rtol = PyFloat_AsDouble(argv[6]);
-    atol = PyFloat_AsDouble(argv[7]);
-    max_steps = PyLong_AsLongLong(argv[8]);
-    substeps = PyLong_AsLongLong(argv[9]);
-    h = PyFloat_AsDouble(argv[10]);
-    if (PyErr_Occurred())
+    /* one conversion at a time: each may fail, and the next must not run then */
+    {
+        long long code = PyLong_AsLongLong(argv[0]);
+        if (code == -1 && PyErr_Occurred())
+            return NULL;
+        if (code < 0 || code > 2) {
+            PyErr_SetString(PyExc_ValueError, "step: method must be 0 (dopri), 1 (rk4) or 2 "
+                                              "(time-stepper)");
+            return NULL;
+        }
+        method = (int)code;
+    }
+    if ((dt = PyFloat_AsDouble(argv[5])) == -1.0 && PyErr_Occurred())
         return NULL;
-    if (method < 0 || method > 2 || !(isfinite(dt) && dt > 0.0) || !(rtol > 0.0)
-        || !(atol > 0.0) || max_steps < 1 || substeps < 1 || !(isfinite(h) && h > 0.0)) {
-        PyErr_SetString(PyExc_ValueError, "step: needs method 0..2, dt > 0, rtol > 0, atol > 0, "
-                                          "max_steps >= 1, substeps >= 1, h > 0");
+    if ((rtol = PyFloat_AsDouble(argv[6])) == -1.0 && PyErr_Occurred())
+        return NULL;
+    if ((atol = PyFloat_AsDouble(argv[7])) == -1.0 && PyErr_Occurred())
+        return NULL;
+    if ((max_steps = PyLong_AsLongLong(argv[8])) == -1 && PyErr_Occurred())
+        return NULL;
+    if ((substeps = PyLong_AsLongLong(argv[9])) == -1 && PyErr_Occurred())
+        return NULL;
+    if ((h = PyFloat_AsDouble(argv[10])) == -1.0 && PyErr_Occurred())
+        return NULL;
+    if (!(isfinite(dt) && dt > 0.0) || !(rtol > 0.0) || !(atol > 0.0) || max_steps < 1
+        || substeps < 1 || substeps > VSJ_MAX_PERIOD_STEPS || !(isfinite(h) && h > 0.0)
+        || (method == 2 && !(dt / h <= VSJ_MAX_PERIOD_STEPS))) {
+        PyErr_Format(PyExc_ValueError, "step: needs dt > 0, rtol > 0, atol > 0, max_steps >= 1, "
+                     "substeps in 1..%d, a step h > 0 and at most %d steps per period",
+                     VSJ_MAX_PERIOD_STEPS, VSJ_MAX_PERIOD_STEPS);
         return NULL;
     }
     if (step_args(model, argv[3], argv[4], &s, &u, 1) < 0)
@@ -904,6 +938,8 @@ static PyObject *py_batch_run(PyObject *mod, PyObject *args) {
                || get(o[5], &a[5], DOUBLES, 0, -1, "t_out") < 0))
         ok = 0;
     n_out = ok ? items(&a[5]) : 0;
+    if (ok && kind == 1 && multiples((const double *)a[5].view.buf, n_out, h) < 0)
+        ok = 0;
     if (ok && (increasing((const double *)a[5].view.buf, n_out, "t_out") < 0
                || get(o[6], &a[6], DOUBLES, 1, runs * n_out * nst, "outs") < 0
                || get(o[7], &a[7], DOUBLES, 1, runs * ny, "y_end") < 0
@@ -991,21 +1027,39 @@ static PyObject *py_solve_impulses(PyObject *mod, PyObject *args) {
         ok = 0;
     n = ok && m ? items(&a[0]) / m : 0;
     count = ok && m ? items(&a[1]) / m : 0;
-    if (ok && (m < 1 || n * m != items(&a[0]) || count * m != items(&a[1]))) {
-        PyErr_SetString(PyExc_ValueError, "solve_impulses: YT needs m columns, qs rows of m");
+    if (ok && (m < 1 || n * m != items(&a[0]) || count * m != items(&a[1]) || n > 1024
+               || m > 65536)) {
+        PyErr_SetString(PyExc_ValueError, "solve_impulses: YT needs m columns (at most 65536) "
+                                          "and at most 1024 rows, qs rows of m");
         ok = 0;
+    }
+    if (ok) {
+        const double *y = (const double *)a[0].view.buf, *q = (const double *)a[1].view.buf;
+        const double *cap = (const double *)a[2].view.buf;
+        for (i = 0; ok && i < items(&a[0]); i++)
+            ok = isfinite(y[i]);
+        for (i = 0; ok && i < items(&a[1]); i++)
+            ok = isfinite(q[i]);
+        for (i = 0; ok && i < m; i++)
+            ok = isfinite(cap[i]) && cap[i] >= 0.0;
+        if (!ok)
+            PyErr_SetString(PyExc_ValueError, "solve_impulses: YT and qs must be finite, the "
+                                              "caps finite and >= 0");
     }
     if (ok && (get(o[3], &a[3], BOOLS, 0, m, "active") < 0
                || get(o[4], &a[4], DOUBLES, 1, count * m, "ps") < 0
                || get(o[5], &a[5], INTS, 1, count * m, "states") < 0
                || get(o[6], &a[6], INTS, 1, count, "iterations") < 0))
         ok = 0;
-    if (ok)
+    if (ok) {
+        Py_BEGIN_ALLOW_THREADS
         status = vsj_solve_impulses(n, m, (const double *)a[0].view.buf, count,
                                     (const double *)a[1].view.buf, (const double *)a[2].view.buf,
                                     (const unsigned char *)a[3].view.buf,
                                     (double *)a[4].view.buf, (int64_t *)a[5].view.buf,
                                     (int64_t *)a[6].view.buf);
+        Py_END_ALLOW_THREADS
+    }
     for (i = 0; i < 7; i++)
         release(&a[i]);
     if (!ok)
@@ -1115,11 +1169,11 @@ static PyObject *py_friction_torque(PyObject *mod, PyObject *args) {
 }
 
 static PyObject *py_status_text(PyObject *mod, PyObject *arg_) {
-    long status = PyLong_AsLong(arg_);
+    long long status = PyLong_AsLongLong(arg_);
     (void)mod;
     if (status == -1 && PyErr_Occurred())
         return NULL;
-    return PyUnicode_FromString(vsj_status_text((int)status));
+    return PyUnicode_FromString(vsj_status_text(status < 0 || status > 1000 ? -1 : (int)status));
 }
 
 static PyObject *py_observation_width(PyObject *mod, PyObject *arg_) {

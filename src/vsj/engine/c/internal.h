@@ -14,6 +14,7 @@ enum { DEFL = 0, RATE = 1, SPTAU = 2, STIFF = 3, ENERGY = 4, DVDQ = 5, SPW = 6 }
 /* Scratch of the time-stepper (timestep.c); sized for the model at vsj_work_new. */
 typedef struct ts_work {
     int prepared;
+    const double *for_par, *for_rows, *for_mass; /* the model it was prepared for */
     int64_t na;            /* impulse unknowns of friction (groups of parallel elements) */
     int64_t nc;            /* impulse unknowns of end stops: two per spring with a stop */
     int64_t ncomp;         /* compliant ones among them: one extra row of YlT each */

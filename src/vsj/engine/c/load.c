@@ -681,11 +681,16 @@ static vsj_loaded *load_tree(const jnode *root, char *message, size_t size) {
             l->rtol = rtol->number;
             l->atol = atol->number;
             l->step = step->number;
-            l->substeps = (int64_t)substeps->number;
             l->period = period->number;
-            if (!(l->rtol > 0.0 && l->atol > 0.0 && l->step > 0.0 && l->substeps >= 1
-                  && isfinite(l->step) && l->period > 0.0 && isfinite(l->period)))
-                lerr(&ld, "solver: rtol, atol, step and period must be > 0, substeps >= 1");
+            if (!(l->rtol > 0.0 && l->atol > 0.0 && l->step > 0.0 && isfinite(l->step)
+                  && l->period > 0.0 && isfinite(l->period)
+                  && l->period / l->step <= VSJ_MAX_PERIOD_STEPS && substeps->number >= 1.0
+                  && substeps->number <= VSJ_MAX_PERIOD_STEPS))
+                lerr(&ld, "solver: rtol, atol, step and period must be > 0, substeps in 1..%d, "
+                          "and a period at most %d steps", VSJ_MAX_PERIOD_STEPS,
+                     VSJ_MAX_PERIOD_STEPS);
+            else
+                l->substeps = (int64_t)substeps->number;
         }
     }
     for (i = 0; !ld.failed && i < n_state; i++)

@@ -27,23 +27,59 @@ static int finite_array(const double *a, int64_t len, const char *name, char *me
     return VSJ_OK;
 }
 
+/* A CSR matrix: the pointers are checked whole before any column is read (the
+ * columns array holds ptr[rows] entries, which only sane pointers promise). */
 static int csr(const int64_t *ptr, const int64_t *col, const double *val, int64_t rows,
                int64_t cols, const char *name, char *message, size_t size) {
     int64_t r, k;
     if (ptr[0] != 0)
         return fail(message, size, "model array %sp: first pointer must be 0, got %lld", name,
                     (long long)ptr[0]);
-    for (r = 0; r < rows; r++) {
+    for (r = 0; r < rows; r++)
         if (ptr[r + 1] < ptr[r])
             return fail(message, size, "model array %sp: pointers must not decrease (row %lld)",
                         name, (long long)r);
+    for (r = 0; r < rows; r++)
         for (k = ptr[r]; k < ptr[r + 1]; k++)
             if (col[k] < 0 || col[k] >= cols)
                 return fail(message, size,
                             "model array %sc: column %lld of row %lld is outside 0..%lld", name,
                             (long long)col[k], (long long)r, (long long)(cols - 1));
-    }
     return finite_array(val, ptr[rows], name[0] == 'x' ? "xv" : "uv", message, size);
+}
+
+/* The kinetic energy matrix: symmetric, its free block positive definite, and Minv
+ * its inverse (to round-off). */
+static int mass_matrix(const vsj_model *m, char *message, size_t size) {
+    int64_t n = m->n, sz = n + m->n_sources, i, j, r;
+    double big = 0.0;
+    for (i = 0; i < sz * sz; i++)
+        big = fabs(m->mass[i]) > big ? fabs(m->mass[i]) : big;
+    for (i = 0; i < sz; i++)
+        for (j = 0; j < i; j++)
+            if (fabs(m->mass[sz * i + j] - m->mass[sz * j + i]) > 1e-12 * big)
+                return fail(message, size, "model array mass: not symmetric (entries %lld, %lld)",
+                            (long long)i, (long long)j);
+    for (i = 0; i < n; i++) {
+        double inv_big = 0.0;
+        if (!(m->mass[sz * i + i] > 0.0))
+            return fail(message, size, "model array mass: diagonal entry %lld must be > 0 (a "
+                        "free coordinate without inertia)", (long long)i);
+        for (j = 0; j < n; j++)
+            inv_big = fabs(m->Minv[n * i + j]) > inv_big ? fabs(m->Minv[n * i + j]) : inv_big;
+        for (j = 0; j < n; j++) {
+            double product = 0.0, scale = 0.0;
+            for (r = 0; r < n; r++) {
+                product += m->mass[sz * i + r] * m->Minv[n * r + j];
+                scale += fabs(m->mass[sz * i + r] * m->Minv[n * r + j]);
+            }
+            if (fabs(product - (i == j ? 1.0 : 0.0)) > 1e-8 * (1.0 + scale))
+                return fail(message, size, "model arrays mass and Minv: Minv is not the inverse "
+                            "of mass's free block (row %lld, column %lld)", (long long)i,
+                            (long long)j);
+        }
+    }
+    return VSJ_OK;
 }
 
 int vsj_check_model(const vsj_model *m, char *message, size_t size) {
@@ -76,6 +112,8 @@ int vsj_check_model(const vsj_model *m, char *message, size_t size) {
     if ((status = finite_array(m->mass, sz * sz, "mass", message, size)) != VSJ_OK)
         return status;
     if ((status = finite_array(m->Minv, n * n, "Minv", message, size)) != VSJ_OK)
+        return status;
+    if ((status = mass_matrix(m, message, size)) != VSJ_OK)
         return status;
     if ((status = csr(m->xp, m->xc, m->xv, rows, n, "x", message, size)) != VSJ_OK)
         return status;
@@ -131,7 +169,7 @@ int vsj_check_model(const vsj_model *m, char *message, size_t size) {
         return status;
     for (c = 0; c < nch; c++) {
         int64_t p0 = m->first[c], cnt = m->count[c], j;
-        if (cnt < 1 || p0 < 0 || p0 + cnt > m->n_pieces)
+        if (cnt < 1 || p0 < 0 || cnt > m->n_pieces || p0 > m->n_pieces - cnt)
             return fail(message, size,
                         "model: channel %lld has pieces %lld..%lld outside 0..%lld",
                         (long long)c, (long long)p0, (long long)(p0 + cnt - 1),

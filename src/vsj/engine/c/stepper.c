@@ -110,7 +110,8 @@ int vsj_step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *input
     int64_t ny = vsj_n_state(m), sub, stage, i;
     double *y = w->sy, *k = w->sk, *acc = w->sacc, *yt = w->yt, h;
     int status;
-    if (!vsj__fits(m, w) || !(dt > 0.0) || substeps < 1 || vsj__rigid_stop(m))
+    if (!vsj__fits(m, w) || !(dt > 0.0) || substeps < 1 || substeps > VSJ_MAX_PERIOD_STEPS
+        || vsj__rigid_stop(m))
         return VSJ_BAD_ARGUMENT;
     hold(m, w, s, inputs);
     to_engine(m, s, inputs, y);
@@ -148,11 +149,12 @@ int vsj_step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *input
 
 int vsj_step_timestep(const vsj_model *m, vsj_work *w, double *s, const double *inputs,
                       double dt, double h) {
-    int64_t steps = (int64_t)ceil(dt / h - 1e-9);
+    int64_t steps;
     vsj_report rep;
     int status;
-    if (!vsj__fits(m, w) || !w->ts.prepared || !(dt > 0.0) || !(h > 0.0))
+    if (!vsj__fits(m, w) || !(dt > 0.0) || !(h > 0.0) || !(dt / h <= VSJ_MAX_PERIOD_STEPS))
         return VSJ_BAD_ARGUMENT;
+    steps = (int64_t)ceil(dt / h - 1e-9);
     hold(m, w, s, inputs);
     to_engine(m, s, inputs, w->sy);
     status = vsj_ts_begin(m, w, w->sy, 0.0);

@@ -715,6 +715,9 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
     t->hs_prev = NAN;
     t->factored = 0;
     t->prepared = 1;
+    t->for_par = m->par;
+    t->for_rows = m->xv;
+    t->for_mass = m->mass;
     return VSJ_OK;
 }
 
@@ -746,10 +749,16 @@ static void outer(const vsj_model *m, int64_t r, double *H, double scale) {
             H[n * m->xc[a] + m->xc[b]] += scale * m->xv[a] * m->xv[b];
 }
 
+/* Whether the time-stepper's analysis in w was made for m (its arrays). */
+static int prepared_for(const vsj_model *m, const vsj_work *w) {
+    const ts_work *t = &w->ts;
+    return t->prepared && t->for_par == m->par && t->for_rows == m->xv && t->for_mass == m->mass;
+}
+
 int vsj_ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
     ts_work *t = &w->ts;
     int64_t n, nm, j;
-    if (!vsj__fits(m, w) || !t->prepared)
+    if (!vsj__fits(m, w) || !prepared_for(m, w))
         return VSJ_BAD_ARGUMENT;
     n = m->n;
     nm = m->n_motors;
@@ -801,7 +810,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
     rep.t = t0;
     rep.steps = 0;
     rep.rejected = 0;
-    if (!vsj__fits(m, w) || !t->prepared || !(h > 0.0) || !(t_end >= t0)) {
+    if (!vsj__fits(m, w) || !prepared_for(m, w) || !(h > 0.0) || !(t_end >= t0)) {
         rep.status = VSJ_BAD_ARGUMENT;
         return rep;
     }
@@ -832,7 +841,15 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                        ? smp->out_cols
                        : n_state + (ledger ? vsj_n_acc(m) : 0))
                 : 0;
+    /* at least one step (shortened) when t_end > t0; the count is compared as a
+     * double first, so that an absurd one cannot overflow the conversion */
+    if (!((t_end - t0) / h - 1e-9 <= (double)max_steps)) {
+        rep.status = VSJ_TOO_MANY_STEPS;
+        return rep;
+    }
     steps_total = (int64_t)ceil((t_end - t0) / h - 1e-9);
+    if (steps_total < 1 && t_end > t0)
+        steps_total = 1;
     if (w->status != VSJ_OK) {
         status = w->status;
         steps_total = 0;
@@ -1208,6 +1225,10 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
             i_out++;
         }
     }
+    if (status == VSJ_OK && ledger) /* the energy accumulators too */
+        for (i = n_state; i < n_state + vsj_n_acc(m); i++)
+            if (!isfinite(y[i]))
+                status = VSJ_NOT_FINITE;
     rep.status = status;
     rep.t = tnow;
     return rep;

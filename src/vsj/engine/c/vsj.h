@@ -280,6 +280,9 @@ int vsj_solve_impulses(int64_t n, int64_t m, const double *YT, int64_t count, co
  * source speed jumps between periods) and sigma the source angles. */
 int64_t vsj_step_state_size(const vsj_model *m);
 
+/* The most steps (rk4 substeps, time-stepper steps) one call may take. */
+#define VSJ_MAX_PERIOD_STEPS 10000000
+
 /* Advance s in place by dt with adaptive DOPRI5 (unchanged on failure). */
 int vsj_step_dopri(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
                    double rtol, double atol, int64_t max_steps);
@@ -288,8 +291,9 @@ int vsj_step_dopri(const vsj_model *m, vsj_work *w, double *s, const double *inp
 int vsj_step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
                  int64_t substeps);
 /* Advance s in place by dt with the time-stepper at step h (true stiction);
- * vsj_ts_prepare must have been called for the model. The stick/slip history
- * is kept in the work from one call to the next. */
+ * vsj_ts_prepare must have been called for this model (VSJ_BAD_ARGUMENT if the
+ * work was prepared for another). The stick/slip history is kept in the work
+ * from one call to the next. */
 int vsj_step_timestep(const vsj_model *m, vsj_work *w, double *s, const double *inputs,
                       double dt, double h);
 /* ds/dt at s for held inputs (the source speeds' derivatives drop out). */

@@ -1,0 +1,123 @@
+"""The engine's binding refuses what it cannot compute, with an error, never a crash.
+
+Each case here was found by probing the binding with bad arguments (a crash,
+a hang, or a wrong result reported as success); each must stay an error.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from vsj import scenario as scenarios
+from vsj.engine import Engine, _core
+from vsj.engine.core import native
+from vsj.simulate import SimulationOptions, prepare
+from vsj.stepper import Stepper
+
+
+@pytest.fixture(scope="module")
+def model(params):
+    scen = scenarios.load("fig-4.15")
+    case = scen.cases[0]
+    _, structure, inputs, rng = scenarios.prepare_case(scen, case, params)
+    return prepare(structure, inputs, 1.0, SimulationOptions(), case.initial, rng)[0]
+
+
+def test_spline_ranges_that_overflow_are_refused(model):
+    first, count = model.first.copy(), model.count.copy()
+    first[-1], count[-1] = 2 ** 60, 2 ** 63 - 2 ** 60  # first + count overflows
+    with pytest.raises(ValueError, match="outside"):
+        native(model._replace(first=first, count=count))
+
+
+@pytest.mark.parametrize("change, match", [
+    (lambda m: {"mass": -m.mass}, "diagonal entry 0 must be > 0"),
+    (lambda m: {"mass": m.mass + np.triu(np.ones_like(m.mass), 1)}, "not symmetric"),
+    (lambda m: {"Minv": 2.0 * m.Minv}, "not the inverse"),
+])
+def test_an_inconsistent_mass_matrix_is_refused(model, change, match):
+    with pytest.raises(ValueError, match=match):
+        native(model._replace(**change(model)))
+
+
+def test_arguments_are_converted_one_at_a_time(model):
+    """A failed conversion raises its own error (not SystemError from the next one)."""
+    engine = Engine(model)
+    state = np.zeros(int(2 * model.dims[0] + model.dims[5] + model.dims[1]))
+    inputs = np.zeros(int(model.dims[6]))
+
+    class Bad:
+        def __float__(self):
+            raise KeyError("boom")
+
+    with pytest.raises(TypeError):
+        _core.step("x", engine.c, engine.work, state, inputs, 1e-3, 1e-8, 1e-10, 10, 1, 1e-3)
+    with pytest.raises(KeyError, match="boom"):
+        _core.step(0, engine.c, engine.work, state, inputs, Bad(), 1e-8, 1e-10, 10, 1, 1e-3)
+    with pytest.raises(ValueError, match="method must be"):
+        _core.step(2 ** 32, engine.c, engine.work, state, inputs, 1e-3, 1e-8, 1e-10, 10, 1, 1e-3)
+
+
+@pytest.mark.parametrize("dt, substeps, h", [(1e300, 1, 1e-4), (1e-3, 10 ** 15, 1e-3),
+                                             (1e3, 1, 1e-12)])
+def test_absurd_step_counts_are_refused_not_run(model, dt, substeps, h):
+    engine = Engine(model)
+    state = np.zeros(int(2 * model.dims[0] + model.dims[5] + model.dims[1]))
+    inputs = np.zeros(int(model.dims[6]))
+    method = 1 if substeps > 1 else 2
+    with pytest.raises(ValueError, match="steps per period"):
+        _core.step(method, engine.c, engine.work, state, inputs, dt, 1e-8, 1e-10, 10, substeps,
+                   h)
+
+
+def test_a_step_longer_than_the_period_takes_one_shortened_step(params):
+    """Not zero steps reported as success."""
+    stepper = Stepper.wrist(params, period=1e-3, method="timestep",
+                            options=SimulationOptions(friction="stiction", step=0.05))
+    state = stepper.initial_state()
+    after = stepper.step(state, {"tau_x": 0.5})
+    assert np.max(np.abs(after[:4] - state[:4])) > 0.0
+
+
+def test_a_work_prepared_for_another_model_is_refused(model):
+    a, b = Engine(model), Engine(model)
+    _core.ts_prepare(a.c, a.work)
+    state = np.zeros(int(2 * model.dims[0] + model.dims[5] + model.dims[1]))
+    inputs = np.zeros(int(model.dims[6]))
+    assert _core.step(2, a.c, a.work, state, inputs, 1e-3, 1e-8, 1e-10, 10, 1, 1e-3) == 0
+    # the same sizes, another model: its friction groups and end stops were not analysed
+    assert _core.step(2, b.c, a.work, state, inputs, 1e-3, 1e-8, 1e-10, 10, 1, 1e-3) == 6
+
+
+def test_observation_times_must_be_finite(model):
+    engine = Engine(model)
+    out = np.zeros((2, int(2 * model.dims[0] + model.dims[5])))
+    with pytest.raises(ValueError, match="finite"):
+        engine.observe(np.array([0.0, math.nan]), out)
+
+
+def test_the_impulse_problem_refuses_non_finite_data():
+    YT = np.eye(2)
+    qs = np.zeros((1, 2))
+    out = (np.zeros((1, 2)), np.zeros((1, 2), np.int64), np.zeros(1, np.int64))
+    active = np.ones(2, bool)
+    for cap in (np.array([math.nan, 1.0]), np.array([-1.0, 1.0]), np.array([math.inf, 1.0])):
+        with pytest.raises(ValueError, match="caps finite"):
+            _core.solve_impulses(YT, qs, cap, active, *out)
+    with pytest.raises(ValueError, match="at most 1024 rows"):
+        _core.solve_impulses(np.zeros((2000, 2)), qs, np.ones(2), active, *out)
+
+
+def test_batch_samples_of_the_time_stepper_fall_on_its_steps(model):
+    engine = Engine(model)
+    ny = int(2 * model.dims[0] + model.dims[5])
+    n_acc = int(model.dims[1] + model.dims[4] + 2 * model.dims[5] + model.dims[2]
+                + 3 * model.dims[3])
+    with pytest.raises(ValueError, match="multiples of the step"):
+        _core.batch_run(1, engine.c, engine.work, 0, model.mass[None], model.Minv[None],
+                        model.par[None], model.src_pos0[None], np.zeros((1, ny + n_acc)), 0.01,
+                        np.array([0.0, 0.0015]), 1e-8, 1e-10, np.inf, 1000, 1e-3,
+                        np.zeros((1, 2, ny)), np.zeros((1, ny + n_acc)),
+                        np.zeros(1, np.int64), np.zeros(1), np.zeros(1, np.int64),
+                        np.zeros(1, np.int64))
