@@ -183,7 +183,24 @@ def test_friction_cli_json_has_the_constants(tmp_path, capsys):
     assert record["c3"]["unit"] == "s/rad"
     assert record["c3"]["value"] == pytest.approx(8, rel=0.05)
     assert record["c1"]["stderr"] > 0
+    assert all(record[c]["status"] == "determined" for c in ("c1", "c2", "c3"))
     assert (tmp_path / "fit" / "sun-friction.png").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("noise", [0.0, 1e-4])
+def test_points_at_one_speed_do_not_determine_the_curve(tmp_path, capsys, noise):
+    """Issue 18: ten points at one speed fit any c1..c3; the result must not claim
+    intervals (it used to say +- 0), with or without noise."""
+    rng = np.random.default_rng(0)
+    path = tmp_path / "one-speed.csv"
+    path.write_text("velocity [rad/s],torque [N m]\n" + "".join(
+        f"2,{0.01 + noise * rng.normal()}\n" for _ in range(10)))
+    assert main(["fit", "friction", str(path), "--json"]) == 0
+    record = json.loads(capsys.readouterr().out)
+    for c in ("c1", "c2", "c3"):
+        assert record[c]["status"] in ("not determined", "at a bound"), record[c]
+        assert record[c]["stderr"] is None and record[c]["ci95"] is None
+    assert any("not determined by these data" in note for note in record["notes"])
 
 
 # ---------------------------------------------------------------- elastic element

@@ -10,6 +10,10 @@ their amplitude.
 A velocity source may also be driven by its *angle*: wrap the angle signal in
 `Position`; its speed is then the spline's derivative and its initial angle the
 signal's value at time zero.
+
+A sampled signal's size is checked before anything is allocated: `Input.knots`
+counts the knots a duration needs, and more than `MAX_KNOTS` raise `InputError`
+(a 1 GHz sine over seconds would need billions).
 """
 
 from __future__ import annotations
@@ -22,6 +26,10 @@ from .errors import InputError
 
 #: Coefficient rows are (c0, c1, c2, c3) of c0 + c1 tau + c2 tau^2 + c3 tau^3, tau = t - knot.
 Pieces = tuple[np.ndarray, np.ndarray]
+#: Most knots a sampled signal may have, and the memory one knot takes while its spline is
+#: built (measured peak of scipy's CubicSpline and the coefficient table): 0.3 GB at most.
+MAX_KNOTS = 2_000_000
+BYTES_PER_KNOT = 150
 
 
 class Input:
@@ -37,6 +45,11 @@ class Input:
         """Knots and cubic coefficients covering ``[0, t_end]``."""
         raise NotImplementedError
 
+    def knots(self, t_end: float) -> int:
+        """Number of knots `pieces` would make, counted without making them; `InputError`
+        if a sampled signal would need more than `MAX_KNOTS`."""
+        raise NotImplementedError
+
     def describe(self) -> str:
         return repr(self)
 
@@ -47,8 +60,19 @@ def _spline_pieces(spline) -> Pieces:
     return knots, np.ascontiguousarray(c[::-1].T)
 
 
+def _intervals(t_end: float, step: float) -> int:
+    """Sampling intervals of ``step`` over ``[0, t_end]``, refused above `MAX_KNOTS`."""
+    n = t_end / step if step > 0.0 else math.inf
+    if not n <= MAX_KNOTS:
+        raise InputError(f"sampling every {step:.3g} s over {t_end:.6g} s needs {n:.3g} spline "
+                         f"knots, {n * BYTES_PER_KNOT / 1e9:.3g} GB; at most {MAX_KNOTS:.3g} "
+                         f"({MAX_KNOTS * BYTES_PER_KNOT / 1e9:.2g} GB) are allowed: shorten the "
+                         "duration or slow the signal")
+    return max(int(math.ceil(n)), 4)
+
+
 def _sampled(fun, t_end: float, step: float) -> Pieces:
-    n = max(int(math.ceil(t_end / step)), 4)
+    n = _intervals(t_end, step)
     t = np.linspace(0.0, max(t_end, 1e-9), n + 1)
     from scipy.interpolate import CubicSpline  # imported where needed: a slow import
 
@@ -61,11 +85,18 @@ class Constant(Input):
 
     level: float = 0.0
 
+    def __post_init__(self):
+        if not math.isfinite(self.level):
+            raise InputError(f"constant input: value must be finite, got {self.level!r}")
+
     def value(self, t):
         return np.full_like(np.asarray(t, dtype=float), self.level)
 
     def pieces(self, t_end: float) -> Pieces:
         return np.array([0.0, max(t_end, 1e-9)]), np.array([[self.level, 0.0, 0.0, 0.0]])
+
+    def knots(self, t_end: float) -> int:
+        return 2
 
     def describe(self) -> str:
         return f"constant {self.level:g}"
@@ -88,9 +119,13 @@ class Sine(Input):
     fade_in: float = 0.0
 
     def __post_init__(self):
+        for name in ("amplitude", "phase", "offset", "start"):
+            if not math.isfinite(getattr(self, name)):
+                raise InputError(f"sine input: {name} must be finite, got "
+                                 f"{getattr(self, name)!r}")
         if not (math.isfinite(self.frequency) and self.frequency > 0.0):
             raise InputError(f"sine input: frequency must be > 0 Hz, got {self.frequency!r}")
-        if not self.fade_in >= 0.0:
+        if not (math.isfinite(self.fade_in) and self.fade_in >= 0.0):
             raise InputError(f"sine input: fade_in must be >= 0 s, got {self.fade_in!r}")
 
     def value(self, t):
@@ -103,16 +138,26 @@ class Sine(Input):
         wave = self.amplitude * env * np.sin(2 * np.pi * self.frequency * tau + self.phase)
         return self.offset + np.where(tau >= 0.0, wave, 0.0)
 
-    def pieces(self, t_end: float) -> Pieces:
+    def _step(self) -> float:
         step = 1.0 / (400.0 * self.frequency)
-        if self.fade_in > 0.0:
-            step = min(step, self.fade_in / 100.0)
-        if self.start > 0.0 and self.start < t_end:
+        return min(step, self.fade_in / 100.0) if self.fade_in > 0.0 else step
+
+    def _onset(self, t_end: float) -> bool:
+        return 0.0 < self.start < t_end
+
+    def pieces(self, t_end: float) -> Pieces:
+        if self._onset(t_end):
             # keep the onset on a knot so the spline does not smear it
             before = Constant(self.offset).pieces(self.start)
-            k2, c2 = _sampled(lambda t: self.value(t + self.start), t_end - self.start, step)
+            k2, c2 = _sampled(lambda t: self.value(t + self.start), t_end - self.start,
+                              self._step())
             return np.concatenate([before[0][:-1], k2 + self.start]), np.vstack([before[1], c2])
-        return _sampled(self.value, t_end, step)
+        return _sampled(self.value, t_end, self._step())
+
+    def knots(self, t_end: float) -> int:
+        if self._onset(t_end):
+            return 2 + _intervals(t_end - self.start, self._step())
+        return 1 + _intervals(t_end, self._step())
 
     def describe(self) -> str:
         return (f"sine amplitude {self.amplitude:g}, {self.frequency:g} Hz, phase "
@@ -168,6 +213,9 @@ class Table(Input):
             knots = t
         return knots, coef
 
+    def knots(self, t_end: float) -> int:
+        return len(self.times)
+
     def describe(self) -> str:
         return f"table of {len(self.times)} points ({self.interpolation})"
 
@@ -191,6 +239,9 @@ class Position(Input):
                                       np.zeros(len(coef))])
         return knots, derivative
 
+    def knots(self, t_end: float) -> int:
+        return self.angle.knots(t_end)
+
     def describe(self) -> str:
         return f"angle given by {self.angle.describe()}"
 
@@ -202,6 +253,11 @@ def circle(radius: float, period: float, *, fade_in: float, cos_axis: bool) -> I
     so a motion started from rest has continuous speed and acceleration.
     ``cos_axis`` selects ``r cos`` (else ``r sin``). Returned as a `Position`.
     """
+    if not (math.isfinite(radius) and math.isfinite(period) and period > 0.0):
+        raise InputError(f"circle input: radius must be finite and period > 0 s, got radius "
+                         f"{radius!r}, period {period!r}")
+    if not (math.isfinite(fade_in) and fade_in >= 0.0):
+        raise InputError(f"circle input: fade_in must be >= 0 s, got {fade_in!r}")
     omega = 2 * np.pi / period
 
     def angle(t):
@@ -226,6 +282,9 @@ class _Sampled(Input):
 
     def pieces(self, t_end: float) -> Pieces:
         return _sampled(self.fun, t_end, self.step)
+
+    def knots(self, t_end: float) -> int:
+        return 1 + _intervals(t_end, self.step)
 
     def describe(self) -> str:
         return self.label

@@ -15,8 +15,9 @@ converted to SI on reading (rpm, deg, mN m, cm and mm included). Separators
 ``,`` ``;`` and tab are detected. Columns vsj does not know are ignored.
 
 Every problem is reported with the file and, where there is one, the line:
-missing columns, unknown units, non-numeric cells, NaN, too few points,
-time that does not increase.
+bytes that are not UTF-8, missing columns, unknown units, non-numeric cells,
+NaN, values beyond what a bench can measure (`LIMITS`), too few points, time
+that does not increase.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, read_text
 from .units import from_si, to_si
 
 #: Known quantities: SI unit and the names that mean them.
@@ -42,6 +43,17 @@ QUANTITIES = {
     "angle": ("rad", ("angle", "position", "theta")),
     "deflection": ("rad", ("deflection", "displacement", "phi")),
     "pivot": ("m", ("pivot", "q")),
+}
+#: Largest magnitude of each quantity [SI] a bench file can hold, and why: beyond it a value
+#: is corrupt or in a wrong unit (and sums of squares in the fits would overflow).
+LIMITS = {
+    "time": (1e10, "about 300 years, so clock timestamps fit"),
+    "velocity": (1e4, "about 95 000 rpm, beyond any motor of the benches"),
+    "torque": (1e4, "10 kN m, beyond anything a wrist transmits"),
+    "angle": (1e9, "160 million turns"),
+    "deflection": (2 * math.pi, "one turn; the elastic element's end stop is at 1.40 rad"),
+    "pivot": (0.1, "10 cm; the pivot mechanism of the second prototype reaches 2.5 cm, its "
+                   "lever is 7.2 cm long"),
 }
 _HEADER = re.compile(r"^\s*(?P<name>[^\[]+?)\s*\[(?P<unit>[^\]]*)\]\s*$")
 
@@ -91,12 +103,7 @@ def _quantity_of(name: str) -> str | None:
 def read(path: str | Path, *, required: Sequence[str] = (), min_points: int = 5) -> Measurement:
     """Read and validate a measurement file; `InputError` says what is wrong and where."""
     path = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read measurement file ({exc.strerror})") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a text file") from None
+    text = read_text(path, "measurement file")
     comments, rows = [], []
     for number, line in enumerate(text.splitlines(), start=1):
         stripped = line.strip()
@@ -110,7 +117,7 @@ def read(path: str | Path, *, required: Sequence[str] = (), min_points: int = 5)
         raise InputError(f"{path}: no header line and no data")
     header_line, header = rows[0]
     delimiter = _delimiter(header, path, header_line)
-    names = next(csv.reader([header], delimiter=delimiter))
+    names = _cells(header, delimiter, path, header_line)
     columns: dict[str, int] = {}
     units: dict[str, str] = {}
     scales: dict[str, float] = {}
@@ -140,7 +147,7 @@ def read(path: str | Path, *, required: Sequence[str] = (), min_points: int = 5)
                          f"{', '.join(names)} (headers look like 'torque [N m]')")
     data = {q: [] for q in columns}
     for number, line in rows[1:]:
-        cells = next(csv.reader([line], delimiter=delimiter))
+        cells = _cells(line, delimiter, path, number)
         if len(cells) != len(names):
             raise InputError(f"{path}, line {number}: {len(cells)} cells, the header has "
                              f"{len(names)}")
@@ -154,7 +161,14 @@ def read(path: str | Path, *, required: Sequence[str] = (), min_points: int = 5)
             if not math.isfinite(value):
                 raise InputError(f"{path}, line {number}: {quantity} is {cell!r}; every cell "
                                  "must be a finite number")
-            data[quantity].append(value * scales[quantity])
+            si = value * scales[quantity]
+            limit, why = LIMITS[quantity]
+            if not abs(si) <= limit:
+                raise InputError(f"{path}, line {number}: {quantity} {cell} "
+                                 f"[{units[quantity]}] is {si:.3g} {QUANTITIES[quantity][0]}, "
+                                 f"beyond +-{limit:g} ({why}); check the value and the unit "
+                                 "in the header")
+            data[quantity].append(si)
     n = len(rows) - 1
     if n < min_points:
         raise InputError(f"{path}: {n} data points; at least {min_points} are needed")
@@ -167,6 +181,13 @@ def read(path: str | Path, *, required: Sequence[str] = (), min_points: int = 5)
             raise InputError(f"{path}, line {number}: time does not increase "
                              f"({arrays['time'][bad[0]]:g} s, then {arrays['time'][bad[0] + 1]:g} s)")
     return Measurement(path=path, columns=arrays, units=units, comments=comments)
+
+
+def _cells(line: str, delimiter: str, path: str, number: int) -> list[str]:
+    try:
+        return next(csv.reader([line], delimiter=delimiter))
+    except csv.Error as exc:
+        raise InputError(f"{path}, line {number}: cannot split into cells ({exc})") from None
 
 
 def _delimiter(header: str, path: str, line: int) -> str:

@@ -27,7 +27,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Mapping
 
-from .errors import InputError
+from .errors import InputError, read_text
 from .units import format_quantity, to_si
 
 
@@ -258,6 +258,9 @@ def _from_table(table: Mapping, origin: str) -> Parameters:
                 if key not in META_KEYS:
                     problems.append(f"{origin}: meta.{key}: unknown key; allowed: "
                                     f"{', '.join(META_KEYS)}")
+                elif not isinstance(text, str):
+                    problems.append(f"{origin}: meta.{key}: expected text in quotes, got "
+                                    f"{text!r}")
                 else:
                     meta[key] = str(text)
             continue
@@ -342,11 +345,7 @@ def load(path: str | Path | None = None) -> Parameters:
     else:
         file = Path(path)
         origin = str(path)
-    try:
-        text = file.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"{origin}: cannot read parameter file ({exc.strerror})") from None
-    return loads(text, origin)
+    return loads(read_text(file, "parameter file"), origin)
 
 
 def loads(text: str, origin: str = "<string>") -> Parameters:

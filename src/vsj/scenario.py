@@ -38,6 +38,12 @@ offset, start, fade_in), ``table`` (times, values, time_unit, unit,
 interpolation), ``steps`` (levels, unit, hold, ramp, start: plateaus joined by
 ramps), ``position`` (signal: an angle whose derivative drives a velocity
 source) and ``circle`` (radius, period, fade_in, axis: a position input).
+
+Every value is checked as it is read: its type, unit and range. `prepare_case`
+then builds and compiles each case without running it, so whatever a run would
+refuse (an initial angle of no flange, an input signal too large for memory) is
+refused before anything is written. Every message names the file and the key
+path, such as ``scen.toml: cases[1].solver.rtol``.
 """
 
 from __future__ import annotations
@@ -45,29 +51,60 @@ from __future__ import annotations
 import copy
 import math
 import tomllib
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from . import benches
-from .errors import InputError
+from .errors import InputError, read_text
+from .friction import law_code
 from .inputs import Constant, Input, Position, Sine, Table, circle
 from .network import Network
 from .params import Parameters
-from .simulate import InitialState, SimulationOptions
+from .simulate import (InitialState, SimulationOptions, check_run_size, choose_solver,
+                       prepare)
 from .units import to_si
-from .wrist import WristOptions, build_wrist
+from .wrist import DRIVES, ELASTIC_MODELS, WristOptions, build_wrist
 
 TOP_KEYS = {"name", "description", "network", "duration", "model", "bench", "solver",
             "initial", "inputs", "params", "cases"}
 CASE_KEYS = {"label", "model", "bench", "solver", "initial", "inputs", "params", "duration"}
 NETWORKS = ("wrist", "planetary-bench", "elastic-bench")
 MODEL_KEYS = {"elastic", "motors", "pivot_drive", "end_effector", "linear_stiffness", "fixed_q"}
-BENCH_KEYS = {"fixed", "drive", "sensor_stiffness", "q", "model"}
+#: [bench] keys of each bench network, with the choices of its text keys.
+PLANETARY_BENCH = {"fixed": ("sun", "ring"), "drive": ("speed", "torque"),
+                   "sensor_stiffness": None}
+ELASTIC_BENCH = {"q": None, "model": tuple(m for m in ELASTIC_MODELS if m != "linear"),
+                 "sensor_stiffness": None}
 SOLVER_KEYS = {"friction", "method", "rtol", "atol", "step", "output_step", "slope_width",
                "max_step", "max_steps", "friction_overrides"}
+SOLVERS = ("auto", "dopri", "timestep")
 INITIAL_KEYS = {"q", "angles", "speeds", "currents"}
+INPUT_KINDS = {
+    "constant": {"kind", "value"},
+    "sine": {"kind", "amplitude", "frequency", "phase", "offset", "start", "fade_in"},
+    "table": {"kind", "times", "values", "time_unit", "unit", "interpolation"},
+    "steps": {"kind", "levels", "unit", "hold", "ramp", "start"},
+    "position": {"kind", "signal"},
+    "circle": {"kind", "radius", "period", "fade_in", "axis"},
+}
+_REQUIRED = object()
+
+
+@dataclass(frozen=True)
+class Where:
+    """A place in a scenario, for messages: the file and a key path (``cases[1].solver``)."""
+
+    origin: str
+    path: str = ""
+
+    def key(self, name: str) -> Where:
+        return Where(self.origin, f"{self.path}.{name}" if self.path else name)
+
+    def __str__(self) -> str:
+        return f"{self.origin}: {self.path}" if self.path else self.origin
 
 
 @dataclass(frozen=True)
@@ -83,6 +120,7 @@ class Case:
     initial: InitialState
     params: Mapping[str, Any]
     pivot_from_params: bool
+    where: Where
 
 
 @dataclass(frozen=True)
@@ -96,25 +134,64 @@ class Scenario:
     def resolved_params(self, case: Case, params: Parameters) -> Parameters:
         if not case.params:
             return params
-        return params.with_overrides(case.params, origin=f"{self.origin} [{case.label}]",
+        return params.with_overrides(case.params, origin=str(case.where.key("params")),
                                      source=f"scenario {self.name}")
 
 
-def _check_keys(table: Mapping, allowed: set, where: str) -> None:
+@contextmanager
+def _context(where: Where):
+    """Prefix an `InputError` of a lower layer, which does not know the file, with ``where``."""
+    try:
+        yield
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
+
+
+def _check_keys(table: Mapping, allowed, where: Where) -> None:
     if not isinstance(table, Mapping):
-        raise InputError(f"{where}: expected a table, got {type(table).__name__}")
-    unknown = sorted(set(table) - allowed)
+        raise InputError(f"{where}: expected a table, got {type(table).__name__} {table!r}")
+    unknown = sorted(set(table) - set(allowed))
     if unknown:
         raise InputError(f"{where}: unknown key(s) {', '.join(unknown)}; allowed: "
                          f"{', '.join(sorted(allowed))}")
 
 
-def _quantity(table: Mapping, key: str, unit: str, where: str, default=None):
+def _table(table: Mapping, key: str, where: Where) -> Mapping:
+    value = table.get(key, {})
+    if not isinstance(value, Mapping):
+        raise InputError(f"{where.key(key)}: expected a table, got {type(value).__name__} "
+                         f"{value!r}")
+    return value
+
+
+def _quantity(table: Mapping, key: str, unit: str, where: Where, default=_REQUIRED, *,
+              positive: bool = False, nonnegative: bool = False):
+    """``table[key]`` in SI, or ``default`` when absent (required when no default is given)."""
     if key not in table:
-        if default is None:
+        if default is _REQUIRED:
             raise InputError(f"{where}: missing {key!r} (unit {unit})")
         return default
-    return to_si(table[key], unit, where=f"{where}.{key}")
+    value = to_si(table[key], unit, where=str(where.key(key)))
+    zero = "0" if unit == "1" else f"0 {unit}"
+    if positive and not value > 0.0:
+        raise InputError(f"{where.key(key)} = {table[key]!r}: must be > {zero}")
+    if nonnegative and not value >= 0.0:
+        raise InputError(f"{where.key(key)} = {table[key]!r}: must be >= {zero}")
+    return value
+
+
+def _choice(table: Mapping, key: str, choices, where: Where, default: str) -> str:
+    value = table.get(key, default)
+    if not isinstance(value, str) or value not in choices:
+        raise InputError(f"{where.key(key)}: {value!r} is not one of {', '.join(choices)}")
+    return value
+
+
+def _text(table: Mapping, key: str, where: Where, default: str) -> str:
+    value = table.get(key, default)
+    if not isinstance(value, str):
+        raise InputError(f"{where.key(key)}: expected text in quotes, got {value!r}")
+    return value
 
 
 def _merge(base: Mapping, over: Mapping) -> dict:
@@ -127,73 +204,69 @@ def _merge(base: Mapping, over: Mapping) -> dict:
     return out
 
 
-def parse_input(spec: Mapping, unit: str, where: str, *, angle: bool = False) -> Input:
+def parse_input(spec: Mapping, unit: str, where: Where, *, angle: bool = False) -> Input:
     """One input channel's signal from its table (values in ``unit``)."""
     if not isinstance(spec, Mapping) or "kind" not in spec:
-        raise InputError(f"{where}: an input is a table with a 'kind' (constant, sine, table, "
-                         "steps, position, circle)")
+        raise InputError(f"{where}: an input is a table with a 'kind' "
+                         f"({', '.join(INPUT_KINDS)}), got {spec!r}")
     kind = spec["kind"]
-    allowed = {
-        "constant": {"kind", "value"},
-        "sine": {"kind", "amplitude", "frequency", "phase", "offset", "start", "fade_in"},
-        "table": {"kind", "times", "values", "time_unit", "unit", "interpolation"},
-        "steps": {"kind", "levels", "unit", "hold", "ramp", "start"},
-        "position": {"kind", "signal"},
-        "circle": {"kind", "radius", "period", "fade_in", "axis"},
-    }
-    if kind not in allowed:
-        raise InputError(f"{where}.kind: unknown input kind {kind!r}; choose one of "
-                         f"{', '.join(allowed)}")
-    _check_keys(spec, allowed[kind], where)
-    if kind == "constant":
-        return Constant(_quantity(spec, "value", unit, where))
-    if kind == "sine":
-        return Sine(amplitude=_quantity(spec, "amplitude", unit, where),
-                    frequency=_quantity(spec, "frequency", "Hz", where),
-                    phase=_quantity(spec, "phase", "rad", where, 0.0),
-                    offset=_quantity(spec, "offset", unit, where, 0.0),
-                    start=_quantity(spec, "start", "s", where, 0.0),
-                    fade_in=_quantity(spec, "fade_in", "s", where, 0.0))
-    if kind in ("table", "steps"):
-        value_unit = spec.get("unit", unit)
-        scale = to_si(f"1 {value_unit}", unit, where=f"{where}.unit")
-        if kind == "table":
-            time_scale = to_si(f"1 {spec.get('time_unit', 's')}", "s", where=f"{where}.time_unit")
-            times = _numbers(spec.get("times"), f"{where}.times")
-            values = _numbers(spec.get("values"), f"{where}.values")
-            return Table(tuple(t * time_scale for t in times), tuple(v * scale for v in values),
-                         spec.get("interpolation", "linear"))
-        levels = _numbers(spec.get("levels"), f"{where}.levels")
-        hold = _quantity(spec, "hold", "s", where)
-        ramp = _quantity(spec, "ramp", "s", where)
-        start = _quantity(spec, "start", "s", where, 0.0)
-        if not (hold > 0 and ramp > 0):
-            raise InputError(f"{where}: hold and ramp must be > 0 s")
-        return staircase([v * scale for v in levels], hold=hold, ramp=ramp, start=start)
+    if not isinstance(kind, str) or kind not in INPUT_KINDS:
+        raise InputError(f"{where.key('kind')}: unknown input kind {kind!r}; choose one of "
+                         f"{', '.join(INPUT_KINDS)}")
+    _check_keys(spec, INPUT_KINDS[kind], where)
     if kind == "position":
         if not angle:
             raise InputError(f"{where}: a position input drives a velocity source by its angle; "
                              "this channel is not a velocity source")
         inner = spec.get("signal")
         if isinstance(inner, Mapping) and inner.get("kind") in ("position", "circle"):
-            raise InputError(f"{where}.signal: a position signal cannot be nested")
-        return Position(parse_input(inner, "rad", f"{where}.signal"))
-    if not angle:
+            raise InputError(f"{where.key('signal')}: a position signal cannot be nested")
+        return Position(parse_input(inner, "rad", where.key("signal")))
+    if kind == "circle" and not angle:
         raise InputError(f"{where}: a circle input drives a velocity source by its angle; "
                          "this channel is not a velocity source")
-    axis = spec.get("axis", "cos")
-    if axis not in ("cos", "sin"):
-        raise InputError(f"{where}.axis: must be 'cos' or 'sin', got {axis!r}")
-    period = _quantity(spec, "period", "s", where)
-    if not period > 0:
-        raise InputError(f"{where}.period: must be > 0 s")
-    return circle(_quantity(spec, "radius", "rad", where), period,
-                  fade_in=_quantity(spec, "fade_in", "s", where, 0.0), cos_axis=axis == "cos")
+    make, arguments = _signal(kind, spec, unit, where)
+    with _context(where):  # what the signal itself refuses (times that do not increase, ...)
+        return make(**arguments)
 
 
-def _numbers(values, where: str) -> list[float]:
+def _signal(kind: str, spec: Mapping, unit: str, where: Where) -> tuple[Callable, dict]:
+    """The function that makes an input of ``kind`` and its arguments, read from ``spec``."""
+    if kind == "constant":
+        return Constant, {"level": _quantity(spec, "value", unit, where)}
+    if kind == "sine":
+        return Sine, {"amplitude": _quantity(spec, "amplitude", unit, where),
+                      "frequency": _quantity(spec, "frequency", "Hz", where, positive=True),
+                      "phase": _quantity(spec, "phase", "rad", where, 0.0),
+                      "offset": _quantity(spec, "offset", unit, where, 0.0),
+                      "start": _quantity(spec, "start", "s", where, 0.0),
+                      "fade_in": _quantity(spec, "fade_in", "s", where, 0.0, nonnegative=True)}
+    if kind == "circle":
+        return circle, {
+            "radius": _quantity(spec, "radius", "rad", where),
+            "period": _quantity(spec, "period", "s", where, positive=True),
+            "fade_in": _quantity(spec, "fade_in", "s", where, 0.0, nonnegative=True),
+            "cos_axis": _choice(spec, "axis", ("cos", "sin"), where, "cos") == "cos"}
+    scale = to_si(f"1 {_text(spec, 'unit', where, unit)}", unit, where=str(where.key("unit")))
+    if kind == "table":
+        time_unit = _text(spec, "time_unit", where, "s")
+        time_scale = to_si(f"1 {time_unit}", "s", where=str(where.key("time_unit")))
+        times = _numbers(spec.get("times"), where.key("times"))
+        values = _numbers(spec.get("values"), where.key("values"))
+        return Table, {"times": tuple(t * time_scale for t in times),
+                       "values": tuple(v * scale for v in values),
+                       "interpolation": _choice(spec, "interpolation", ("linear", "cubic"),
+                                                where, "linear")}
+    levels = _numbers(spec.get("levels"), where.key("levels"))
+    return staircase, {"levels": [v * scale for v in levels],
+                       "hold": _quantity(spec, "hold", "s", where, positive=True),
+                       "ramp": _quantity(spec, "ramp", "s", where, positive=True),
+                       "start": _quantity(spec, "start", "s", where, 0.0, nonnegative=True)}
+
+
+def _numbers(values, where: Where) -> list[float]:
     if not isinstance(values, list) or not values:
-        raise InputError(f"{where}: expected a non-empty list of numbers")
+        raise InputError(f"{where}: expected a non-empty list of numbers, got {values!r}")
     out = []
     for i, v in enumerate(values):
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -231,135 +304,145 @@ def _channel_units(net: Network) -> tuple[dict[str, str], set[str]]:
     return units, {s.channel for s in structure_parts.sources}
 
 
-def _case(table: Mapping, label: str, where: str) -> Case:
-    network = table.get("network", "wrist")
-    if network not in NETWORKS:
-        raise InputError(f"{where}.network: must be one of {', '.join(NETWORKS)}, got "
-                         f"{network!r}")
-    duration = _quantity(table, "duration", "s", where)
-    if not duration > 0:
-        raise InputError(f"{where}.duration: must be > 0 s")
-    model = table.get("model", {})
-    bench = table.get("bench", {})
-    _check_keys(model, MODEL_KEYS, f"{where}.model")
-    _check_keys(bench, BENCH_KEYS, f"{where}.bench")
+def _network(network: str, model: Mapping, bench: Mapping,
+             where: Where) -> Callable[[Parameters], Network]:
+    """The function that builds the case's network from a parameter set."""
+    mw, bw = where.key("model"), where.key("bench")
     if network == "wrist":
         if bench:
-            raise InputError(f"{where}.bench: only bench networks take a [bench] table")
-        wrist_options = WristOptions(
-            elastic=model.get("elastic", "geometric"), motors=model.get("motors", "velocity"),
-            pivot_drive=model.get("pivot_drive", "velocity"),
-            end_effector=model.get("end_effector", "loaded"),
-            linear_stiffness=(_quantity(model, "linear_stiffness", "N*m", f"{where}.model")
-                              if "linear_stiffness" in model else None),
-            fixed_q=_quantity(model, "fixed_q", "m", f"{where}.model", 0.0))
-        wrist_options.validate()
+            raise InputError(f"{bw}: only bench networks take a [bench] table")
+        _check_keys(model, MODEL_KEYS, mw)
+        options = WristOptions(
+            elastic=_choice(model, "elastic", ELASTIC_MODELS, mw, "geometric"),
+            motors=_choice(model, "motors", DRIVES, mw, "velocity"),
+            pivot_drive=_choice(model, "pivot_drive", DRIVES + ("fixed",), mw, "velocity"),
+            end_effector=_choice(model, "end_effector", ("loaded", "driven"), mw, "loaded"),
+            linear_stiffness=_quantity(model, "linear_stiffness", "N*m", mw, None,
+                                       positive=True),
+            fixed_q=_quantity(model, "fixed_q", "m", mw, 0.0))
+        with _context(mw):
+            options.validate()
+        return lambda params: build_wrist(params, options)
+    if model:
+        raise InputError(f"{mw}: the {network} takes a [bench] table instead")
+    sensor = _quantity(bench, "sensor_stiffness", "N*m", bw, benches.SENSOR_STIFFNESS,
+                       positive=True)
+    if network == "planetary-bench":
+        _check_keys(bench, PLANETARY_BENCH, bw)
+        fixed = _choice(bench, "fixed", PLANETARY_BENCH["fixed"], bw, "sun")
+        drive = _choice(bench, "drive", PLANETARY_BENCH["drive"], bw, "speed")
+        return lambda params: benches.planetary_bench(params, fixed=fixed, drive=drive,
+                                                      sensor_stiffness=sensor)
+    _check_keys(bench, ELASTIC_BENCH, bw)
+    q = _quantity(bench, "q", "m", bw)
+    elastic = _choice(bench, "model", ELASTIC_BENCH["model"], bw, "geometric")
+    return lambda params: benches.elastic_bench(params, q=q, model=elastic,
+                                                sensor_stiffness=sensor)
 
-        def build(params, _o=wrist_options):
-            return build_wrist(params, _o)
-    elif network == "planetary-bench":
-        if model:
-            raise InputError(f"{where}.model: the planetary bench takes a [bench] table instead")
-        fixed = bench.get("fixed", "sun")
-        drive = bench.get("drive", "speed")
-        sensor = (_quantity(bench, "sensor_stiffness", "N*m", f"{where}.bench")
-                  if "sensor_stiffness" in bench else benches.SENSOR_STIFFNESS)
 
-        def build(params, _f=fixed, _d=drive, _s=sensor):
-            return benches.planetary_bench(params, fixed=_f, drive=_d, sensor_stiffness=_s)
-    else:
-        if model:
-            raise InputError(f"{where}.model: the elastic bench takes a [bench] table instead")
-        q = _quantity(bench, "q", "m", f"{where}.bench")
-        elastic = bench.get("model", "geometric")
-        sensor = (_quantity(bench, "sensor_stiffness", "N*m", f"{where}.bench")
-                  if "sensor_stiffness" in bench else benches.SENSOR_STIFFNESS)
+def _options(solver: Mapping, where: Where) -> SimulationOptions:
+    """The [solver] table as simulation options, every value checked."""
+    _check_keys(solver, SOLVER_KEYS, where)
+    friction = solver.get("friction", "arctan")
+    with _context(where.key("friction")):
+        law_code(friction)
+    overrides = _table(solver, "friction_overrides", where)
+    for pattern, law in overrides.items():
+        with _context(where.key("friction_overrides").key(pattern)):
+            law_code(law)
+    rtol = _quantity(solver, "rtol", "1", where, 1e-8, positive=True)
+    if not rtol < 1.0:
+        raise InputError(f"{where.key('rtol')} = {solver['rtol']!r}: must be below 1 (a "
+                         "relative tolerance)")
+    max_steps = solver.get("max_steps", 20_000_000)
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
+        raise InputError(f"{where.key('max_steps')}: expected a whole number >= 1, got "
+                         f"{max_steps!r}")
+    return SimulationOptions(
+        friction=friction,
+        friction_overrides=dict(overrides),
+        solver=_choice(solver, "method", SOLVERS, where, "auto"), rtol=rtol,
+        atol=_quantity(solver, "atol", "1", where, 1e-10, positive=True),
+        step=_quantity(solver, "step", "s", where, 1e-3, positive=True),
+        output_step=_quantity(solver, "output_step", "s", where, 1e-3, positive=True),
+        slope_width=_quantity(solver, "slope_width", "rad/s", where, 0.01, positive=True),
+        max_step=_quantity(solver, "max_step", "s", where, math.inf, positive=True),
+        max_steps=max_steps)
 
-        def build(params, _q=q, _m=elastic, _s=sensor):
-            return benches.elastic_bench(params, q=_q, model=_m, sensor_stiffness=_s)
-    solver = table.get("solver", {})
-    _check_keys(solver, SOLVER_KEYS, f"{where}.solver")
-    sw = f"{where}.solver"
-    overrides = solver.get("friction_overrides", {})
-    if not isinstance(overrides, Mapping):
-        raise InputError(f"{sw}.friction_overrides: expected a table of pattern = law")
-    options = SimulationOptions(
-        friction=solver.get("friction", "arctan"), friction_overrides=dict(overrides),
-        solver=solver.get("method", "auto"),
-        rtol=float(solver.get("rtol", 1e-8)), atol=float(solver.get("atol", 1e-10)),
-        step=_quantity(solver, "step", "s", sw, 1e-3),
-        output_step=_quantity(solver, "output_step", "s", sw, 1e-3),
-        slope_width=_quantity(solver, "slope_width", "rad/s", sw, 0.01),
-        max_step=_quantity(solver, "max_step", "s", sw, math.inf),
-        max_steps=int(solver.get("max_steps", 20_000_000)))
-    try:
-        options.validate()
-    except InputError as exc:
-        raise InputError(f"{sw}: {exc}") from None
-    init = table.get("initial", {})
-    _check_keys(init, INITIAL_KEYS, f"{where}.initial")
-    iw = f"{where}.initial"
-    angles = {k: to_si(v, "rad", where=f"{iw}.angles.{k}") for k, v in
-              init.get("angles", {}).items()}
-    speeds = {k: to_si(v, "rad/s", where=f"{iw}.speeds.{k}") for k, v in
-              init.get("speeds", {}).items()}
-    currents = {k: to_si(v, "A", where=f"{iw}.currents.{k}") for k, v in
-                init.get("currents", {}).items()}
-    q0 = _quantity(init, "q", "m", iw) if "q" in init else None
+
+def _quantities(table: Mapping, key: str, unit: str, where: Where) -> dict[str, float]:
+    """A table of named quantities (``angles = { ring = "0.1 rad" }``) in SI."""
+    return {name: to_si(text, unit, where=str(where.key(key).key(name)))
+            for name, text in _table(table, key, where).items()}
+
+
+def _case(table: Mapping, label: str, where: Where) -> Case:
+    network = _choice(table, "network", NETWORKS, where, "wrist")
+    duration = _quantity(table, "duration", "s", where, positive=True)
+    build = _network(network, _table(table, "model", where), _table(table, "bench", where),
+                     where)
+    options = _options(_table(table, "solver", where), where.key("solver"))
+    iw = where.key("initial")
+    init = _table(table, "initial", where)
+    _check_keys(init, INITIAL_KEYS, iw)
+    q0 = _quantity(init, "q", "m", iw, None)
     if network != "wrist" and q0 is not None:
-        raise InputError(f"{iw}.q: only the wrist has a pivot mechanism; the elastic bench "
-                         "takes [bench] q")
-    initial = InitialState(angles=angles, speeds=speeds, q=q0, currents=currents)
-    params = table.get("params", {})
-    if not isinstance(params, Mapping):
-        raise InputError(f"{where}.params: expected a table of 'section.key' = value")
-    inputs = table.get("inputs", {})
-    if not isinstance(inputs, Mapping):
-        raise InputError(f"{where}.inputs: expected one table per input channel")
-    return Case(label=label, network=network, build=build, inputs=dict(inputs),
-                duration=duration, options=options, initial=initial, params=dict(params),
-                pivot_from_params=(network == "wrist"))
+        raise InputError(f"{iw.key('q')}: only the wrist has a pivot mechanism; the elastic "
+                         "bench takes [bench] q")
+    initial = InitialState(angles=_quantities(init, "angles", "rad", iw),
+                           speeds=_quantities(init, "speeds", "rad/s", iw), q=q0,
+                           currents=_quantities(init, "currents", "A", iw))
+    return Case(label=label, network=network, build=build,
+                inputs=dict(_table(table, "inputs", where)), duration=duration,
+                options=options, initial=initial, params=dict(_table(table, "params", where)),
+                pivot_from_params=(network == "wrist"), where=where)
 
 
-def parse_inputs(case: Case, net: Network, where: str) -> dict[str, Input]:
-    """The case's input tables, parsed with the units of the network's channels."""
+def parse_inputs(case: Case, net: Network) -> dict[str, Input]:
+    """The case's input tables, parsed with the units of the network's channels; each
+    signal is checked to fit in memory over the case's duration."""
     units, sources = _channel_units(net)
     out = {}
     for channel, spec in case.inputs.items():
+        where = case.where.key("inputs").key(channel)
         if channel not in units:
-            raise InputError(f"{where}.inputs.{channel}: the {case.network} network has no input "
+            raise InputError(f"{where}: the {case.network} network has no input "
                              f"{channel!r}; its inputs are {', '.join(sorted(units))}")
-        out[channel] = parse_input(spec, units[channel], f"{where}.inputs.{channel}",
-                                   angle=channel in sources)
+        out[channel] = parse_input(spec, units[channel], where, angle=channel in sources)
+        with _context(where):
+            out[channel].knots(case.duration)
     return out
 
 
 def loads(text: str, origin: str) -> Scenario:
+    """Parse scenario text; ``origin`` names it in messages."""
     try:
         table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{origin}: not valid TOML: {exc}") from None
-    _check_keys(table, TOP_KEYS, origin)
-    name = str(table.get("name", Path(origin).stem))
+    top = Where(origin)
+    _check_keys(table, TOP_KEYS, top)
+    name = _text(table, "name", top, Path(origin).stem)
+    description = _text(table, "description", top, "")
     base = {k: v for k, v in table.items() if k not in ("name", "description", "cases")}
     cases_table = table.get("cases", [])
     if not isinstance(cases_table, list):
-        raise InputError(f"{origin}: 'cases' must be an array of tables ([[cases]])")
+        raise InputError(f"{top.key('cases')}: must be an array of tables ([[cases]])")
     cases = []
     if not cases_table:
-        cases.append(_case(base, name, origin))
+        cases.append(_case(base, name, top))
     labels = set()
     for i, entry in enumerate(cases_table):
-        where = f"{origin}: cases[{i}]"
+        where = top.key(f"cases[{i}]")
         _check_keys(entry, CASE_KEYS, where)
-        label = str(entry.get("label", f"case{i + 1}"))
+        label = _text(entry, "label", where, f"case{i + 1}")
         if label in labels:
-            raise InputError(f"{where}.label: duplicate label {label!r}")
+            raise InputError(f"{where.key('label')}: duplicate label {label!r}")
         labels.add(label)
         merged = _merge(base, {k: v for k, v in entry.items() if k != "label"})
         cases.append(_case(merged, label, where))
-    return Scenario(name=name, description=str(table.get("description", "")), origin=origin,
-                    cases=tuple(cases), table=table)
+    return Scenario(name=name, description=description, origin=origin, cases=tuple(cases),
+                    table=table)
 
 
 def _builtin_dir() -> Path:
@@ -374,30 +457,33 @@ def load(name_or_path: str) -> Scenario:
     """A built-in scenario by name, or a scenario file."""
     path = Path(name_or_path)
     if path.suffix == ".toml" or path.exists():
-        try:
-            text = path.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise InputError(f"{name_or_path}: cannot read scenario file ({exc.strerror})") \
-                from None
-        return loads(text, str(path))
+        return loads(read_text(path, "scenario file"), str(path))
     builtin = _builtin_dir() / f"{name_or_path}.toml"
     if not builtin.exists():
         raise InputError(f"unknown scenario {name_or_path!r}: not a file, and not one of the "
                          f"built-in scenarios ({', '.join(builtin_names())})")
-    return loads(builtin.read_text(encoding="utf-8"), f"built-in scenario {name_or_path}")
+    return loads(read_text(builtin, "scenario file"), f"built-in scenario {name_or_path}")
 
 
 def prepare_case(scenario: Scenario, case: Case, params: Parameters):
-    """Everything `vsj.simulate.simulate` needs for one case (validated, nothing run)."""
-    where = f"{scenario.origin} [{case.label}]"
+    """Everything `vsj.simulate.simulate` needs for one case, checked as far as it can be
+    without running: what a run would refuse in its inputs is raised here, before anything
+    is written, with the file and key."""
+    where = case.where
     resolved = scenario.resolved_params(case, params)
-    net = case.build(resolved)
-    structure = net.assemble()
-    inputs = parse_inputs(case, net, where)
+    with _context(where):
+        net = case.build(resolved)
+        structure = net.assemble()
+    inputs = parse_inputs(case, net)
     pivot_range = (resolved.pivot.q_min, resolved.pivot.q_max) if case.pivot_from_params else None
     if case.initial.q is not None and pivot_range is not None:
         lo, hi = pivot_range
         if not lo <= case.initial.q <= hi:
-            raise InputError(f"{where}: initial q = {case.initial.q * 100:g} cm is outside the "
-                             f"pivot range [{lo * 100:g}, {hi * 100:g}] cm")
+            raise InputError(f"{where.key('initial').key('q')}: {case.initial.q * 100:g} cm is "
+                             f"outside the pivot range [{lo * 100:g}, {hi * 100:g}] cm")
+    options = case.options
+    with _context(where.key("solver")):
+        check_run_size(structure, case.duration, options, choose_solver(structure, options))
+    with _context(where):  # the initial state against the network, and the compiled inputs
+        prepare(structure, inputs, case.duration, options, case.initial, pivot_range)
     return resolved, structure, inputs, pivot_range

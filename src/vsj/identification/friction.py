@@ -15,7 +15,9 @@ plateaus (or of the sweep) is fitted at once with the curve plus a Fourier
 series in the carrier angle, mirrored with the direction of motion as fig 4.6
 shows, so the ripple's own uncertainty enters the constants'. Uncertainties are
 the usual least-squares ones: standard errors from the residual variance and
-the Jacobian, 95 % confidence intervals from Student's t.
+the Jacobian, 95 % confidence intervals from Student's t. A constant the data
+cannot determine (all points at one speed, say) or one at a bound has no
+interval, and says so.
 """
 
 from __future__ import annotations
@@ -39,11 +41,21 @@ PLATEAU_TOLERANCE = 0.01
 PLATEAU_MIN_DURATION = 1.0
 TRANSIENT_FRACTION = 0.25
 TAIL_FRACTION = 0.05
+#: Singular values of the column-scaled Jacobian below this fraction of the largest are
+#: taken as zero: the Jacobian comes from finite differences with relative steps near
+#: 1e-8, so directions weaker than this are not seen by the data.
+RANK_TOLERANCE = 1e-7
+#: A parameter whose share of the data's blind directions exceeds this is not determined.
+BLIND_SHARE = 1e-3
 
 
 @dataclass(frozen=True)
 class Estimate:
-    """A fitted parameter: value, unit, standard error and 95 % confidence interval."""
+    """A fitted parameter: value, unit, standard error and 95 % confidence interval.
+
+    The standard error is NaN for a parameter at a bound (no symmetric interval
+    exists) and infinite for one the data do not determine.
+    """
 
     name: str
     value: float
@@ -51,13 +63,20 @@ class Estimate:
     stderr: float
     ci95: tuple[float, float]
 
+    @property
+    def status(self) -> str:
+        """``determined``, ``at a bound`` or ``not determined``."""
+        if math.isnan(self.stderr):
+            return "at a bound"
+        return "determined" if math.isfinite(self.stderr) else "not determined"
+
     def to_json(self) -> dict:
         """JSON form; a standard error that does not exist (parameter at a bound, or not
         determined by the data) is null, and so is its interval."""
         finite = math.isfinite(self.stderr)
         return {"value": self.value, "unit": self.unit,
                 "stderr": self.stderr if finite else None,
-                "ci95": list(self.ci95) if finite else None}
+                "ci95": list(self.ci95) if finite else None, "status": self.status}
 
 
 @dataclass
@@ -115,15 +134,28 @@ def curve(c, w):
 
 
 def estimates(result, names, units, dof, scale=1.0) -> list[Estimate]:
-    """Standard errors and 95 % intervals from a least-squares result."""
-    J = result.jac
-    rss = float(np.sum(result.fun ** 2))
-    s2 = rss / max(dof, 1) * scale
-    try:
-        cov = np.linalg.inv(J.T @ J) * s2
-        err = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    except np.linalg.LinAlgError:
-        err = np.full(len(names), math.inf)
+    """Standard errors and 95 % intervals from a least-squares result.
+
+    Parameters at a bound (``result.active_mask``) get a NaN standard error. The
+    others' covariance comes from the column-scaled Jacobian's singular values;
+    a parameter that moves along a direction the data do not see (rank
+    deficiency), or any parameter when no degree of freedom is left for the
+    residual variance, gets an infinite one: not determined.
+    """
+    J = np.asarray(result.jac, dtype=float)
+    err = np.full(len(names), math.nan)
+    free = np.flatnonzero(np.asarray(result.active_mask) == 0)
+    if dof < 1:
+        err[free] = math.inf
+    elif free.size:
+        s2 = float(np.sum(result.fun ** 2)) / dof * scale
+        colscale = np.maximum(np.linalg.norm(J[:, free], axis=0), 1e-300)
+        _, sv, Vt = np.linalg.svd(J[:, free] / colscale, full_matrices=False)
+        rank = int(np.sum(sv > RANK_TOLERANCE * sv[0])) if sv[0] > 0 else 0
+        blind = np.linalg.norm(Vt[rank:], axis=0)
+        cov = (Vt[:rank].T / sv[:rank] ** 2) @ Vt[:rank] * s2 / np.outer(colscale, colscale)
+        err[free] = np.where(blind > BLIND_SHARE, math.inf,
+                             np.sqrt(np.clip(np.diag(cov), 0.0, None)))
     t = stats.t.ppf(0.975, max(dof, 1))
     return [Estimate(n, float(v), u, float(e), (float(v - t * e), float(v + t * e)))
             for n, v, u, e in zip(names, result.x, units, err)]
@@ -264,6 +296,12 @@ def fit_curve(m: Measurement) -> FrictionFit:
     names = ["c1", "c2", "c3"] + [f"ripple{i}" for i in range(len(result.x) - 3)]
     units = ["N m s/rad", "N m", "s/rad"] + ["N m"] * (len(result.x) - 3)
     est = estimates(result, names, units, dof)
+    for status, why in (("not determined", "not determined by these data (points at 4 or "
+                                            "more different speeds are needed)"),
+                        ("at a bound", "at a bound of the fit")):
+        which = [e.name for e in est[:3] if e.status == status]
+        if which:
+            notes.append(f"{', '.join(which)}: {why}; no interval")
     return FrictionFit(c1=est[0], c2=est[1], c3=est[2], form=form, velocity=np.asarray(w),
                        torque=np.asarray(T), residual_rms=float(np.sqrt(np.mean(result.fun ** 2))),
                        dof=dof, ripple=ripple, raw=raw, source=m.path, synthetic=m.synthetic,

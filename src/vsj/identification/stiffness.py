@@ -33,7 +33,7 @@ from scipy import stats
 from scipy.optimize import least_squares
 
 from ..errors import InputError, SimulationError
-from ..measurements import Measurement
+from ..measurements import LIMITS, Measurement
 from .friction import Estimate
 
 #: Bands of |phi| whose local stiffness is within this fraction of the innermost
@@ -128,7 +128,13 @@ def pivot_of(m: Measurement) -> float:
                          "comment line '# pivot: 1.4 cm'")
     from ..units import to_si
 
-    return to_si(text, "m", where=f"{m.path}, comment 'pivot'")
+    where = f"{m.path}, comment 'pivot: {text}'"
+    q = to_si(text, "m", where=where)
+    limit, why = LIMITS["pivot"]
+    if not abs(q) <= limit:
+        raise InputError(f"{where}: {q * 100:.3g} cm is beyond +-{limit * 100:g} cm ({why}); "
+                         "check the value and its unit")
+    return q
 
 
 def _direction(m: Measurement) -> np.ndarray:
