@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from vsj.cli import main
-from vsj.output import read_trajectory
+from vsj.output import MANIFEST, read_trajectory, verify
 
 SHORT = """
 name = "short"
@@ -46,6 +46,11 @@ def test_simulate_writes_trajectory_meta_and_plot(tmp_path, capsys):
     assert meta["scenario"]["definition"]["duration"] == "0.3 s"
     assert (out / "trajectory.png").stat().st_size > 1000
     assert "success" in capsys.readouterr().out
+    # the set: every file with its hash in meta.json and in the directory's manifest
+    assert set(meta["files"]) == {"trajectory.nc", "trajectory.csv", "trajectory.png"}
+    assert sorted(p.name for p in out.iterdir()) == sorted([*meta["files"], "meta.json",
+                                                            MANIFEST])
+    assert verify(out) == []
     # the netCDF file holds the same signals, with their units
     import xarray as xr
 
@@ -113,3 +118,29 @@ def test_multi_case_columns_carry_the_case_label(tmp_path):
     with xr.open_dataset(out / "trajectory.nc") as ds:
         assert ds["case"].values.tolist() == ["stiff", "soft"]
         assert np.array_equal(ds["phi_1"].sel(case="soft").values, soft)
+
+
+def test_planetary_fit_without_an_answer_writes_its_results_but_no_parameters(tmp_path,
+                                                                                capsys):
+    files = {}
+    for fixed in ("sun", "ring"):
+        files[fixed] = tmp_path / f"{fixed}.csv"
+        assert main(["synth", "friction", "--fixed", fixed, "--report", "old", "--form",
+                     "points", "--out", str(files[fixed])]) == 0
+    params, out = tmp_path / "mine.toml", tmp_path / "fit"
+    assert main(["fit", "planetary", "--fixed-sun", str(files["sun"]), "--fixed-ring",
+                 str(files["ring"]), "--out", str(out), "--write-params", str(params)]) == 1
+    assert f"{params} not written" in capsys.readouterr().err
+    assert not params.exists() and verify(out) == []
+    assert json.loads((out / "planetary.json").read_text())["explained"] is False
+
+
+def test_an_output_directory_is_checked_before_the_run(tmp_path, capsys):
+    """A file where the output directory should be is refused at once (exit 2), not
+    after the simulation: the run's summary is never printed."""
+    out = tmp_path / "out"
+    out.write_text("not a directory\n")
+    assert main(["simulate", str(write(tmp_path, SHORT)), "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    assert f"--out {out}: exists and is not a directory" in captured.err
+    assert "success" not in captured.out and out.read_text() == "not a directory\n"

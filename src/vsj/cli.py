@@ -35,8 +35,8 @@ def cmd_params(args) -> int:
 
 def cmd_simulate(args) -> int:
     from . import scenario as scenarios
-    from .output import (cases_dataset, ensure_output_dir, parameters_record, write_dataset,
-                         write_meta, write_trajectory)
+    from .output import (ResultSet, cases_dataset, parameters_record, signals_bound,
+                         trajectory_bytes, write_dataset, write_meta, write_trajectory)
     from .progress import progress
     from .simulate import simulate
 
@@ -47,40 +47,42 @@ def cmd_simulate(args) -> int:
     if len(grids) > 1:
         raise InputError(f"{scen.origin}: all cases must share duration and output_step so "
                          "that they fit one trajectory file")
-    out = ensure_output_dir(Path(args.out))
+    (duration, output_step), = grids
+    size = trajectory_bytes(int(duration / output_step + 1e-9) + 1,
+                            max(signals_bound(structure) for _, structure, _, _ in prepared),
+                            len(scen.cases), csv=args.csv, plot=not args.no_plot)
+    out = Path(args.out)
     runs, records = [], []
-    for case, (resolved, structure, inputs, pivot_range) in progress(
-            list(zip(scen.cases, prepared)), desc=f"simulate {scen.name}", unit="case"):
-        result = simulate(structure, inputs, case.duration, options=case.options,
-                          initial=case.initial, pivot_range=pivot_range)
-        runs.append((case.label, result))
-        records.append({"label": case.label, "success": result.success,
-                        "message": result.message, "solver": result.solver,
-                        "ledger": result.ledger, "stick_slip_transitions": result.transitions,
-                        "parameters_hash": resolved.hash(),
-                        "parameter_overrides": dict(case.params)})
-    written = [out / "trajectory.nc"]
-    write_dataset(written[0], cases_dataset(runs))
-    if args.csv:
-        written.append(out / "trajectory.csv")
-        write_trajectory(written[-1], runs)
-    ok = all(r.success for _, r in runs)
-    write_meta(out / "meta.json", {
-        "scenario": {"name": scen.name, "description": scen.description, "origin": scen.origin,
-                     "definition": dict(scen.table)},
-        "parameters": parameters_record(params), "success": ok, "cases": records})
-    if not args.no_plot:
-        from .plots import trajectory_figure
+    with ResultSet(out, "simulate", size=size) as results:
+        for case, (resolved, structure, inputs, pivot_range) in progress(
+                list(zip(scen.cases, prepared)), desc=f"simulate {scen.name}", unit="case"):
+            result = simulate(structure, inputs, case.duration, options=case.options,
+                              initial=case.initial, pivot_range=pivot_range)
+            runs.append((case.label, result))
+            records.append({"label": case.label, "success": result.success,
+                            "message": result.message, "solver": result.solver,
+                            "ledger": result.ledger,
+                            "stick_slip_transitions": result.transitions,
+                            "parameters_hash": resolved.hash(),
+                            "parameter_overrides": dict(case.params)})
+        write_dataset(results.path("trajectory.nc"), cases_dataset(runs))
+        if args.csv:
+            write_trajectory(results.path("trajectory.csv"), runs)
+        if not args.no_plot:
+            from .plots import trajectory_figure
 
-        trajectory_figure(runs, scen.cases[0].network, out / "trajectory.png",
-                          title=f"{scen.name}: {scen.description}")
+            trajectory_figure(runs, scen.cases[0].network, results.path("trajectory.png"),
+                              title=f"{scen.name}: {scen.description}")
+        ok = all(r.success for _, r in runs)
+        write_meta(results.path("meta.json"), {
+            "scenario": {"name": scen.name, "description": scen.description,
+                         "origin": scen.origin, "definition": dict(scen.table)},
+            "parameters": parameters_record(params), "success": ok, "cases": records,
+            "files": results.hashes()})
     for label, result in runs:
         prefix = f"[{label}] " if len(runs) > 1 else ""
         print(prefix + result.summary().replace("\n", "\n" + prefix))
-    written.append(out / "meta.json")
-    if not args.no_plot:
-        written.append(out / "trajectory.png")
-    print(f"wrote {', '.join(str(path) for path in written)}")
+    print(f"wrote {', '.join(str(out / name) for name in results.written)}")
     if not ok:
         failed = [f"{label}: {r.message}" for label, r in runs if not r.success]
         print("simulation failed:\n  " + "\n  ".join(failed), file=sys.stderr)
@@ -115,6 +117,22 @@ def cmd_reproduce(args) -> int:
         for o in result.failed:
             print(f"vsj: {o.name} failed:\n{o.traceback}", file=sys.stderr)
         return 1
+    return 0
+
+
+def cmd_verify(args) -> int:
+    from .output import MANIFEST, read_manifest, verify
+
+    directory = Path(args.dir)
+    if not directory.is_dir():
+        raise InputError(f"{directory}: not a directory")
+    problems = verify(directory)
+    if problems:
+        print(f"{directory}:\n  " + "\n  ".join(problems), file=sys.stderr)
+        return 1
+    sets = read_manifest(directory)["sets"]
+    files = sum(len(entry["files"]) for entry in sets.values())
+    print(f"{directory}: {len(sets)} result set(s), {files} files as {MANIFEST} records them")
     return 0
 
 
@@ -154,6 +172,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="cheaper runs (fewer cases, shorter simulations), same figures and rows")
     p.add_argument("--only", nargs="+", metavar="FIG", help="only these figures (fig-4.13 ...)")
     p.set_defaults(func=cmd_reproduce)
+
+    p = sub.add_parser("verify", help="check that an output directory holds complete result "
+                                      "sets, every file as its manifest records it")
+    p.add_argument("dir", metavar="DIR", help="an output directory of vsj")
+    p.set_defaults(func=cmd_verify)
 
     from . import cli_control, cli_fit
 

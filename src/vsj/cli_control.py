@@ -68,9 +68,12 @@ def _add_wrist_arguments(p, elastic_models, drives) -> None:
 
 def cmd_linearize(args) -> int:
     from . import linear
+    from .output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
     if args.out is not None and Path(args.out).suffix not in (".json", ".npz"):
         raise InputError(f"--out {args.out}: a linear model is written to a .json or .npz file")
+    if args.out is not None:
+        check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES)
     params = _params(args.params)
     model = linear.linearize(
         params, _quantity(args.q, "m", "--q"),
@@ -80,7 +83,8 @@ def cmd_linearize(args) -> int:
         wrist_options=_wrist_options(args), friction=args.friction, inputs=_names(args.inputs),
         outputs=_names(args.outputs), statespace=False)
     if args.out is not None:
-        linear.save(model, Path(args.out))
+        with write_errors("--out", args.out):
+            linear.save(model, Path(args.out))
     if args.json:
         from .output import _jsonable
 
@@ -109,11 +113,13 @@ def cmd_linearize(args) -> int:
 
 def cmd_datasheet(args) -> int:
     from . import datasheet
+    from .output import ResultSet
 
     params = _params(args.params)
-    sheet = datasheet.compute(params, q_points=args.points, friction=args.friction,
-                              elastic=args.elastic)
-    html_path, json_path = datasheet.write(sheet, Path(args.out))
+    with ResultSet(Path(args.out), "datasheet", size=datasheet.OUTPUT_BYTES) as results:
+        sheet = datasheet.compute(params, q_points=args.points, friction=args.friction,
+                                  elastic=args.elastic)
+        html_path, json_path = datasheet.write(sheet, results)
     for key, rating in sheet["ratings"].items():
         print(f"{key.replace('_', ' '):<26} {rating['value']:>10.4g} {rating['unit']:<8} "
               f"{rating['note']}")
@@ -123,8 +129,10 @@ def cmd_datasheet(args) -> int:
 
 def cmd_export_model(args) -> int:
     from . import export
+    from .output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
     from .simulate import InitialState, SimulationOptions
 
+    check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES)
     params = _params(args.params)
     method = args.method or ("timestep" if args.friction == "stiction" else "dopri")
     options = SimulationOptions(friction=args.friction,
@@ -137,10 +145,8 @@ def cmd_export_model(args) -> int:
     initial = InitialState(q=_quantity(args.q, "m", "--q") if args.q is not None else None)
     document = export.model_document(stepper, params=params, initial=initial,
                                      wrist_options=wrist_options)
-    try:
+    with write_errors("--out", args.out):
         export.write_model(Path(args.out), document)
-    except OSError as exc:
-        raise InputError(f"--out {args.out}: cannot write ({exc.strerror or exc})") from None
     print(f"wrote {args.out}: {len(document['inputs'])} inputs "
           f"({', '.join(i['name'] for i in document['inputs'])}), a state of "
           f"{len(document['state'])}, {len(document['outputs'])} outputs; step function "

@@ -7,6 +7,7 @@ standard output (messages go to standard error), so it can be piped.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import sys
@@ -36,20 +37,28 @@ def _say(args, text: str) -> None:
     print(text, file=sys.stderr if getattr(args, "json", False) else sys.stdout)
 
 
-def _emit_json(args, record: dict, out: Path | None, name: str) -> None:
-    from .output import write_meta
-
-    if out is not None:
-        write_meta(out / name, record)
+def _print_json(args, record: dict) -> None:
     if args.json:
         from .output import _jsonable
 
         print(json.dumps(_jsonable(record), indent=2))
 
 
+def _results(out: Path | None, kind: str, **options):
+    """The `vsj.output.ResultSet` of ``--out DIR`` (entering it checks the directory, so
+    enter it before the work), or, without ``--out``, a context that gives None."""
+    from .output import SMALL_OUTPUT_BYTES, ResultSet
+
+    if out is None:
+        return contextlib.nullcontext()
+    return ResultSet(out, kind, size=SMALL_OUTPUT_BYTES, **options)
+
+
 def cmd_synth_friction(args) -> int:
     from . import measurements, synth
+    from .output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
+    check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES)
     if args.report:  # argparse has checked it is 'old' or 'second'
         constants, params = synth.REPORT_CONSTANTS[(args.report, args.fixed)], None
     elif args.constants:
@@ -59,24 +68,42 @@ def cmd_synth_friction(args) -> int:
     data = synth.friction(fixed=args.fixed, constants=constants, params=params, form=args.form,
                           noise=args.noise, ripple_fraction=args.ripple, angle=not args.no_angle,
                           seed=args.seed)
-    measurements.write(args.out, data.columns, data.comments)
+    with write_errors("--out", args.out):
+        measurements.write(args.out, data.columns, data.comments)
     print(f"wrote {args.out} (synthetic, {len(next(iter(data.columns.values()))[0])} rows)")
     return 0
 
 
 def cmd_synth_stiffness(args) -> int:
+    """One curve per pivot position: into a directory as one result set, or, for a single
+    curve, into a ``.csv`` file."""
     from . import measurements, synth
+    from .output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
     params = _params(args.params)
+    bad = [q for q in args.q if not math.isfinite(q)]
+    if bad:
+        raise InputError(f"--q: pivot positions must be finite numbers of cm, got {bad[0]!r}")
     qs = [q / 100 for q in args.q]
     out = Path(args.out)
-    for q in qs:
-        data = synth.stiffness(q=q, params=params, noise=args.noise, play=args.play,
-                               seed=args.seed + int(round(q * 1e4)) % 1000, model=args.model)
-        target = out if len(qs) == 1 and out.suffix == ".csv" else \
-            out / f"stiffness_q{q * 100:+.1f}cm.csv"
-        measurements.write(target, data.columns, data.comments)
-        print(f"wrote {target} (synthetic, q = {q * 100:g} cm)")
+    single = len(qs) == 1 and out.suffix == ".csv"
+    if single:
+        check_output_file(out, "--out", size=SMALL_OUTPUT_BYTES)
+    written = []
+    with _results(None if single else out, "synth stiffness") as results:
+        for q in qs:
+            data = synth.stiffness(q=q, params=params, noise=args.noise, play=args.play,
+                                   seed=args.seed + int(round(q * 1e4)) % 1000, model=args.model)
+            if single:
+                with write_errors("--out", out):
+                    measurements.write(out, data.columns, data.comments)
+                written.append((out, q))
+            else:
+                name = f"stiffness_q{q * 100:+.1f}cm.csv"
+                measurements.write(results.path(name), data.columns, data.comments)
+                written.append((out / name, q))
+    for path, q in written:
+        print(f"wrote {path} (synthetic, q = {q * 100:g} cm)")
     return 0
 
 
@@ -88,37 +115,53 @@ def cmd_fit_friction(args) -> int:
     from . import measurements
     from .identification.friction import fit_curve
     from .identification.plots import friction_figure
+    from .output import write_meta
     from .plots import save
 
     m = measurements.read(args.file, required=("velocity", "torque"))
-    fit = fit_curve(m)
-    record = fit.to_json()
     out = _out(args)
-    _emit_json(args, record, out, Path(args.file).stem + "-friction.json")
+    stem = Path(args.file).stem
+    json_name, png_name = f"{stem}-friction.json", f"{stem}-friction.png"
+    with _results(out, "fit friction", name=f"fit friction {stem}",
+                  files=(json_name, png_name)) as results:
+        fit = fit_curve(m)
+        record = fit.to_json()
+        if results is not None:
+            write_meta(results.path(json_name), record)
+            save(friction_figure(fit), results.path(png_name))
+    _print_json(args, record)
     lines = [f"{args.file}: {fit.form}, {len(fit.velocity)} points"
              + (" [synthetic data]" if fit.synthetic else "")]
     for e in (fit.c1, fit.c2, fit.c3):
-        lines.append(f"  {e.name} = {e.value:.5g} +- {e.stderr:.2g} {e.unit}  "
-                     f"(95 %: {e.ci95[0]:.4g} .. {e.ci95[1]:.4g})")
+        if e.status == "determined":
+            lines.append(f"  {e.name} = {e.value:.5g} +- {e.stderr:.2g} {e.unit}  "
+                         f"(95 %: {e.ci95[0]:.4g} .. {e.ci95[1]:.4g})")
+        else:
+            lines.append(f"  {e.name} = {e.value:.5g} {e.unit}  ({e.status})")
     if fit.ripple is not None:
         lines.append(f"  ripple: rms {fit.ripple.rms * 1e3:.3g} mN m, peak-to-peak "
                      f"{fit.ripple.peak_to_peak * 1e3:.3g} mN m ({fit.ripple.method})")
     lines += [f"  note: {n}" for n in fit.notes]
     if out is not None:
-        path = out / (Path(args.file).stem + "-friction.png")
-        save(friction_figure(fit), path)
-        lines.append(f"wrote {path}, {out / (Path(args.file).stem + '-friction.json')}")
+        lines.append(f"wrote {out / png_name}, {out / json_name}")
     _say(args, "\n".join(lines))
     return 0
 
 
 def _write_params(path: str, overrides: dict, base: str | None) -> None:
-    from .output import atomic_write
+    from .output import atomic_write, write_errors
 
     params = _params(base)
     identified = params.with_overrides(overrides, origin=str(path))
-    with atomic_write(Path(path)) as handle:
+    with write_errors("--write-params", path), atomic_write(Path(path)) as handle:
         handle.write(identified.to_toml())
+
+
+def _check_write_params(args) -> None:
+    from .output import SMALL_OUTPUT_BYTES, check_output_file
+
+    if args.write_params:
+        check_output_file(args.write_params, "--write-params", size=SMALL_OUTPUT_BYTES)
 
 
 def cmd_fit_planetary(args) -> int:
@@ -126,14 +169,20 @@ def cmd_fit_planetary(args) -> int:
     from .identification.friction import fit_curve
     from .identification.planetary import fit_planetary
     from .identification.plots import planetary_figure
+    from .output import write_meta
     from .plots import save
 
-    sun = fit_curve(measurements.read(args.fixed_sun, required=("velocity", "torque")))
-    ring = fit_curve(measurements.read(args.fixed_ring, required=("velocity", "torque")))
-    result = fit_planetary(sun, ring, tooth_ratio=args.tooth_ratio,
-                           significance=args.significance)
+    sun_data = measurements.read(args.fixed_sun, required=("velocity", "torque"))
+    ring_data = measurements.read(args.fixed_ring, required=("velocity", "torque"))
+    _check_write_params(args)
     out = _out(args)
-    _emit_json(args, result.to_json(), out, "planetary.json")
+    with _results(out, "fit planetary") as results:
+        result = fit_planetary(fit_curve(sun_data), fit_curve(ring_data),
+                               tooth_ratio=args.tooth_ratio, significance=args.significance)
+        if results is not None:
+            write_meta(results.path("planetary.json"), result.to_json())
+            save(planetary_figure(result), results.path("planetary.png"))
+    _print_json(args, result.to_json())
     lines = [result.verdict]
     for name, s in result.fits.items():
         lines.append(f"{name} model: {'explains both curves' if s.explains else 'rejected'} "
@@ -153,29 +202,58 @@ def cmd_fit_planetary(args) -> int:
         if chosen.at_bound:
             lines.append("  at a bound: " + ", ".join(chosen.at_bound))
     if out is not None:
-        save(planetary_figure(result), out / "planetary.png")
         lines.append(f"wrote {out / 'planetary.png'}, {out / 'planetary.json'}")
-    if args.write_params:
+    if args.write_params and chosen is not None:
         files = f"{args.fixed_sun} and {args.fixed_ring}"
         _write_params(args.write_params, result.parameter_overrides(files), args.params)
         lines.append(f"wrote {args.write_params}")
     _say(args, "\n".join(lines))
     if chosen is None:
-        print("vsj: no parameter set explains both curves", file=sys.stderr)
+        print("vsj: no parameter set explains both curves"
+              + (f"; {args.write_params} not written" if args.write_params else ""),
+              file=sys.stderr)
         return 1
     return 0
 
 
 def cmd_fit_stiffness(args) -> int:
+    from . import characteristics as ch
     from . import measurements
+    from .components.elastic_element import GEOMETRIC, GEOMETRY_FIELDS
     from .identification.plots import geometry_figure, stiffness_figure
     from .identification.stiffness import fit_stiffness
+    from .output import write_meta
     from .plots import save
 
     data = [measurements.read(f, required=("deflection", "torque")) for f in args.files]
-    fit = fit_stiffness(data)
-    record = fit.to_json()
+    if args.write_params and len(data) < 4 and not args.calibrate_geometry:
+        raise InputError("--write-params: nothing to write: K(q) needs curves at 4 or more "
+                         "pivot positions, and --calibrate-geometry is not given")
+    _check_write_params(args)
     out = _out(args)
+    calibration = start = None
+    with _results(out, "fit stiffness") as results:
+        fit = fit_stiffness(data)
+        record = fit.to_json()
+        if args.calibrate_geometry:
+            from .identification.geometry import calibrate_to_curves
+            from .wrist import geometry
+
+            start = dict(zip(GEOMETRY_FIELDS, geometry(_params(args.params))))
+            calibration = calibrate_to_curves(fit.curves, start)
+            record["geometry"] = calibration.to_json()
+        if results is not None:
+            write_meta(results.path("stiffness.json"), record)
+            model_K = None
+            if calibration is not None:
+                row = _row(calibration.dimensions, start)
+                model_K = lambda q: ch.stiffness(GEOMETRIC, row, q)  # noqa: E731
+            save(stiffness_figure(fit, model_K), results.path("stiffness.png"))
+            if calibration is not None:
+                save(geometry_figure(calibration, fit.curves, _row(start, start),
+                                     _row(calibration.dimensions, start)),
+                     results.path("geometry.png"))
+    _print_json(args, record)
     lines = []
     for c in fit.curves:
         extra = []
@@ -194,17 +272,8 @@ def cmd_fit_stiffness(args) -> int:
                      f"(relative rms {e.relative_rms:.2g})")
     else:
         lines.append("K(q) not fitted: curves at 4 or more pivot positions are needed")
-    calibration = None
     overrides = {}
-    if args.calibrate_geometry:
-        from .components.elastic_element import GEOMETRY_FIELDS
-        from .identification.geometry import calibrate_to_curves
-        from .wrist import geometry
-
-        base = _params(args.params)
-        start = dict(zip(GEOMETRY_FIELDS, geometry(base)))
-        calibration = calibrate_to_curves(fit.curves, start)
-        record["geometry"] = calibration.to_json()
+    if calibration is not None:
         lines.append(f"geometry calibrated: relative rms {calibration.rms_before:.3g} -> "
                      f"{calibration.rms_after:.3g}")
         units = {"spring_stiffness": "N/m"}
@@ -213,20 +282,9 @@ def cmd_fit_stiffness(args) -> int:
             value = v * 100 if unit == "cm" else v
             overrides[f"elastic_element.{k}"] = {"value": f"{value:.6g} {unit}"}
             lines.append(f"  {k} = {value:.5g} {unit}")
-    _emit_json(args, record, out, "stiffness.json")
     if out is not None:
-        from .components.elastic_element import GEOMETRIC
-        from . import characteristics as ch
-
-        model_K = None
-        if calibration is not None:
-            row = _row(calibration.dimensions, start)
-            model_K = lambda q: ch.stiffness(GEOMETRIC, row, q)  # noqa: E731
-        save(stiffness_figure(fit, model_K), out / "stiffness.png")
         lines.append(f"wrote {out / 'stiffness.png'}, {out / 'stiffness.json'}")
         if calibration is not None:
-            save(geometry_figure(calibration, fit.curves, _row(start, start),
-                                 _row(calibration.dimensions, start)), out / "geometry.png")
             lines.append(f"wrote {out / 'geometry.png'}")
     if args.write_params:
         if e is not None:
@@ -234,8 +292,6 @@ def cmd_fit_stiffness(args) -> int:
                                       ("a3", "N m/rad", 1)):
                 overrides[f"elastic_element.{name}"] = {
                     "value": f"{getattr(e, name).value * scale:.6g} {unit}"}
-        if not overrides:
-            raise InputError("nothing to write: no K(q) fit and no --calibrate-geometry")
         source = "identified from " + ", ".join(args.files)
         for v in overrides.values():
             v["source"] = source

@@ -508,18 +508,26 @@ def _finite(value: float) -> str:
     return f"{value:.3g}" if math.isfinite(value) else "none"
 
 
-def write(sheet: dict, out_dir: Path) -> tuple[Path, Path]:
-    """Write ``datasheet.html`` (with figures) and ``datasheet.json`` into ``out_dir``."""
-    from .output import _jsonable, atomic_write, ensure_output_dir
+#: A conservative bound on the bytes `write` puts in its directory (about 1 MB).
+OUTPUT_BYTES = 16 * 2 ** 20
 
-    out = ensure_output_dir(Path(out_dir))
+
+def write(sheet: dict, out) -> tuple[Path, Path]:
+    """Write ``datasheet.html`` (with figures) and ``datasheet.json``: into the directory
+    ``out``, replacing a previous datasheet there as a unit, or into ``out``, an open
+    `vsj.output.ResultSet` of kind ``datasheet`` (checked before the sheet was computed).
+    Returns where the two files are (or will be, once the set is committed)."""
+    from .output import ResultSet, _jsonable, atomic_write
+
+    if not isinstance(out, ResultSet):
+        with ResultSet(Path(out), "datasheet", size=OUTPUT_BYTES) as results:
+            return write(sheet, results)
     page = html_page(sheet, figures(sheet))
-    html_path, json_path = out / "datasheet.html", out / "datasheet.json"
-    with atomic_write(html_path) as handle:
+    with atomic_write(out.path("datasheet.html")) as handle:
         handle.write(page)
-    with atomic_write(json_path) as handle:
+    with atomic_write(out.path("datasheet.json")) as handle:
         handle.write(json.dumps(_jsonable(sheet), indent=1) + "\n")
-    return html_path, json_path
+    return out.out / "datasheet.html", out.out / "datasheet.json"
 
 
 __all__ = ["compute", "figures", "html_page", "write", "DEFAULT_FRICTION"]

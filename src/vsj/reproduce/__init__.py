@@ -5,8 +5,8 @@
 readable) and ``report.html`` (one self-contained page: figures embedded as
 base64 PNG, captions, the comparison table). A figure that fails is reported
 with its error and the others are still made; `run` then says so and the
-command exits 1. Each file is written atomically, so a failed or interrupted
-run never leaves a half-written file in place of a good one.
+command exits 1. The files are replaced as one set (`vsj.output.ResultSet`), so a
+failed or interrupted run leaves the previous reproduction as it was.
 """
 
 from __future__ import annotations
@@ -99,11 +99,17 @@ def _row_json(where: str, row: Row) -> dict:
             "relative_difference": row.difference(), "note": row.note}
 
 
+#: A conservative bound on the bytes `run` writes (a full run writes about 8 MB).
+OUTPUT_BYTES = 64 * 2 ** 20
+
+
 def run(out: Path, params: Parameters, *, reduced: bool = False, only=None,
         seed: int = 2026) -> Reproduction:
-    """Regenerate the figures (all, or the names in ``only``) into ``out``."""
+    """Regenerate the figures (all, or the names in ``only``) into ``out``, replacing the
+    previous reproduction there as a unit (`vsj.output.ResultSet`); the directory is
+    checked before any figure is made."""
     from ..errors import InputError
-    from ..output import atomic_write
+    from ..output import ResultSet, _jsonable, atomic_write
     from ..plots import save
     from ..progress import progress
 
@@ -112,37 +118,40 @@ def run(out: Path, params: Parameters, *, reduced: bool = False, only=None,
     unknown = [n for n in names if n not in table]
     if unknown:
         raise InputError(f"unknown figure(s) {', '.join(unknown)}; known: {', '.join(table)}")
-    out.mkdir(parents=True, exist_ok=True)
-    ctx = Context(params=params, reduced=reduced, seed=seed)
-    outcomes = []
-    for name in progress(names, desc="reproduce", unit="fig"):
-        outcome = Outcome(name)
-        try:
-            fig = table[name](ctx)
-            save(fig.figure, out / f"{name}.png", svg=True)
-            outcome.png = (out / f"{name}.png").read_bytes()  # embedded in the page
-            outcome.figure = fig
-            outcome.files = [f"{name}.png", f"{name}.svg"]
-        except Exception as exc:  # a failing figure must not stop the others
-            outcome.error = f"{type(exc).__name__}: {exc}"
-            outcome.traceback = traceback.format_exc()
-        outcomes.append(outcome)
-    result = Reproduction(out, outcomes, table_4_1(params), reduced)
-    record = {
-        "reduced": reduced, "seed": seed, "parameters_hash": params.hash(),
-        "figures": {o.name: {"files": o.files, "error": o.error,
-                             "synthetic": o.figure.synthetic if o.figure else None,
-                             "caption": o.figure.caption if o.figure else None}
-                    for o in outcomes},
-        "rows": [_row_json(w, r) for w, r in result.rows()],
-        "success": not result.failed,
-    }
-    from ..output import _jsonable
-
-    with atomic_write(out / "results.json") as handle:
-        handle.write(json.dumps(_jsonable(record), indent=2))
-    with atomic_write(out / "report.html") as handle:
-        handle.write(render_html(result, params))
+    out = Path(out)
+    with ResultSet(out, "reproduce", size=OUTPUT_BYTES) as results:
+        ctx = Context(params=params, reduced=reduced, seed=seed)
+        outcomes = []
+        for name in progress(names, desc="reproduce", unit="fig"):
+            outcome = Outcome(name)
+            try:
+                fig = table[name](ctx)
+                png = results.path(f"{name}.png")
+                save(fig.figure, png, svg=True)
+                outcome.png = png.read_bytes()  # embedded in the page
+                outcome.figure = fig
+                outcome.files = [f"{name}.png", f"{name}.svg"]
+            except Exception as exc:
+                if isinstance(exc, OSError) and results.from_writing(exc):
+                    raise  # a failing disk ends the run (and the set is discarded);
+                # a failing figure does not stop the others
+                outcome.error = f"{type(exc).__name__}: {exc}"
+                outcome.traceback = traceback.format_exc()
+            outcomes.append(outcome)
+        result = Reproduction(out, outcomes, table_4_1(params), reduced)
+        record = {
+            "reduced": reduced, "seed": seed, "parameters_hash": params.hash(),
+            "figures": {o.name: {"files": o.files, "error": o.error,
+                                 "synthetic": o.figure.synthetic if o.figure else None,
+                                 "caption": o.figure.caption if o.figure else None}
+                        for o in outcomes},
+            "rows": [_row_json(w, r) for w, r in result.rows()],
+            "success": not result.failed,
+        }
+        with atomic_write(results.path("results.json")) as handle:
+            handle.write(json.dumps(_jsonable(record), indent=2))
+        with atomic_write(results.path("report.html")) as handle:
+            handle.write(render_html(result, params))
     return result
 
 
