@@ -136,7 +136,7 @@ def test_export_model_command_writes_what_the_library_reads(step_wrist, tmp_path
     (lambda d: d["engine"].update(xc=d["engine"]["xc"][:-1]), "engine.xc: expected"),
     (lambda d: d["engine"].update(code=[99] * len(d["engine"]["code"])), "unknown law"),
     (lambda d: d.update(format="other"), 'model.format: expected "vsj-model"'),
-    (lambda d: d.update(version=2), "model.version"),
+    (lambda d: d.update(version=1), "model.version"),
     (lambda d: d["solver"].update(method="euler"), "solver.method"),
     (lambda d: d["inputs"].pop(), "model.inputs: 4 names for 5 input channels"),
     (lambda d: d.update(initial_state=d["initial_state"][:-1]), "initial_state: expected"),

@@ -25,11 +25,11 @@ from .stepper import METHODS, Stepper
 from .wrist import WristOptions
 
 FORMAT = "vsj-model"
-VERSION = 1
+VERSION = 2
 
 #: The engine arrays, in the order of ``vsj_model``.
 ENGINE_ARRAYS = ("dims", "mass", "Minv", "xp", "xc", "xv", "up", "uc", "uv", "par", "code",
-                 "src_ch", "src_pos0", "knots", "coef", "cum", "first", "count")
+                 "src_ch", "src_pos0", "knots", "coef", "cum", "first", "count", "table")
 
 
 def wrist_stepper(params: Parameters, wrist_options: WristOptions | None = None, *,

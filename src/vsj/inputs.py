@@ -104,11 +104,13 @@ class Constant(Input):
 
 @dataclass(frozen=True)
 class Sine(Input):
-    """``offset + amplitude * envelope(t) * sin(2 pi f (t - start) + phase)`` from ``start``.
+    """``offset + amplitude * envelope(t) * sin(2 pi f (t - start) + phase)`` from
+    ``start`` until ``stop``.
 
-    Before ``start`` only ``offset`` remains. ``fade_in`` [s] raises the
-    envelope smoothly (a quintic smoothstep) from 0 to 1, so a velocity source
-    can start from rest without a jump in speed or acceleration.
+    Outside ``[start, stop)`` only ``offset`` remains (``stop`` defaults to
+    never). ``fade_in`` [s] raises the envelope smoothly (a quintic
+    smoothstep) from 0 to 1, so a velocity source can start from rest without a
+    jump in speed or acceleration.
     """
 
     amplitude: float
@@ -117,6 +119,7 @@ class Sine(Input):
     offset: float = 0.0
     start: float = 0.0
     fade_in: float = 0.0
+    stop: float = math.inf
 
     def __post_init__(self):
         for name in ("amplitude", "phase", "offset", "start"):
@@ -127,42 +130,95 @@ class Sine(Input):
             raise InputError(f"sine input: frequency must be > 0 Hz, got {self.frequency!r}")
         if not (math.isfinite(self.fade_in) and self.fade_in >= 0.0):
             raise InputError(f"sine input: fade_in must be >= 0 s, got {self.fade_in!r}")
+        if math.isnan(self.stop) or not self.stop > self.start:
+            raise InputError(f"sine input: stop must be after start ({self.start!r} s), got "
+                             f"{self.stop!r}")
 
-    def value(self, t):
-        t = np.asarray(t, dtype=float)
-        tau = t - self.start
+    def _wave(self, t):
+        """The sine from ``start`` on, ignoring ``stop``."""
+        tau = np.asarray(t, dtype=float) - self.start
         env = np.ones_like(tau)
         if self.fade_in > 0.0:
             z = np.clip(tau / self.fade_in, 0.0, 1.0)
             env = z ** 3 * (10.0 - 15.0 * z + 6.0 * z * z)
-        wave = self.amplitude * env * np.sin(2 * np.pi * self.frequency * tau + self.phase)
-        return self.offset + np.where(tau >= 0.0, wave, 0.0)
+        return self.offset + self.amplitude * env * np.sin(2 * np.pi * self.frequency * tau
+                                                           + self.phase)
+
+    def value(self, t):
+        t = np.asarray(t, dtype=float)
+        return np.where((t >= self.start) & (t < self.stop), self._wave(t), self.offset)
 
     def _step(self) -> float:
         step = 1.0 / (400.0 * self.frequency)
         return min(step, self.fade_in / 100.0) if self.fade_in > 0.0 else step
 
-    def _onset(self, t_end: float) -> bool:
-        return 0.0 < self.start < t_end
+    def _segments(self, t_end: float) -> list[tuple[float, float, bool]]:
+        """(from, to, waving) over ``[0, t_end]``: the onset and the stop on knots, so
+        that the spline does not smear them."""
+        on, off = max(self.start, 0.0), min(self.stop, t_end)
+        if not on < off:
+            return [(0.0, t_end, False)]
+        segments = [(0.0, on, False)] if on > 0.0 else []
+        segments.append((on, off, True))
+        if off < t_end:
+            segments.append((off, t_end, False))
+        return segments
 
     def pieces(self, t_end: float) -> Pieces:
-        if self._onset(t_end):
-            # keep the onset on a knot so the spline does not smear it
-            before = Constant(self.offset).pieces(self.start)
-            k2, c2 = _sampled(lambda t: self.value(t + self.start), t_end - self.start,
-                              self._step())
-            return np.concatenate([before[0][:-1], k2 + self.start]), np.vstack([before[1], c2])
-        return _sampled(self.value, t_end, self._step())
+        knots, coefs = [], []
+        for a, b, waving in self._segments(t_end):
+            if waving:
+                k, c = _sampled(lambda t, a=a: self._wave(t + a), b - a, self._step())
+                k = k + a
+            else:
+                k, c = np.array([a, max(b, a + 1e-9)]), np.array([[self.offset, 0, 0, 0]])
+            knots.append(k if not knots else k[1:])
+            coefs.append(c)
+        return np.concatenate(knots), np.vstack(coefs).astype(float)
 
     def knots(self, t_end: float) -> int:
-        if self._onset(t_end):
-            return 2 + _intervals(t_end - self.start, self._step())
-        return 1 + _intervals(t_end, self._step())
+        return 1 + sum(_intervals(b - a, self._step()) if waving else 1
+                       for a, b, waving in self._segments(t_end))
 
     def describe(self) -> str:
+        until = f", stop {self.stop:g} s" if math.isfinite(self.stop) else ""
         return (f"sine amplitude {self.amplitude:g}, {self.frequency:g} Hz, phase "
-                f"{self.phase:g} rad, offset {self.offset:g}, start {self.start:g} s, "
+                f"{self.phase:g} rad, offset {self.offset:g}, start {self.start:g} s{until}, "
                 f"fade-in {self.fade_in:g} s")
+
+
+@dataclass(frozen=True)
+class Step(Input):
+    """``offset`` before ``start``, ``offset + height`` from then on (as Modelica's
+    ``Blocks.Sources.Step``): a clutch or brake engaged or released at an instant."""
+
+    height: float = 1.0
+    start: float = 0.0
+    offset: float = 0.0
+
+    def __post_init__(self):
+        for name in ("height", "start", "offset"):
+            if not math.isfinite(getattr(self, name)):
+                raise InputError(f"step input: {name} must be finite, got "
+                                 f"{getattr(self, name)!r}")
+
+    def value(self, t):
+        t = np.asarray(t, dtype=float)
+        return np.where(t >= self.start, self.offset + self.height, self.offset)
+
+    def pieces(self, t_end: float) -> Pieces:
+        if 0.0 < self.start < t_end:
+            return (np.array([0.0, self.start, t_end]),
+                    np.array([[self.offset, 0, 0, 0], [self.offset + self.height, 0, 0, 0]],
+                             dtype=float))
+        level = self.offset + (self.height if self.start <= 0.0 else 0.0)
+        return Constant(level).pieces(t_end)
+
+    def knots(self, t_end: float) -> int:
+        return 3 if 0.0 < self.start < t_end else 2
+
+    def describe(self) -> str:
+        return f"step of {self.height:g} at {self.start:g} s from {self.offset:g}"
 
 
 @dataclass(frozen=True)

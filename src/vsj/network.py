@@ -53,6 +53,18 @@ class Friction:
     ``viscous`` [N m s/rad], ``stiction`` (the report's ``k``, saturation level
     ``k pi/2``) [N m] and ``sharpness`` (arctan ``k_b``) [s/rad] are physical;
     the law is chosen per run (`vsj.friction`), unless ``law`` fixes it here.
+
+    Clutches and brakes (`vsj.components.clutch`) scale the level: by the value
+    of input channel ``normal`` (a normalised normal force, clipped to [0, 1])
+    and by ``table``'s coefficient at the slip speed (rows of slip speed
+    [rad/s] >= 0 and coefficient, linear between rows, constant beyond). With
+    true stiction a stuck element holds up to ``peak`` (>= 1) times the level
+    at zero speed before it breaks away.
+
+    ``damper`` marks a damper (a spring-damper's viscous part): the
+    time-stepper integrates its viscous part with the trapezoidal rule, as it
+    does springs, so an oscillator keeps second-order accuracy; other
+    elements' viscous parts take implicit Euler, which damps however stiff.
     """
 
     name: str
@@ -61,6 +73,10 @@ class Friction:
     stiction: float = 0.0
     sharpness: float = 10.0
     law: str | None = None
+    peak: float = 1.0
+    normal: str | None = None
+    table: tuple[tuple[float, float], ...] | None = None
+    damper: bool = False
 
 
 @dataclass(frozen=True)
@@ -462,9 +478,11 @@ class Structure:
         return self.A[i].copy(), self.B[i].copy()
 
     def channels(self) -> tuple[str, ...]:
-        """Input channels in the order the engine stores them (sources first)."""
+        """Input channels in the order the engine stores them (sources first, then
+        loads, motor voltages and normal forces)."""
         names = [s.channel for s in self.sources]
         names += [ld.channel for ld in self.loads] + [m.channel for m in self.motors]
+        names += [f.normal for f in self.frictions if f.normal is not None]
         return tuple(dict.fromkeys(names))
 
     def describe(self) -> str:

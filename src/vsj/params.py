@@ -42,9 +42,13 @@ class Spec:
     maximum: float | None = None
     strict: bool = False  # minimum excluded
     nonzero: bool = False
+    infinite: bool = False  # "inf <unit>" allowed (a rigid element)
+    default: float | None = None  # SI value used when a file leaves the key out
 
     def check(self, value: float) -> str | None:
         """Why ``value`` is not allowed, or None."""
+        if self.infinite and value == math.inf:
+            return None
         if not math.isfinite(value):
             return "must be finite"
         if self.minimum is not None:
@@ -92,8 +96,8 @@ SCHEMA: dict[str, dict[str, Spec]] = {
         "rest_length": Spec("m", "cm", "spring rest length, s0"),
         "spring_stiffness": Spec("N/m", "N/m", "stiffness of each spring, k", 0.0, strict=True),
         "end_stop": Spec("rad", "rad", "deflection of the physical end stop", 0.0, strict=True),
-        "end_stop_stiffness": Spec("N*m", "N m/rad", "stiffness of the end stop", 0.0,
-                                   strict=True),
+        "end_stop_stiffness": Spec("N*m", "N m/rad", "stiffness of the end stop ('inf N m/rad': "
+                                   "rigid)", 0.0, strict=True, infinite=True),
         "a1": Spec("N*m", "N m/rad", "simplified model K = a1 exp(a2 q) + a3: a1"),
         "a2": Spec("1/m", "1/cm", "simplified model: a2", None),
         "a3": Spec("N*m", "N m/rad", "simplified model: a3"),
@@ -142,6 +146,8 @@ SCHEMA: dict[str, dict[str, Spec]] = {
     "friction": {
         "arctan_sharpness": Spec("s", "s/rad", "arctan sharpness k_b of bearings, transmissions, "
                                  "differential, lever and pivot", 0.0, strict=True),
+        "peak": Spec("1", "1", "breakaway peak of the same elements under true stiction: static "
+                     "over kinetic Coulomb level (MSL's peak; 1: none)", 1.0, default=1.0),
     },
 }
 
@@ -292,7 +298,8 @@ def _from_table(table: Mapping, origin: str) -> Parameters:
                                 "from, e.g. \"report table 4.1\" or \"estimated: <how>\")")
                 source = ""
             try:
-                value = to_si(entry["value"], spec.unit, where=f"{origin}: {key}")
+                value = to_si(entry["value"], spec.unit, where=f"{origin}: {key}",
+                              infinite=spec.infinite)
             except InputError as exc:
                 problems.append(str(exc))
                 continue
@@ -307,7 +314,13 @@ def _from_table(table: Mapping, origin: str) -> Parameters:
     for section, specs in SCHEMA.items():
         for name in specs:
             key = f"{section}.{name}"
-            if key not in values and not any(p.startswith(f"{origin}: {key}") for p in problems):
+            if key not in values and specs[name].default is not None and not any(
+                    p.startswith(f"{origin}: {key}") for p in problems):
+                values[key] = specs[name].default
+                sources[key] = "default (not in the file)"
+                texts[key] = format_quantity(specs[name].default, specs[name].display)
+            elif key not in values and not any(p.startswith(f"{origin}: {key}")
+                                               for p in problems):
                 problems.append(f"{origin}: {key}: missing ({specs[name].description}, "
                                 f"unit {specs[name].display})")
     if not problems:

@@ -34,7 +34,7 @@ overrides, and optionally several ``[[cases]]`` that each override part of it
     initial = { q = "0.5 cm" }
 
 Input kinds: ``constant`` (value), ``sine`` (amplitude, frequency, phase,
-offset, start, fade_in), ``table`` (times, values, time_unit, unit,
+offset, start, fade_in, stop), ``step`` (height, start, offset), ``table`` (times, values, time_unit, unit,
 interpolation), ``steps`` (levels, unit, hold, ramp, start: plateaus joined by
 ramps), ``position`` (signal: an angle whose derivative drives a velocity
 source) and ``circle`` (radius, period, fade_in, axis: a position input).
@@ -60,7 +60,7 @@ from typing import Any, Callable, Mapping
 from . import benches
 from .errors import InputError, read_text
 from .friction import law_code
-from .inputs import Constant, Input, Position, Sine, Table, circle
+from .inputs import Constant, Input, Position, Sine, Step, Table, circle
 from .network import Network
 from .params import Parameters
 from .simulate import (InitialState, SimulationOptions, check_run_size, choose_solver,
@@ -84,7 +84,8 @@ SOLVERS = ("auto", "dopri", "timestep")
 INITIAL_KEYS = {"q", "angles", "speeds", "currents"}
 INPUT_KINDS = {
     "constant": {"kind", "value"},
-    "sine": {"kind", "amplitude", "frequency", "phase", "offset", "start", "fade_in"},
+    "sine": {"kind", "amplitude", "frequency", "phase", "offset", "start", "fade_in", "stop"},
+    "step": {"kind", "height", "start", "offset"},
     "table": {"kind", "times", "values", "time_unit", "unit", "interpolation"},
     "steps": {"kind", "levels", "unit", "hold", "ramp", "start"},
     "position": {"kind", "signal"},
@@ -240,7 +241,12 @@ def _signal(kind: str, spec: Mapping, unit: str, where: Where) -> tuple[Callable
                       "phase": _quantity(spec, "phase", "rad", where, 0.0),
                       "offset": _quantity(spec, "offset", unit, where, 0.0),
                       "start": _quantity(spec, "start", "s", where, 0.0),
-                      "fade_in": _quantity(spec, "fade_in", "s", where, 0.0, nonnegative=True)}
+                      "fade_in": _quantity(spec, "fade_in", "s", where, 0.0, nonnegative=True),
+                      "stop": _quantity(spec, "stop", "s", where, math.inf)}
+    if kind == "step":
+        return Step, {"height": _quantity(spec, "height", unit, where),
+                      "start": _quantity(spec, "start", "s", where, 0.0),
+                      "offset": _quantity(spec, "offset", unit, where, 0.0)}
     if kind == "circle":
         return circle, {
             "radius": _quantity(spec, "radius", "rad", where),

@@ -92,14 +92,15 @@ def _check_unit(unit: str) -> str | None:
     return None
 
 
-def to_si(text: str | float | int, unit: str, *, where: str) -> float:
+def to_si(text: str | float | int, unit: str, *, where: str, infinite: bool = False) -> float:
     """Parse ``text`` (a number with a unit) and return its finite value in the SI unit.
 
     ``unit`` is the SI unit the quantity must be convertible to (``"1"`` for a
     dimensionless number, in which case a bare number is accepted). ``where``
     names the origin (file and key) for the error message. Anything but `FORM`,
     and values that are NaN, infinite, or overflow or underflow on conversion,
-    raise `InputError`.
+    raise `InputError`; with ``infinite``, a written ``inf`` (such as
+    ``"inf N m/rad"``, a rigid stop) is returned as +inf.
     """
     import pint
 
@@ -142,6 +143,9 @@ def to_si(text: str | float | int, unit: str, *, where: str) -> float:
             raise InputError(f"{where}: {text!r} is too small to represent in {unit} (below "
                              "5e-324)")
         value = converted
+        if infinite and value == math.inf and number.group(1).lower().lstrip("+") in (
+                "inf", "infinity"):
+            return value
     if not math.isfinite(value):
         raise InputError(f"{where}: {text!r} is not a finite number in {unit} (NaN, infinite, "
                          "or beyond the largest floating-point number, 1.8e308)")

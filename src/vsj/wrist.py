@@ -86,7 +86,8 @@ def elastic_element(name: str, params: Parameters, model: str,
     return ElasticElement(name, model=model, geometry=geometry(params),
                           exponential=exponential(params), stiffness=linear_stiffness,
                           friction_viscous=ee.lever_viscous, friction_stiction=ee.lever_stiction,
-                          friction_sharpness=params.friction.arctan_sharpness)
+                          friction_sharpness=params.friction.arctan_sharpness,
+                          friction_peak=params.friction.peak)
 
 
 def planetary(name: str, params: Parameters) -> PlanetaryGearModule:
@@ -99,7 +100,8 @@ def planetary(name: str, params: Parameters) -> PlanetaryGearModule:
         ring_bearing_stiction=pg.ring_bearing_stiction,
         carrier_bearing_viscous=pg.carrier_bearing_viscous,
         carrier_bearing_stiction=pg.carrier_bearing_stiction, mesh_stiction=pg.mesh_stiction,
-        mesh_sharpness=pg.mesh_sharpness, bearing_sharpness=params.friction.arctan_sharpness)
+        mesh_sharpness=pg.mesh_sharpness, bearing_sharpness=params.friction.arctan_sharpness,
+        peak=params.friction.peak)
 
 
 def motor(name: str, params: Parameters, drive: str, channel: str):
@@ -119,16 +121,17 @@ def build_wrist(params: Parameters, options: WristOptions | None = None) -> Netw
     options.validate()
     net = Network("wrist")
     tr = params.transmission
-    sharp = params.friction.arctan_sharpness
+    sharp, peak = params.friction.arctan_sharpness, params.friction.peak
     dif = params.differential
     net.add(Differential("diff", inertia_x=dif.inertia_x, inertia_y=dif.inertia_y,
-                         viscous=dif.viscous, stiction=dif.stiction, sharpness=sharp))
+                         viscous=dif.viscous, stiction=dif.stiction, sharpness=sharp,
+                         peak=peak))
     for i in (1, 2):
         net.add(motor(f"motor_{i}", params, options.motors, str(i)),
                 planetary(f"pg_{i}", params),
                 elastic_element(f"vsm_{i}", params, options.elastic, options.linear_stiffness),
                 Transmission(f"tr_{i}", ratio=tr.ratio, viscous=tr.viscous, stiction=tr.stiction,
-                             sharpness=sharp,
+                             sharpness=sharp, peak=peak,
                              compliance=params[f"transmission.series_compliance_{i}"],
                              damping=tr.series_damping))
         net.connect(f"motor_{i}.flange", f"pg_{i}.sun")
@@ -147,7 +150,7 @@ def build_wrist(params: Parameters, options: WristOptions | None = None) -> Netw
         net.add(motor("motor_s", params, options.pivot_drive, "s"),
                 PivotMechanism("pivot", ratio=pv.ratio, amplitude=pv.amplitude,
                                inertia=pv.inertia, viscous=pv.viscous, stiction=pv.stiction,
-                               sharpness=sharp))
+                               sharpness=sharp, peak=peak))
         net.connect("motor_s.flange", "pivot.input")
     for name, flange, text in [
         ("theta_x", "diff.theta_x", "end-effector angle about x"),

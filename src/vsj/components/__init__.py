@@ -1,6 +1,7 @@
 """Sub-models of the wrist, one module per physical part, all on flanges (`vsj.ports`)."""
 
-from .basic import Bearing, Fixed, IdealGear, Inertia, TorqueSource, VelocitySource
+from .basic import Bearing, Fixed, IdealGear, Inertia, SpringDamper, TorqueSource, VelocitySource
+from .clutch import Brake, Clutch
 from .differential import Differential
 from .elastic_element import ElasticElement
 from .motor import DCMotor
@@ -9,7 +10,7 @@ from .planetary import IdealPlanetary, PlanetaryGearModule
 from .transmission import Transmission
 
 __all__ = [
-    "Bearing", "DCMotor", "Differential", "ElasticElement", "Fixed", "FixedPivot", "IdealGear",
-    "IdealPlanetary", "Inertia", "PivotMechanism", "PlanetaryGearModule", "TorqueSource",
-    "Transmission", "VelocitySource",
+    "Bearing", "Brake", "Clutch", "DCMotor", "Differential", "ElasticElement", "Fixed",
+    "FixedPivot", "IdealGear", "IdealPlanetary", "Inertia", "PivotMechanism",
+    "PlanetaryGearModule", "SpringDamper", "TorqueSource", "Transmission", "VelocitySource",
 ]

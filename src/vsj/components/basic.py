@@ -1,4 +1,5 @@
-"""Basic one- and two-flange elements: inertia, ground, sources, ideal gear.
+"""Basic one- and two-flange elements: inertia, ground, sources, ideal gear,
+bearing, spring-damper.
 
 Port convention: `vsj.ports`. Each element here is ideal; losses and inertia
 are added by composing elements (as in Modelica's Rotational library).
@@ -8,16 +9,9 @@ from __future__ import annotations
 
 import math
 
-from ..network import PRESCRIBED, Component, Constraint, Friction, Load, Parts, Source
-
-
-def _positive(name: str, value: float, *, allow_zero: bool = True) -> float:
-    value = float(value)
-    ok = value >= 0.0 if allow_zero else value > 0.0
-    if not ok or math.isnan(value):
-        bound = ">= 0" if allow_zero else "> 0"
-        raise ValueError(f"{name} must be {bound}, got {value!r}")
-    return value
+from ..network import PRESCRIBED, Component, Constraint, Friction, Load, Parts, Source, Spring
+from ._values import _peak, _positive
+from .elastic_element import LINEAR, N_PARAMETERS
 
 
 class Inertia(Component):
@@ -110,13 +104,39 @@ class Bearing(Component):
     ports = ("flange",)
 
     def __init__(self, name: str, *, viscous: float = 0.0, stiction: float = 0.0,
-                 sharpness: float = 10.0):
+                 sharpness: float = 10.0, peak: float = 1.0):
         super().__init__(name)
         self.viscous = _positive(f"viscous friction of {name}", viscous)
         self.stiction = _positive(f"stiction of {name}", stiction)
         self.sharpness = _positive(f"arctan sharpness of {name}", sharpness, allow_zero=False)
+        self.peak = _peak(name, peak)
 
     def parts(self) -> Parts:
         f = self.port("flange")
         return Parts(flanges=[f], frictions=[Friction(self.name, {f: 1.0}, self.viscous,
-                                                      self.stiction, self.sharpness)])
+                                                      self.stiction, self.sharpness,
+                                                      peak=self.peak)])
+
+
+class SpringDamper(Component):
+    """A linear spring ``stiffness`` [N m/rad] and a damper ``damping`` [N m s/rad]
+    in parallel between flanges ``a`` and ``b``, on the relative angle ``b - a``
+    (Modelica's ``SpringDamper``; the spring is at rest where the angles agree)."""
+
+    ports = ("a", "b")
+
+    def __init__(self, name: str, *, stiffness: float, damping: float = 0.0):
+        super().__init__(name)
+        self.stiffness = _positive(f"stiffness of {name}", stiffness, allow_zero=False)
+        self.damping = _positive(f"damping of {name}", damping)
+
+    def parts(self) -> Parts:
+        a, b = self.port("a"), self.port("b")
+        parts = Parts(flanges=[a, b], springs=[
+            Spring(self.name, {b: 1.0, a: -1.0}, LINEAR,
+                   (self.stiffness,) + (0.0,) * (N_PARAMETERS - 1))])
+        if self.damping > 0.0:
+            parts.frictions.append(Friction(f"{self.name}.damper", {b: 1.0, a: -1.0},
+                                            self.damping, 0.0, 1.0, law="viscous",
+                                            damper=True))
+        return parts

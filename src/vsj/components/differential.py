@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..network import Component, Constraint, Friction, Parts
-from .basic import _positive
+from ._values import _peak, _positive
 
 #: The kinematic map of eq 3.31: (theta_x, theta_y) = MAP @ (psi_1, psi_2).
 MAP = np.array([[0.5, 0.5], [0.5, -0.5]])
@@ -27,8 +27,10 @@ class Differential(Component):
     ports = ("input_1", "input_2", "theta_x", "theta_y")
 
     def __init__(self, name: str, *, inertia_x: float = 0.0, inertia_y: float = 0.0,
-                 viscous: float = 0.0, stiction: float = 0.0, sharpness: float = 10.0):
+                 viscous: float = 0.0, stiction: float = 0.0, sharpness: float = 10.0,
+                 peak: float = 1.0):
         super().__init__(name)
+        self.peak = _peak(name, peak)
         self.inertia_x = _positive(f"{name}: inertia_x", inertia_x)
         self.inertia_y = _positive(f"{name}: inertia_y", inertia_y)
         self.viscous = _positive(f"{name}: viscous", viscous)
@@ -55,5 +57,5 @@ class Differential(Component):
                 Constraint(f"{self.name} y", {ty: 1.0, p1: -MAP[1, 0], p2: -MAP[1, 1]}),
             ],
             frictions=[Friction(f"{self.name}.gears", {ty: 1.0}, self.viscous, self.stiction,
-                                self.sharpness)],
+                                self.sharpness, peak=self.peak)],
         )

@@ -44,6 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..network import Component, Friction, Parts, Spring
+from ._values import _peak
 
 LINEAR = 0
 EXPONENTIAL = 1
@@ -147,8 +148,10 @@ class ElasticElement(Component):
 
     def __init__(self, name: str, *, model: str, geometry=None, exponential=None,
                  stiffness: float | None = None, friction_viscous: float = 0.0,
-                 friction_stiction: float = 0.0, friction_sharpness: float = 10.0):
+                 friction_stiction: float = 0.0, friction_sharpness: float = 10.0,
+                 friction_peak: float = 1.0):
         super().__init__(name)
+        self.friction_peak = _peak(name, friction_peak)
         if model not in MODELS:
             raise ValueError(f"{name}: unknown elastic model {model!r}; choose one of "
                              f"{', '.join(MODELS)}")
@@ -186,6 +189,7 @@ class ElasticElement(Component):
             flanges=[ring],
             springs=[Spring(self.name, {ring: 1.0}, self.law, self.parameters)],
             frictions=[Friction(f"{self.name}.lever", {ring: 1.0}, self.friction_viscous,
-                                self.friction_stiction, self.friction_sharpness)],
+                                self.friction_stiction, self.friction_sharpness,
+                                peak=self.friction_peak)],
             priority={ring: 10},
         )

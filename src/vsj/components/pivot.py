@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 
 from ..network import Component, Constraint, Friction, Parts, Pivot
-from .basic import _positive
+from ._values import _peak, _positive
 
 
 class PivotMechanism(Component):
@@ -23,8 +23,10 @@ class PivotMechanism(Component):
     ports = ("input",)
 
     def __init__(self, name: str, *, ratio: float, amplitude: float, inertia: float = 0.0,
-                 viscous: float = 0.0, stiction: float = 0.0, sharpness: float = 10.0):
+                 viscous: float = 0.0, stiction: float = 0.0, sharpness: float = 10.0,
+                 peak: float = 1.0):
         super().__init__(name)
+        self.peak = _peak(name, peak)
         if not (math.isfinite(ratio) and ratio != 0.0):
             raise ValueError(f"{name}: ratio must be finite and nonzero, got {ratio!r}")
         self.ratio = float(ratio)
@@ -50,7 +52,7 @@ class PivotMechanism(Component):
             constraints=[Constraint(f"{self.name} transmission",
                                     {motor: 1.0, carrier: -self.ratio})],
             frictions=[Friction(f"{self.name}.gears", {carrier: 1.0}, self.viscous,
-                                self.stiction, self.sharpness)],
+                                self.stiction, self.sharpness, peak=self.peak)],
             pivots=[Pivot(carrier, self.amplitude)],
             priority={carrier: 2},
         )

@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from ..network import Component, Constraint, Friction, Parts
-from .basic import _positive
+from ._values import _peak, _positive
 
 
 class IdealPlanetary(Component):
@@ -91,8 +91,9 @@ class PlanetaryGearModule(IdealPlanetary):
                  ring_bearing_viscous: float = 0.0, ring_bearing_stiction: float = 0.0,
                  carrier_bearing_viscous: float = 0.0, carrier_bearing_stiction: float = 0.0,
                  mesh_stiction: float = 0.0, mesh_sharpness: float = 10.0,
-                 bearing_sharpness: float | None = None):
+                 bearing_sharpness: float | None = None, peak: float = 1.0):
         super().__init__(name, sun_teeth, ring_teeth)
+        self.peak = _peak(name, peak)
         values = dict(
             sun_inertia=sun_inertia, ring_inertia=ring_inertia, carrier_inertia=carrier_inertia,
             sun_bearing_viscous=sun_bearing_viscous, sun_bearing_stiction=sun_bearing_stiction,
@@ -121,16 +122,16 @@ class PlanetaryGearModule(IdealPlanetary):
         parts.inertia.update({s: self.sun_inertia, r: self.ring_inertia, c: self.carrier_inertia})
         parts.frictions += [
             Friction(f"{self.name}.mesh_sun", {s: 1.0, c: -1.0}, 0.0, self.mesh_stiction,
-                     self.mesh_sharpness),
+                     self.mesh_sharpness, peak=self.peak),
             # eq 3.27: the ring mesh carries the same tangential force at radius R_R
             Friction(f"{self.name}.mesh_ring", {r: 1.0, c: -1.0}, 0.0, x * self.mesh_stiction,
-                     self.mesh_sharpness / x),
+                     self.mesh_sharpness / x, peak=self.peak),
             Friction(f"{self.name}.bearing_sun", {s: 1.0}, self.sun_bearing_viscous,
-                     self.sun_bearing_stiction, kb),
+                     self.sun_bearing_stiction, kb, peak=self.peak),
             Friction(f"{self.name}.bearing_ring", {r: 1.0}, self.ring_bearing_viscous,
-                     self.ring_bearing_stiction, kb),
+                     self.ring_bearing_stiction, kb, peak=self.peak),
             Friction(f"{self.name}.bearing_carrier", {c: 1.0}, self.carrier_bearing_viscous,
-                     self.carrier_bearing_stiction, kb),
+                     self.carrier_bearing_stiction, kb, peak=self.peak),
         ]
         return parts
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 
 from ..network import Component, Constraint, Friction, Parts, Spring
-from .basic import _positive
+from ._values import _peak, _positive
 from .elastic_element import LINEAR, N_PARAMETERS
 
 
@@ -27,8 +27,9 @@ class Transmission(Component):
 
     def __init__(self, name: str, *, ratio: float = 1.0, viscous: float = 0.0,
                  stiction: float = 0.0, sharpness: float = 10.0, compliance: float = 0.0,
-                 damping: float = 0.0):
+                 damping: float = 0.0, peak: float = 1.0):
         super().__init__(name)
+        self.peak = _peak(name, peak)
         if not (math.isfinite(ratio) and ratio != 0.0):
             raise ValueError(f"{name}: ratio must be finite and nonzero, got {ratio!r}")
         self.ratio = float(ratio)
@@ -42,7 +43,7 @@ class Transmission(Component):
         a, b = self.port("input"), self.port("output")
         parts = Parts(flanges=[a, b], frictions=[
             Friction(f"{self.name}.friction", {a: 1.0}, self.viscous, self.stiction,
-                     self.sharpness)])
+                     self.sharpness, peak=self.peak)])
         if self.compliance == 0.0:
             parts.constraints.append(Constraint(f"{self.name} gear", {a: 1.0, b: -self.ratio}))
             return parts

@@ -78,14 +78,14 @@ static Py_ssize_t items(const arg *a) { return a->view.len / a->view.itemsize; }
 
 /* ---- Model --------------------------------------------------------------------- */
 
-#define N_ARRAYS 17
+#define N_ARRAYS 18
 
 static const char *const ARRAY_NAMES[N_ARRAYS] = {
     "mass", "Minv", "xp", "xc", "xv", "up", "uc", "uv", "par", "code",
-    "src_ch", "src_pos0", "knots", "coef", "cum", "first", "count"};
+    "src_ch", "src_pos0", "knots", "coef", "cum", "first", "count", "table"};
 static const enum kind ARRAY_KINDS[N_ARRAYS] = {
     DOUBLES, DOUBLES, INTS, INTS, DOUBLES, INTS, INTS, DOUBLES, DOUBLES, INTS,
-    INTS, DOUBLES, DOUBLES, DOUBLES, DOUBLES, INTS, INTS};
+    INTS, DOUBLES, DOUBLES, DOUBLES, DOUBLES, INTS, INTS, DOUBLES};
 
 typedef struct {
     PyObject_HEAD
@@ -114,6 +114,7 @@ static Py_ssize_t expected_items(int i, const vsj_model *m) {
     case 10: case 11: return (Py_ssize_t)s;
     case 12: case 14: return (Py_ssize_t)(m->n_pieces + m->n_channels);
     case 13: return (Py_ssize_t)(4 * m->n_pieces);
+    case 17: return (Py_ssize_t)(2 * m->n_table);
     default: return (Py_ssize_t)m->n_channels;
     }
 }
@@ -121,18 +122,18 @@ static Py_ssize_t expected_items(int i, const vsj_model *m) {
 static PyObject *model_new(PyTypeObject *type, PyObject *args, PyObject *kwds) {
     static char *keywords[] = {"dims", "mass", "Minv", "xp", "xc", "xv", "up", "uc", "uv", "par",
                                "code", "src_ch", "src_pos0", "knots", "coef", "cum", "first",
-                               "count", NULL};
+                               "count", "table", NULL};
     PyObject *objs[N_ARRAYS + 1];
     arg dims, a;
     ModelObject *self;
     const int64_t *d;
     char message[256];
     int i;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "OOOOOOOOOOOOOOOOOO:Model", keywords, &objs[0],
-                                     &objs[1], &objs[2], &objs[3], &objs[4], &objs[5], &objs[6],
-                                     &objs[7], &objs[8], &objs[9], &objs[10], &objs[11],
-                                     &objs[12], &objs[13], &objs[14], &objs[15], &objs[16],
-                                     &objs[17]))
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "OOOOOOOOOOOOOOOOOOO:Model", keywords,
+                                     &objs[0], &objs[1], &objs[2], &objs[3], &objs[4], &objs[5],
+                                     &objs[6], &objs[7], &objs[8], &objs[9], &objs[10],
+                                     &objs[11], &objs[12], &objs[13], &objs[14], &objs[15],
+                                     &objs[16], &objs[17], &objs[18]))
         return NULL;
     if (get(objs[0], &dims, INTS, 0, 8, "dims") < 0)
         return NULL;
@@ -172,6 +173,13 @@ static PyObject *model_new(PyTypeObject *type, PyObject *args, PyObject *kwds) {
         return NULL;
     }
     self->m.n_pieces = (int64_t)(items(&a) / 4);
+    release(&a);
+    /* and the friction tables' rows from the length of table */
+    if (get(objs[18], &a, DOUBLES, 0, -1, "table") < 0) {
+        Py_DECREF(self);
+        return NULL;
+    }
+    self->m.n_table = (int64_t)(items(&a) / 2);
     release(&a);
     for (i = 0; i < N_ARRAYS; i++) {
         Py_ssize_t want;
@@ -235,6 +243,7 @@ static PyObject *model_new(PyTypeObject *type, PyObject *args, PyObject *kwds) {
     self->m.cum = (const double *)self->arrays[14];
     self->m.first = (const int64_t *)self->arrays[15];
     self->m.count = (const int64_t *)self->arrays[16];
+    self->m.table = (const double *)self->arrays[17];
     if (vsj_check_model(&self->m, message, sizeof message) != VSJ_OK) {
         PyErr_SetString(PyExc_ValueError, message);
         Py_DECREF(self);

@@ -49,7 +49,7 @@ def native(model: EngineModel) -> _core.Model:
     return _core.Model(model.dims, model.mass, model.Minv, model.xp, model.xc, model.xv,
                        model.up, model.uc, model.uv, model.par, model.code, model.src_ch,
                        model.src_pos0, model.knots, model.coef, model.cum, model.first,
-                       model.count)
+                       model.count, model.table)
 
 
 class Engine:

@@ -57,6 +57,7 @@ class EngineModel(NamedTuple):
     cum: np.ndarray       # integral from each channel's first knot to each knot
     first: np.ndarray     # (channels,) int64 index of each channel's first piece
     count: np.ndarray     # (channels,) int64 number of pieces
+    table: np.ndarray     # (rows, 2) friction tables: slip speed, coefficient
 
 
 @dataclass(frozen=True)
@@ -143,7 +144,7 @@ def input_bank(structure: Structure, inputs: Mapping[str, Input], t_end: float):
         raise InputError(f"unknown input channel(s) {', '.join(unknown)}; network "
                          f"{structure.name!r} has {', '.join(channels) or 'none'}")
     source_channels = {s.channel for s in structure.sources}
-    knots, coefs, cums, first, count = [np.zeros(1)], [np.zeros((0, 4))], [np.zeros(1)], [], []
+    knots, coefs, cums, first, count = [np.zeros(0)], [np.zeros((0, 4))], [np.zeros(0)], [], []
     if channels:
         knots, coefs, cums = [], [], []
     offset = 0
@@ -192,9 +193,14 @@ def compile_model(structure: Structure, inputs: Mapping[str, Input], t_end: floa
         par.append(padded)
         code.append(c)
 
+    table: list[tuple[float, float]] = []
     for element, row, law in zip(structure.frictions, structure.friction_rows, laws):
-        add(row @ AB, [element.viscous, element.stiction, element.sharpness, slope_width],
+        mu = list(element.table or ())
+        add(row @ AB, [element.viscous, element.stiction, element.sharpness, slope_width,
+                       element.peak, -1 if element.normal is None else chan[element.normal],
+                       len(table) if mu else 0, len(mu), float(element.damper)],
             friction_laws.law_code(law))
+        table += mu
     for spring, row in zip(structure.springs, structure.spring_rows):
         add(row @ AB, spring.parameters, spring.law)
     for load in structure.loads:
@@ -221,7 +227,8 @@ def compile_model(structure: Structure, inputs: Mapping[str, Input], t_end: floa
         par=np.ascontiguousarray(np.array(par)), code=_ints(code),
         src_ch=_ints([chan[src.channel] for src in structure.sources]),
         src_pos0=np.ascontiguousarray(src_pos0, dtype=float),
-        knots=bank[0], coef=bank[1], cum=bank[2], first=bank[3], count=bank[4])
+        knots=bank[0], coef=bank[1], cum=bank[2], first=bank[3], count=bank[4],
+        table=np.ascontiguousarray(np.array(table, dtype=float).reshape(-1, 2)))
     layout = Layout(n=n, n_sources=s, n_frictions=len(structure.frictions),
                     n_springs=len(structure.springs), n_loads=len(structure.loads),
                     n_motors=len(structure.motors))

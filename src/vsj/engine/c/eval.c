@@ -119,7 +119,9 @@ static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int fu
             continue;
         p = vsj__row(m, e);
         slip = vsj__xdot(m, e, y + n) + vsj__udot(m, e, w->srcw, U);
-        torque = vsj__friction(m->code[e], p[0], p[1], p[2], p[3], slip, NULL);
+        torque = vsj__friction(m->code[e], p[0],
+                               vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1],
+                               p[2], p[3], slip, NULL);
         if (m->code[e] == VSJ_STICTION)
             torque += w->frw[FRW * e + EXTRA];
         w->frw[FRW * e + SLIP] = slip;

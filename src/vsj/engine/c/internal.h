@@ -38,11 +38,17 @@ typedef struct ts_work {
     double *csign, *cstop, *ckstop, *cb;
     unsigned char *has_stop; /* per spring */
     /* per impulse unknown (f + 2 k): friction groups, then end stops */
-    double *qv, *lo, *hi, *p, *mask, *d, *g, *level, *memo; /* memo: one more */
+    double *qv, *lo, *hi, *p, *mask, *d, *g, *memo; /* memo: one more */
+    /* per friction group: its kinetic level this step, and its static one */
+    double *level, *hold;
     int64_t *state;
     unsigned char *involved;
-    /* per friction element */
-    double *slip, *s0, *f0, *df0, *force, *share, *ratio;
+    /* per friction element; lev: its Coulomb level this step, levs: its static
+     * level (lev times the peak when it slips, lev when it is stuck) */
+    double *slip, *s0, *f0, *df0, *force, *share, *ratio, *lev, *levs;
+    double *theta;      /* weight of the step's end in the viscous part: 1 or 1/2 */
+    int64_t *damper, n_damper; /* the elements with theta 1/2 */
+    int any_varying;       /* an element's level changes (normal force, table, peak) */
     int64_t *held, *slot, *lead, *transitions, *nonlinear, *watched;
     unsigned char *active, *driven, *linear;
     /* springs, sources, loads, motors, channels */
@@ -116,6 +122,49 @@ static inline int vsj__fits(const vsj_model *m, const vsj_work *w) {
     return m && w && m->n == w->n && m->n_sources == w->s && m->n_frictions == w->f
            && m->n_springs == w->k && m->n_loads == w->nl && m->n_motors == w->nm
            && m->n_channels == w->nch && m->n_rows == w->rows;
+}
+
+/* The coefficient of a friction table (rows first .. first + rows - 1 of
+ * m->table) at slip speed `speed` >= 0: linear between rows, constant beyond. */
+static inline double vsj__table(const vsj_model *m, int64_t first, int64_t rows, double speed) {
+    const double *row = m->table + 2 * first;
+    int64_t i;
+    if (speed <= row[0])
+        return row[1];
+    for (i = 1; i < rows; i++)
+        if (speed < row[2 * i])
+            return row[2 * i - 1] + (row[2 * i + 1] - row[2 * i - 1]) * (speed - row[2 * i - 2])
+                                        / (row[2 * i] - row[2 * i - 2]);
+    return row[2 * rows - 1];
+}
+
+/* The factor on friction element e's Coulomb level k pi/2: the normal force's
+ * input (clipped to [0, 1]) times the table's coefficient at |slip|, or at zero
+ * speed times the peak when `stuck`. 1 for an element without either. */
+static inline double vsj__normal(const vsj_model *m, const vsj_work *w, int64_t e, double slip,
+                                 int stuck) {
+    const double *p = m->par + e * VSJ_NPAR;
+    double factor = stuck ? p[VSJ_F_PEAK] : 1.0;
+    if (p[VSJ_F_CHANNEL] >= 0.0) {
+        double f = w->chan[3 * (int64_t)p[VSJ_F_CHANNEL]];
+        factor *= f < 0.0 ? 0.0 : (f > 1.0 ? 1.0 : f);
+    }
+    if (p[VSJ_F_ROWS] > 0.0)
+        factor *= vsj__table(m, (int64_t)p[VSJ_F_TABLE], (int64_t)p[VSJ_F_ROWS],
+                             stuck ? 0.0 : fabs(slip));
+    return factor;
+}
+
+/* Whether friction element e has a normal-force channel that is at or below zero. */
+static inline int vsj__free(const vsj_model *m, const vsj_work *w, int64_t e) {
+    double ch = m->par[e * VSJ_NPAR + VSJ_F_CHANNEL];
+    return ch >= 0.0 && !(w->chan[3 * (int64_t)ch] > 0.0);
+}
+
+/* Whether friction element e's level changes in time or with its state. */
+static inline int vsj__varying(const vsj_model *m, int64_t e) {
+    const double *p = m->par + e * VSJ_NPAR;
+    return p[VSJ_F_PEAK] != 1.0 || p[VSJ_F_CHANNEL] >= 0.0 || p[VSJ_F_ROWS] > 0.0;
 }
 
 /* The smooth part of a friction law (vsj_friction_torque). */

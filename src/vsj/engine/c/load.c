@@ -541,6 +541,7 @@ void vsj_free_loaded(vsj_loaded *l) {
     free((void *)l->model.cum);
     free((void *)l->model.first);
     free((void *)l->model.count);
+    free((void *)l->model.table);
     free_names(l->input_names);
     free_names(l->output_names);
     free(l->initial_state);
@@ -601,6 +602,12 @@ static void read_engine(loader *ld, const jnode *engine, vsj_model *m) {
     m->cum = doubles(ld, engine, "cum", m->n_pieces + m->n_channels, NULL, w);
     m->first = ints(ld, engine, "first", m->n_channels, w);
     m->count = ints(ld, engine, "count", m->n_channels, w);
+    m->table = doubles(ld, engine, "table", -1, &pieces, w);
+    if (ld->failed)
+        return;
+    if (pieces % 2)
+        lerr(ld, "engine.table: expected rows of two values (slip speed, coefficient)");
+    m->n_table = pieces / 2;
 }
 
 static vsj_loaded *load_tree(const jnode *root, char *message, size_t size) {
@@ -617,8 +624,8 @@ static vsj_loaded *load_tree(const jnode *root, char *message, size_t size) {
     if (node && strcmp(node->string, "vsj-model") != 0)
         lerr(&ld, "model.format: expected \"vsj-model\", got \"%s\"", node->string);
     node = need(&ld, root, "version", J_NUMBER, "model");
-    if (node && node->number != 1.0)
-        lerr(&ld, "model.version: this library reads version 1, got %g", node->number);
+    if (node && node->number != 2.0)
+        lerr(&ld, "model.version: this library reads version 2, got %g", node->number);
     engine = need(&ld, root, "engine", J_OBJECT, "model");
     inputs = need(&ld, root, "inputs", J_ARRAY, "model");
     outputs = need(&ld, root, "outputs", J_ARRAY, "model");

@@ -135,13 +135,40 @@ int vsj_check_model(const vsj_model *m, char *message, size_t size) {
                 return fail(message, size, "model array par: row %lld column %lld is %g",
                             (long long)r, (long long)c, v);
         }
+    if (m->n_table < 0 || (m->n_table > 0 && !m->table))
+        return fail(message, size, "model: the friction table is missing");
+    if ((status = finite_array(m->table, 2 * m->n_table, "table", message, size)) != VSJ_OK)
+        return status;
     for (r = 0; r < f; r++) {
+        const double *p = m->par + VSJ_NPAR * r;
+        double first = p[VSJ_F_TABLE], count = p[VSJ_F_ROWS], ch = p[VSJ_F_CHANNEL];
         if (m->code[r] < VSJ_VISCOUS || m->code[r] > VSJ_STICTION)
             return fail(message, size, "model: friction row %lld has unknown law %lld",
                         (long long)r, (long long)m->code[r]);
-        if (m->code[r] == VSJ_SLOPE && !(m->par[VSJ_NPAR * r + 3] > 0.0))
+        if (m->code[r] == VSJ_SLOPE && !(p[VSJ_F_WIDTH] > 0.0))
             return fail(message, size, "model: friction row %lld: slope width must be > 0",
                         (long long)r);
+        if (!(p[VSJ_F_PEAK] >= 1.0))
+            return fail(message, size, "model: friction row %lld: peak must be >= 1, got %g",
+                        (long long)r, p[VSJ_F_PEAK]);
+        if (p[VSJ_F_TRAPEZOIDAL] != 0.0 && p[VSJ_F_TRAPEZOIDAL] != 1.0)
+            return fail(message, size, "model: friction row %lld: the trapezoidal flag must be "
+                        "0 or 1, got %g", (long long)r, p[VSJ_F_TRAPEZOIDAL]);
+        if (ch != floor(ch) || ch < -1.0 || ch >= (double)nch)
+            return fail(message, size, "model: friction row %lld reads input channel %g of "
+                        "%lld", (long long)r, ch, (long long)nch);
+        if (first != floor(first) || count != floor(count) || first < 0.0 || count < 0.0
+            || count > (double)m->n_table || first > (double)m->n_table - count)
+            return fail(message, size, "model: friction row %lld: table rows %g..%g outside "
+                        "0..%lld", (long long)r, first, first + count - 1,
+                        (long long)(m->n_table - 1));
+        for (i = (int64_t)first; i < (int64_t)(first + count); i++) {
+            const double *row = m->table + 2 * i;
+            if (row[0] < 0.0 || row[1] < 0.0 || (i > (int64_t)first && !(row[0] > row[-2])))
+                return fail(message, size, "model: friction row %lld: its table needs speeds "
+                            ">= 0 that increase and coefficients >= 0 (table row %lld)",
+                            (long long)r, (long long)i);
+        }
     }
     for (r = f; r < f + k; r++)
         if (m->code[r] < VSJ_LINEAR || m->code[r] > VSJ_GEOMETRIC_REPORT)
@@ -278,6 +305,7 @@ static void layout(vsj_work *w, carver *cv) {
     t->d = DOUBLES(mu);
     t->g = DOUBLES(mu);
     t->level = DOUBLES(f);
+    t->hold = DOUBLES(f);
     t->memo = DOUBLES(mu + 1);
     t->state = INTS(mu);
     t->involved = BYTES(mu);
@@ -295,6 +323,10 @@ static void layout(vsj_work *w, carver *cv) {
     t->force = DOUBLES(f);
     t->share = DOUBLES(f);
     t->ratio = DOUBLES(f);
+    t->lev = DOUBLES(f);
+    t->levs = DOUBLES(f);
+    t->theta = DOUBLES(f);
+    t->damper = INTS(f);
     t->held = INTS(f);
     t->slot = INTS(f);
     t->lead = INTS(f);

@@ -6,7 +6,10 @@
  *
  *   - springs: trapezoidal rule, linearised about the start of the step with
  *     the law's analytic stiffness;
- *   - smooth friction and viscous parts: implicit Euler, linearised;
+ *   - smooth friction and viscous parts: implicit Euler, linearised (damping
+ *     that stays stable however stiff); dampers (elements flagged
+ *     VSJ_F_TRAPEZOIDAL, such as a spring-damper's) the trapezoidal rule, so
+ *     that an oscillator's spring and damper are second order together;
  *   - DC motor armatures: implicit Euler;
  *   - Coulomb parts of stiction elements: impulses p_e with |p_e| <= h c_e
  *     (c_e = k_e pi/2), decided together for all elements by
@@ -539,8 +542,36 @@ static double parallel(const ts_work *t, int64_t cols, int64_t n, int64_t s, int
     return alpha;
 }
 
+/* Whether element e holds: no slip, and not free (a clutch or brake without
+ * normal force is free, as MSL's mode 2, even when its flanges turn alike). */
+static int holding(const vsj_model *m, const vsj_work *w, int64_t e) {
+    return fabs(w->ts.slip[e]) <= STUCK_SPEED && !vsj__free(m, w, e);
+}
+
 static double coulomb_level(const vsj_model *m, int64_t e) {
     return vsj__row(m, e)[1] * (0.5 * VSJ_PI);
+}
+
+/* Each group's level (the sum of its elements' through the gear ratios) and each
+ * element's share of the group's impulse: in proportion to its level, so a
+ * slipping group puts every element at its level and a stuck one loads each to
+ * the same fraction of its own. */
+static void share_levels(ts_work *t, int64_t nf) {
+    int64_t a, e;
+    for (a = 0; a < t->na; a++) {
+        t->level[a] = 0.0;
+        t->hold[a] = 0.0;
+    }
+    for (e = 0; e < nf; e++)
+        if (t->slot[e] >= 0) {
+            t->level[t->slot[e]] += fabs(t->ratio[e]) * t->lev[e];
+            t->hold[t->slot[e]] += fabs(t->ratio[e]) * t->levs[e];
+        }
+    for (e = 0; e < nf; e++) {
+        t->share[e] = 0.0;
+        if (t->slot[e] >= 0 && t->level[t->slot[e]] > 0.0)
+            t->share[e] = copysign(t->lev[e] / t->level[t->slot[e]], t->ratio[e]);
+    }
 }
 
 int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
@@ -565,7 +596,8 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
     }
     /* elements whose smooth part is linear (viscous, and stiction's viscous
      * part) are summed once: their share of the step matrix is h Bx and of the
-     * right-hand side -h Bu u1. Element rows are stored densely, one
+     * right-hand side -h Bu u1 (a damper's weighted by theta = 1/2, the other
+     * half taken at the step's start). Element rows are stored densely, one
      * coordinate per row, so that the loops over elements are vector loops. */
     memset(t->Bx, 0, (size_t)(n * n) * sizeof(double));
     memset(t->Bu, 0, (size_t)(n * s) * sizeof(double));
@@ -577,10 +609,17 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
         for (k = m->up[e]; k < m->up[e + 1]; k++)
             t->DuT[cols * m->uc[k] + e] = m->uv[k];
     }
+    t->n_damper = 0;
     for (e = 0; e < nf; e++) {
         t->linear[e] = m->code[e] == VSJ_STICTION || m->code[e] == VSJ_VISCOUS;
+        t->theta[e] = 1.0;
         if (t->linear[e]) {
-            double b = vsj__row(m, e)[0];
+            double b;
+            if (vsj__row(m, e)[VSJ_F_TRAPEZOIDAL] != 0.0) {
+                t->theta[e] = 0.5;
+                t->damper[t->n_damper++] = e;
+            }
+            b = t->theta[e] * vsj__row(m, e)[0];
             for (i = 0; i < n; i++) {
                 for (c = 0; c < n; c++)
                     t->Bx[n * i + c] += b * t->DxT[cols * i + e] * t->DxT[cols * c + e];
@@ -626,12 +665,12 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
         if (!t->has_stop[k])
             continue;
         for (side = 1.0; side >= -1.0; side -= 2.0) {
-            int64_t c = t->nc++;
-            t->cspring[c] = k;
-            t->csign[c] = side;
-            t->cstop[c] = angle;
-            t->ckstop[c] = stiffness;
-            t->ccomp[c] = isfinite(stiffness) ? t->ncomp++ : -1;
+            int64_t row = t->nc++;
+            t->cspring[row] = k;
+            t->csign[row] = side;
+            t->cstop[row] = angle;
+            t->ckstop[row] = stiffness;
+            t->ccomp[row] = isfinite(stiffness) ? t->ncomp++ : -1;
         }
     }
     mt = na + t->nc;
@@ -644,16 +683,12 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
             t->DuA[mt * j + a] = side * t->DuT[cols * j + from];
         t->involved[a] = a < na; /* end stops: decided step by step */
     }
-    for (a = 0; a < na; a++)
-        t->level[a] = 0.0;
-    for (e = 0; e < nf; e++)
-        if (t->slot[e] >= 0)
-            t->level[t->slot[e]] += fabs(t->ratio[e]) * coulomb_level(m, e);
+    t->any_varying = 0;
     for (e = 0; e < nf; e++) {
-        t->share[e] = 0.0;
-        if (t->slot[e] >= 0 && t->level[t->slot[e]] > 0.0)
-            t->share[e] = copysign(coulomb_level(m, e) / t->level[t->slot[e]], t->ratio[e]);
+        t->lev[e] = t->levs[e] = coulomb_level(m, e);
+        t->any_varying = t->any_varying || ((t->active[e] || t->driven[e]) && vsj__varying(m, e));
     }
+    share_levels(t, nf);
     /* index lists: smooth parts that are not linear; elements whose stick phases
      * are counted */
     t->n_nonlinear = 0;
@@ -676,6 +711,9 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
         int steady = m->count[ch] == 1 && cf[1] == 0.0 && cf[2] == 0.0 && cf[3] == 0.0;
         t->wanted[ch] = !steady;
     }
+    for (e = 0; e < nf; e++) /* the normal forces of clutches and brakes */
+        if (vsj__row(m, e)[VSJ_F_CHANNEL] >= 0.0)
+            t->wanted[(int64_t)vsj__row(m, e)[VSJ_F_CHANNEL]] = 1;
     t->n_mid_src = 0;
     for (k = m->up[r_piv]; k < m->up[r_piv + 1]; k++) {
         t->mid_src[t->n_mid_src++] = m->uc[k];
@@ -783,8 +821,9 @@ int vsj_ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
     return w->status;
 }
 
-static void sample(const vsj_model *m, const ts_work *t, const vsj_samples *smp, int64_t i_out,
-                   const double *y, int64_t n_col) {
+static void sample(const vsj_model *m, const vsj_work *w, const vsj_samples *smp,
+                   int64_t i_out, const double *y, int64_t n_col) {
+    const ts_work *t = &w->ts;
     int64_t j, k, nf = m->n_frictions;
     for (j = 0; j < n_col; j++)
         smp->out[smp->out_cols * i_out + j] = y[j];
@@ -792,7 +831,7 @@ static void sample(const vsj_model *m, const ts_work *t, const vsj_samples *smp,
         for (k = 0; k < t->n_watched; k++) {
             int64_t e = t->watched[k];
             smp->coulomb[nf * i_out + e] = t->force[e] - vsj__row(m, e)[0] * t->slip[e];
-            smp->stuck[nf * i_out + e] = fabs(t->slip[e]) <= STUCK_SPEED;
+            smp->stuck[nf * i_out + e] = (unsigned char)holding(m, w, e);
         }
 }
 
@@ -858,7 +897,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
         steps_total = 0;
     }
     while (i_out < n_out && smp->t[i_out] <= t0) {
-        sample(m, t, smp, i_out, y, n_col);
+        sample(m, w, smp, i_out, y, n_col);
         i_out++;
     }
     for (step = 0; step < steps_total; step++) {
@@ -875,6 +914,16 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                 vsj__eval_channel(m, w, t->mid_ch[i], tnow + 0.5 * hs);
         for (i = 0; i < t->n_mid_src; i++)
             vsj__eval_source(m, w, t->mid_src[i]);
+        if (t->any_varying) { /* levels that follow a normal force, a table or a peak */
+            for (e = 0; e < nf; e++)
+                if ((t->active[e] || t->driven[e]) && vsj__varying(m, e)) {
+                    t->levs[e] = coulomb_level(m, e) * vsj__normal(m, w, e, 0.0, 1);
+                    t->lev[e] = fabs(t->slip[e]) <= STUCK_SPEED
+                                    ? t->levs[e]
+                                    : coulomb_level(m, e) * vsj__normal(m, w, e, t->slip[e], 0);
+                }
+            share_levels(t, nf);
+        }
         for (ld = 0; ld < nl; ld++)
             t->ldm[ld] = w->chan[3 * m->code[r_load + ld]];
         for (mo = 0; mo < nm; mo++)
@@ -930,13 +979,19 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
             }
         }
         memcpy(t->s0, t->slip, (size_t)nf * sizeof(double));
+        for (i = 0; i < t->n_damper; i++) {
+            e = t->damper[i];
+            vsj__xadd(m, e, t->r, -hs * (1.0 - t->theta[e]) * vsj__row(m, e)[0] * t->s0[e]);
+        }
         for (i = 0; i < t->n_nonlinear; i++) {
             const double *p;
             double se, fe, dfe, cnst;
             e = t->nonlinear[i];
             p = vsj__row(m, e);
             se = t->slip[e];
-            fe = vsj__friction(m->code[e], p[0], p[1], p[2], p[3], se, &dfe);
+            fe = vsj__friction(m->code[e], p[0],
+                               vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, se, 0) : p[1],
+                               p[2], p[3], se, &dfe);
             t->f0[e] = fe;
             t->df0[e] = dfe;
             cnst = fe - dfe * se + dfe * vsj__udotv(m, e, t->u1);
@@ -1050,6 +1105,22 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                         added = 1;
                     }
                 }
+                /* a group that slipped at the step's start and comes to rest or
+                 * turns within it meets its static level there (MSL's peak): it
+                 * is solved again with that level, once */
+                if (pass == 0)
+                    for (a = 0; a < na; a++) {
+                        double s0 = t->slip[t->lead[a]], s1 = t->qv[a];
+                        if (!(t->hold[a] > t->level[a]) || fabs(s0) <= STUCK_SPEED)
+                            continue;
+                        for (i = 0; i < im.n; i++)
+                            s1 -= t->YlT[mt * i + a] * t->z[i];
+                        if (fabs(s1) <= STUCK_SPEED || (s1 > 0.0) != (s0 > 0.0)) {
+                            t->lo[a] = -hs * t->hold[a];
+                            t->hi[a] = hs * t->hold[a];
+                            added = 1;
+                        }
+                    }
                 if (!added || pass > t->nc)
                     break;
             }
@@ -1089,12 +1160,13 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
             double inv_hs = 1.0 / hs;
             for (e = 0; e < nf; e++) {
                 double s1 = t->slip[e], fe;
-                fe = t->linear[e] ? vsj__row(m, e)[0] * s1
+                fe = t->linear[e] ? vsj__row(m, e)[0]
+                                        * (t->theta[e] * s1 + (1.0 - t->theta[e]) * t->s0[e])
                                   : t->f0[e] + t->df0[e] * (s1 - t->s0[e]);
                 if (t->active[e])
                     fe += t->share[e] * t->p[t->slot[e]] * inv_hs;
                 else if (t->driven[e] && s1 != 0.0)
-                    fe += coulomb_level(m, e) * (s1 > 0.0 ? 1.0 : -1.0);
+                    fe += t->lev[e] * (s1 > 0.0 ? 1.0 : -1.0);
                 t->force[e] = fe;
                 if (ledger) {
                     y[a_fric + e] += hs * fe * 0.5 * (t->s0[e] + s1);
@@ -1193,7 +1265,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
         t->q_prev = q_end;
         for (i = 0; i < t->n_watched; i++) {
             e = t->watched[i];
-            if (fabs(t->slip[e]) <= STUCK_SPEED) {
+            if (holding(m, w, e)) {
                 t->held[e]++;
                 if (t->held[e] == 2)
                     t->transitions[e]++;
@@ -1221,7 +1293,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
         for (mo = 0; mo < nm; mo++)
             y[2 * n + mo] = t->cur[mo];
         while (i_out < n_out && smp->t[i_out] <= tnow + 0.5 * h) {
-            sample(m, t, smp, i_out, y, n_col);
+            sample(m, w, smp, i_out, y, n_col);
             i_out++;
         }
     }
@@ -1259,7 +1331,7 @@ void vsj_ts_transitions(const vsj_work *w, int64_t *transitions) {
 int64_t vsj_ts_stuck(const vsj_model *m, const vsj_work *w, unsigned char *stuck) {
     int64_t e, count = 0;
     for (e = 0; e < m->n_frictions; e++) {
-        int held = (w->ts.active[e] || w->ts.driven[e]) && fabs(w->ts.slip[e]) <= STUCK_SPEED;
+        int held = (w->ts.active[e] || w->ts.driven[e]) && holding(m, w, e);
         if (stuck)
             stuck[e] = (unsigned char)held;
         count += held;
@@ -1308,6 +1380,11 @@ static int64_t history_spans(const vsj_model *m, const vsj_work *w, span *out) {
     SPAN(t->state, (size_t)mu * l);
     SPAN(t->memo, (size_t)(mu + 1) * d);
     SPAN(t->slip, (size_t)f * d);
+    SPAN(t->lev, (size_t)f * d);
+    SPAN(t->levs, (size_t)f * d);
+    SPAN(t->share, (size_t)f * d);
+    SPAN(t->level, (size_t)f * d);
+    SPAN(t->hold, (size_t)f * d);
     SPAN(t->held, (size_t)f * l);
     SPAN(t->transitions, (size_t)f * l);
 #undef SPAN

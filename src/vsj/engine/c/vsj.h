@@ -79,7 +79,17 @@ enum vsj_spring_law {
  *   uc, uv    up[n_rows]           column (< n_sources) and value
  *   par       n_rows * VSJ_NPAR    parameters of each row:
  *             friction element: viscous b, stiction k, arctan sharpness k_b,
- *                               slope width w (Coulomb level k pi/2)
+ *                               slope width w, peak (static over kinetic
+ *                               level, >= 1), normal-force channel (-1: none),
+ *                               first row and rows of its friction table (0
+ *                               rows: none); Coulomb level k pi/2 f(t) mu(|s|)
+ *                               with f the channel's value clipped to [0, 1]
+ *                               and mu the table's coefficient at the slip
+ *                               speed, peak times that at zero speed while the
+ *                               element is stuck; 1 if the time-stepper
+ *                               integrates its viscous part with the
+ *                               trapezoidal rule (a damper), 0 for implicit
+ *                               Euler (friction)
  *             spring:           the law's parameters (enum vsj_spring_law)
  *             motor:            resistance, inductance, torque constant
  *             pivot:            amplitude, fixed q, moving (1 or 0), q_min, q_max
@@ -92,6 +102,9 @@ enum vsj_spring_law {
  *   knots, cum  n_pieces + n_channels
  *                                  knots of channel c at first[c] + c + j, and the
  *                                  integral of the channel from its first knot
+ *   table     2 * n_table          friction tables: rows of (slip speed >= 0,
+ *                                  coefficient >= 0), speeds increasing within a
+ *                                  table; linear between rows, constant beyond
  */
 typedef struct vsj_model {
     int64_t n;           /* generalised coordinates */
@@ -103,6 +116,7 @@ typedef struct vsj_model {
     int64_t n_channels;  /* input channels */
     int64_t n_rows;      /* n_frictions + n_springs + n_loads + n_motors + 1 */
     int64_t n_pieces;    /* spline pieces of all channels */
+    int64_t n_table;     /* rows of the friction tables */
     const double *mass;
     const double *Minv;
     const int64_t *xp;
@@ -120,6 +134,7 @@ typedef struct vsj_model {
     const double *cum;
     const int64_t *first;
     const int64_t *count;
+    const double *table;
 } vsj_model;
 
 /* Run-time state of one computation (opaque; one per thread). */
@@ -150,6 +165,12 @@ int64_t vsj_n_acc(const vsj_model *m);
 const char *vsj_status_text(int status);
 
 /* ---- element laws -------------------------------------------------------- */
+
+/* Columns of a friction element's parameter row (see vsj_model.par). */
+enum vsj_friction_par {
+    VSJ_F_VISCOUS = 0, VSJ_F_STICTION = 1, VSJ_F_SHARPNESS = 2, VSJ_F_WIDTH = 3,
+    VSJ_F_PEAK = 4, VSJ_F_CHANNEL = 5, VSJ_F_TABLE = 6, VSJ_F_ROWS = 7, VSJ_F_TRAPEZOIDAL = 8
+};
 
 /* Smooth part of a friction law at slip speed s: returns f(s), with its slope
  * in *slope if not NULL. For VSJ_STICTION this is the viscous part only. */
