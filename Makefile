@@ -34,6 +34,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
 	$(BIN)/python benchmarks/friction_laws.py
 	$(BIN)/python benchmarks/step_cost.py
+	$(BIN)/python benchmarks/msl.py
 
 clean:
 	rm -rf $(VENV) reproduction out build src/vsj.egg-info src/vsj/engine/*.so

@@ -3,7 +3,8 @@
 Builds the extension and the C example with ``-fsanitize=address,undefined``
 into a scratch directory, then, in a process that preloads the sanitizer
 runtime, runs what the engine does for users: every regression scenario
-(smooth, stiction, both elastic models, benches), batches on two threads with
+(smooth, stiction, both elastic models, benches), the MSL drive trains
+(clutches, brakes, breakaway peaks), batches on two threads with
 both solvers, the step function with all three methods, the C example on
 good and bad model files, and the binding's refusal of bad arrays. Any
 sanitizer report ends the run with a non-zero exit code.
@@ -87,6 +88,12 @@ for stiffness in ("50 N m/rad", "1e7 N m/rad"):
                  options=SimulationOptions(friction="stiction", output_step=0.01))
     assert r.success and "end stop vsm_1" in r.ledger["dissipated"], r.message
 print("end stops", flush=True)
+from vsj import msl                                # clutches, brakes, peaks, spring-damper
+for name, build in msl.EXAMPLES.items():
+    example = build()
+    r = example.simulate(1e-3)
+    assert r.success and msl.check(example, r, msl.reference(example)).passed, name
+    print("msl", name, flush=True)
 scen = scenarios.load("fig-4.15")
 _, structure, inputs, rng = scenarios.prepare_case(scen, scen.cases[0], params)
 for friction in ("arctan", "stiction"):           # batches on two threads

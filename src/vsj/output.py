@@ -89,6 +89,7 @@ OUTPUTS = {
     "fit friction": r"[^/]+-friction\.(?:json|png)",
     "fit planetary": r"planetary\.(?:json|png)",
     "fit stiffness": r"stiffness\.(?:json|png)|geometry\.png",
+    "msl": r"msl-[a-z-]+\.(?:nc|png|json)",
     "synth stiffness": r"stiffness_q[+-]\d+\.\dcm\.csv",
 }
 
