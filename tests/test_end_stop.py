@@ -119,6 +119,27 @@ def test_a_run_past_the_stop_succeeds_with_a_warning(params):
     assert quiet.success and quiet.warnings == []
 
 
+def test_the_cli_warns_on_standard_error_and_in_the_record(tmp_path, capsys):
+    import json
+
+    from vsj.cli import main
+
+    scenario = tmp_path / "overload.toml"
+    scenario.write_text('name = "overload"\ndescription = "1000 N m on the end-effector"\n'
+                        'network = "wrist"\nduration = "0.2 s"\n[solver]\n'
+                        'friction = "stiction"\nstep = "1 ms"\n[initial]\nq = "-1 cm"\n'
+                        '[inputs.tau_x]\nkind = "constant"\nvalue = "1000 N m"\n')
+    assert main(["simulate", str(scenario), "--out", str(tmp_path / "out"), "--no-plot"]) == 0
+    err = capsys.readouterr().err
+    assert "vsj: warning: [overload] spring vsm_1 was driven to" in err
+    case, = json.loads((tmp_path / "out" / "meta.json").read_text())["cases"]
+    assert case["success"] and any("past its 1.4 rad end stop" in w for w in case["warnings"])
+    assert main(["linearize", "--tau-x", "1000 N m"]) == 0
+    assert "past its 1.4 rad end stop" in capsys.readouterr().err
+    assert main(["linearize", "--tau-x", "0.1 N m"]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
 def test_a_diverging_run_fails(params):
     """A stop too soft to hold (1e-3 N m/rad) lets 200 N m wind the springs up by
     hundreds of radians: the run fails, naming the spring, the time and the state."""
@@ -166,3 +187,16 @@ def test_a_dc_motor_beyond_its_voltage_limit_is_warned_about(params):
                      options=SimulationOptions(rtol=1e-6), ports=False)
     assert not any("voltage" in w or " V " in w for w in rated.warnings)
 
+
+
+def test_a_rigid_stop_is_a_parameter_value(params):
+    # "inf N m/rad" in a parameter set makes the stop a constraint of the time-stepper
+    result = run(params, "inf", "stiction", load=1000.0, duration=1.0)
+    assert result.success, result.message
+    assert np.max(np.abs(result["phi_1"])) <= STOP + 1e-9
+    # a smooth law with a rigid stop: the automatic choice is the time-stepper
+    assert run(params, "inf", "arctan", duration=0.5).solver["name"] == "timestep"
+    for bad in ("-inf", "nan", "1e309"):
+        with pytest.raises(InputError, match="end_stop_stiffness"):
+            params.with_overrides({"elastic_element.end_stop_stiffness": f"{bad} N m/rad"},
+                                  origin="test")

@@ -63,6 +63,7 @@ def cmd_simulate(args) -> int:
                             "message": result.message, "solver": result.solver,
                             "ledger": result.ledger,
                             "stick_slip_transitions": result.transitions,
+                            "warnings": list(result.warnings),
                             "parameters_hash": resolved.hash(),
                             "parameter_overrides": dict(case.params)})
         write_dataset(results.path("trajectory.nc"), cases_dataset(runs))
@@ -83,6 +84,9 @@ def cmd_simulate(args) -> int:
         prefix = f"[{label}] " if len(runs) > 1 else ""
         print(prefix + result.summary().replace("\n", "\n" + prefix))
     print(f"wrote {', '.join(str(out / name) for name in results.written)}")
+    for label, result in runs:
+        for text in result.warnings:
+            print(f"vsj: warning: [{label}] {text}", file=sys.stderr)
     if not ok:
         failed = [f"{label}: {r.message}" for label, r in runs if not r.success]
         print("simulation failed:\n  " + "\n  ".join(failed), file=sys.stderr)
@@ -136,6 +140,47 @@ def cmd_verify(args) -> int:
     return 0
 
 
+def cmd_msl(args) -> int:
+    from dataclasses import asdict
+
+    from . import msl
+    from .output import ResultSet, cases_dataset, write_dataset, write_meta
+    from .units import to_si
+
+    if args.example not in msl.EXAMPLES:
+        raise InputError(f"msl: unknown example {args.example!r}; allowed: "
+                         f"{', '.join(msl.EXAMPLES)}")
+    step = to_si(args.step, "s", where="--step")
+    if not 1e-6 <= step <= 1e-2:
+        raise InputError(f"--step: {args.step} is outside the allowed 1 us to 10 ms")
+    example = msl.EXAMPLES[args.example]()
+    reference = msl.reference(example)
+    result = example.simulate(step)
+    if not result.success:
+        raise SimulationError(f"{example.name}: {result.message}")
+    outcome = msl.check(example, result, reference)
+    out = Path(args.out)
+    stem = f"msl-{example.name}"
+    with ResultSet(out, "msl", name=stem) as results:
+        write_dataset(results.path(f"{stem}.nc"), cases_dataset([(example.name, result)]))
+        if not args.no_plot:
+            msl.figure(example, result, reference, outcome, results.path(f"{stem}.png"))
+        write_meta(results.path(f"{stem}.json"), {
+            "example": example.name, "model": example.model, "step": step,
+            "reference": example.reference_file, "passed": outcome.passed,
+            "tubes": [asdict(t) for t in outcome.tubes], "modes": outcome.modes,
+            "files": results.hashes()})
+    print(f"{example.model}, {example.duration:g} s at {step * 1e3:g} ms steps, against "
+          f"the MSL reference:")
+    print(outcome.summary())
+    print(f"wrote {', '.join(str(out / name) for name in results.written)}")
+    if not outcome.passed:
+        print(f"{example.name}: outside the MSL reference's tube or stick/slip intervals",
+              file=sys.stderr)
+        return 1
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
@@ -177,6 +222,14 @@ def build_parser() -> argparse.ArgumentParser:
                                       "sets, every file as its manifest records it")
     p.add_argument("dir", metavar="DIR", help="an output directory of vsj")
     p.set_defaults(func=cmd_verify)
+
+    p = sub.add_parser("msl", help="rebuild a Modelica Standard Library drive train and "
+                                   "compare it with the MSL's published reference result")
+    p.add_argument("example", metavar="EXAMPLE", help="friction or coupled-clutches")
+    p.add_argument("--step", default="1 ms", help="time-stepper step (default 1 ms)")
+    p.add_argument("--out", metavar="DIR", default="msl", help="output directory (default msl)")
+    p.add_argument("--no-plot", action="store_true", help="skip the PNG")
+    p.set_defaults(func=cmd_msl)
 
     from . import cli_control, cli_fit
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 
 from .errors import InputError, SimulationError
@@ -82,6 +83,8 @@ def cmd_linearize(args) -> int:
         load=(_quantity(args.tau_x, "N*m", "--tau-x"), _quantity(args.tau_y, "N*m", "--tau-y")),
         wrist_options=_wrist_options(args), friction=args.friction, inputs=_names(args.inputs),
         outputs=_names(args.outputs), statespace=False)
+    for text in model.info.get("warnings", []):
+        print(f"vsj: warning: {text}", file=sys.stderr)
     if args.out is not None:
         with write_errors("--out", args.out):
             linear.save(model, Path(args.out))
