@@ -19,6 +19,8 @@ typedef struct ts_work {
     int64_t nc;            /* impulse unknowns of end stops: two per spring with a stop */
     int64_t ncomp;         /* compliant ones among them: one extra row of YlT each */
     double hs_prev;        /* the previous step's length (the compliance rows depend on it) */
+    int memo_full;         /* the impulse memo is for the problem with the stops (1) or
+                            * without (0; -1 neither) */
     int64_t n_nonlinear, n_watched, n_mid_ch, n_mid_src, n_end_ch;
     int factored;          /* H_last and its factor are valid */
     double t;              /* time reached */

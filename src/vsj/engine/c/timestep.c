@@ -52,6 +52,8 @@
 #define H_REUSE 1e-12
 /* relative difference below which two friction rows count as parallel */
 #define PARALLEL 1e-12
+/* two step lengths within this fraction of h are the same step (round-off of t0 + k h) */
+#define STEP_SAME 1e-9
 
 static double dmax(double a, double b) { return a > b ? a : b; }
 static double dmin(double a, double b) { return a < b ? a : b; }
@@ -108,8 +110,8 @@ static void solve(const double *L, const double *b, double *out, int64_t n) {
 /* ---- the impulse problem (YT: n x m, one column L^-1 d_e per unknown) ------- */
 
 typedef struct impulses {
-    const double *YT;
-    int64_t n, m;
+    const double *YT; /* row i of the n x m problem starts at YT + ld * i (ld >= m) */
+    int64_t n, m, ld;
     double *mask, *G, *Lg, *t, *c, *d, *g, *z, *Gc, *K, *memo;
 } impulses;
 
@@ -118,7 +120,7 @@ static void project(const impulses *im, const double *p, double *z) {
     int64_t i, e, m = im->m;
     for (i = 0; i < im->n; i++) {
         double acc = 0.0;
-        const double *row = im->YT + m * i;
+        const double *row = im->YT + im->ld * i;
         for (e = 0; e < m; e++)
             acc += row[e] * p[e];
         z[i] = acc;
@@ -127,17 +129,17 @@ static void project(const impulses *im, const double *p, double *z) {
 
 /* G = YT diag(mask) YT^T + ridge I and t = YT (mask * vec) */
 static void gram(const impulses *im, const double *vec, double *G, double *t, double ridge) {
-    int64_t i, j, e, n = im->n, m = im->m;
+    int64_t i, j, e, n = im->n, m = im->m, ld = im->ld;
     const double *YT = im->YT, *mask = im->mask;
     for (i = 0; i < n; i++) {
         double acc_t = 0.0;
         for (e = 0; e < m; e++)
-            acc_t += YT[m * i + e] * mask[e] * vec[e];
+            acc_t += YT[ld * i + e] * mask[e] * vec[e];
         t[i] = acc_t;
         for (j = 0; j <= i; j++) {
             double acc = 0.0;
             for (e = 0; e < m; e++)
-                acc += YT[m * i + e] * mask[e] * YT[m * j + e];
+                acc += YT[ld * i + e] * mask[e] * YT[ld * j + e];
             G[n * i + j] = acc;
             G[n * j + i] = acc;
         }
@@ -152,7 +154,7 @@ static void slips(const impulses *im, const double *q, const double *z, double *
         s[e] = q[e];
     for (i = 0; i < im->n; i++) {
         double zi = z[i];
-        const double *row = im->YT + m * i;
+        const double *row = im->YT + im->ld * i;
         for (e = 0; e < m; e++)
             s[e] -= row[e] * zi;
     }
@@ -210,7 +212,7 @@ static void stuck_impulses(impulses *im, const double *slip) {
         im->d[e] = 0.0;
     for (i = 0; i < n; i++) {
         double ti = im->t[i];
-        const double *row = im->YT + m * i;
+        const double *row = im->YT + im->ld * i;
         for (e = 0; e < m; e++)
             im->d[e] += row[e] * ti * im->mask[e];
     }
@@ -288,7 +290,7 @@ static int same_pattern(impulses *im, const double *q, const double *lo, const d
             im->d[e] = 0.0;
         for (i = 0; i < n; i++) {
             double ci = im->c[i];
-            const double *row = im->YT + m * i;
+            const double *row = im->YT + im->ld * i;
             for (e = 0; e < m; e++)
                 im->d[e] += row[e] * ci;
         }
@@ -335,7 +337,7 @@ static int active_set(impulses *im, const double *q, const double *lo, const dou
         if (state[e] != 2) {
             double norm = 0.0;
             for (i = 0; i < n; i++)
-                norm += im->YT[m * i + e] * im->YT[m * i + e];
+                norm += im->YT[im->ld * i + e] * im->YT[im->ld * i + e];
             w_max = dmax(w_max, norm);
         }
     *iterations = 0;
@@ -463,6 +465,7 @@ int vsj_solve_impulses(int64_t n, int64_t m, const double *YT, int64_t count, co
     im.YT = YT;
     im.n = n;
     im.m = m;
+    im.ld = m;
     im.G = block;
     im.Lg = im.G + n * n;
     im.Gc = im.Lg + n * n;
@@ -495,12 +498,17 @@ int vsj_solve_impulses(int64_t n, int64_t m, const double *YT, int64_t count, co
 
 /* ---- the stepper's set-up ---------------------------------------------------- */
 
-static impulses impulses_of(vsj_work *w) {
+/* The impulse problem over the friction unknowns and, with `full`, the end
+ * stops' too. Without the stops it is the leading block of the full one (the
+ * stops' compliance rows vanish in the friction columns), so it is posed on the
+ * same arrays: a smaller problem while no stop is involved, as on most steps. */
+static impulses impulses_of(vsj_work *w, int full) {
     ts_work *t = &w->ts;
     impulses im;
     im.YT = t->YlT;
-    im.n = w->n + t->ncomp;
-    im.m = t->na + t->nc;
+    im.ld = t->na + t->nc;
+    im.n = full ? w->n + t->ncomp : w->n;
+    im.m = full ? t->na + t->nc : t->na;
     im.mask = t->mask;
     im.G = t->G;
     im.Lg = t->Lg;
@@ -788,6 +796,28 @@ static void outer(const vsj_model *m, int64_t r, double *H, double scale) {
 }
 
 /* Whether the time-stepper's analysis in w was made for m (its arrays). */
+/* The memo (the stuck set's matrices) holds for the problem it was made for
+ * and the YlT it was made with: forget it when either changes. */
+static void forget_memo(ts_work *t) {
+    t->memo[t->na] = 0.0;
+    t->memo[t->na + t->nc] = 0.0;
+}
+
+static void use_problem(vsj_work *w, impulses *im, int full) {
+    ts_work *t = &w->ts;
+    int64_t a;
+    *im = impulses_of(w, full);
+    if (full != t->memo_full) {
+        forget_memo(t);
+        t->memo_full = full;
+    }
+    if (!full)
+        for (a = t->na; a < t->na + t->nc; a++) {
+            t->p[a] = 0.0;
+            t->state[a] = 2;
+        }
+}
+
 static int prepared_for(const vsj_model *m, const vsj_work *w) {
     const ts_work *t = &w->ts;
     return t->prepared && t->for_par == m->par && t->for_rows == m->xv && t->for_mass == m->mass;
@@ -816,6 +846,7 @@ int vsj_ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
     t->q_mid = t->q_prev;
     t->t = t0;
     t->factored = 0;
+    t->memo_full = -1;
     element_slips(t->DxT, t->DuT, m->n_frictions + m->n_springs, m->n_frictions, t->v, n, t->u0,
                   m->n_sources, t->slip);
     return w->status;
@@ -862,7 +893,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
     na = t->na;
     mt = na + t->nc;
     cols = nf + nk;
-    im = impulses_of(w);
+    im = impulses_of(w, 1);
     r_load = nf + nk;
     r_mot = r_load + nl;
     moving_pivot = vsj__row(m, m->n_rows - 1)[2] > 0.0;
@@ -1036,7 +1067,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                 for (i = 0; i < n; i++)
                     t->YlT[mt * i + a] = t->col[i];
             }
-            t->memo[mt] = 0.0; /* the impulse solver's memo was made with the old YlT */
+            forget_memo(t); /* it was made with the old YlT */
             t->factored = 1;
             t->hs_prev = NAN; /* the compliance rows below are written afresh */
         }
@@ -1044,15 +1075,18 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
             solve(t->Lc, t->r, t->vfree, n);
         /* a compliant stop of stiffness k adds 2 / (h^2 k) to the Delassus matrix's
          * diagonal: a row of its own in YlT, so that W = Y Y^T still */
-        if (t->ncomp > 0 && hs != t->hs_prev) {
+        /* step lengths t1 - tnow differ by round-off from step to step: only a
+         * real change (the last, shortened step) rewrites the rows and drops the
+         * solver's memo */
+        if (t->ncomp > 0 && !(fabs(hs - t->hs_prev) <= STEP_SAME * h)) {
             memset(t->YlT + mt * n, 0, (size_t)(t->ncomp * mt) * sizeof(double));
             for (c = 0; c < t->nc; c++)
                 if (t->ccomp[c] >= 0)
                     t->YlT[mt * (n + t->ccomp[c]) + na + c] =
                         sqrt(2.0 / (hs * hs * t->ckstop[c]));
-            t->memo[mt] = 0.0;
+            forget_memo(t);
+            t->hs_prev = hs;
         }
-        t->hs_prev = hs;
 
         /* Coulomb impulses of the stiction elements and the end stops' impulses,
          * all together */
@@ -1063,18 +1097,22 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                 t->hi[a] = hs * t->level[a];
             }
             element_slips(t->DxA, t->DuA, mt, mt, t->vfree, n, t->u1, s_n, t->qv);
+            double d0 = 0.0, rate0 = 0.0;
             for (c = 0; c < t->nc; c++) {
                 /* |d| <= stop at the step's end: with d1 = d0 + h/2 (d0' + d1') the
                  * end speed side d1' may be at most cb (the trapezoidal position update) */
-                double d0 = 0.0, rate0 = 0.0, side = t->csign[c];
-                rr = nf + t->cspring[c];
-                for (i = 0; i < n; i++) {
-                    d0 += t->DxT[cols * i + rr] * t->x[i];
-                    rate0 += t->DxT[cols * i + rr] * t->v[i];
-                }
-                for (j = 0; j < s_n; j++) {
-                    d0 += t->DuT[cols * j + rr] * t->sg0[j];
-                    rate0 += t->DuT[cols * j + rr] * t->u0[j];
+                double side = t->csign[c];
+                if (c == 0 || t->cspring[c] != t->cspring[c - 1]) { /* a spring's two sides */
+                    d0 = rate0 = 0.0;
+                    rr = nf + t->cspring[c];
+                    for (i = 0; i < n; i++) {
+                        d0 += t->DxT[cols * i + rr] * t->x[i];
+                        rate0 += t->DxT[cols * i + rr] * t->v[i];
+                    }
+                    for (j = 0; j < s_n; j++) {
+                        d0 += t->DuT[cols * j + rr] * t->sg0[j];
+                        rate0 += t->DuT[cols * j + rr] * t->u0[j];
+                    }
                 }
                 t->cb[c] = 2.0 / hs * (t->cstop[c] - side * d0) - side * rate0;
                 a = na + c;
@@ -1086,7 +1124,10 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                 t->involved[a] = t->qv[a] > 0.0 || t->p[a] > 0.0;
             }
             for (pass = 0;; pass++) {
-                int added = 0;
+                int added = 0, full = 0;
+                for (c = 0; c < t->nc; c++)
+                    full = full || t->involved[na + c];
+                use_problem(w, &im, full);
                 if (!solve_impulses(&im, t->qv, t->lo, t->hi, t->p, t->state, t->involved,
                                     &iterations)) {
                     status = VSJ_FRICTION_SOLVER;
@@ -1209,18 +1250,20 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                 double work;
                 k = t->cspring[c];
                 rr = nf + k;
-                for (i = 0; i < n; i++) {
-                    rate0 += t->DxT[cols * i + rr] * t->v[i];
-                    rate1 += t->DxT[cols * i + rr] * t->v1[i];
+                if (push != 0.0) { /* a stop that pushed this step */
+                    for (i = 0; i < n; i++) {
+                        rate0 += t->DxT[cols * i + rr] * t->v[i];
+                        rate1 += t->DxT[cols * i + rr] * t->v1[i];
+                    }
+                    for (j = 0; j < s_n; j++) {
+                        rate0 += t->DuT[cols * j + rr] * t->u0[j];
+                        rate1 += t->DuT[cols * j + rr] * t->u1[j];
+                    }
+                    work = push * side * 0.5 * (rate0 + rate1);
+                    y[a_stop + k] += work;
+                    y[a_spr + k] -= work;
+                    vsj__uaddv(m, rr, t->srcF, -side * push / hs);
                 }
-                for (j = 0; j < s_n; j++) {
-                    rate0 += t->DuT[cols * j + rr] * t->u0[j];
-                    rate1 += t->DuT[cols * j + rr] * t->u1[j];
-                }
-                work = push * side * 0.5 * (rate0 + rate1);
-                y[a_stop + k] += work;
-                y[a_spr + k] -= work;
-                vsj__uaddv(m, rr, t->srcF, -side * push / hs);
                 if (side > 0.0 && isfinite(t->ckstop[c])) { /* once per spring */
                     double d0 = vsj__xdot(m, rr, t->x) + vsj__udotv(m, rr, t->sg0);
                     double d1 = vsj__xdot(m, rr, t->x1) + vsj__udotv(m, rr, t->sg1);
@@ -1371,6 +1414,7 @@ static int64_t history_spans(const vsj_model *m, const vsj_work *w, span *out) {
     SPAN(&t->factored, sizeof(int));
     SPAN(&w->status, sizeof(int));
     SPAN(&t->hs_prev, d);
+    SPAN(&t->memo_full, sizeof(int));
     SPAN(t->H_last, (size_t)(n * n) * d);
     SPAN(t->Lc, (size_t)(n * n) * d);
     SPAN(t->YlT, (size_t)(nr * mu) * d);
