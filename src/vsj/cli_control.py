@@ -157,6 +157,31 @@ def cmd_export_model(args) -> int:
     return 0
 
 
+def cmd_fmu(args) -> int:
+    from . import fmu
+    from .output import check_output_file
+
+    if Path(args.out).suffix != ".fmu":
+        raise InputError(f"--out {args.out}: an FMU is written to a .fmu file")
+    check_output_file(args.out, "--out", size=8 * 2 ** 20)
+    params = _params(args.params)
+    step = _quantity(args.step, "s", "--step")
+    if not 1e-6 <= step <= 1e-2:
+        raise InputError(f"--step {args.step}: allowed from 1 us to 10 ms")
+    win64 = {"auto": None, "yes": True, "no": False}[args.win64]
+    if win64 and fmu.compiler("win64") is None:
+        raise InputError("--win64 yes: the mingw-w64 cross-compiler (x86_64-w64-mingw32-gcc; "
+                         "Debian: apt-get install gcc-mingw-w64-x86-64) is not installed")
+    info = fmu.build(Path(args.out), params, wrist_options=_wrist_options(args),
+                     friction=args.friction, step=step, q0=_quantity(args.q, "m", "--q"),
+                     win64=win64)
+    print(f"wrote {args.out}: FMI 2.0 co-simulation, {info['method']} at {step:g} s, "
+          f"binaries for {', '.join(info['platforms'])}, sources included; "
+          f"{len(info['tunable'])} tunable parameters, {len(info['constant'])} fixed by this "
+          f"export ({', '.join(info['constant'])})")
+    return 0
+
+
 def register(sub) -> None:
     """Add ``linearize``, ``datasheet`` and ``export-model`` to the ``vsj`` command's
     subparsers."""
@@ -235,6 +260,28 @@ def register(sub) -> None:
                    help="pivot position of the initial state, e.g. --q=-1cm (default 0 cm)")
     p.set_defaults(func=cmd_export_model)
 
+    p = sub.add_parser(
+        "fmu", help="write the wrist as an FMI 2.0 co-simulation FMU (20-sim, OpenModelica, "
+                    "Simulink, FMPy)",
+        description="Write a standalone FMI 2.0 co-simulation FMU of the wrist: binaries "
+                    "built from the C engine with the system compiler (and for win64 with "
+                    "mingw-w64 where installed), its sources with buildDescription.xml, and "
+                    "the model in resources/. See the README, 'The wrist as an FMU'.")
+    p.add_argument("--out", metavar="FILE", required=True, help="FMU to write (.fmu)")
+    p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
+    _add_wrist_arguments(p, ELASTIC_MODELS, DRIVES)
+    p.add_argument("--pivot-drive", default="velocity", choices=list(DRIVES),
+                   help="stiffness motor: velocity source or DC motor (default velocity)")
+    p.add_argument("--friction", default="stiction", choices=list(LAWS),
+                   help="friction law (default stiction: the time-stepper)")
+    p.add_argument("--step", default="1 ms", metavar="TIME",
+                   help="internal step (the time-stepper's; default 1 ms)")
+    p.add_argument("--q", default="-1 cm", metavar="LENGTH",
+                   help="default initial pivot position, the parameter pivot_q0 (default -1 cm)")
+    p.add_argument("--win64", choices=("auto", "yes", "no"), default="auto",
+                   help="also build binaries/win64 with mingw-w64 (auto: where installed)")
+    p.set_defaults(func=cmd_fmu)
 
-__all__ = ["register", "cmd_linearize", "cmd_datasheet", "cmd_export_model"]
+
+__all__ = ["register", "cmd_linearize", "cmd_datasheet", "cmd_export_model", "cmd_fmu"]
 

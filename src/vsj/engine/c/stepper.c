@@ -192,3 +192,53 @@ int vsj_step_rate(const vsj_model *m, vsj_work *w, const double *s, const double
     w->held = NULL;
     return status;
 }
+
+int vsj_step_period(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
+                    int method, const double setting[3], double *ledger) {
+    int64_t nstate = vsj_n_state(m), nacc = vsj_n_acc(m), ny = nstate + (ledger ? nacc : 0);
+    int status;
+    if (!ledger) {
+        if (method == VSJ_STEP_DOPRI)
+            return vsj_step_dopri(m, w, s, inputs, dt, setting[0], setting[1],
+                                  (int64_t)setting[2]);
+        if (method == VSJ_STEP_RK4)
+            return vsj_step_rk4(m, w, s, inputs, dt, (int64_t)setting[0]);
+        if (method == VSJ_STEP_TIMESTEP)
+            return vsj_step_timestep(m, w, s, inputs, dt, setting[0]);
+        return VSJ_BAD_ARGUMENT;
+    }
+    if (!vsj__fits(m, w) || !(dt > 0.0))
+        return VSJ_BAD_ARGUMENT;
+    hold(m, w, s, inputs);
+    to_engine(m, s, inputs, w->sy);
+    memset(w->sy + nstate, 0, (size_t)nacc * sizeof(double));
+    if (method == VSJ_STEP_DOPRI) {
+        vsj_report rep;
+        if (!(setting[2] >= 1.0))
+            status = VSJ_BAD_ARGUMENT;
+        else {
+            rep = vsj_dopri(m, w, w->sy, ny, 0.0, dt, NULL, 0, setting[0], setting[1], INFINITY,
+                            (int64_t)setting[2], nstate, NULL, 0);
+            status = rep.status;
+        }
+    } else if (method == VSJ_STEP_TIMESTEP) {
+        double h = setting[0];
+        if (!(h > 0.0) || !(dt / h <= VSJ_MAX_PERIOD_STEPS))
+            status = VSJ_BAD_ARGUMENT;
+        else {
+            vsj_report rep;
+            status = vsj_ts_begin(m, w, w->sy, 0.0);
+            rep = vsj_ts_advance(m, w, w->sy, dt, h, (int64_t)ceil(dt / h - 1e-9), 1, NULL);
+            if (status == VSJ_OK)
+                status = rep.status;
+        }
+    } else {
+        status = VSJ_BAD_ARGUMENT; /* rk4 keeps no ledger */
+    }
+    w->held = NULL;
+    if (status == VSJ_OK) {
+        memcpy(ledger, w->sy + nstate, (size_t)nacc * sizeof(double));
+        from_engine(m, w->sy, inputs, dt, s);
+    }
+    return status;
+}

@@ -317,6 +317,13 @@ int vsj_step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *input
  * from one call to the next. */
 int vsj_step_timestep(const vsj_model *m, vsj_work *w, double *s, const double *inputs,
                       double dt, double h);
+/* One period with any of the three methods (setting: rtol, atol, max_steps for
+ * dopri; substeps for rk4; h for the time-stepper) and, if `ledger` is not
+ * NULL (dopri and the time-stepper), the energy ledger over the period:
+ * vsj_n_acc values, each accumulator's change (see vsj_n_acc). */
+enum vsj_step_method { VSJ_STEP_DOPRI = 0, VSJ_STEP_RK4 = 1, VSJ_STEP_TIMESTEP = 2 };
+int vsj_step_period(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
+                    int method, const double setting[3], double *ledger);
 /* ds/dt at s for held inputs (the source speeds' derivatives drop out). */
 int vsj_step_rate(const vsj_model *m, vsj_work *w, const double *s, const double *inputs,
                   double *ds);
