@@ -309,6 +309,177 @@ def _row(dims: dict, start: dict):
     return np.array([dims.get(k, start.get(k)) for k in GEOMETRY_FIELDS])
 
 
+# -- the whole wrist ----------------------------------------------------------------------
+
+
+def _free(items) -> tuple[tuple[str, ...], dict]:
+    """``--free NAME`` or ``NAME=LOW,HIGH`` (bounds in the parameter's display unit, as
+    `vsj params` shows it) -> names and SI bounds."""
+    from .params import SCHEMA
+    from .units import to_si
+
+    names, bounds = [], {}
+    for item in items:
+        name, _, rest = item.partition("=")
+        name = name.strip()
+        names.append(name)
+        if rest:
+            section, _, key = name.partition(".")
+            spec = SCHEMA.get(section, {}).get(key)
+            if spec is None:
+                raise InputError(f"--free {name}: no such parameter")
+            parts = rest.split(",")
+            if len(parts) != 2:
+                raise InputError(f"--free {item}: bounds are written NAME=LOW,HIGH")
+            bounds[name] = tuple(to_si(f"{v.strip()} {spec.display}", spec.unit,
+                                       where=f"--free {name}") for v in parts)
+    return tuple(names), bounds
+
+
+def _setup_file(path) -> dict:
+    """A small TOML with any of: inputs, outputs, free (lists of names), window, lead
+    (seconds as text with units)."""
+    import tomllib
+
+    from .errors import read_text
+
+    try:
+        doc = tomllib.loads(read_text(path, "fit set-up file"))
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML: {exc}") from None
+    allowed = {"inputs", "outputs", "free"}
+    extra = set(doc) - allowed
+    if extra:
+        raise InputError(f"{path}: unknown key {sorted(extra)[0]!r}; allowed: "
+                         f"{', '.join(sorted(allowed))}")
+    for key, value in doc.items():
+        if not (isinstance(value, list) and all(isinstance(v, str) for v in value)):
+            raise InputError(f"{path}: {key} must be a list of names")
+    return doc
+
+
+def cmd_fit_wrist(args) -> int:
+    from . import measurements
+    from .identification import wrist_report
+    from .identification.wrist import fit_wrist
+    from .identification.wrist_model import Setup, all_known_columns, check_free
+    from .units import to_si
+    from .wrist import WristOptions
+
+    setup_doc = _setup_file(args.setup) if args.setup else {}
+    free_items = list(args.free or []) + list(setup_doc.get("free", []))
+    names, bounds = _free(free_items)
+    params = _params(args.params)
+    check_free(names, params)
+    known = all_known_columns()
+    logs = [measurements.read_log(f, known) for f in args.logs]
+    validate = [measurements.read_log(f, known) for f in (args.validate or [])]
+    motors = args.motor_model
+    if motors is None:
+        motors = "dc" if any(c.startswith("voltage_") or c.endswith(".voltage")
+                             for c in logs[0].columns) else "velocity"
+    inputs = args.inputs or setup_doc.get("inputs")
+    outputs = args.outputs or setup_doc.get("outputs")
+    setup = Setup(free=names, wrist=WristOptions(motors=motors, elastic=args.elastic),
+                  inputs=tuple(inputs) if inputs else None,
+                  outputs=tuple(outputs) if outputs else None,
+                  window=to_si(args.window, "s", where="--window"),
+                  threads=args.threads)
+    if not setup.window > 0:
+        raise InputError(f"--window {args.window}: must be > 0 s")
+    _check_write_params(args)
+    out = _out(args)
+    with _results(out, "fit wrist") as results:
+        fit = fit_wrist(logs, params, setup, bounds=bounds, starts=args.starts,
+                        validate=validate, seed=args.seed,
+                        progress=lambda text: print(text, file=sys.stderr))
+        written = wrist_report.write(fit, results) if results is not None else []
+    record = fit.to_json()
+    _print_json(args, record)
+    lines = [f"{', '.join(fit.files)}: {len(fit.names)} parameters"
+             + (" [synthetic data]" if fit.synthetic else "")]
+    for e in fit.estimates:
+        if e.status == "determined":
+            lines.append(f"  {e.name} = {e.value:.6g} +- {e.stderr:.2g} {e.unit}  "
+                         f"(95 %: {e.ci95[0]:.5g} .. {e.ci95[1]:.5g})")
+        else:
+            lines.append(f"  {e.name} = {e.value:.6g} {e.unit}  ({e.status}: no interval)")
+    for c in fit.combinations:
+        lines.append(f"  not determined by these data: {c}")
+    lines.append(f"  {fit.reached} of {len(fit.starts)} starts reached the best cost")
+    for kind, per in fit.quality.items():
+        lines.append(f"  {kind}: " + ", ".join(f"{n} fit {q.fit_percent:.4g} % (NRMSE "
+                                                  f"{q.nrmse:.3g})" for n, q in per.items()))
+    lines.append(f"  {fit.simulations} window simulations ({fit.simulated_seconds:.4g} s "
+                 f"simulated) in {fit.wall_time:.3g} s")
+    if out is not None:
+        lines.append("wrote " + ", ".join(str(out / n) for n in written))
+    if args.write_params:
+        overrides = fit.overrides(", ".join(args.logs))
+        _write_params(args.write_params, overrides, args.params)
+        lines.append(f"wrote {args.write_params}")
+    _say(args, "\n".join(lines))
+    return 0
+
+
+def cmd_synth_wrist(args) -> int:
+    from . import measurements, synth
+    from .identification import wrist_experiment
+    from .output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
+
+    experiment = wrist_experiment.load(args.experiment)
+    check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES)
+    data = synth.wrist(experiment, _params(args.params), seed=args.seed)
+    with write_errors("--out", args.out):
+        measurements.write_log(args.out, data.columns, data.comments)
+    print(f"wrote {args.out} (synthetic, {len(data.columns['time'][0])} rows)")
+    return 0
+
+
+def cmd_excite(args) -> int:
+    from .identification import wrist_experiment
+    from .output import (
+        SMALL_OUTPUT_BYTES,
+        atomic_write,
+        check_output_file,
+        write_errors,
+    )
+    from .units import to_si
+
+    names, _ = _free(args.free)
+    params = _params(args.params)
+    from .identification.wrist_model import check_free
+
+    check_free(names, params)
+    duration = to_si(args.duration, "s", where="--duration")
+    if not 1.0 <= duration <= 600.0:
+        raise InputError(f"--duration {args.duration}: from 1 s to 600 s")
+    mo = params.motor
+    no_load = mo.voltage_limit / mo.torque_constant / mo.gear_ratio
+    max_speed = (to_si(args.max_speed, "rad/s", where="--max-speed") if args.max_speed
+                 else 0.5 * no_load)
+    max_torque = to_si(args.max_torque, "N*m", where="--max-torque")
+    q = to_si(args.q, "m", where="--q")
+    check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES)
+    experiment, se, logdet, ref_se, ref_logdet = wrist_experiment.design(
+        params, names, duration, max_speed=max_speed, max_torque=max_torque, q=q,
+        candidates=args.candidates, seed=args.seed,
+        progress=lambda text: print(text, file=sys.stderr))
+    with write_errors("--out", args.out), atomic_write(Path(args.out)) as handle:
+        handle.write(experiment.to_toml())
+    lines = [f"wrote {args.out}: {experiment.description}",
+             f"  log det of the Fisher information (relative units): {logdet:.4g}; plain sine "
+             f"{ref_logdet:.4g}", "  predicted standard errors (design / plain sine):"]
+    for n in names:
+        lines.append(f"    {n}: {se[n]:.3g} / {ref_se[n]:.3g} (start {params[n]:.4g}, SI)")
+    record = {"experiment": args.out, "logdet": logdet, "plain_sine_logdet": ref_logdet,
+              "predicted_stderr": se, "plain_sine_stderr": ref_se,
+              "max_speed": max_speed, "max_torque": max_torque}
+    _print_json(args, record)
+    _say(args, "\n".join(lines))
+    return 0
+
+
 def register(sub) -> None:
     """Add ``synth`` and ``fit`` with their sub-commands to an argparse sub-parser set."""
     p = sub.add_parser("synth", help="write synthetic measurement files (labelled synthetic)")
@@ -331,6 +502,12 @@ def register(sub) -> None:
     f.add_argument("--seed", type=int, default=1)
     f.add_argument("--out", required=True, metavar="FILE")
     f.set_defaults(func=cmd_synth_friction)
+    x = kinds.add_parser("wrist", help="a log of the whole wrist running an experiment")
+    x.add_argument("--experiment", required=True, metavar="EXP.toml")
+    x.add_argument("--params", metavar="FILE", help="the true parameter set (default bundled)")
+    x.add_argument("--seed", type=int, default=1)
+    x.add_argument("--out", required=True, metavar="LOG.csv")
+    x.set_defaults(func=cmd_synth_wrist)
     s = kinds.add_parser("stiffness", help="torque-deflection curves of the elastic bench")
     s.add_argument("--q", type=float, action="append", required=True, metavar="CM",
                    help="pivot position in cm (repeat for several curves)")
@@ -374,3 +551,44 @@ def register(sub) -> None:
     k.add_argument("--write-params", metavar="FILE",
                    help="write the base set with a1..a3 (and the calibrated geometry)")
     k.set_defaults(func=cmd_fit_stiffness)
+    w = kinds.add_parser("wrist", help="the assembled wrist's parameters from logs of its "
+                                       "signals (output error)")
+    w.add_argument("logs", nargs="+", metavar="LOG.csv")
+    w.add_argument("--free", action="append", metavar="NAME[=LOW,HIGH]",
+                   help="a parameter to identify (section.key; bounds in its display unit); "
+                        "repeat for more")
+    w.add_argument("--params", metavar="FILE", help="start and fixed values (default bundled)")
+    w.add_argument("--inputs", nargs="+", metavar="COLUMN", help="columns that drive the model "
+                   "(default: every input channel found)")
+    w.add_argument("--outputs", nargs="+", metavar="COLUMN", help="columns compared (default: "
+                   "every measured signal the states determine)")
+    w.add_argument("--setup", metavar="FILE", help="TOML with inputs, outputs, free")
+    w.add_argument("--validate", nargs="+", metavar="LOG.csv", help="held-out logs")
+    w.add_argument("--elastic", default="geometric",
+                   choices=("geometric", "geometric-report", "exponential"),
+                   help="elastic element model (default geometric)")
+    w.add_argument("--motor-model", choices=("velocity", "dc"),
+                   help="primary motors (default: dc when the log has voltages)")
+    w.add_argument("--window", default="5 s", help="window length (default 5 s)")
+    w.add_argument("--starts", type=int, default=4, help="starting points (default 4)")
+    w.add_argument("--seed", type=int, default=0, help="seed of the space-filling starts")
+    w.add_argument("--threads", type=int, help="engine threads (default: every core)")
+    w.add_argument("--json", action="store_true")
+    w.add_argument("--out", metavar="DIR", help="write the page, plots and JSON here")
+    w.add_argument("--write-params", metavar="FILE",
+                   help="write the parameter set with the determined estimates")
+    w.set_defaults(func=cmd_fit_wrist)
+    e = sub.add_parser("excite", help="design an excitation of the wrist that makes the named "
+                                      "parameters identifiable (D-optimal)")
+    e.add_argument("--free", action="append", required=True, metavar="NAME")
+    e.add_argument("--duration", required=True, help="e.g. '20 s'")
+    e.add_argument("--params", metavar="FILE")
+    e.add_argument("--max-speed", help="motor (sun) speed limit (default: half the no-load "
+                                       "speed of the parameter set's motors)")
+    e.add_argument("--max-torque", default="0.1 N m", help="external torque pulses' height")
+    e.add_argument("--q", default="0 cm", help="pivot position (default 0 cm)")
+    e.add_argument("--candidates", type=int, default=6)
+    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--json", action="store_true")
+    e.add_argument("--out", required=True, metavar="EXP.toml")
+    e.set_defaults(func=cmd_excite)

@@ -220,3 +220,116 @@ def write(path: str | Path, columns: Mapping[str, tuple[np.ndarray, str]],
         writer.writerow([f"{v:.10g}" for v in row])
     with atomic_write(Path(path)) as handle:
         handle.write(buffer.getvalue())
+
+
+# -- signal logs of the whole wrist ----------------------------------------------------
+
+#: Most rows a signal log may hold (about an hour at 1 kHz): the fit keeps every sample.
+MAX_LOG_ROWS = 5_000_000
+
+
+def read_log(path: str | Path, known: Mapping[str, str], *, min_points: int = 5) -> Measurement:
+    """Read a signal log: every column named after a signal or an input channel of the
+    model, with its unit (``theta_x [rad]``, ``tau_x [mN m]``, ``motor.motor_1.current
+    [A]``), and a ``time`` column.
+
+    ``known`` maps each name the model knows to its SI unit. Unlike `read`, a column
+    that is neither a known signal nor an input is an error (a typo would otherwise
+    drop a measured signal unnoticed). Columns come back under their full names, in SI.
+    Every problem names the file and the line: a header without a unit, a unit of the
+    wrong dimension, a cell that is not a finite number, time that does not increase.
+    """
+    path = str(path)
+    text = read_text(path, "signal log")
+    comments, rows = [], []
+    for number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if stripped.startswith("#"):
+            comments.append(stripped[1:].strip())
+            continue
+        rows.append((number, line))
+    if not rows:
+        raise InputError(f"{path}: no header line and no data")
+    if len(rows) - 1 > MAX_LOG_ROWS:
+        raise InputError(f"{path}: {len(rows) - 1} data rows; at most {MAX_LOG_ROWS} are read")
+    header_line, header = rows[0]
+    delimiter = _delimiter(header, path, header_line)
+    names = _cells(header, delimiter, path, header_line)
+    scales, units, order = [], {}, []
+    allowed = {"time": "s", **known}
+    for index, raw in enumerate(names):
+        m = _HEADER.match(raw)
+        if not m:
+            raise InputError(f"{path}, line {header_line}: column {index + 1} header {raw!r} "
+                             "has no unit; write it as 'name [unit]', e.g. 'theta_x [rad]'")
+        name, unit = m.group("name").strip(), m.group("unit").strip()
+        if name not in allowed:
+            raise InputError(f"{path}, line {header_line}: column {index + 1} {name!r} is "
+                             f"neither an input nor a signal of the model; known: "
+                             f"{', '.join(sorted(allowed))}")
+        if name in units:
+            raise InputError(f"{path}, line {header_line}: column {name!r} appears twice")
+        si = allowed[name]
+        try:
+            scale = to_si(f"1 {unit}" if unit else "1", si,
+                          where=f"{path}, line {header_line}, column {raw!r}")
+        except InputError as exc:
+            raise InputError(f"{exc} (unit {unit!r} of {name}; expected something "
+                             f"convertible to {si})") from None
+        scales.append(scale)
+        units[name] = unit
+        order.append(name)
+    if "time" not in units:
+        raise InputError(f"{path}, line {header_line}: no 'time [s]' column")
+    n = len(rows) - 1
+    if n < min_points:
+        raise InputError(f"{path}: {n} data points; at least {min_points} are needed")
+    data = np.empty((n, len(order)))
+    for r, (number, line) in enumerate(rows[1:]):
+        cells = _cells(line, delimiter, path, number)
+        if len(cells) != len(names):
+            raise InputError(f"{path}, line {number}: {len(cells)} cells, the header has "
+                             f"{len(names)}")
+        for c, cell in enumerate(cells):
+            try:
+                value = float(cell)
+            except ValueError:
+                raise InputError(f"{path}, line {number}: {order[c]} cell {cell.strip()!r} is "
+                                 "not a number") from None
+            if not math.isfinite(value):
+                raise InputError(f"{path}, line {number}: {order[c]} is {cell.strip()!r}; "
+                                 "every cell must be a finite number")
+            data[r, c] = value * scales[c]
+    columns = {name: np.ascontiguousarray(data[:, c]) for c, name in enumerate(order)}
+    steps = np.diff(columns["time"])
+    bad = np.flatnonzero(steps <= 0)
+    if bad.size:
+        number = rows[1 + bad[0] + 1][0]
+        raise InputError(f"{path}, line {number}: time does not increase "
+                         f"({columns['time'][bad[0]]:g} s, then "
+                         f"{columns['time'][bad[0] + 1]:g} s)")
+    return Measurement(path=path, columns=columns, units=units, comments=comments)
+
+
+def write_log(path: str | Path, columns: Mapping[str, tuple[np.ndarray, str]],
+              comments: Sequence[str] = ()) -> None:
+    """Write a signal log: ``columns`` maps signal name to (SI values, unit to write)."""
+    from .output import atomic_write
+
+    names = list(columns)
+    buffer = io.StringIO()
+    for c in comments:
+        for line in str(c).splitlines():
+            buffer.write(f"# {line}\n")
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow([f"{q} [{columns[q][1]}]" for q in names])
+    converted = np.column_stack([np.asarray(columns[q][0], dtype=float)
+                                 * (from_si(1.0, columns[q][1])
+                                    if columns[q][1] not in ("", "1") else 1.0)
+                                 for q in names])
+    for row in converted:
+        writer.writerow([f"{v:.10g}" for v in row])
+    with atomic_write(Path(path)) as handle:
+        handle.write(buffer.getvalue())

@@ -254,3 +254,80 @@ def stiffness(*, q: float, params: Parameters, noise: float = 0.01, play: float 
     return SynthFile({"time": (result.time, "s"), "deflection": (deflection, "rad"),
                       "torque": (measured, "N m"),
                       "pivot": (np.full(len(torque), q), "cm")}, comments)
+
+
+def wrist(experiment, params: Parameters, *, seed: int = 1) -> SynthFile:
+    """A log of the whole wrist running ``experiment`` (`vsj.identification.wrist_experiment`)
+    with the parameter set ``params`` as the truth.
+
+    The wrist is simulated with true stiction at the experiment's step; the log then
+    gets the artefacts of real sensors (`Sensors`): sample times with jitter, the
+    end-effector channels delayed behind the motor channels, encoder quantisation of
+    every angle after white noise, a current sensor with an offset and noise, a torque
+    sensor with noise on the applied external torques, and a noisy pivot sensor. The
+    commands (motor speeds or voltages) are logged as sent.
+    """
+    from .simulate import SimulationOptions, simulate
+    from .wrist import WristOptions, build_wrist, pivot_range
+
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise InputError(f"seed = {seed!r}: must be a whole number >= 0")
+    e = experiment
+    options = WristOptions(motors=e.motors, elastic=e.elastic)
+    structure = build_wrist(params, options).assemble()
+    lo, hi = params.pivot.q_min, params.pivot.q_max
+    grid = np.arange(int(math.ceil(e.duration / e.step)) + 2) * e.step
+    q_path = e.value("q", grid)
+    if not (np.all(q_path >= lo - 1e-12) and np.all(q_path <= hi + 1e-12)):
+        raise InputError(f"{e.origin}: the pivot position leaves the range [{lo * 100:g}, "
+                         f"{hi * 100:g}] cm of {params.origin}")
+    motor = ("motor_1", "motor_2") if e.motors == "velocity" else ("voltage_1", "voltage_2")
+    inputs = {ch: Table(tuple(grid), tuple(e.value(ch, grid))) for ch in motor + ("tau_x", "tau_y")}
+    j = next(k for k, s in enumerate(structure.sources) if s.channel == "motor_s")
+    ru = structure.rows(structure.pivot.flange)[1][j]
+    motor_s = np.arcsin(q_path / structure.pivot.amplitude) / ru
+    inputs["motor_s"] = Position(Table(tuple(grid), tuple(motor_s)))
+    result = simulate(structure, inputs, e.duration, ports=False, pivot_range=pivot_range(params),
+                      options=SimulationOptions(friction="stiction", step=e.step,
+                                                output_step=e.step))
+    if not result.success:
+        raise InputError(f"{e.origin}: the wrist simulation failed: {result.message}")
+    s = e.sensors
+    rng = np.random.default_rng(seed)
+    n = int(math.floor(e.duration / e.sample_period + 1e-9))
+    nominal = np.arange(n) * e.sample_period
+    t = np.clip(nominal + rng.normal(0.0, s.jitter, n), 0.0, e.duration - s.time_offset)
+    t = np.maximum.accumulate(t)
+    t = t + np.arange(n) * 1e-12 * e.sample_period  # strictly increasing, whatever the jitter
+    resolution = 2 * math.pi / s.encoder_counts
+
+    def at(name, delay=0.0):
+        return np.interp(t + delay, result.time, result[name])
+
+    def encoder(values):
+        return np.round((values + rng.normal(0.0, s.angle_noise, n)) / resolution) * resolution
+
+    cols = {"time": (t, "s")}
+    if e.motors == "velocity":
+        cols["motor_1.speed"] = (e.value("motor_1", t), "rad/s")
+        cols["motor_2.speed"] = (e.value("motor_2", t), "rad/s")
+    else:
+        cols["voltage_1"] = (e.value("voltage_1", t), "V")
+        cols["voltage_2"] = (e.value("voltage_2", t), "V")
+    cols["motor_s.speed"] = (at("motor_s.speed"), "rad/s")
+    for ch in ("tau_x", "tau_y"):
+        cols[ch] = (e.value(ch, t) + rng.normal(0.0, s.torque_noise, n), "N m")
+    cols["motor_1"] = (encoder(at("motor_1")), "rad")
+    cols["motor_2"] = (encoder(at("motor_2")), "rad")
+    if e.motors == "dc":
+        for m in ("motor_1", "motor_2"):
+            name = f"motor.{m}.current"
+            cols[name] = (at(name) + s.current_offset + rng.normal(0.0, s.current_noise, n), "A")
+    cols["theta_x"] = (encoder(at("theta_x", s.time_offset)), "rad")
+    cols["theta_y"] = (encoder(at("theta_y", s.time_offset)), "rad")
+    cols["q"] = (at("q") + rng.normal(0.0, s.q_noise, n), "mm")
+    how = (f"by simulating the wrist ({e.motors} motors, {e.elastic} elastic model, true "
+           f"stiction, step {e.step:g} s) running {e.origin} with the parameter set "
+           f"'{params.meta.get('name', params.origin)}' (hash {params.hash()[:12]})")
+    comments = _header("wrist log", how, seed, s.artefacts())
+    return SynthFile(cols, comments)

@@ -1,0 +1,98 @@
+"""Identification of the whole wrist (issue 23): speed, and coverage over seeds.
+
+Default: eight parameters (stiction levels, the parasitic compliance, the
+end-effector inertia, ...) from 60 s of 1 kHz synthetic data
+(`examples/identification/experiment.toml` stretched to 60 s), with the
+default four starts; prints the wall time, the window simulations it took and
+the estimates against the truth.
+
+``--coverage [SEEDS]`` (default 20): the acceptance study, on 10 s logs: per
+parameter the fraction of trials within three standard errors of the truth and
+the ratio of the spread over the trials to the mean reported standard error.
+
+Run with `.venv/bin/python benchmarks/identify_wrist.py [--coverage [N]]`.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from vsj import params as params_module
+from vsj import synth
+from vsj.engine.core import available_cores
+from vsj.identification import wrist_experiment as WE
+from vsj.identification.wrist import fit_wrist
+from vsj.identification.wrist_model import Setup
+from vsj.measurements import Measurement
+
+ROOT = Path(__file__).resolve().parent.parent
+FREE = ("planetary.ring_bearing_stiction", "transmission.stiction", "differential.stiction",
+        "transmission.series_compliance_1", "differential.inertia_x", "planetary.ring_inertia",
+        "transmission.viscous", "planetary.carrier_inertia")
+
+
+def _log(data, name):
+    return Measurement(name, {k: v[0] for k, v in data.columns.items()},
+                       {k: v[1] for k, v in data.columns.items()}, data.comments)
+
+
+def _stretched(e, duration):
+    """The example's pattern repeated to ``duration``: pulses every 2 s on both axes."""
+    signals = dict(e.signals)
+    for ch, first in (("tau_x", 1.0), ("tau_y", 2.0)):
+        starts = tuple(np.arange(first, duration - 1.0, 4.0))
+        heights = tuple(0.1 * (-1.0) ** np.arange(len(starts)))
+        signals[ch] = (("pulses", {"start": starts, "width": 0.4, "height": heights}),)
+    return replace(e, duration=duration, signals=signals)
+
+
+def speed() -> None:
+    truth = params_module.load(ROOT / "examples/identification/wrist_params.toml")
+    e = _stretched(WE.load(ROOT / "examples/identification/experiment.toml"), 60.0)
+    log = _log(synth.wrist(e, truth, seed=1), "synthetic-60s.csv")
+    started = time.perf_counter()
+    fit = fit_wrist([log], truth, Setup(free=FREE), starts=4)
+    wall = time.perf_counter() - started
+    print(f"identify wrist: {len(FREE)} parameters from {len(log)} samples "
+          f"({log['time'][-1]:.0f} s at 1 kHz), {available_cores()} cores: {wall:.1f} s, "
+          f"{fit.simulations} window simulations ({fit.simulated_seconds:.0f} s simulated, "
+          f"{fit.simulated_seconds / 60:.0f} passes over the log); "
+          f"{fit.reached} of {len(fit.starts)} starts reached the best cost")
+    for est in fit.estimates:
+        t = truth[est.name]
+        print(f"  {est.name:36s} {est.value:.5g} +- {est.stderr:.2g} (truth {t:.5g}, "
+              f"z = {(est.value - t) / est.stderr:+.2f})")
+
+
+def coverage(seeds: int) -> None:
+    truth = params_module.load(ROOT / "examples/identification/wrist_params.toml")
+    e = replace(WE.load(ROOT / "examples/identification/experiment.toml"), duration=10.0,
+                step=1e-3)
+    values, errors = [], []
+    started = time.perf_counter()
+    for seed in range(seeds):
+        fit = fit_wrist([_log(synth.wrist(e, truth, seed=100 + seed), "c.csv")], truth,
+                        Setup(free=FREE), starts=1)
+        values.append(fit.values)
+        errors.append([x.stderr for x in fit.estimates])
+    values, errors = np.array(values), np.array(errors)
+    true = np.array([truth[n] for n in FREE])
+    z = (values - true) / errors
+    print(f"coverage over {seeds} seeds ({time.perf_counter() - started:.0f} s): "
+          f"{100 * np.mean(np.abs(z) <= 3):.0f} % within 3 standard errors")
+    for i, name in enumerate(FREE):
+        print(f"  {name:36s} within 3 SE: {100 * np.mean(np.abs(z[:, i]) <= 3):3.0f} %, "
+              f"spread / mean SE = {np.std(values[:, i], ddof=1) / np.mean(errors[:, i]):.2f}")
+
+
+if __name__ == "__main__":
+    if "--coverage" in sys.argv:
+        rest = sys.argv[sys.argv.index("--coverage") + 1:]
+        coverage(int(rest[0]) if rest else 20)
+    else:
+        speed()

@@ -1,0 +1,380 @@
+"""Experiments on the whole wrist: what drives it, and how its sensors record it.
+
+An experiment file (TOML, written by ``vsj excite``, read by ``vsj synth
+wrist``) says which signals drive the wrist and what sensors record it::
+
+    [experiment]
+    description = "D-optimal excitation for 8 parameters"
+    duration = "20 s"
+    sample_period = "1 ms"
+    motors = "velocity"          # velocity sources (speeds) or dc (voltages)
+    elastic = "geometric"
+    q = "0.5 cm"                 # pivot position at the start
+
+    [signals.motor_1]            # rad/s with velocity sources, V with DC motors
+    multisine = { frequency = [0.3, 1.1], amplitude = [2.0, 1.0], phase = [0.0, 1.2] }
+    [signals.tau_x]              # N m on the end-effector
+    pulses = { start = [2.0, 6.0], width = 0.3, height = [0.05, -0.05] }
+    [signals.q]                  # pivot position steps [m], moved by the pivot motor
+    steps = { time = [8.0], value = [-0.01] }
+
+    [sensors]                    # the artefacts of `vsj.synth.wrist`
+    encoder_counts = 16384
+    angle_noise = "0.2 mrad"
+    ...
+
+Inside a component, numbers are SI (rad/s, V, N m, m, s) and frequencies Hz.
+Every motor signal fades in over `FADE` so the wrist starts from rest.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..errors import InputError, read_text
+from ..units import format_quantity, to_si
+
+#: Motor signals rise smoothly (quintic smoothstep) over this time [s] from rest.
+FADE = 0.5
+#: A step of q is a smooth ramp of this duration [s] (the pivot motor's speed stays finite).
+Q_RAMP = 0.3
+CHANNELS = ("motor_1", "motor_2", "voltage_1", "voltage_2", "tau_x", "tau_y", "q")
+COMPONENTS = {"multisine": ("frequency", "amplitude", "phase"),
+              "chirp": ("start_frequency", "end_frequency", "amplitude"),
+              "sine": ("frequency", "amplitude"),
+              "pulses": ("start", "width", "height"),
+              "steps": ("time", "value")}
+
+
+@dataclass(frozen=True)
+class Sensors:
+    """Artefacts of the recording (SI): encoder counts per turn, white noise of angles,
+    currents, torques and q, a current sensor offset, the end-effector channels' delay
+    behind the motor channels, and the sample clock's jitter (sd)."""
+
+    encoder_counts: int = 16384
+    angle_noise: float = 2e-4
+    current_noise: float = 5e-3
+    current_offset: float = 0.02
+    torque_noise: float = 1e-4
+    q_noise: float = 1e-5
+    time_offset: float = 2e-4
+    jitter: float = 2e-5
+
+    def artefacts(self) -> str:
+        return (f"encoder quantisation ({self.encoder_counts} counts per turn), white noise "
+                f"(angles {self.angle_noise:g} rad, currents {self.current_noise:g} A, torques "
+                f"{self.torque_noise:g} N m, q {self.q_noise:g} m), current sensor offset "
+                f"{self.current_offset:g} A, end-effector channels {self.time_offset:g} s behind "
+                f"the motor channels, sample-time jitter sd {self.jitter:g} s")
+
+
+_SENSOR_UNITS = {"angle_noise": "rad", "current_noise": "A", "current_offset": "A",
+                 "torque_noise": "N*m", "q_noise": "m", "time_offset": "s", "jitter": "s"}
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """Duration and sample period [s], wrist options, start pivot position [m], the
+    signals (channel -> components) and the sensors."""
+
+    duration: float
+    signals: Mapping[str, tuple[tuple[str, Mapping[str, object]], ...]]
+    sample_period: float = 1e-3
+    motors: str = "velocity"
+    elastic: str = "geometric"
+    q: float = 0.0
+    description: str = ""
+    sensors: Sensors = field(default_factory=Sensors)
+    step: float = 5e-4
+    origin: str = "<experiment>"
+
+    def value(self, channel: str, t) -> np.ndarray:
+        """The channel's command at times ``t`` [s] (SI; q in m)."""
+        t = np.asarray(t, dtype=float)
+        out = np.zeros_like(t)
+        for kind, spec in self.signals.get(channel, ()):
+            out = out + _component(kind, spec, t, self.duration)
+        if channel == "q":
+            return self.q + out
+        if channel.startswith(("motor_", "voltage_")):
+            z = np.clip(t / FADE, 0.0, 1.0)
+            out = out * z ** 3 * (10.0 - 15.0 * z + 6.0 * z * z)
+        return out
+
+    def to_toml(self) -> str:
+        import tomli_w
+
+        s = self.sensors
+        doc = {"experiment": {"description": self.description,
+                              "duration": format_quantity(self.duration, "s", digits=10),
+                              "sample_period": format_quantity(self.sample_period, "ms",
+                                                               digits=10),
+                              "motors": self.motors, "elastic": self.elastic,
+                              "q": format_quantity(self.q, "cm", digits=10)},
+               "signals": {ch: {kind: _plain(spec) for kind, spec in comps}
+                           for ch, comps in self.signals.items()},
+               "sensors": {"encoder_counts": s.encoder_counts,
+                           **{k: format_quantity(getattr(s, k), u.replace("*", " "), digits=8)
+                              for k, u in _SENSOR_UNITS.items()}},
+               "simulation": {"step": format_quantity(self.step, "ms", digits=10)}}
+        return ("# vsj experiment on the whole wrist: inputs and sensors (see vsj.identification"
+                ".wrist_experiment)\n" + tomli_w.dumps(doc))
+
+
+def _plain(spec):
+    return {k: (list(map(float, v)) if isinstance(v, (list, tuple, np.ndarray)) else float(v))
+            for k, v in spec.items()}
+
+
+def _smoothstep(z):
+    z = np.clip(z, 0.0, 1.0)
+    return z ** 3 * (10.0 - 15.0 * z + 6.0 * z * z)
+
+
+def _component(kind: str, spec: Mapping, t: np.ndarray, duration: float) -> np.ndarray:
+    if kind == "multisine":
+        out = np.zeros_like(t)
+        for f, a, p in zip(spec["frequency"], spec["amplitude"], spec["phase"]):
+            out += a * np.sin(2 * math.pi * f * t + p)
+        return out
+    if kind == "sine":
+        return spec["amplitude"] * np.sin(2 * math.pi * spec["frequency"] * t)
+    if kind == "chirp":
+        f0, f1 = spec["start_frequency"], spec["end_frequency"]
+        k = (f1 - f0) / duration  # from f0 at the start to f1 at the end
+        return spec["amplitude"] * np.sin(2 * math.pi * (f0 * t + 0.5 * k * t * t))
+    if kind == "pulses":
+        out = np.zeros_like(t)
+        width = spec["width"]
+        edge = min(0.05, width / 4)
+        for start, height in zip(spec["start"], spec["height"]):
+            out += height * (_smoothstep((t - start) / edge)
+                             - _smoothstep((t - start - width) / edge))
+        return out
+    if kind == "steps":
+        out = np.zeros_like(t)
+        level = 0.0
+        for time, value in zip(spec["time"], spec["value"]):
+            out += (value - level) * _smoothstep((t - time) / Q_RAMP)
+            level = value
+        return out
+    raise InputError(f"unknown signal component {kind!r}")
+
+
+def load(path) -> Experiment:
+    """Read and check an experiment file; `InputError` names the file and the key."""
+    origin = str(path)
+    try:
+        doc = tomllib.loads(read_text(path, "experiment file"))
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{origin}: not valid TOML: {exc}") from None
+    return from_table(doc, origin)
+
+
+def from_table(doc: Mapping, origin: str) -> Experiment:
+    unknown = set(doc) - {"experiment", "signals", "sensors", "simulation"}
+    if unknown:
+        raise InputError(f"{origin}: unknown table(s) {', '.join(sorted(unknown))}; allowed: "
+                         "experiment, signals, sensors, simulation")
+    head = doc.get("experiment")
+    if not isinstance(head, Mapping):
+        raise InputError(f"{origin}: missing [experiment] table (duration, motors, ...)")
+
+    def quantity(table, key, unit, where, default=None, positive=False):
+        if key not in table:
+            if default is None:
+                raise InputError(f"{origin}: {where}.{key}: missing")
+            return default
+        value = to_si(table[key], unit, where=f"{origin}: {where}.{key}")
+        if positive and not value > 0:
+            raise InputError(f"{origin}: {where}.{key} = {table[key]!r}: must be > 0")
+        return value
+
+    allowed = {"description", "duration", "sample_period", "motors", "elastic", "q"}
+    extra = set(head) - allowed
+    if extra:
+        raise InputError(f"{origin}: experiment.{min(extra)}: unknown key; allowed: "
+                         f"{', '.join(sorted(allowed))}")
+    duration = quantity(head, "duration", "s", "experiment", positive=True)
+    period = quantity(head, "sample_period", "s", "experiment", 1e-3, positive=True)
+    if duration / period > 5e6:
+        raise InputError(f"{origin}: experiment: {duration / period:.3g} samples; at most 5e6")
+    motors = head.get("motors", "velocity")
+    if motors not in ("velocity", "dc"):
+        raise InputError(f"{origin}: experiment.motors = {motors!r}: velocity or dc")
+    elastic = str(head.get("elastic", "geometric"))
+    q = quantity(head, "q", "m", "experiment", 0.0)
+    signals = {}
+    for channel, comps in (doc.get("signals") or {}).items():
+        if channel not in CHANNELS:
+            raise InputError(f"{origin}: signals.{channel}: unknown channel; channels: "
+                             f"{', '.join(CHANNELS)}")
+        if not isinstance(comps, Mapping):
+            raise InputError(f"{origin}: signals.{channel} must be a table of components")
+        out = []
+        for kind, spec in comps.items():
+            where = f"{origin}: signals.{channel}.{kind}"
+            if kind not in COMPONENTS or not isinstance(spec, Mapping):
+                raise InputError(f"{where}: unknown component; components: "
+                                 f"{', '.join(COMPONENTS)}")
+            keys = COMPONENTS[kind]
+            missing = [k for k in keys if k not in spec]
+            if missing:
+                raise InputError(f"{where}: missing {', '.join(missing)}")
+            clean = {}
+            for k, v in spec.items():
+                arr = np.atleast_1d(np.asarray(v, dtype=float)) if isinstance(v, list) else None
+                if arr is not None:
+                    if not np.all(np.isfinite(arr)):
+                        raise InputError(f"{where}.{k}: every number must be finite")
+                    clean[k] = tuple(arr)
+                elif isinstance(v, (int, float)) and math.isfinite(v):
+                    clean[k] = float(v)
+                else:
+                    raise InputError(f"{where}.{k} = {v!r}: a number or a list of numbers")
+            out.append((kind, clean))
+        signals[channel] = tuple(out)
+    need = ("motor_1", "motor_2") if motors == "velocity" else ("voltage_1", "voltage_2")
+    wrong = [c for c in signals if c.startswith(("motor_", "voltage_")) and c not in need]
+    if wrong:
+        raise InputError(f"{origin}: signals.{wrong[0]}: with {motors} motors the motor "
+                         f"channels are {', '.join(need)}")
+    sensor_table = doc.get("sensors") or {}
+    sensors = Sensors()
+    values = {}
+    for k, v in sensor_table.items():
+        if k == "encoder_counts":
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise InputError(f"{origin}: sensors.encoder_counts = {v!r}: a whole number "
+                                 ">= 1")
+            values[k] = v
+        elif k in _SENSOR_UNITS:
+            values[k] = quantity(sensor_table, k, _SENSOR_UNITS[k], "sensors")
+            if values[k] < 0:
+                raise InputError(f"{origin}: sensors.{k}: must be >= 0")
+        else:
+            raise InputError(f"{origin}: sensors.{k}: unknown key; allowed: encoder_counts, "
+                             f"{', '.join(_SENSOR_UNITS)}")
+    sensors = replace(sensors, **values)
+    step = quantity(doc.get("simulation") or {}, "step", "s", "simulation", 5e-4, positive=True)
+    return Experiment(duration=duration, signals=signals, sample_period=period, motors=motors,
+                      elastic=elastic, q=q, description=str(head.get("description", "")),
+                      sensors=sensors, step=step, origin=origin)
+
+
+# -- design -----------------------------------------------------------------------------
+
+#: Band of the multisine designs [Hz]: from slow (the stiction-dominated crawl) to
+#: above the end-effector's modes at the stiffer pivot positions.
+BAND = (0.1, 6.0)
+
+
+def predicted(experiment: Experiment, params, free, *, threads=None):
+    """Predicted standard errors [SI] of ``free`` from an experiment, and log det of the
+    Fisher information in relative parameter units: the batch Jacobian of a noiseless
+    synthetic log (true stiction, windows restarted as the fit restarts them) weighted
+    by the sensors' noise."""
+    from .. import synth
+    from ..measurements import Measurement
+    from .wrist import FINAL, _Problem
+    from .wrist_model import Setup, WristModel
+
+    quiet = replace(experiment.sensors, encoder_counts=2 ** 40, angle_noise=0.0,
+                    current_noise=0.0, current_offset=0.0, torque_noise=0.0, q_noise=0.0,
+                    time_offset=0.0, jitter=0.0)
+    data = synth.wrist(replace(experiment, sensors=quiet), params, seed=0)
+    log = Measurement("<design>", {k: v[0] for k, v in data.columns.items()},
+                      {k: v[1] for k, v in data.columns.items()}, data.comments)
+    model = WristModel([log], params, Setup(free=tuple(free), threads=threads))
+    s = experiment.sensors
+    angle = math.sqrt(s.angle_noise ** 2 + (2 * math.pi / s.encoder_counts) ** 2 / 12)
+    model.set_noise({o.name: (s.current_noise if o.kind == "current" else
+                              s.q_noise if o.kind == "q" else angle) or 1e-9
+                     for o in model.outputs})
+    scale = np.abs(model.base)
+    J = _Problem(model, scale, FINAL).jac(np.ones(len(scale)))
+    F = J.T @ J
+    w, V = np.linalg.eigh(F)
+    logdet = float(np.sum(np.log(np.maximum(w, 1e-300))))
+    keep = w > 1e-12 * max(w[-1], 1e-300)
+    cov = (V[:, keep] / w[keep]) @ V[:, keep].T
+    se = np.sqrt(np.clip(np.diag(cov), 0, None)) * scale
+    se[np.sum(V[:, ~keep] ** 2, axis=1) > 0.1] = math.inf
+    return dict(zip(model.names, se)), logdet
+
+
+def plain_sine(duration: float, max_speed: float, *, motors="velocity", q=0.0,
+               frequency=1.0) -> Experiment:
+    """The reference: one sine on motor 1 at the speed limit, nothing else."""
+    ch = "motor_1" if motors == "velocity" else "voltage_1"
+    return Experiment(duration=duration, motors=motors, q=q,
+                      signals={ch: (("sine", {"frequency": frequency,
+                                              "amplitude": max_speed}),)},
+                      description=f"plain sine of {frequency:g} Hz on {ch}")
+
+
+def candidate(duration: float, max_speed: float, max_torque: float, rng, *,
+              motors="velocity", q=0.0, q_range=None, elastic="geometric") -> Experiment:
+    """A random design: multisines on both motors (log-spaced frequencies in `BAND`,
+    random phases, amplitudes falling with frequency, scaled to the speed limit),
+    external torque pulses of either sign on both axes, and, with ``q_range``, steps
+    of the pivot."""
+    grid = np.linspace(0.0, duration, int(duration * 200) + 1)
+    signals = {}
+    channels = ("motor_1", "motor_2") if motors == "velocity" else ("voltage_1", "voltage_2")
+    for ch in channels:
+        n = int(rng.integers(4, 9))
+        f = np.sort(np.exp(rng.uniform(np.log(BAND[0]), np.log(BAND[1]), n)))
+        a = f ** -rng.uniform(0.0, 1.0)
+        p = rng.uniform(0, 2 * math.pi, n)
+        wave = sum(ai * np.sin(2 * math.pi * fi * grid + pi) for fi, ai, pi in zip(f, a, p))
+        a = a * max_speed / max(float(np.max(np.abs(wave))), 1e-12)
+        signals[ch] = (("multisine", {"frequency": tuple(f), "amplitude": tuple(a),
+                                      "phase": tuple(p)}),)
+    for ch in ("tau_x", "tau_y"):
+        count = max(1, int(duration / rng.uniform(1.5, 4.0)))
+        starts = np.sort(rng.uniform(0.5, max(duration - 1.0, 0.6), count))
+        signals[ch] = (("pulses", {"start": tuple(starts), "width": float(rng.uniform(0.2, 0.6)),
+                                   "height": tuple(max_torque * rng.choice([-1.0, 1.0], count))}),)
+    if q_range is not None:
+        count = max(1, int(duration / 8))
+        times = np.sort(rng.uniform(1.0, duration - 1.0, count))
+        signals["q"] = (("steps", {"time": tuple(times),
+                                   "value": tuple(rng.uniform(q_range[0], q_range[1], count)
+                                                  - q)}),)
+    return Experiment(duration=duration, motors=motors, q=q, elastic=elastic, signals=signals,
+                      description="multisines on the motors and torque pulses on the "
+                                  "end-effector")
+
+
+def design(params, free, duration: float, *, max_speed: float, max_torque: float,
+           motors="velocity", q=0.0, candidates: int = 6, seed: int = 0, threads=None,
+           elastic="geometric", progress=None):
+    """D-optimal choice among ``candidates`` random designs (`candidate`): the one whose
+    Fisher information has the largest determinant. Returns the experiment, its
+    predicted standard errors, and those of `plain_sine` for comparison."""
+    say = progress or (lambda text: None)
+    rng = np.random.default_rng(seed)
+    q_range = None
+    if any(n.startswith(("elastic_element.", "pivot.")) for n in free):
+        q_range = (params.pivot.q_min, params.pivot.q_max)
+    best = None
+    for k in range(candidates):
+        e = candidate(duration, max_speed, max_torque, rng, motors=motors, q=q,
+                      q_range=q_range, elastic=elastic)
+        se, logdet = predicted(e, params, free, threads=threads)
+        say(f"candidate {k + 1}/{candidates}: log det {logdet:.4g}")
+        if best is None or logdet > best[2]:
+            best = (e, se, logdet)
+    e, se, logdet = best
+    ref = plain_sine(duration, max_speed, motors=motors, q=q)
+    ref_se, ref_logdet = predicted(ref, params, free, threads=threads)
+    e = replace(e, description=f"D-optimal among {candidates} candidates (seed {seed}) for "
+                               f"{', '.join(free)}: {e.description}")
+    return e, se, logdet, ref_se, ref_logdet

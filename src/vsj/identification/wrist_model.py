@@ -1,0 +1,707 @@
+"""The assembled wrist as a function of its free parameters, over windows of a log.
+
+Output-error identification compares the model's outputs with measured ones.
+This module turns logs and a choice of free parameters into that function:
+``residuals(P)`` evaluates many parameter vectors at once (the rows of ``P``),
+as one batch of the C engine's runs, and returns the noise-weighted
+differences between simulated and measured signals.
+
+**Windows.** A long log is cut into windows (default 5 s). Each starts from
+the *measured* state at its start, so that a model error or noise does not
+drift through the whole log: the measured angles (end-effector encoders,
+motor encoders, pivot) and their slopes (a local straight-line fit over
+`SLOPE_HALF_WIDTH`) fix every generalised coordinate they can; the ones they
+cannot (a parasitic compliance's twist, a ring angle nobody measured) are set
+quasi-statically, to the minimum of the springs' energy under the measured
+ones, and their speeds by the same rule a moment later. The first `lead`
+seconds of each window (default 50 ms) are simulated but not compared, which
+leaves the small transient of that guess out of the fit. Consecutive windows
+overlap by ``lead``, so every sample after the first lead is compared once.
+
+**Batch.** The engine's batch runner (`vsj.engine.core.run_batch`) takes, per
+run, the mass matrix, its inverse, the element parameters, the source angles
+and the initial state; the inputs (splines) are those of the one compiled
+model it runs. `vsj.simulate.simulate_batch` therefore runs many parameter sets
+over *one* input history; windows need one input history each (a window's
+time starts at zero). Without changing the engine, the cleanest way is one
+compiled model per window (its inputs shifted to start at zero) and, per
+parameter set, the mass matrix and parameters compiled once; every
+(window, parameter chunk) pair is then one call of ``run_batch`` on one
+thread, and a pool of threads runs all of them (the C engine releases the
+GIL). All windows of all parameter sets of one evaluation are one such batch.
+
+A free parameter may change what ``run_batch`` takes per run (inertias, every
+friction level, spring stiffnesses, compliances that start nonzero, motor
+constants, the elastic element's constants); one that changes the kinematic
+rows (a gear ratio, a tooth count) or the topology (a compliance or damping
+that is zero in the base set) is refused with a message that says so.
+
+Outputs compared: angles and speeds of any named signal that moves with the
+generalised coordinates (``theta_x``, ``theta_y``, ``phi_1``, ``motor_1``
+with DC motors, ...), the pivot position ``q`` when it does, and DC motor
+currents ``motor.<name>.current``. Signals fixed by the inputs alone (a motor
+angle under a velocity source) carry no information and are left out.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..engine import Engine, compile_model, core
+from ..engine.model import Layout
+from ..errors import InputError
+from ..inputs import Position, Table
+from ..measurements import Measurement
+from ..params import SCHEMA, Parameters
+from ..wrist import WristOptions, build_wrist, pivot_range
+
+#: Half-width [s] of the parabola fit that gives a measured angle and its slope at a
+#: window's start: long enough to average encoder quantisation and noise over about 40
+#: samples at 1 kHz, short against the wrist's motion (its fastest modes are near 10 Hz).
+SLOPE_HALF_WIDTH = 0.02
+#: Width [s] of the smoothing of measured external torques: shorter than their edges
+#: (a pulse of `vsj.identification.wrist_experiment` rises in 50 ms).
+TORQUE_SMOOTHING = 0.015
+#: Residual of a run that failed (per compared sample, in noise units): large against any
+#: fit, finite so that the optimiser steps back.
+FAILED_RESIDUAL = 1e3
+#: A compared signal's noise is never taken below this fraction of its range: a signal
+#: measured without noise would otherwise get an infinite weight.
+NOISE_FLOOR = 1e-6
+#: Parameters whose change moves the kinematic rows or the topology: not free.
+_KINEMATIC = ("planetary.sun_teeth", "planetary.ring_teeth", "transmission.ratio",
+              "motor.gear_ratio", "pivot.ratio", "pivot.amplitude", "pivot.q_min",
+              "pivot.q_max", "elastic_element.end_stop", "motor.voltage_limit")
+
+
+@dataclass(frozen=True)
+class Setup:
+    """What the fit compares, drives and frees, and its numerical knobs (SI).
+
+    ``inputs``/``outputs``: log column names (None: every input channel found, and
+    every measured signal that the model's states determine). ``window`` and
+    ``lead`` [s]: window length and the part of each not compared; ``step`` [s]:
+    the time-stepper's step; ``threads``: engine threads (None: every core).
+    """
+
+    free: tuple[str, ...]
+    wrist: WristOptions = field(default_factory=WristOptions)
+    inputs: tuple[str, ...] | None = None
+    outputs: tuple[str, ...] | None = None
+    window: float = 5.0
+    lead: float = 0.05
+    step: float = 1e-3
+    slope_width: float = 0.01
+    threads: int | None = None
+
+
+def known_columns(structure) -> dict[str, str]:
+    """Every column name a wrist log may hold, with its SI unit."""
+    out = {}
+    for s in structure.signals:
+        out[s.name] = "rad"
+        out[f"{s.name}.speed"] = "rad/s"
+    out["q"], out["q.rate"] = "m", "m/s"
+    for src in structure.sources:
+        out[f"source.{src.name}.speed"] = "rad/s"
+        out[f"source.{src.name}.torque"] = "N*m"
+    for ld in structure.loads:
+        out[ld.channel] = "N*m"
+        out[f"load.{ld.name}.torque"] = "N*m"
+    for m in structure.motors:
+        out[m.channel] = "V"
+        out[f"motor.{m.name}.voltage"] = "V"
+        out[f"motor.{m.name}.current"] = "A"
+    return out
+
+
+def all_known_columns() -> dict[str, str]:
+    """Columns of a wrist log under either motor model (for reading before choosing)."""
+    from .. import params as params_module
+
+    base = params_module.default()
+    out = {}
+    for motors in ("velocity", "dc"):
+        out.update(known_columns(build_wrist(base, WristOptions(motors=motors)).assemble()))
+    return out
+
+
+def _signals_of(structure, flange: str) -> list[str]:
+    """Named signals that move exactly as ``flange`` (rigidly connected to it)."""
+    rx, ru = structure.rows(flange)
+    out = []
+    for s in structure.signals:
+        sx, su = structure.rows(s.flange)
+        if np.array_equal(sx, rx) and np.array_equal(su, ru):
+            out.append(s.name)
+    return out
+
+
+def _input_columns(structure, channel: str) -> list[tuple[str, str]]:
+    """Log columns that can drive ``channel``: (column, how) in order of preference;
+    how is ``value`` (the channel's own quantity) or ``angle`` (a velocity source
+    driven by its measured angle)."""
+    for src in structure.sources:
+        if src.channel == channel:
+            names = _signals_of(structure, src.flange)
+            return ([(f"{n}.speed", "value") for n in names]
+                    + [(f"source.{src.name}.speed", "value")]
+                    + [(n, "angle") for n in names])
+    for ld in structure.loads:
+        if ld.channel == channel:
+            return [(channel, "value"), (f"load.{ld.name}.torque", "value")]
+    for m in structure.motors:
+        if m.channel == channel:
+            return [(channel, "value"), (f"motor.{m.name}.voltage", "value")]
+    return []
+
+
+@dataclass
+class Output:
+    """A compared signal: how to get it from the states of a batch."""
+
+    name: str
+    kind: str            # angle, speed, q, current
+    rx: np.ndarray | None = None
+    ru: np.ndarray | None = None
+    index: int = 0       # state column of a current
+
+
+@dataclass
+class Window:
+    """One stretch of one log, simulated from its measured start."""
+
+    log: int
+    start: float                   # s, absolute time of the log
+    duration: float
+    samples: np.ndarray            # indices into the log of the compared samples
+    interp_index: np.ndarray       # sim grid index left of each compared sample
+    interp_frac: np.ndarray
+    engines: dict = field(default_factory=dict)   # law -> Engine
+    sigma0: np.ndarray | None = None
+    x0: np.ndarray | None = None
+    v0: np.ndarray | None = None
+    null: np.ndarray | None = None  # basis of the unmeasured position directions
+    later: tuple | None = None      # (dt, x0, sigma) a moment later, for null-space speeds
+    currents: np.ndarray | None = None
+    t_out: np.ndarray | None = None
+    source_angles: np.ndarray | None = None  # (samples, sources), relative to sigma0
+    source_speeds: np.ndarray | None = None
+
+
+def with_values(params: Parameters, values: Mapping[str, float]) -> Parameters:
+    """``params`` with SI ``values`` replaced (no text round trip: the fit's inner loop)."""
+    merged = dict(params.values)
+    merged.update(values)
+    return replace(params, values=merged)
+
+
+def check_free(names: Sequence[str], params: Parameters) -> None:
+    """`InputError` unless every name is a parameter that may be free."""
+    if not names:
+        raise InputError("--free: name at least one parameter to identify")
+    seen = set()
+    for name in names:
+        if name in seen:
+            raise InputError(f"--free {name}: named twice")
+        seen.add(name)
+        if name not in params.values:
+            sections = ", ".join(SCHEMA)
+            raise InputError(f"--free {name}: no such parameter (write section.key as in the "
+                             f"parameter file; sections: {sections})")
+        if name in _KINEMATIC:
+            raise InputError(f"--free {name}: it changes the kinematics of the network (a "
+                             "ratio, the pivot's reach or an end stop), which one batch of "
+                             "the engine cannot vary; fix it from its bench test")
+        if name.startswith("friction."):
+            continue
+        if params[name] == 0.0 and (name.startswith("transmission.series_")):
+            raise InputError(f"--free {name}: it is 0 in {params.origin}, which makes the "
+                             "element rigid (another topology); start it from a nonzero value "
+                             "in --params")
+
+
+class WristModel:
+    """Logs, free parameters and windows: ``residuals(values)`` for many parameter sets.
+
+    ``values`` are rows of SI values of ``setup.free``. `noise` (per compared
+    signal, SI) weights the residuals; `set_noise` changes it.
+    """
+
+    def __init__(self, logs: Sequence[Measurement], params: Parameters, setup: Setup):
+        if not logs:
+            raise InputError("no log to fit")
+        check_free(setup.free, params)
+        self.logs = list(logs)
+        self.params = params
+        self.setup = setup
+        wrist = setup.wrist
+        if wrist.pivot_drive != "fixed" and not any(
+                c in self.logs[0].columns for c, _ in _input_columns(
+                    build_wrist(params, wrist).assemble(), "motor_s")):
+            q = self.logs[0].columns.get("q")
+            if q is None:
+                raise InputError(f"{self.logs[0].path}: no column drives the pivot motor "
+                                 "(motor_s.speed or motor_s) and no q column to hold it at")
+            spread = float(np.ptp(q))
+            if spread > 1e-3:
+                raise InputError(f"{self.logs[0].path}: q moves by {spread * 1e3:.3g} mm but "
+                                 "no column drives the pivot motor (motor_s.speed or motor_s)")
+            wrist = replace(wrist, pivot_drive="fixed", fixed_q=float(np.median(q)))
+        self.wrist = wrist
+        self.structure = build_wrist(params, wrist).assemble()
+        self.known = known_columns(self.structure)
+        for log in self.logs:
+            unknown = [c for c in log.columns if c != "time" and c not in self.known]
+            if unknown:
+                raise InputError(f"{log.path}: column {unknown[0]!r} is neither an input nor "
+                                 f"a signal of the wrist with {wrist.motors} motors")
+        self.channels = self._channels()
+        self.outputs = self._outputs()
+        self.names = list(setup.free)
+        self.base = np.array([params[n] for n in self.names])
+        self.n_state = 2 * self.structure.n + len(self.structure.motors)
+        self.windows = [w for i in range(len(self.logs)) for w in self._windows(i)]
+        if not self.windows:
+            raise InputError(f"{self.logs[0].path}: too short for a window of "
+                             f"{setup.lead:g} s lead and compared samples")
+        self.noise = {o.name: self.estimate_noise(o.name) for o in self.outputs}
+        self.runs = 0             # window runs done
+        self.simulated = 0.0      # seconds of log simulated
+        self._compiled: dict[tuple, tuple] = {}
+        self._base_model = None
+
+    # -- set-up ---------------------------------------------------------------------
+
+    def _channels(self) -> dict[str, tuple[str, str]]:
+        """Input channel -> (column, how), checked against ``setup.inputs``."""
+        log = self.logs[0]
+        wanted = self.setup.inputs
+        out = {}
+        for channel in self.structure.channels():
+            choice = None
+            for column, how in _input_columns(self.structure, channel):
+                if all(column in lg.columns for lg in self.logs) and (
+                        wanted is None or column in wanted):
+                    choice = (column, how)
+                    break
+            if choice is None:
+                if channel.startswith("tau_"):
+                    continue  # no external torque logged: none applied
+                if channel == "motor_s" and self.structure.pivot.flange is None:
+                    continue
+                options = ", ".join(c for c, _ in _input_columns(self.structure, channel))
+                raise InputError(f"{log.path}: no column drives input {channel!r} (one of "
+                                 f"{options}{' among --inputs' if wanted else ''})")
+            out[channel] = choice
+        if wanted is not None:
+            used = {c for c, _ in out.values()}
+            extra = [c for c in wanted if c not in used]
+            if extra:
+                raise InputError(f"--inputs {extra[0]}: not an input channel of the wrist with "
+                                 f"{self.wrist.motors} motors, or not in every log")
+        return out
+
+    def _outputs(self) -> list[Output]:
+        st = self.structure
+        n = st.n
+        inputs = {c for c, _ in self.channels.values()}
+        candidates = []
+        for s in st.signals:
+            rx, ru = st.rows(s.flange)
+            candidates.append(Output(s.name, "angle", rx, ru))
+            candidates.append(Output(f"{s.name}.speed", "speed", rx, ru))
+        if st.pivot.flange is not None:
+            rx, ru = st.rows(st.pivot.flange)
+            candidates.append(Output("q", "q", rx, ru))
+        for j, m in enumerate(st.motors):
+            candidates.append(Output(f"motor.{m.name}.current", "current", index=2 * n + j))
+        by_name = {o.name: o for o in candidates}
+        wanted = self.setup.outputs
+        if wanted is not None:
+            out = []
+            for name in wanted:
+                if name not in by_name:
+                    raise InputError(f"--outputs {name}: not a signal the wrist's states "
+                                     f"determine; those are {', '.join(by_name)}")
+                if name in inputs:
+                    raise InputError(f"--outputs {name}: it drives the model (an input)")
+                for log in self.logs:
+                    if name not in log.columns:
+                        raise InputError(f"--outputs {name}: {log.path} has no such column")
+                o = by_name[name]
+                if o.kind != "current" and not np.any(o.rx):
+                    raise InputError(f"--outputs {name}: the inputs alone fix it; it tells "
+                                     "nothing about the parameters")
+                out.append(o)
+            return out
+        out = [o for o in candidates if o.name not in inputs
+               and all(o.name in lg.columns for lg in self.logs)
+               and (o.kind == "current" or np.any(o.rx))]
+        if not out:
+            raise InputError(f"{self.logs[0].path}: no measured signal that the model's "
+                             "states determine (theta_x, theta_y, motor currents, ...)")
+        return out
+
+    def _windows(self, i: int) -> list[Window]:
+        log = self.logs[i]
+        t = log["time"]
+        W, lead, h = self.setup.window, self.setup.lead, self.setup.step
+        if not (W > lead + 10 * h):
+            raise InputError(f"window {W:g} s must exceed lead {lead:g} s by 10 steps")
+        out = []
+        start = float(t[0]) + SLOPE_HALF_WIDTH
+        end = float(t[-1]) - SLOPE_HALF_WIDTH
+        while start + lead + 10 * h <= end:
+            duration = min(W, end - start)
+            if duration < lead + 10 * h:
+                break
+            n_out = math.floor(duration / h + 1e-9) + 1
+            duration = (n_out - 1) * h
+            samples = np.flatnonzero((t >= start + lead) & (t <= start + duration))
+            if samples.size:
+                tau = (t[samples] - start) / h
+                idx = np.minimum(np.floor(tau).astype(np.int64), n_out - 2)
+                out.append(Window(i, start, duration, samples, idx, tau - idx))
+            start += duration - lead
+        return out
+
+    def estimate_noise(self, name: str) -> float:
+        """Noise [SI] of a compared signal from the data alone: the spread of its second
+        differences (white noise of sd s gives sd s sqrt(6); the signal's own curvature
+        at the sampling rate is far smaller), robustly (median absolute deviation), and
+        never below a quantisation step's rms (step / sqrt 12) or `NOISE_FLOOR`."""
+        values = np.concatenate([lg[name] for lg in self.logs])
+        d2 = np.diff(values, 2)
+        mad = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
+        steps = np.abs(np.diff(values))
+        steps = steps[steps > 0]
+        quantum = float(np.min(steps)) / math.sqrt(12.0) if steps.size else 0.0
+        return max(mad, quantum, NOISE_FLOOR * max(float(np.ptp(values)), 1e-12))
+
+    def set_noise(self, noise: Mapping[str, float]) -> None:
+        self.noise = dict(noise)
+
+    # -- engines and initial states ---------------------------------------------------
+
+    def _inputs(self, log: Measurement, start: float, duration: float):
+        # the tables start at the window's start: a source's angle is the integral of its
+        # speed from the first knot, which must be the window's time zero
+        t = log["time"]
+        i0 = int(np.searchsorted(t, start, side="right"))
+        i1 = min(int(np.searchsorted(t, start + duration)) + 2, len(t))
+        tau = (0.0,) + tuple(t[i0:i1] - start)
+        out = {}
+        for channel, (column, how) in self.channels.items():
+            data = self._smoothed(log, column) if channel.startswith("tau_") else log[column]
+            values = (float(np.interp(start, t, data)),) + tuple(data[i0:i1])
+            table = Table(tau, values)
+            out[channel] = Position(table) if how == "angle" else table
+        return out
+
+    def _smoothed(self, log: Measurement, column: str) -> np.ndarray:
+        """A measured external torque, its sensor noise smoothed (Savitzky-Golay, cubic,
+        over `TORQUE_SMOOTHING`): output error assumes exact inputs, and white torque
+        noise fed to the model moves it where the real wrist was not moved."""
+        from scipy.signal import savgol_filter
+
+        key = (id(log), column)
+        cache = self.__dict__.setdefault("_smooth_cache", {})
+        if key not in cache:
+            t = log["time"]
+            period = float(np.median(np.diff(t)))
+            n = int(TORQUE_SMOOTHING / period) | 1
+            cache[key] = (savgol_filter(log[column], n, 3) if 5 <= n < len(t)
+                          else log[column])
+        return cache[key]
+
+    def _prepare(self, w: Window, law: str) -> None:
+        log = self.logs[w.log]
+        inputs = self._inputs(log, w.start, w.duration)
+        model, _ = compile_model(self.structure, inputs, w.duration, friction=law,
+                                 slope_width=self.setup.slope_width,
+                                 pivot_range=pivot_range(self.params))
+        engine = Engine(model)
+        w.engines[law] = engine
+        if w.t_out is not None:
+            return
+        h = self.setup.step
+        w.t_out = np.arange(round(w.duration / h) + 1) * h
+        angles, speeds = engine.source_signals(w.t_out)
+        w.source_angles, w.source_speeds = angles, speeds
+        w.sigma0, w.x0, w.v0, w.null, w.later = self._measured_state(log, w.start, engine,
+                                                                     inputs)
+        w.currents = np.array([self._local(log, f"motor.{m.name}.current", w.start)[0]
+                               if f"motor.{m.name}.current" in log.columns else 0.0
+                               for m in self.structure.motors])
+
+    @staticmethod
+    def _local(log: Measurement, column: str, at: float) -> tuple[float, float]:
+        """Value and slope of a column at ``at`` from a parabola through the samples
+        within `SLOPE_HALF_WIDTH` (least squares)."""
+        t = log["time"]
+        i0 = int(np.searchsorted(t, at - SLOPE_HALF_WIDTH))
+        i1 = max(int(np.searchsorted(t, at + SLOPE_HALF_WIDTH)), i0 + 2)
+        tt, yy = t[i0:i1] - at, log[column][i0:i1]
+        if len(tt) < 2:
+            return float(np.interp(at, t, log[column])), 0.0
+        if len(tt) < 5:
+            slope, value = np.polyfit(tt, yy, 1)
+            return float(value), float(slope)
+        # a parabola: a straight line's value at the centre would be biased by the
+        # signal's curvature (about 0.3 mrad for a 1 Hz swing of 0.5 rad over 10 ms)
+        _, slope, value = np.polyfit(tt, yy, 2)
+        return float(value), float(slope)
+
+    def _angles_at(self, log: Measurement, at: float, sigma_rel: np.ndarray):
+        """Named flange angles and speeds at ``at``: measured outputs and sources."""
+        st = self.structure
+        angles, speeds = {}, {}
+        for o in self.outputs:
+            if o.kind == "angle":
+                flange = next(s.flange for s in st.signals if s.name == o.name)
+                angles[flange], speeds[flange] = self._local(log, o.name, at)
+        for j, src in enumerate(st.sources):
+            column, how = self.channels.get(src.channel, (None, None))
+            if how == "angle":
+                angles[src.flange] = self._local(log, column, at)[0]
+            else:
+                angles[src.flange] = self._source_angle(log, j, src, at)
+        return angles, speeds
+
+    def _source_angle(self, log: Measurement, j: int, src, at: float) -> float:
+        """A velocity source's angle at ``at``: the integral of its speed column from the
+        log's start, anchored to its measured angle when the log has one (the pivot
+        motor's through q)."""
+        key = (id(log), j)
+        cache = getattr(self, "_source_cache", None)
+        if cache is None:
+            cache = self._source_cache = {}
+        if key not in cache:
+            t = log["time"]
+            column, _ = self.channels.get(src.channel, (None, None))
+            speed = log[column] if column is not None else np.zeros_like(t)
+            angle = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1])
+                                                     * np.diff(t))])
+            offset = 0.0
+            names = _signals_of(self.structure, src.flange)
+            measured = [n for n in names if n in log.columns]
+            if measured:
+                offset = float(np.mean(log[measured[0]] - angle))
+            elif src.channel == "motor_s" and "q" in log.columns and \
+                    self.structure.pivot.flange is not None:
+                _, ru = self.structure.rows(self.structure.pivot.flange)
+                amp = self.structure.pivot.amplitude
+                pivot = np.arcsin(np.clip(log["q"] / amp, -1, 1))
+                offset = float(np.mean(pivot / ru[j] - angle)) if ru[j] else 0.0
+            cache[key] = (t, angle + offset)
+        t, angle = cache[key]
+        return float(np.interp(at, t, angle))
+
+    def _measured_state(self, log, start, engine, inputs):
+        st = self.structure
+        n = st.n
+        angles, speeds = self._angles_at(log, start, None)
+        x0, sigma0 = st.initial_positions(angles)
+        u0 = engine.source_speeds(0.0)
+        v0 = st.initial_speeds(speeds, u0) if speeds else np.zeros(n)
+        measured = [st.rows(f)[0] for f in speeds]
+        if measured:
+            _, sv, Vt = np.linalg.svd(np.array(measured))
+            rank = int(np.sum(sv > 1e-9 * max(sv[0], 1e-300)))
+            null = Vt[rank:].T
+        else:
+            null = np.eye(n)
+        later = None
+        if null.shape[1]:
+            dt = 0.01
+            a2, _ = self._angles_at(log, start + dt, None)
+            x2, s2 = st.initial_positions(a2)
+            later = (dt, x2, s2)
+        return sigma0, x0, v0, null, later
+
+    # -- parameter sets ----------------------------------------------------------------
+
+    def _compiled_for(self, values: np.ndarray, law: str):
+        key = tuple(float(v) for v in values)
+        hit = self._compiled.get(key)
+        if hit is not None:
+            return hit
+        params = with_values(self.params, dict(zip(self.names, key)))
+        structure = build_wrist(params, self.wrist).assemble()
+        w = self.windows[0]
+        if law not in w.engines:
+            self._prepare(w, law)
+        base = w.engines[law].model
+        model, _ = compile_model(structure, self._inputs(self.logs[w.log], w.start, w.duration),
+                                 w.duration, friction=law, slope_width=self.setup.slope_width,
+                                 pivot_range=pivot_range(params))
+        if model.rows.shape != base.rows.shape or not np.allclose(
+                model.rows, base.rows, rtol=0.0, atol=1e-9 * max(np.max(np.abs(base.rows)), 1.0)):
+            changed = [n for n, v, b in zip(self.names, key, self.base) if v != b]
+            raise InputError(f"free parameter(s) {', '.join(changed)} change the network's "
+                             "kinematic rows; they cannot be identified in one batch")
+        hit = (model.mass, model.Minv, model.par)
+        if len(self._compiled) > 512:
+            self._compiled.clear()
+        self._compiled[key] = hit
+        return hit
+
+    def _initial(self, w: Window, law: str, mass, Minv, par) -> np.ndarray:
+        """Initial state of a window for one parameter set (quasi-static in the
+        directions the measurements leave open)."""
+        n = self.structure.n
+        x0, v0 = w.x0.copy(), w.v0.copy()
+        if w.null.shape[1]:
+            engine = w.engines[law]
+            model = engine.model._replace(mass=mass, Minv=Minv, par=par)
+            x0 = self._quasi_static(Engine(model._replace(src_pos0=w.sigma0)), x0, w.null)
+            dt, x2, s2 = w.later
+            x2 = self._quasi_static(Engine(model._replace(src_pos0=s2)), x2, w.null)
+            v0 = v0 + w.null @ (w.null.T @ ((x2 - x0) / dt - v0))
+        y = np.zeros(n * 2 + len(w.currents))
+        y[:n], y[n:2 * n], y[2 * n:] = x0, v0, w.currents
+        return y
+
+    def _quasi_static(self, engine: Engine, x: np.ndarray, null: np.ndarray) -> np.ndarray:
+        """Minimise the springs' energy over the unmeasured directions (Newton, central
+        differences): the state a slow motion would leave them in."""
+        n = self.structure.n
+        d = null.shape[1]
+        y = np.zeros(self.n_state)
+
+        def energy(z):
+            y[:n] = x + null @ z
+            return engine.stored_energy(0.0, y)[0][1]
+
+        z = np.zeros(d)
+        e = 1e-4
+        for _ in range(4):
+            f0 = energy(z)
+            g, H = np.zeros(d), np.zeros((d, d))
+            for i in range(d):
+                ei = np.zeros(d)
+                ei[i] = e
+                fp, fm = energy(z + ei), energy(z - ei)
+                g[i] = (fp - fm) / (2 * e)
+                H[i, i] = (fp - 2 * f0 + fm) / e ** 2
+                for k in range(i):
+                    ek = np.zeros(d)
+                    ek[k] = e
+                    H[i, k] = H[k, i] = (energy(z + ei + ek) - energy(z + ei - ek)
+                                         - energy(z - ei + ek) + energy(z - ei - ek)) / (4 * e * e)
+            try:
+                dz = -np.linalg.solve(H, g) if np.all(np.diag(H) > 0) else np.zeros(d)
+            except np.linalg.LinAlgError:
+                break
+            z = z + np.clip(dz, -0.5, 0.5)
+            if np.max(np.abs(dz)) < 1e-9:
+                break
+        return x + null @ z
+
+    # -- evaluation --------------------------------------------------------------------
+
+    def simulate(self, values: np.ndarray, law: str, windows: Sequence[int] | None = None):
+        """Simulated compared signals of every parameter set (rows of ``values``):
+        a list over windows of arrays (sets, outputs, compared samples); and per
+        set whether every window ran."""
+        values = np.atleast_2d(np.asarray(values, dtype=float))
+        chosen = range(len(self.windows)) if windows is None else windows
+        for k in chosen:
+            if law not in self.windows[k].engines:
+                self._prepare(self.windows[k], law)
+        compiled = [self._compiled_for(v, law) for v in values]
+        runs = len(values)
+        tasks = []
+        threads = max(1, self.setup.threads or core.available_cores())
+        chunks = max(1, min(runs, -(-threads * 3 // max(len(chosen), 1))))
+        size = -(-runs // chunks)
+        for k in chosen:
+            for lo in range(0, runs, size):
+                tasks.append((k, lo, min(runs, lo + size)))
+        ok = np.ones(runs, dtype=bool)
+        outs = {k: np.empty((runs, len(self.outputs), len(self.windows[k].samples)))
+                for k in chosen}
+
+        def work(task):
+            k, lo, hi = task
+            w = self.windows[k]
+            engine = w.engines[law]
+            masses = np.array([compiled[r][0] for r in range(lo, hi)])
+            Minvs = np.array([compiled[r][1] for r in range(lo, hi)])
+            pars = np.array([compiled[r][2] for r in range(lo, hi)])
+            y0s = np.array([self._initial(w, law, *compiled[r]) for r in range(lo, hi)])
+            # the time-stepper's state vector has room for the accumulators
+            layout = Layout(*(int(v) for v in engine.model.dims[:6]))
+            y0s = np.hstack([y0s, np.zeros((hi - lo, layout.n_acc))])
+            src0s = np.repeat(w.sigma0[None], hi - lo, axis=0)
+            states, _, status, _, _, _ = core.run_batch(
+                "timestep", engine, masses, Minvs, pars, src0s, y0s, w.duration, w.t_out,
+                h=self.setup.step, max_steps=int(w.duration / self.setup.step) + 10,
+                threads=1)
+            sim = self._observe(w, states)
+            outs[k][lo:hi] = sim
+            return lo, hi, status
+
+        if threads == 1 or len(tasks) == 1:
+            done = [work(t) for t in tasks]
+        else:
+            with ThreadPoolExecutor(max_workers=threads) as pool:
+                done = list(pool.map(work, tasks))
+        for lo, hi, status in done:
+            ok[lo:hi] &= status == core.OK
+        self.runs += runs * len(chosen)
+        self.simulated += runs * sum(self.windows[k].duration for k in chosen)
+        return [outs[k] for k in chosen], ok
+
+    def _observe(self, w: Window, states: np.ndarray) -> np.ndarray:
+        """Compared signals at the compared samples, from the sampled states."""
+        n = self.structure.n
+        i, f = w.interp_index, w.interp_frac
+        out = np.empty((states.shape[0], len(self.outputs), len(i)))
+        sigma = w.source_angles + w.sigma0[None, :]
+        for c, o in enumerate(self.outputs):
+            if o.kind == "current":
+                s = states[:, :, o.index]
+            elif o.kind == "speed":
+                s = states[:, :, n:2 * n] @ o.rx + (w.source_speeds @ o.ru)[None]
+            else:
+                s = states[:, :, :n] @ o.rx + (sigma @ o.ru)[None]
+                if o.kind == "q":
+                    s = self.structure.pivot.amplitude * np.sin(s)
+            out[:, c] = s[:, i] * (1 - f) + s[:, i + 1] * f
+        return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
+
+    def measured(self, k: int) -> np.ndarray:
+        w = self.windows[k]
+        log = self.logs[w.log]
+        return np.array([log[o.name][w.samples] for o in self.outputs])
+
+    def weights(self) -> np.ndarray:
+        return np.array([1.0 / self.noise[o.name] for o in self.outputs])
+
+    def residuals(self, values: np.ndarray, law: str, windows: Sequence[int] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """Noise-weighted residuals (sets, compared values) and which sets ran."""
+        chosen = list(range(len(self.windows)) if windows is None else windows)
+        sims, ok = self.simulate(values, law, chosen)
+        wts = self.weights()[:, None]
+        parts = []
+        for k, sim in zip(chosen, sims):
+            parts.append(((sim - self.measured(k)[None]) * wts[None]).reshape(len(sim), -1))
+        r = np.concatenate(parts, axis=1)
+        r[~ok] = FAILED_RESIDUAL
+        return r, ok
+
+    @property
+    def compared(self) -> int:
+        return sum(len(w.samples) for w in self.windows) * len(self.outputs)
+
+    @property
+    def log_seconds(self) -> float:
+        return float(sum(lg["time"][-1] - lg["time"][0] for lg in self.logs))
