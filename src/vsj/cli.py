@@ -231,10 +231,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plot", action="store_true", help="skip the PNG")
     p.set_defaults(func=cmd_msl)
 
-    from . import cli_control, cli_fit
+    from . import cli_control, cli_fit, cli_sweep
 
     cli_fit.register(sub)
     cli_control.register(sub)
+    cli_sweep.register(sub)
     return parser
 
 

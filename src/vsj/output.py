@@ -84,13 +84,15 @@ MANIFEST = "vsj-manifest.json"
 #: manifest (one written before vsj kept manifests); vsj never removes any other.
 OUTPUTS = {
     "simulate": r"trajectory\.(?:nc|csv|png)|meta\.json",
-    "reproduce": r"fig-\d+\.\d+\.(?:png|svg)|results\.json|report\.html",
+    "reproduce": r"fig-\d+\.\d+(?:-[a-z]+)?\.(?:png|svg)|results\.json|report\.html",
     "datasheet": r"datasheet\.(?:html|json)",
     "fit friction": r"[^/]+-friction\.(?:json|png)",
     "fit planetary": r"planetary\.(?:json|png)",
     "fit stiffness": r"stiffness\.(?:json|png)|geometry\.png",
     "msl": r"msl-[a-z-]+\.(?:nc|png|json)",
     "synth stiffness": r"stiffness_q[+-]\d+\.\dcm\.csv",
+    "fit wrist": r"wrist-fit\.(?:json|html)|wrist-(?:fit|validation)\.png",
+    "sweep": r"sweep\.json|metrics\.csv|sensitivity\.csv|summary\.html|sweep-[\w.-]+\.png",
 }
 
 _ANY_OUTPUT = "|".join(f"(?:{p})" for p in OUTPUTS.values())

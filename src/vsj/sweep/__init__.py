@@ -1,0 +1,217 @@
+"""Many runs of one scenario: sweeps, Monte Carlo and sensitivity analysis.
+
+`load` reads a sweep file (`vsj.sweep.spec` documents the format) and checks it;
+`run` simulates its runs in chunks through the batch kernel, on this machine's
+cores or a Dask cluster (`vsj.sweep.schedulers`), writes every finished chunk
+into ``DIR/sweep.zarr`` and its manifest (`vsj.sweep.store`), and, once all are
+done, ``metrics.csv``, the figures, the sensitivity indices and ``summary.html``
+(`vsj.sweep.analysis`). The runs equal those ``vsj simulate`` makes one by one,
+bit for bit, whatever the scheduler, worker count or chunk size.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .spec import SweepSpec, load, loads, run_count, with_method
+
+#: Default runs per chunk: enough to keep the per-chunk cost (a task, a zarr region,
+#: a manifest update) small beside the runs, few enough to lose little when killed.
+MAX_CHUNK = 256
+
+
+def default_chunk(runs: int) -> int:
+    """Runs per chunk when ``--chunk`` is not given (a function of the run count only,
+    so a resumed sweep on another machine chunks alike)."""
+    return max(1, min(MAX_CHUNK, math.ceil(runs / 64)))
+
+
+@dataclass
+class Outcome:
+    """What `run` did."""
+
+    out: Path
+    runs: int
+    ran: int
+    failed: int
+    chunks: int
+    complete: bool
+    seconds: float
+    files: list[str] = field(default_factory=list)
+    sensitivity: list[list] = field(default_factory=list)
+    method: str | None = None
+
+
+def run(spec: SweepSpec, out: str | Path, *, resume: bool = False,
+        scheduler: str | None = None, chunk: int | None = None, workers: int | None = None,
+        plots: bool = True, show_progress: bool = True) -> Outcome:
+    """Run the sweep ``spec`` into ``out`` (see the module docstring). Everything the
+    sweep file, scenario and parameter set allow to be checked is checked before any
+    run (`vsj.errors.InputError`)."""
+    from .. import __version__
+    from ..errors import InputError
+    from ..progress import progress
+    from . import store
+    from .runner import describe, job_for
+    from .sampling import design
+    from .schedulers import execute
+
+    started = time.perf_counter()
+    job = job_for(spec)
+    info = describe(job)
+    values, unit = design(spec)
+    runs = len(values)
+    if chunk is not None and not 1 <= chunk <= runs:
+        raise InputError(f"--chunk {chunk}: must be between 1 and the {runs} runs")
+    out = Path(out)
+    with store.Directory(out, resume=resume) as directory:
+        record = store.read_manifest(out) if resume else None
+        size = chunk or (record or {}).get("chunk") or default_chunk(runs)
+        expected = {"spec_sha256": spec.sha256(), "job": job.key, "runs": runs, "chunk": size,
+                    "vsj_version": __version__}
+        from .spec import spec_of
+
+        units = [spec_of(name).unit for name in spec.varied]
+        if record is not None:
+            store.check_resume(out, record, expected)
+            ds = store.open_dataset(directory.zarr)
+            for j, name in enumerate(spec.varied):
+                if not np.array_equal(ds[name].values, values[:, j]):
+                    raise InputError(f"--resume {out}: the values of {name} drawn now differ "
+                                     "from those stored (another NumPy, SciPy or SALib?)")
+        else:
+            base = info["base_params"]
+            store.create(directory.zarr, varied=spec.varied, values=values, units=units,
+                         time=info["time"], keep=info["keep"], keep_units=info["keep_units"],
+                         metrics=info["metrics"], metric_units=info["metric_units"],
+                         chunk=size, attrs={
+                             "vsj_version": __version__, "scenario": job.scenario_origin,
+                             "parameters": base.origin, "parameters_hash": base.hash(),
+                             "solver": info["solver"], "seed": spec.seed,
+                             "sweep_file": spec.origin, "sweep": spec.text,
+                             "method": spec.method or ""})
+            record = {"about": "chunks of this sweep whose runs are in sweep.zarr; "
+                               "'vsj sweep SPEC --out DIR --resume' runs the others",
+                      **expected, "chunks": math.ceil(runs / size), "done": {},
+                      "failed_runs": {}, "complete": False}
+            store.write_manifest(out, record)
+        bounds = [(i, i * size, min(runs, (i + 1) * size)) for i in range(math.ceil(runs / size))]
+        todo = [(i, a, values[a:b]) for i, a, b in bounds if str(i) not in record["done"]]
+        ran = 0
+        bar = progress(None, desc="sweep", unit="run", total=runs) if show_progress else None
+        if bar is not None:
+            bar.update(runs - sum(len(v) for _, _, v in todo))
+        try:
+            for index, result in execute(job, todo, scheduler, workers):
+                stop = bounds[index][2]
+                store.write_chunk(directory.zarr, result, stop)
+                record["done"][str(index)] = {"runs": [result.start, stop],
+                                              "failed": result.failed,
+                                              "sha256": store.digest(result)}
+                for k, message in enumerate(result.messages):
+                    if result.status[k] != 0:
+                        record["failed_runs"][str(result.start + k)] = message
+                record["done"] = dict(sorted(record["done"].items(), key=lambda kv: int(kv[0])))
+                record["failed_runs"] = dict(sorted(record["failed_runs"].items(),
+                                                    key=lambda kv: int(kv[0])))
+                store.write_manifest(out, record)
+                ran += len(result.status)
+                if bar is not None:
+                    bar.update(len(result.status))
+        finally:
+            if bar is not None:
+                bar.close()
+        outcome = Outcome(out, runs, ran, len(record["failed_runs"]), len(bounds), True,
+                          0.0, method=spec.method)
+        _finish(spec, out, directory.zarr, record, unit, outcome, plots)
+        record["complete"] = True
+        store.write_manifest(out, record)
+    outcome.seconds = time.perf_counter() - started
+    return outcome
+
+
+def _finish(spec: SweepSpec, out: Path, zarr_path: Path, record: dict, unit,
+            outcome: Outcome, plots: bool) -> None:
+    """The tables, figures and page of a sweep whose chunks are all done."""
+    from .. import __version__
+    from ..output import atomic_write
+    from . import analysis, store
+
+    ds = store.open_dataset(zarr_path)
+    varied = spec.varied
+    store.write_metrics_csv(out / store.METRICS, ds, record["failed_runs"], varied)
+    files = [store.ZARR, store.METRICS, store.MANIFEST]
+    metrics = ds["metrics"].values
+    names = ds["metric"].values.tolist()
+    units = ds["metric_unit"].values.tolist()
+    inputs = np.column_stack([ds[n].values for n in varied])
+    input_units = [ds[n].attrs.get("units", "") for n in varied]
+    figures = {}
+    rows: list[list] = []
+    if names and plots:
+        figures["sweep-histograms.png"] = ("Histogram of each metric",
+                                           analysis.histograms(metrics, names, units))
+        figures["sweep-scatter.png"] = ("Each metric against each varied quantity",
+                                        analysis.scatter(metrics, names, units, inputs, varied,
+                                                         input_units))
+        if varied == ["q"]:
+            figures["sweep-vs-q.png"] = ("Each metric against the pivot position q",
+                                         analysis.versus_q(inputs[:, 0], metrics, names, units))
+    if names and spec.method is not None:
+        from .sampling import sensitivity_problem
+
+        problem = sensitivity_problem(spec.sampled)
+        indices = {name: analysis.sensitivity(spec.method, problem, unit, metrics[:, j],
+                                              spec.seed)
+                   for j, name in enumerate(names)}
+        rows = analysis.sensitivity_rows(spec.method, indices)
+        if plots:
+            figures["sweep-sensitivity.png"] = (
+                f"Sensitivity indices ({spec.method}) with 95 % confidence intervals",
+                analysis.sensitivity_chart(spec.method, indices))
+        buffer = io.StringIO()
+        writer = csv.writer(buffer, lineterminator="\n")
+        writer.writerow(analysis.header(spec.method))
+        writer.writerows([[r[0], r[1], *(repr(float(v)) for v in r[2:])] for r in rows])
+        with atomic_write(out / "sensitivity.csv") as handle:
+            handle.write(buffer.getvalue())
+        files.append("sensitivity.csv")
+    for name, (_, png) in figures.items():
+        with atomic_write(out / name, "wb") as handle:
+            handle.write(png)
+        files.append(name)
+    failures = [(int(r), m) for r, m in record["failed_runs"].items()]
+    facts = [("sweep file", spec.origin), ("scenario", str(ds.attrs.get("scenario"))),
+             ("parameter set", (f"{ds.attrs.get('parameters')} (hash "
+                                f"{str(ds.attrs.get('parameters_hash'))[:12]})")),
+             ("runs", f"{outcome.runs} ({len(failures)} failed)"),
+             ("varied", ", ".join(f"{n} [{u}]" for n, u in zip(varied, input_units))),
+             ("design", spec.method or spec.design), ("seed", str(spec.seed)),
+             ("vsj", __version__)]
+    page = analysis.page(f"vsj sweep: {Path(spec.origin).name}", facts,
+                         analysis.statistics(metrics, names, units), figures, spec.method,
+                         rows, failures)
+    with atomic_write(out / "summary.html") as handle:
+        handle.write(page)
+    files.append("summary.html")
+    outcome.files = files
+    outcome.sensitivity = rows
+
+
+__all__ = [
+    "Outcome",
+    "SweepSpec",
+    "default_chunk",
+    "load",
+    "loads",
+    "run",
+    "run_count",
+    "with_method",
+]

@@ -1,0 +1,273 @@
+"""Numbers per run: built-in metrics and expressions over named signals.
+
+Expressions are parsed with `ast` and only a small grammar is accepted: numbers,
+``+ - * / **``, parentheses, names of signals (``theta_x``,
+``spring.vsm_1.elastic.deflection``), of parameters (``planetary.sun_teeth``), ``t``
+(time, s) and ``pi``, and calls of the functions in `ELEMENTWISE` and
+`REDUCTIONS`. Nothing else is evaluated: no attribute of an object, no
+subscript, no call of anything else. Names are resolved when the sweep file is
+read, so an unknown one is refused before any run.
+
+A metric is evaluated on one run's samples (every ``[output] every`` seconds);
+``start`` and ``stop`` limit it to a window of time.
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+
+ELEMENTWISE: dict[str, tuple[int, Callable]] = {
+    "abs": (1, np.abs), "sqrt": (1, np.sqrt), "exp": (1, np.exp), "log": (1, np.log),
+    "sin": (1, np.sin), "cos": (1, np.cos), "tan": (1, np.tan), "arctan": (1, np.arctan),
+    "sign": (1, np.sign), "arctan2": (2, np.arctan2), "minimum": (2, np.minimum),
+    "maximum": (2, np.maximum),
+}
+REDUCTIONS: dict[str, Callable] = {
+    "max": np.max, "min": np.min, "mean": np.mean, "std": np.std,
+    "rms": lambda v: np.sqrt(np.mean(np.square(v))),
+    "peak": lambda v: np.max(np.abs(v)),
+    "final": lambda v: v[-1], "initial": lambda v: v[0],
+}
+#: Reductions that need the sample times.
+TIMED = {"integral"}
+_BINARY = {ast.Add: np.add, ast.Sub: np.subtract, ast.Mult: np.multiply,
+           ast.Div: np.true_divide, ast.Pow: np.power}
+
+
+@dataclass
+class Context:
+    """One run as metrics see it: sample times, signals on demand, parameters."""
+
+    time: np.ndarray
+    signal: Callable[[str], np.ndarray]
+    parameters: Mapping[str, float]
+    transitions: int = 0
+    units: Mapping[str, str] = field(default_factory=dict)
+
+
+def dotted(node) -> str | None:
+    """``a.b.c`` from a chain of attribute nodes, or None if it is anything else."""
+    parts = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    if not isinstance(node, ast.Name):
+        return None
+    parts.append(node.id)
+    return ".".join(reversed(parts))
+
+
+class Expression:
+    """A checked expression; `__call__` evaluates it on a `Context`."""
+
+    def __init__(self, text: str, signals: set[str], parameters: set[str], where: str):
+        self.text = text
+        self.where = where
+        try:
+            tree = ast.parse(text.strip(), mode="eval")
+        except SyntaxError as exc:
+            raise InputError(f"{where} = {text!r}: not an expression ({exc.msg})") from None
+        self.signals: set[str] = set()
+        self._fn, self.per_sample = self._compile(tree.body, signals, parameters)
+
+    def _fail(self, why: str):
+        raise InputError(f"{self.where} = {self.text!r}: {why}")
+
+    def _compile(self, node, signals, parameters) -> tuple[Callable, bool]:
+        """``(function of a Context, whether it gives one value per sample)``."""
+        if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) \
+                and not isinstance(node.value, bool):
+            value = float(node.value)
+            return (lambda c: value), False
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
+            inner, vector = self._compile(node.operand, signals, parameters)
+            if isinstance(node.op, ast.UAdd):
+                return inner, vector
+            return (lambda c: np.negative(inner(c))), vector
+        if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+            op = _BINARY[type(node.op)]
+            a, va = self._compile(node.left, signals, parameters)
+            b, vb = self._compile(node.right, signals, parameters)
+            return (lambda c: op(a(c), b(c))), va or vb
+        if isinstance(node, (ast.Name, ast.Attribute)):
+            return self._name(node, signals, parameters)
+        if isinstance(node, ast.Call):
+            name = node.func.id if isinstance(node.func, ast.Name) else None
+            if node.keywords or name is None:
+                self._fail("call functions by name with plain arguments, as max(theta_x)")
+            compiled = [self._compile(a, signals, parameters) for a in node.args]
+            args = [fn for fn, _ in compiled]
+            if name in ELEMENTWISE:
+                count, fn = ELEMENTWISE[name]
+                if len(args) != count:
+                    self._fail(f"{name} takes {count} argument(s), got {len(args)}")
+                return (lambda c: fn(*(a(c) for a in args))), any(v for _, v in compiled)
+            if name in REDUCTIONS or name in TIMED:
+                if len(args) != 1:
+                    self._fail(f"{name} takes 1 argument, got {len(args)}")
+                (arg,) = args
+                if name == "integral":
+                    return (lambda c: _integral(np.broadcast_to(arg(c), c.time.shape),
+                                                c.time)), False
+                reduce = REDUCTIONS[name]
+                return (lambda c: float(reduce(np.broadcast_to(arg(c), c.time.shape)))), False
+            self._fail(f"unknown function {name!r}; allowed: "
+                       f"{', '.join(sorted([*ELEMENTWISE, *REDUCTIONS, *TIMED]))}")
+        self._fail(f"{type(node).__name__} is not allowed; write arithmetic (+ - * / **) of "
+                   "numbers, signals, parameters and functions")
+
+    def _name(self, node, signals, parameters) -> tuple[Callable, bool]:
+        name = dotted(node)
+        if name is None:
+            self._fail("only names of signals and parameters may be written with dots")
+        if name == "t":
+            return (lambda c: c.time), True
+        if name == "pi":
+            return (lambda c: math.pi), False
+        if name in signals:
+            self.signals.add(name)
+            return (lambda c: c.signal(name)), True
+        if name in parameters:
+            return (lambda c: c.parameters[name]), False
+        close = sorted(s for s in signals if s.split(".")[-1] == name.split(".")[-1])[:5]
+        hint = f" (did you mean {', '.join(close)}?)" if close else ""
+        self._fail(f"unknown name {name!r}: not a signal of this scenario, a [signals] "
+                   f"entry, a parameter, t or pi{hint}")
+
+    def __call__(self, context: Context):
+        return self._fn(context)
+
+
+def _integral(values: np.ndarray, time: np.ndarray) -> float:
+    """Trapezoidal integral over the samples."""
+    if len(time) < 2:
+        return 0.0
+    return float(np.sum((values[1:] + values[:-1]) * np.diff(time)) / 2.0)
+
+
+@dataclass(frozen=True)
+class Kind:
+    """A built-in metric: its option keys (SI unit, or None for a signal expression)."""
+
+    keys: frozenset
+    required: frozenset
+    units: Mapping[str, str | None]
+    unit: str | None  # the metric's unit; None: that of its signal
+    description: str
+
+
+def _kind(description, unit, required=(), **options) -> Kind:
+    units = {**{r: None for r in required}, "start": "s", "stop": "s", **options}
+    return Kind(frozenset(units), frozenset(required), units, unit, description)
+
+
+KINDS: dict[str, Kind] = {
+    "peak": _kind("largest magnitude of the signal", None, ("signal",)),
+    "rms": _kind("root mean square of the signal", None, ("signal",)),
+    "mean": _kind("mean of the signal", None, ("signal",)),
+    "final": _kind("the signal's last value", None, ("signal",)),
+    "tracking_rms": _kind("root mean square of signal - reference", None,
+                          ("signal", "reference")),
+    "tracking_peak": _kind("largest magnitude of signal - reference", None,
+                           ("signal", "reference")),
+    "lag": _kind("time the signal lags the reference at a frequency (phase lag / 2 pi f)",
+                 "s", ("signal", "reference", "frequency"), frequency="Hz"),
+    "settling_time": _kind("time from the window's start until the signal stays within "
+                           "tolerance x its change of its final value", "s", ("signal",),
+                           tolerance="1"),
+    "energy_dissipated": _kind("energy dissipated by friction (trapezoidal integral of the "
+                               "friction powers)", "J"),
+    "stick_slip_transitions": _kind("stick/slip transitions counted by the time-stepper "
+                                    "(0 with smooth friction laws, which never stick)", "1"),
+}
+
+
+class Evaluator:
+    """A metric made ready: its expressions checked against the available names."""
+
+    def __init__(self, metric, signals: set[str], parameters: set[str],
+                 units: Mapping[str, str], friction_powers: list[str]):
+        self.name = metric.name
+        self.kind = metric.kind
+        self.options = dict(metric.options)
+        where = metric.where
+        self.expressions = {}
+        for key, value in metric.options.items():
+            if key in ("signal", "reference", "expression"):
+                self.expressions[key] = Expression(value, signals, parameters, f"{where}.{key}")
+        if metric.kind == "expression" and self.expressions["expression"].per_sample:
+            raise InputError(f"{where} = {metric.options['expression']!r}: gives one value per "
+                             "sample; reduce it to one number per run with max, min, mean, rms, "
+                             "peak, final, initial, std or integral")
+        if metric.kind == "energy_dissipated":
+            if not friction_powers:
+                raise InputError(f"{where}: energy_dissipated needs the friction powers, which "
+                                 "this solver does not sample (stiction: use the time-stepper's "
+                                 "ledger through vsj simulate)")
+            self.expressions["signal"] = Expression(
+                " + ".join(friction_powers), signals, parameters, where)
+        signal = metric.options.get("signal")
+        kind = KINDS.get(metric.kind)
+        self.unit = ("" if kind is None else kind.unit if kind.unit is not None
+                     else units.get(signal, ""))
+
+    @property
+    def signals(self) -> set[str]:
+        return set().union(*(e.signals for e in self.expressions.values()))
+
+    def __call__(self, c: Context) -> float:
+        kind = self.kind
+        if kind == "stick_slip_transitions":
+            return float(c.transitions)
+        if kind == "expression":
+            return float(self.expressions["expression"](c))
+        start, stop = self.options.get("start", -math.inf), self.options.get("stop", math.inf)
+        window = (c.time >= start - 1e-12) & (c.time <= stop + 1e-12)
+        t = c.time[window]
+        if len(t) == 0:
+            return math.nan
+        s = np.broadcast_to(self.expressions["signal"](c), c.time.shape)[window]
+        if kind == "energy_dissipated":
+            return -_integral(s, t)
+        if kind in ("tracking_rms", "tracking_peak", "lag"):
+            r = np.broadcast_to(self.expressions["reference"](c), c.time.shape)[window]
+            if kind == "lag":
+                return _lag(s, r, t, self.options["frequency"])
+            s = s - r
+        if kind in ("peak", "tracking_peak"):
+            return float(np.max(np.abs(s)))
+        if kind in ("rms", "tracking_rms"):
+            return float(np.sqrt(np.mean(np.square(s))))
+        if kind == "mean":
+            return float(np.mean(s))
+        if kind == "final":
+            return float(s[-1])
+        return _settling(s, t, self.options.get("tolerance", 0.02))
+
+
+def _lag(signal, reference, t, frequency: float) -> float:
+    """Phase lag [s] of ``signal`` behind ``reference`` at ``frequency`` (both projected
+    on sine and cosine at that frequency over the window)."""
+    w = 2.0 * math.pi * frequency
+    basis = np.column_stack([np.sin(w * t), np.cos(w * t)])
+    (a_s, b_s), (a_r, b_r) = (np.linalg.lstsq(basis, v, rcond=None)[0] for v in (signal, reference))
+    delta = math.atan2(b_r, a_r) - math.atan2(b_s, a_s)
+    delta = (delta + math.pi) % (2.0 * math.pi) - math.pi
+    return delta / w
+
+
+def _settling(s, t, tolerance: float) -> float:
+    final = s[-1]
+    change = abs(final - s[0]) or float(np.ptp(s))
+    outside = np.flatnonzero(np.abs(s - final) > tolerance * change)
+    if not len(outside):
+        return 0.0
+    k = min(int(outside[-1]) + 1, len(t) - 1)
+    return float(t[k] - t[0])

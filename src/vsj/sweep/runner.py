@@ -1,0 +1,417 @@
+"""Running one chunk of a sweep: models, the batch kernel, signals, metrics.
+
+`run_chunk` is a pure function of a `Job` (the sweep, with the texts of its
+scenario and parameter set, so a worker on another machine needs no files) and
+the chunk's values of the varied quantities. Each run is built exactly as
+``vsj simulate`` builds it (the parameter set with the run's values, the
+network, the compiled model, the initial state), integrated by the batch kernel
+(`vsj.engine.core.run_batch`, one run per thread, results independent of the
+thread count) and sampled at the kept samples only. So a run's numbers depend
+on nothing but its own values: not on the chunk, the worker or the scheduler.
+
+A run that cannot be built (values that break the parameter set's relations, a
+pivot position outside its range) or whose integration fails is recorded with
+its status and message; the others go on.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import pickle
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+from functools import cached_property
+
+import numpy as np
+
+from ..engine import STATUS_TEXT, Engine, compile_model, core, observation_layout
+from ..errors import InputError
+from ..params import Parameters, _relations
+from ..simulate import InitialState, _initial, choose_solver
+from .metrics import Context, Evaluator, Expression
+from .spec import Q, SweepSpec, spec_of
+
+#: Status of a run that could not be built (the engine's codes are 0 and up).
+SETUP_FAILED = -1
+
+
+@dataclass(frozen=True)
+class Job:
+    """What every chunk of a sweep needs, as plain data (picklable, hashable)."""
+
+    spec: SweepSpec
+    scenario_text: str
+    scenario_origin: str
+    params_text: str | None
+    params_origin: str | None
+
+    @cached_property
+    def key(self) -> str:
+        return hashlib.sha256(pickle.dumps((self.spec.text, self.spec.method,
+                                            self.scenario_text, self.params_text))).hexdigest()
+
+
+@dataclass
+class ChunkResult:
+    """The runs ``start .. start + len(status)`` of a sweep."""
+
+    start: int
+    kept: np.ndarray        # (runs, samples, kept signals)
+    metrics: np.ndarray     # (runs, metrics)
+    status: np.ndarray      # (runs,) int64: 0 ok, an engine status, or SETUP_FAILED
+    messages: list[str]
+    steps: np.ndarray       # (runs,) int64
+    kernel_time: float = 0.0
+
+    @property
+    def failed(self) -> int:
+        return int(np.count_nonzero(self.status != core.OK))
+
+
+class _Memo:
+    """An input signal whose spline pieces are made once (they do not depend on the
+    parameters, and making them is most of the cost of compiling a model)."""
+
+    def __init__(self, signal):
+        self._signal = signal
+        self._pieces = {}
+
+    def __getattr__(self, name):
+        return getattr(self._signal, name)
+
+    def pieces(self, t_end: float):
+        if t_end not in self._pieces:
+            self._pieces[t_end] = self._signal.pieces(t_end)
+        return self._pieces[t_end]
+
+
+def signal_recipes(structure, layout) -> dict[str, tuple[str, Callable]]:
+    """Each signal `vsj.simulate.collect` names (ports aside), with its unit and how it is
+    computed from `Engine.observe`'s columns; the same formulas, so the same bits."""
+    cols = observation_layout(layout)
+    out: dict[str, tuple[str, Callable]] = {}
+
+    def col(name, j):
+        return lambda raw: raw[:, cols[name]][:, j]
+
+    named = {s.flange for s in structure.signals}
+    from ..network import Signal
+
+    probes = list(structure.signals) + [Signal(f, f) for f in structure.free if f not in named]
+    for s in probes:
+        rx, ru = structure.rows(s.flange)
+        out[s.name] = ("rad", lambda raw, rx=rx, ru=ru:
+                       raw[:, cols["x"]] @ rx + raw[:, cols["sigma"]] @ ru)
+        out[f"{s.name}.speed"] = ("rad/s", lambda raw, rx=rx, ru=ru:
+                                  raw[:, cols["v"]] @ rx + raw[:, cols["u"]] @ ru)
+    if structure.pivot.flange is not None or structure.springs:
+        out["q"] = ("m", col("q", 0))
+        out["q.rate"] = ("m/s", col("qdot", 0))
+    for j, src in enumerate(structure.sources):
+        out[f"source.{src.name}.speed"] = ("rad/s", col("u", j))
+        out[f"source.{src.name}.torque"] = ("N m", col("src_tau", j))
+        out[f"source.{src.name}.power"] = ("W", lambda raw, j=j:
+                                           raw[:, cols["u"]][:, j] * raw[:, cols["src_tau"]][:, j])
+    for j, ld in enumerate(structure.loads):
+        out[f"load.{ld.name}.torque"] = ("N m", col("ld_tau", j))
+        out[f"load.{ld.name}.power"] = ("W", lambda raw, j=j:
+                                        raw[:, cols["ld_tau"]][:, j] * raw[:, cols["ld_w"]][:, j])
+    for j, mo in enumerate(structure.motors):
+        out[f"motor.{mo.name}.current"] = ("A", col("current", j))
+        out[f"motor.{mo.name}.voltage"] = ("V", col("mo_V", j))
+        out[f"motor.{mo.name}.speed"] = ("rad/s", col("mo_w", j))
+        out[f"motor.{mo.name}.power"] = ("W", lambda raw, j=j:
+                                         raw[:, cols["mo_V"]][:, j] * raw[:, cols["current"]][:, j])
+    for e, fr in enumerate(structure.frictions):
+        out[f"friction.{fr.name}.slip"] = ("rad/s", col("fr_s", e))
+        out[f"friction.{fr.name}.torque"] = ("N m", col("fr_f", e))
+        out[f"friction.{fr.name}.power"] = ("W", lambda raw, e=e:
+                                            -raw[:, cols["fr_f"]][:, e] * raw[:, cols["fr_s"]][:, e])
+    for k, sp in enumerate(structure.springs):
+        out[f"spring.{sp.name}.deflection"] = ("rad", col("sp_d", k))
+        out[f"spring.{sp.name}.torque"] = ("N m", col("sp_tau", k))
+        out[f"spring.{sp.name}.stiffness"] = ("N m/rad", col("sp_k", k))
+        out[f"spring.{sp.name}.energy"] = ("J", col("sp_V", k))
+        out[f"spring.{sp.name}.power"] = ("W", lambda raw, k=k:
+                                          raw[:, cols["sp_tau"]][:, k] * raw[:, cols["sp_dd"]][:, k])
+    return out
+
+
+#: Signals a batch run of the time-stepper cannot give: they need the stiction
+#: impulses, which only single runs (`vsj simulate`) sample.
+def _needs_impulses(name: str) -> bool:
+    return name.startswith("friction.") and name.endswith((".torque", ".power", ".stuck"))
+
+
+class Prepared:
+    """A `Job` made ready in one process: scenario, base model, signals, metrics."""
+
+    def __init__(self, job: Job):
+        from .. import params as params_module
+        from .. import scenario as scenarios
+
+        spec = job.spec
+        scen = scenarios.loads(job.scenario_text, job.scenario_origin)
+        params = (params_module.default() if job.params_text is None
+                  else params_module.loads(job.params_text, job.params_origin))
+        case = pick_case(scen, spec)
+        self.case = case
+        resolved, structure, inputs, pivot_range = scenarios.prepare_case(scen, case, params)
+        self.base_params = resolved
+        self.structure = structure
+        self.inputs = {k: _Memo(v) for k, v in inputs.items()}
+        self.pivot_range = pivot_range
+        self.options = case.options
+        self.duration = case.duration
+        self.solver = choose_solver(structure, case.options)
+        self.varied = spec.varied
+        self.parameter_keys = [n for n in self.varied if n != Q]
+        base, layout = self._compile(structure, pivot_range)
+        self.layout = layout
+        self.base_model = base
+        self.u0 = Engine(base).source_speeds(0.0)
+        step = case.options.output_step
+        n_out = math.floor(self.duration / step + 1e-9) + 1
+        every = spec.every if spec.every is not None else step
+        ratio = every / step
+        if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
+            raise InputError(f"{spec.origin}: output.every = {every:g} s must be a whole "
+                             f"multiple of the scenario's output_step ({step:g} s)")
+        self.stride = round(ratio)
+        self.t_out = np.arange(0, n_out, self.stride) * step
+        self.recipes = signal_recipes(structure, layout)
+        if self.solver == "timestep":
+            self.recipes = {k: v for k, v in self.recipes.items() if not _needs_impulses(k)}
+        units = {k: u for k, (u, _) in self.recipes.items()}
+        parameters = set(params.values)
+        self.derived: dict[str, Expression] = {}
+        for name, text in spec.signals.items():
+            if name in self.recipes:
+                raise InputError(f"{spec.origin}: signals.{name}: a signal of that name exists")
+            self.derived[name] = Expression(text, set(self.recipes) | set(self.derived),
+                                            parameters, f"{spec.origin}: signals.{name}")
+        names = set(self.recipes) | set(self.derived)
+        powers = [k for k in self.recipes if k.startswith("friction.") and k.endswith(".power")]
+        self.metrics = [Evaluator(m, names, parameters, units, powers) for m in spec.metrics]
+        for i, name in enumerate(spec.keep):
+            if name not in names:
+                why = (" (the time-stepper's batch runs do not sample the stiction impulses; "
+                       "keep it with vsj simulate)" if _needs_impulses(name) else "")
+                raise InputError(f"{spec.origin}: output.keep[{i}] = {name!r}: not a signal of "
+                                 f"this scenario or of [signals]{why}")
+        self.keep = list(spec.keep)
+        self.units = {**units, **{k: "" for k in self.derived}}
+
+    def _compile(self, structure, pivot_range):
+        o = self.options
+        return compile_model(structure, self.inputs, self.duration, friction=o.friction,
+                             friction_overrides=o.friction_overrides,
+                             slope_width=o.slope_width, pivot_range=pivot_range)
+
+    def parameters_for(self, values: np.ndarray) -> Parameters:
+        """The base set with the run's parameter values (SI), checked as a file would be."""
+        if not self.parameter_keys:
+            return self.base_params
+        base = self.base_params
+        new = dict(base.values)
+        problems = []
+        for name, value in zip(self.varied, values):
+            if name == Q:
+                continue
+            why = spec_of(name).check(float(value))
+            if why:
+                problems.append(f"{name} = {value!r}: {why}")
+            new[name] = float(value)
+        problems += _relations(new, "the run's parameters")
+        if problems:
+            raise InputError("; ".join(problems))
+        sources = {**base.sources, **{k: "sweep" for k in self.parameter_keys}}
+        texts = {**base.texts, **{k: repr(new[k]) for k in self.parameter_keys}}
+        return replace(base, values=new, sources=sources, texts=texts)
+
+    def initial_for(self, values: np.ndarray, params: Parameters) -> InitialState:
+        initial = self.case.initial
+        if Q in self.varied:
+            q = float(values[self.varied.index(Q)])
+            lo, hi = params.pivot.q_min, params.pivot.q_max
+            if not lo <= q <= hi:
+                raise InputError(f"q = {q * 100:g} cm is outside the pivot range "
+                                 f"[{lo * 100:g}, {hi * 100:g}] cm")
+            initial = replace(initial, q=q)
+        return initial
+
+
+def pick_case(scen, spec: SweepSpec):
+    """The sweep's case of the scenario (the first unless named), with its duration."""
+    if spec.case is None:
+        case = scen.cases[0]
+    else:
+        labels = [c.label for c in scen.cases]
+        if spec.case not in labels:
+            raise InputError(f"{spec.origin}: sweep.case = {spec.case!r}: scenario "
+                             f"{scen.name!r} has the cases {', '.join(labels)}")
+        case = scen.cases[labels.index(spec.case)]
+    if spec.duration is not None:
+        case = replace(case, duration=spec.duration)
+    return case
+
+
+_PREPARED: dict[str, Prepared] = {}
+
+
+def prepared(job: Job) -> Prepared:
+    """The `Prepared` of ``job`` in this process (made once; it holds no run's state)."""
+    if job.key not in _PREPARED:
+        if len(_PREPARED) > 4:
+            _PREPARED.pop(next(iter(_PREPARED)))
+        _PREPARED[job.key] = Prepared(job)
+    return _PREPARED[job.key]
+
+
+@dataclass
+class _Run:
+    params: Parameters
+    structure: object
+    model: object
+    y0: np.ndarray
+    sigma0: np.ndarray
+    group: bytes = field(default=b"")
+
+
+def _fixed_arrays(model) -> bytes:
+    """What a batch shares: everything of the compiled model but mass, Minv, par."""
+    digest = hashlib.sha256()
+    for name in model._fields:
+        if name not in ("mass", "Minv", "par", "src_pos0"):
+            a = np.ascontiguousarray(getattr(model, name))
+            digest.update(name.encode() + str(a.shape).encode() + a.tobytes())
+    return digest.digest()
+
+
+def _build(p: Prepared, values: np.ndarray) -> _Run:
+    params = p.parameters_for(values)
+    initial = p.initial_for(values, params)
+    if params is p.base_params:
+        structure, model = p.structure, p.base_model
+    else:
+        structure = p.case.build(params).assemble()
+        pivot_range = (params.pivot.q_min, params.pivot.q_max) if p.case.pivot_from_params \
+            else None
+        model, layout = p._compile(structure, pivot_range)
+        if layout != p.layout:
+            raise InputError("these values change the network's structure")
+    x0, v0, sigma0, currents = _initial(structure, p.inputs, initial, p.u0)
+    n_state = p.layout.n_state
+    y0 = np.zeros(n_state if p.solver == "dopri" else n_state + p.layout.n_acc)
+    y0[:n_state] = np.concatenate([x0, v0, currents])
+    return _Run(params, structure, model, y0, np.asarray(sigma0, dtype=float),
+                _fixed_arrays(model))
+
+
+def run_chunk(job: Job, start: int, values: np.ndarray, threads: int | None = None
+              ) -> ChunkResult:
+    """Simulate the runs ``start ..`` with the varied quantities ``values`` (runs x
+    varied, SI); ``threads`` share the kernel's runs (default: every core)."""
+    import time
+
+    p = prepared(job)
+    runs = len(values)
+    n_t, n_keep, n_metrics = len(p.t_out), len(p.keep), len(p.metrics)
+    kept = np.full((runs, n_t, n_keep), np.nan)
+    metrics = np.full((runs, n_metrics), np.nan)
+    status = np.full(runs, SETUP_FAILED, dtype=np.int64)
+    steps = np.zeros(runs, dtype=np.int64)
+    messages = [""] * runs
+    built: dict[int, _Run] = {}
+    for r in range(runs):
+        try:
+            built[r] = _build(p, values[r])
+        except InputError as exc:
+            messages[r] = f"not built: {exc}"
+    groups: dict[bytes, list[int]] = {}
+    for r, run in built.items():
+        groups.setdefault(run.group, []).append(r)
+    o = p.options
+    kernel = 0.0
+    for members in groups.values():
+        first = built[members[0]]
+        engine = Engine(first.model._replace(src_pos0=first.sigma0))
+        began = time.perf_counter()
+        outs, _, st, t_stop, n_steps, flips = core.run_batch(
+            p.solver, engine, np.array([built[r].model.mass for r in members]),
+            np.array([built[r].model.Minv for r in members]),
+            np.array([built[r].model.par for r in members]),
+            np.array([built[r].sigma0 for r in members]),
+            np.array([built[r].y0 for r in members]), p.duration, p.t_out,
+            rtol=o.rtol, atol=o.atol, h_max=o.max_step, max_steps=o.max_steps, h=o.step,
+            threads=threads)
+        kernel += time.perf_counter() - began
+        for i, r in enumerate(members):
+            status[r] = st[i]
+            steps[r] = n_steps[i]
+            messages[r] = (STATUS_TEXT[int(st[i])] if st[i] == core.OK else
+                           f"{STATUS_TEXT[int(st[i])]} at t = {t_stop[i]:.6g} s")
+            _measure(p, built[r], outs[i], int(flips[i]), kept[r], metrics[r])
+    return ChunkResult(start, kept, metrics, status, messages, steps, kernel)
+
+
+def _measure(p: Prepared, run: _Run, states: np.ndarray, transitions: int,
+             kept: np.ndarray, metrics: np.ndarray) -> None:
+    """Fill one run's kept signals and metrics from its sampled states."""
+    if not (p.keep or p.metrics):
+        return
+    engine = Engine(run.model._replace(src_pos0=run.sigma0))
+    nf = p.layout.n_frictions
+    raw = engine.observe(p.t_out, states, np.zeros((len(p.t_out), nf)))
+    cache: dict[str, np.ndarray] = {}
+    values = run.params.values
+
+    def signal(name: str) -> np.ndarray:
+        if name not in cache:
+            if name in p.recipes:
+                cache[name] = np.ascontiguousarray(p.recipes[name][1](raw))
+            else:
+                cache[name] = np.broadcast_to(p.derived[name](context), p.t_out.shape)
+        return cache[name]
+
+    context = Context(p.t_out, signal, values, transitions)
+    for j, name in enumerate(p.keep):
+        kept[:, j] = signal(name)
+    with np.errstate(all="ignore"):  # a failed run's samples are NaN after the failure
+        for j, metric in enumerate(p.metrics):
+            try:
+                metrics[j] = metric(context)
+            except (FloatingPointError, ValueError, np.linalg.LinAlgError):
+                metrics[j] = math.nan
+
+
+def job_for(spec: SweepSpec) -> Job:
+    """The `Job` of a sweep file: its scenario's and parameter set's texts read here."""
+    from .. import scenario as scenarios
+    from ..errors import read_text
+
+    scen = scenarios.load(spec.scenario)
+    text = scen_text(scen, spec.scenario)
+    params_text = None if spec.params is None else read_text(spec.params, "parameter file")
+    return Job(spec, text, scen.origin, params_text, spec.params)
+
+
+def scen_text(scen, name: str) -> str:
+    from pathlib import Path
+
+    from .. import scenario as scenarios
+    from ..errors import read_text
+
+    path = Path(name)
+    if path.suffix == ".toml" or path.exists():
+        return read_text(path, "scenario file")
+    return read_text(scenarios._builtin_dir() / f"{name}.toml", "scenario file")
+
+
+def describe(job: Job) -> Mapping:
+    """Names and units of the kept signals and metrics, and the sample times."""
+    p = prepared(job)
+    return {"time": p.t_out, "keep": p.keep, "keep_units": [p.units[k] for k in p.keep],
+            "metrics": [m.name for m in p.metrics], "metric_units": [m.unit for m in p.metrics],
+            "base_params": p.base_params, "solver": p.solver}

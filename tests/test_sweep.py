@@ -1,0 +1,240 @@
+"""vsj sweep: runs equal single runs, whatever the scheduler; resume; failures; bad files."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from vsj import scenario as scenarios
+from vsj import sweep
+from vsj.cli import main
+from vsj.simulate import InitialState, simulate
+from vsj.sweep import analysis, sampling, schedulers, store
+from vsj.sweep.spec import Distribution
+
+SPEC = """
+[sweep]
+scenario = "fig-4.15"
+duration = "1 s"
+seed = 7
+samples = 2
+
+[vary]
+q = { values = ["-1 cm", "0.5 cm"] }
+"elastic_element.lever_length" = { values = ["{lever}", "1 cm"] }
+"transmission.stiction" = { distribution = "normal", mean = "10 mN m", sd = "3 mN m" }
+
+[signals]
+reference_x = "planetary.sun_teeth / (planetary.sun_teeth + planetary.ring_teeth) / transmission.ratio * (motor_1 + motor_2) / 2"
+
+[metrics]
+deflection = { kind = "peak", signal = "phi_1", start = "0.5 s" }
+lag = { kind = "lag", signal = "theta_x", reference = "reference_x", frequency = "0.5 Hz" }
+tracking = { kind = "tracking_rms", signal = "theta_x", reference = "reference_x" }
+energy = { kind = "energy_dissipated" }
+spread = "max(phi_1) - min(phi_1)"
+
+[output]
+keep = ["theta_x", "phi_1", "spring.vsm_1.deflection", "friction.tr_1.friction.power"]
+every = "20 ms"
+"""
+
+
+@pytest.fixture(scope="module")
+def spec_file(tmp_path_factory, params):
+    from vsj.units import format_quantity
+
+    lever = format_quantity(params["elastic_element.lever_length"], "cm", digits=17)
+    path = tmp_path_factory.mktemp("spec") / "spec.toml"
+    path.write_text(SPEC.replace("{lever}", lever))
+    return path
+
+
+@pytest.fixture(scope="module")
+def reference(spec_file, tmp_path_factory):
+    """The sweep run in this process, one chunk per two runs."""
+    out = tmp_path_factory.mktemp("ref") / "out"
+    assert main(["sweep", str(spec_file), "--out", str(out), "--chunk", "2",
+                 "--workers", "1", "--no-plot"]) == 0
+    return out
+
+
+def _arrays(out):
+    ds = store.open_dataset(out / store.ZARR)
+    return {name: ds[name].values for name in ("signals", "metrics", "status", "steps",
+                                               "q", "transmission.stiction")}
+
+
+def _same(a, b):
+    x, y = _arrays(a), _arrays(b)
+    for name in x:
+        assert np.array_equal(x[name], y[name], equal_nan=True), name
+    assert (a / store.METRICS).read_bytes() == (b / store.METRICS).read_bytes()
+
+
+def test_runs_equal_single_runs_and_failures_are_recorded(reference, params):
+    ds = store.open_dataset(reference / store.ZARR)
+    status = ds["status"].values
+    lever = ds["elastic_element.lever_length"].values
+    # a 1 cm lever does not reach past the pivot: those runs are not built, the rest run
+    assert np.array_equal(status == 0, lever > 0.02)
+    record = store.read_manifest(reference)
+    assert record["complete"] and len(record["failed_runs"]) == 4
+    assert all("lever_length" in m for m in record["failed_runs"].values())
+    csv_rows = (reference / store.METRICS).read_text().splitlines()
+    assert len(csv_rows) == 9 and "lever_length must exceed" in csv_rows[-1]
+    assert np.all(np.isfinite(ds["metrics"].values[status == 0]))
+    assert np.all(ds["metrics"].sel(metric="energy").values[status == 0] > 0)
+
+    scen = scenarios.load("fig-4.15")
+    keep = ds["signal"].values.tolist()
+    stride = 20  # output.every / the scenario's output_step
+    for r in np.flatnonzero(status == 0):
+        overrides = {"transmission.stiction": f"{float(ds['transmission.stiction'][r])!r} N*m",
+                     "elastic_element.lever_length":
+                         f"{float(ds['elastic_element.lever_length'][r])!r} m"}
+        case = scen.cases[0]
+        run_params = params.with_overrides(overrides, origin="test")
+        _, structure, inputs, rng = scenarios.prepare_case(scen, case, run_params)
+        single = simulate(structure, inputs, 1.0, options=case.options,
+                          initial=InitialState(q=float(ds["q"][r])), pivot_range=rng,
+                          ports=False)
+        for j, name in enumerate(keep):
+            assert np.array_equal(single[name][::stride], ds["signals"].values[r, :, j]), name
+
+
+def test_one_run_equals_vsj_simulate_on_the_command_line(reference, tmp_path):
+    import xarray as xr
+
+    ds = store.open_dataset(reference / store.ZARR)
+    r = int(np.flatnonzero(ds["status"].values == 0)[-1])
+    scen = (scenarios._builtin_dir() / "fig-4.15.toml").read_text()
+    scen = scen[:scen.index("[[cases]]")].replace('duration = "10 s"', 'duration = "1 s"')
+    scen += (f'\n[initial]\nq = "{float(ds["q"][r])!r} m"\n[params]\n'
+             f'"transmission.stiction" = "{float(ds["transmission.stiction"][r])!r} N*m"\n'
+             f'"elastic_element.lever_length" = '
+             f'"{float(ds["elastic_element.lever_length"][r])!r} m"\n')
+    path = tmp_path / "one.toml"
+    path.write_text(scen)
+    assert main(["simulate", str(path), "--out", str(tmp_path / "o"), "--no-plot"]) == 0
+    with xr.open_dataset(tmp_path / "o" / "trajectory.nc") as single:
+        for j, name in enumerate(ds["signal"].values.tolist()):
+            assert np.array_equal(single[name].values[0, ::20], ds["signals"].values[r, :, j])
+
+
+def test_chunk_size_and_worker_processes_do_not_change_the_results(reference, spec_file,
+                                                                   tmp_path):
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec_file), "--out", str(out), "--chunk", "3",
+                 "--workers", "2", "--no-plot"]) == 0
+    _same(reference, out)
+
+
+def test_a_local_dask_cluster_gives_the_same_zarr(reference, spec_file, tmp_path):
+    pytest.importorskip("dask.distributed")
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec_file), "--out", str(out), "--chunk", "2",
+                 "--scheduler", "local", "--workers", "2", "--no-plot"]) == 0
+    _same(reference, out)
+
+
+def test_an_interrupted_sweep_resumed_equals_the_uninterrupted_one(reference, spec_file,
+                                                                   tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    real = schedulers.execute
+
+    def killed_after_two(*args, **kwargs):
+        for n, item in enumerate(real(*args, **kwargs)):
+            if n == 2:
+                raise KeyboardInterrupt
+            yield item
+
+    monkeypatch.setattr(schedulers, "execute", killed_after_two)
+    args = ["sweep", str(spec_file), "--out", str(out), "--workers", "1", "--no-plot"]
+    assert main([*args, "--chunk", "2"]) == 130
+    record = store.read_manifest(out)
+    assert sorted(record["done"]) == ["0", "1"] and not record["complete"]
+    assert not (out / store.METRICS).exists()
+    # a process killed while writing chunk 2 leaves part of its region written
+    import xarray as xr
+
+    xr.Dataset({"status": ("run", np.array([5, 5]))}).to_zarr(
+        out / store.ZARR, region={"run": slice(4, 6)}, consolidated=False)
+    monkeypatch.setattr(schedulers, "execute", real)
+    assert main(args) == 2  # not without --resume
+    assert main([*args, "--resume"]) == 0
+    _same(reference, out)
+    assert store.read_manifest(out)["done"] == store.read_manifest(reference)["done"]
+
+
+@pytest.mark.parametrize("edit, words", [
+    (('"transmission.stiction" =', '"transmission.stiffness" ='),
+     ["vary.\"transmission.stiffness\"", "unknown parameter 'transmission.stiffness'"]),
+    (('mean = "10 mN m"', 'mean = "-10 mN m"'),
+     ["vary.\"transmission.stiction\".mean", "'-10 mN m'", "outside the range"]),
+    (('kind = "peak"', 'kind = "peek"'), ["metrics.deflection.kind", "'peek'", "unknown metric"]),
+    (('spread = "max(phi_1) - min(phi_1)"', 'spread = "max(phi_9)"'),
+     ["metrics.spread.expression", "phi_9"]),
+    (('spread = "max(phi_1) - min(phi_1)"', 'spread = "__import__(\'os\')"'),
+     ["metrics.spread.expression", "not allowed"]),
+    (('q = { values', 'q = { value'), ["vary.q", "distribution"]),
+])
+def test_bad_sweep_files_exit_2_before_any_run(spec_file, tmp_path, capsys, edit, words):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(spec_file.read_text().replace(*edit))
+    out = tmp_path / "out"
+    assert main(["sweep", str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err
+    for word in words:
+        assert word in err
+    assert not out.exists()
+
+
+def test_sobol_indices_of_the_ishigami_function_match_the_analytic_values():
+    """Ishigami & Homma (1990), a = 7, b = 0.1, x_i uniform on [-pi, pi]; analytic
+    indices from Saltelli et al., Global Sensitivity Analysis: The Primer (2008), 4.4."""
+    a, b = 7.0, 0.1
+    inputs = tuple(Distribution(f"x{i}", "uniform", {"low": -math.pi, "high": math.pi},
+                                -math.pi, math.pi) for i in (1, 2, 3))
+    unit = sampling.unit_design("random", "sobol", 2 ** 12, 3, seed=11)
+    x = sampling.to_values(unit, inputs)
+    y = np.sin(x[:, 0]) + a * np.sin(x[:, 1]) ** 2 + b * x[:, 2] ** 4 * np.sin(x[:, 0])
+    r = analysis.sensitivity("sobol", sampling.sensitivity_problem(inputs), unit, y, seed=11)
+    variance = a ** 2 / 8 + b * math.pi ** 4 / 5 + b ** 2 * math.pi ** 8 / 18 + 0.5
+    v1 = 0.5 * (1 + b * math.pi ** 4 / 5) ** 2
+    v2 = a ** 2 / 8
+    v13 = b ** 2 * math.pi ** 8 * (1 / 18 - 1 / 50)
+    s1 = [v1 / variance, v2 / variance, 0.0]
+    st = [(v1 + v13) / variance, v2 / variance, v13 / variance]
+    for k in range(3):
+        assert abs(r["S1"][k] - s1[k]) <= r["S1_conf"][k], (k, r)
+        assert abs(r["ST"][k] - st[k]) <= r["ST_conf"][k], (k, r)
+
+
+def test_a_sobol_sweep_reports_indices_and_a_page(tmp_path, capsys):
+    path = tmp_path / "s.toml"
+    path.write_text("""
+[sweep]
+scenario = "fig-4.15"
+duration = "0.5 s"
+samples = 4
+[vary]
+"transmission.stiction" = { distribution = "uniform", low = "5 mN m", high = "15 mN m" }
+"transmission.viscous" = { distribution = "lognormal", median = "3 mN m s", sigma = 0.3 }
+[metrics]
+deflection = { kind = "peak", signal = "phi_1" }
+[output]
+every = "50 ms"
+""")
+    out = tmp_path / "out"
+    assert main(["sweep", str(path), "--out", str(out), "--method", "sobol",
+                 "--workers", "1"]) == 0
+    text = capsys.readouterr().out
+    assert "S1" in text and "transmission.stiction" in text
+    assert sweep.run_count(sweep.with_method(sweep.load(path), "sobol")) == 16
+    page = (out / "summary.html").read_text()
+    assert "Sensitivity (sobol)" in page and "data:image/png;base64" in page
+    assert (out / "sensitivity.csv").read_text().count("\n") == 3
