@@ -35,6 +35,8 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/friction_laws.py
 	$(BIN)/python benchmarks/step_cost.py
 	$(BIN)/python benchmarks/msl.py
+	$(BIN)/python benchmarks/identify_wrist.py
+	$(BIN)/python benchmarks/sweep.py
 
 clean:
 	rm -rf $(VENV) reproduction out build src/vsj.egg-info src/vsj/engine/*.so
