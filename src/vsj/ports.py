@@ -23,6 +23,13 @@ combinations of flange speeds or angles, written as ``{flange: coefficient}``.
 An element acting on ``s = sum(c_i omega_i)`` with torque ``f`` applies
 ``c_i f`` to flange ``i``.
 
+The one exception, kept because friction is read as a resistance: a friction
+element's recorded ``friction.<name>.torque`` is its *resistive* torque ``r``,
+positive when it opposes a positive slip ``s``; the torque it applies in the
+sense above is ``f = -r`` (``-c_i r`` on flange ``i``). Its
+``friction.<name>.power`` follows the convention: ``f s = -r s <= 0``, the
+power it delivers, never positive.
+
 Angles are measured from the reference configuration in which every spring of
 the model is at its nominal zero (elastic elements undeflected, parasitic
 compliances unloaded); all kinematic maps hold for angles as well as speeds.

@@ -448,6 +448,7 @@ def collect(structure: Structure, engine: Engine, layout: Layout, t_out, out, co
     slip, torque = raw[:, cols["fr_s"]], raw[:, cols["fr_f"]]
     for e, fr in enumerate(structure.frictions):
         put(f"friction.{fr.name}.slip", slip[:, e], "rad/s")
+        # the resistive torque: the one exception to the port convention (vsj.ports)
         put(f"friction.{fr.name}.torque", torque[:, e], "N m")
         put(f"friction.{fr.name}.power", -torque[:, e] * slip[:, e], "W")
         put(f"friction.{fr.name}.stuck", stuck[:, e].astype(float), "1")

@@ -33,6 +33,17 @@ The two VSM-derived models share the physical end stop at ``|phi| = phi_stop``
 (1.40 rad, section 3.2.2), modelled as a stiff elastic stop. ``LINEAR`` is a
 plain spring, used by the parasitic series compliance of fig 4.14.
 
+Coil pretension (``initial_tension``, an option of the potential model): a
+close-wound extension spring holds an initial tension ``F_i``; its force is
+``F_i + k (l - s0)`` while it is longer than its free length ``s0`` and zero
+below, so the force drops from ``F_i`` to zero at ``s0``. Where a spring goes
+slack the ring torque then jumps by ``F_i |dl/dphi|`` instead of only changing
+its slope. This fits the report's "very sudden deviation" and "non-continuous"
+curves (fig 3.7, 4.11) better than a kink can. It is a static option: the
+engine's spring laws (``engine/c/laws.c``) have no such term, so an element
+with ``initial_tension > 0`` gives torque curves (`coil_pretension`,
+`ElasticElement.torque`) but cannot be simulated.
+
 Every law returns ``(torque, stiffness, energy, dV/dq)``: the torque applied
 to the ring (restoring, in the ring's positive direction), ``-dtorque/dphi``,
 the stored energy ``V`` and its derivative with respect to the pivot
@@ -128,6 +139,42 @@ def spring_law(law: int, p, phi: float, q: float) -> tuple[float, float, float, 
     return float(torque[0]), float(stiffness[0]), float(energy[0]), float(dvdq[0])
 
 
+#: Step [rad] of the central difference that gives the spring lengths' slope dl/dphi;
+#: the lengths are smooth in phi (C-infinity away from q + R cos phi = 0), so the
+#: error, about h^2 |d3l/dphi3| / 6, is below 1e-13 m/rad for the lengths of vsj's
+#: geometries (a few cm).
+LENGTH_STEP = 1e-6
+
+
+def coil_pretension(phi, q: float, p, initial_tension: float):
+    """What a coil pretension ``initial_tension`` [N] adds to the potential model.
+
+    Returns arrays ``(torque [N m], energy [J])`` at deflections ``phi`` [rad]
+    and pivot position ``q`` [m], for the geometric parameter row ``p``: the
+    added energy is ``V_i = F_i sum(max(l - s0, 0))`` over both springs and the
+    added torque on the ring ``-dV_i/dphi`` (restoring, as `evaluate`). Add
+    them to `evaluate`'s ``GEOMETRIC`` torque and energy. Where a spring
+    reaches its free length the torque jumps by ``F_i |dl/dphi|``.
+    """
+    if not initial_tension >= 0.0:
+        raise ValueError(f"initial_tension must be >= 0 N, got {initial_tension!r}")
+    phis = np.atleast_1d(np.asarray(phi, dtype=float)).ravel()
+    row = _row(p)
+    torque = np.zeros(phis.shape)
+    energy = np.zeros(phis.shape)
+    if initial_tension == 0.0:
+        return torque, energy
+    h = LENGTH_STEP
+    for i, angle in enumerate(phis):
+        now = np.array(extensions(angle, q, row))
+        slope = (np.array(extensions(angle + h, q, row))
+                 - np.array(extensions(angle - h, q, row))) / (2.0 * h)
+        taut = now > 0.0
+        energy[i] = initial_tension * float(np.sum(now[taut]))
+        torque[i] = -initial_tension * float(np.sum(slope[taut]))
+    return torque, energy
+
+
 # -- the component -----------------------------------------------------------
 
 
@@ -142,6 +189,10 @@ class ElasticElement(Component):
     (``friction_stiction``, Coulomb level ``k pi/2``; ``friction_viscous``).
     The pivot position comes from the network's pivot mechanism; the element
     never pushes it back (section 3.1: non-backdrivable).
+
+    ``initial_tension`` [N] gives the springs a coil pretension (potential
+    model only, static curves only: see the module docstring and
+    `coil_pretension`); `parts` refuses it, because the engine cannot simulate it.
     """
 
     ports = ("ring",)
@@ -149,7 +200,7 @@ class ElasticElement(Component):
     def __init__(self, name: str, *, model: str, geometry=None, exponential=None,
                  stiffness: float | None = None, friction_viscous: float = 0.0,
                  friction_stiction: float = 0.0, friction_sharpness: float = 10.0,
-                 friction_peak: float = 1.0):
+                 friction_peak: float = 1.0, initial_tension: float = 0.0):
         super().__init__(name)
         self.friction_peak = _peak(name, friction_peak)
         if model not in MODELS:
@@ -171,19 +222,40 @@ class ElasticElement(Component):
                 raise ValueError(f"{name}: linear model needs a stiffness >= 0")
             values = [float(stiffness)]
         self.parameters = tuple(values + [0.0] * (N_PARAMETERS - len(values)))
+        if not (np.isfinite(initial_tension) and initial_tension >= 0.0):
+            raise ValueError(f"{name}: initial_tension must be finite and >= 0 N, got "
+                             f"{initial_tension!r}")
+        if initial_tension > 0.0 and self.law != GEOMETRIC:
+            raise ValueError(f"{name}: initial_tension (coil pretension) is an option of the "
+                             f"'geometric' model only, not of {model!r}")
+        self.initial_tension = float(initial_tension)
         self.friction_viscous = float(friction_viscous)
         self.friction_stiction = float(friction_stiction)
         self.friction_sharpness = float(friction_sharpness)
 
     def torque(self, phi, q: float):
-        """Torque [N m] this element applies to the ring at deflections ``phi``."""
-        return evaluate(self.law, self.parameters, phi, q)[0]
+        """Torque [N m] this element applies to the ring at deflections ``phi``
+        (coil pretension included)."""
+        return (evaluate(self.law, self.parameters, phi, q)[0]
+                + coil_pretension(phi, q, self.parameters, self.initial_tension)[0])
 
     def stiffness(self, phi, q: float):
-        """Tangent stiffness ``-d torque / d phi`` [N m/rad]."""
-        return evaluate(self.law, self.parameters, phi, q)[1]
+        """Tangent stiffness ``-d torque / d phi`` [N m/rad]; with coil pretension the
+        jumps where a spring goes slack are left out (the slope on either side)."""
+        base = evaluate(self.law, self.parameters, phi, q)[1]
+        if self.initial_tension == 0.0:
+            return base
+        phis = np.atleast_1d(np.asarray(phi, dtype=float)).ravel()
+        h = 1e-4  # second difference of the added torque: dl/dphi is smooth where taut
+        added = (coil_pretension(phis - h, q, self.parameters, self.initial_tension)[0]
+                 - coil_pretension(phis + h, q, self.parameters, self.initial_tension)[0])
+        return base + added / (2.0 * h)
 
     def parts(self) -> Parts:
+        if self.initial_tension > 0.0:
+            raise ValueError(f"{self.name}: initial_tension = {self.initial_tension:g} N (coil "
+                             "pretension) cannot be simulated: the engine's spring laws have "
+                             "no such term; use it for static curves, or set it to 0")
         ring = self.port("ring")
         return Parts(
             flanges=[ring],

@@ -10,17 +10,37 @@ and its torques are the transpose of that map (`IdealPlanetary.torques`).
 
 * mesh friction on the sun-carrier slip ``omega_S - omega_C`` (stiction
   ``k_1``, arctan sharpness ``k_b1``) and on the ring-carrier slip
-  ``omega_R - omega_C`` with ``k_a2 = (N_S/N_R) k_1`` and
-  ``k_b2 = (N_R/N_S) k_b1`` (eq 3.27: equal tangential mesh forces);
+  ``omega_R - omega_C``, whose constants ``k_a2``, ``k_b2`` follow from
+  ``k_1``, ``k_b1`` by one of two relations (`MESH_RELATIONS`, below);
 * bearing friction (viscous and stiction) on each absolute speed, the
   stiction the report added after its measurements (section 4.1.3, table 4.1);
 * the inertias of sun, ring and carrier "and what is attached to them".
 
-With the sun fixed and the carrier driven, the module's steady friction torque
-is ``(b_C + b_R (1+x)^2) w + k_1 (1+x^2) atan(k_b1 w)`` plus the bearing
-stiction terms, ``x = N_S/N_R`` (eq 3.28 as restated in MODEL_NOTES.md; the
-extracted report text loses the fractions). `closed_form_torque` gives both
-test configurations, bearing stiction included.
+Eq 3.27, the ring mesh's friction constants (``x = N_S/N_R``):
+
+``"printed"`` (default)
+    ``k_a2 = x k_1``, ``k_b2 = k_b1 / x``, as the report prints it. The report
+    states equal tangential forces at both meshes as its assumption, but its
+    eq 3.23-3.24 multiply by the pitch radii where they should divide, so under
+    this relation the ring mesh's tangential force, and with the sun fixed the
+    power it dissipates, is ``x^2`` times the sun mesh's (0.10 at x = 0.32);
+    with equal forces the two meshes dissipate alike. It stays the default
+    because table 4.1's ``k_1`` was derived from the measured curves with it:
+    changing the relation without re-deriving ``k_1`` would no longer be table
+    4.1's model.
+``"equal-force"``
+    ``k_a2 = k_1 / x``, ``k_b2 = k_b1 / x``: what the stated assumption gives
+    with torque = force x pitch radius (eq 3.14). The physically consistent
+    relation, offered as an option (MODEL_NOTES.md, eq 3.27 corrected).
+
+With the sun fixed and the carrier driven at ``w``, the module's steady
+friction torque is ``(b_C + b_R (1+x)^2) w + M_sun(w)`` plus the bearing
+stiction terms, with the mesh term ``M_sun = k_1 (1+x^2) atan(k_b1 w)``
+(printed) or ``2 k_1 atan(k_b1 w)`` (equal force) (eq 3.28 as restated in
+MODEL_NOTES.md; the extracted report text loses the fractions). With the ring
+fixed: ``(b_C + b_S (1+1/x)^2) w + M_ring(w)``, ``M_ring = k_1 (x+1/x)
+atan(k_b1 w / x)`` or ``(2 k_1 / x) atan(k_b1 w / x)`` (eq 3.29).
+`closed_form_torque` gives both test configurations, bearing stiction included.
 """
 
 from __future__ import annotations
@@ -31,6 +51,13 @@ import numpy as np
 
 from ..network import Component, Constraint, Friction, Parts
 from ._values import _peak, _positive
+
+#: Relations of eq 3.27 between the sun mesh's friction constants (k_1, k_b1) and the
+#: ring mesh's (k_a2, k_b2), as functions of x = N_S/N_R: (k_a2 / k_1, k_b2 / k_b1).
+MESH_RELATIONS = {
+    "printed": lambda x: (x, 1.0 / x),
+    "equal-force": lambda x: (1.0 / x, 1.0 / x),
+}
 
 
 class IdealPlanetary(Component):
@@ -81,7 +108,9 @@ class PlanetaryGearModule(IdealPlanetary):
 
     Parameters are SI: inertias [kg m^2], viscous coefficients [N m s/rad],
     stiction parameters ``k`` [N m] (Coulomb level ``k pi/2``), the mesh arctan
-    sharpness ``k_b1`` [s/rad].
+    sharpness ``k_b1`` [s/rad]. ``mesh_relation`` picks eq 3.27 as printed
+    (``"printed"``, the default) or the equal-force relation (``"equal-force"``);
+    see the module docstring.
     """
 
     def __init__(self, name: str, *, sun_teeth: float, ring_teeth: float,
@@ -91,8 +120,13 @@ class PlanetaryGearModule(IdealPlanetary):
                  ring_bearing_viscous: float = 0.0, ring_bearing_stiction: float = 0.0,
                  carrier_bearing_viscous: float = 0.0, carrier_bearing_stiction: float = 0.0,
                  mesh_stiction: float = 0.0, mesh_sharpness: float = 10.0,
-                 bearing_sharpness: float | None = None, peak: float = 1.0):
+                 bearing_sharpness: float | None = None, peak: float = 1.0,
+                 mesh_relation: str = "printed"):
         super().__init__(name, sun_teeth, ring_teeth)
+        if mesh_relation not in MESH_RELATIONS:
+            raise ValueError(f"{name}: mesh_relation must be one of "
+                             f"{', '.join(MESH_RELATIONS)}, got {mesh_relation!r}")
+        self.mesh_relation = mesh_relation
         self.peak = _peak(name, peak)
         values = dict(
             sun_inertia=sun_inertia, ring_inertia=ring_inertia, carrier_inertia=carrier_inertia,
@@ -114,18 +148,23 @@ class PlanetaryGearModule(IdealPlanetary):
         """``x = N_S / N_R``."""
         return self.sun_teeth / self.ring_teeth
 
+    @property
+    def ring_mesh(self) -> tuple[float, float]:
+        """``(k_a2 [N m], k_b2 [s/rad])`` of the ring mesh (eq 3.27, `mesh_relation`)."""
+        scale_a, scale_b = MESH_RELATIONS[self.mesh_relation](self.tooth_ratio)
+        return scale_a * self.mesh_stiction, scale_b * self.mesh_sharpness
+
     def parts(self) -> Parts:
         parts = super().parts()
         s, r, c = (self.port(p) for p in self.ports)
-        x = self.tooth_ratio
         kb = self.bearing_sharpness
+        k_a2, k_b2 = self.ring_mesh
         parts.inertia.update({s: self.sun_inertia, r: self.ring_inertia, c: self.carrier_inertia})
         parts.frictions += [
             Friction(f"{self.name}.mesh_sun", {s: 1.0, c: -1.0}, 0.0, self.mesh_stiction,
                      self.mesh_sharpness, peak=self.peak),
-            # eq 3.27: the ring mesh carries the same tangential force at radius R_R
-            Friction(f"{self.name}.mesh_ring", {r: 1.0, c: -1.0}, 0.0, x * self.mesh_stiction,
-                     self.mesh_sharpness / x, peak=self.peak),
+            Friction(f"{self.name}.mesh_ring", {r: 1.0, c: -1.0}, 0.0, k_a2, k_b2,
+                     peak=self.peak),
             Friction(f"{self.name}.bearing_sun", {s: 1.0}, self.sun_bearing_viscous,
                      self.sun_bearing_stiction, kb, peak=self.peak),
             Friction(f"{self.name}.bearing_ring", {r: 1.0}, self.ring_bearing_viscous,
@@ -145,7 +184,9 @@ class PlanetaryGearModule(IdealPlanetary):
         report's ``c1 w + c2 atan(c3 w)`` form with
         ``c1 = b_C + b_R (1+x)^2``, ``c2 = k_1 (1+x^2)``, ``c3 = k_b1`` (fixed
         sun) and ``c1 = b_C + b_S (1+1/x)^2``, ``c2 = k_1 (x+1/x)``,
-        ``c3 = k_b1/x`` (fixed ring).
+        ``c3 = k_b1/x`` (fixed ring) under the printed eq 3.27; under the
+        equal-force relation ``c2 = 2 k_1`` (fixed sun) and ``2 k_1 / x`` (fixed
+        ring).
         """
         from .. import friction
 

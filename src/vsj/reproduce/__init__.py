@@ -1,9 +1,11 @@
 """``vsj reproduce``: every result of the report regenerated, beside the report's numbers.
 
 `run` calls each figure function (`model_figures`, `data_figures`), writes
-``fig-X.Y.png`` and ``.svg``, then ``results.json`` (every row, machine
-readable) and ``report.html`` (one self-contained page: figures embedded as
-base64 PNG, captions, the comparison table). A figure that fails is reported
+``fig-X.Y.png`` and ``.svg``, then ``results.json`` (every row with its
+category and verdict, machine readable) and ``report.html`` (one self-contained
+page: a summary whose headline counts predictions only, then each figure,
+embedded as base64 PNG, with its rows by category, and the inputs used as given
+last). A figure that fails is reported
 with its error and the others are still made; `run` then says so and the
 command exits 1. The files are replaced as one set (`vsj.output.ResultSet`), so a
 failed or interrupted run leaves the previous reproduction as it was.
@@ -15,12 +17,23 @@ import base64
 import html
 import json
 import math
+import re
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..params import Parameters
-from .base import Context, Figure, Row
+from .base import (
+    AGREEMENT,
+    CALIBRATION,
+    CATEGORIES,
+    INPUT,
+    PREDICTION,
+    ROUND_TRIP,
+    Context,
+    Figure,
+    Row,
+)
 
 #: The report's table 4.1 (section 4.3): parameter key -> (symbol, value, unit).
 TABLE_4_1 = {
@@ -39,22 +52,46 @@ TABLE_4_1 = {
 }
 
 
+def _order(name: str) -> tuple:
+    """Sort key of a figure name: ``fig-4.7`` before ``fig-4.7-refit`` before ``fig-4.10``."""
+    chapter, number, suffix = re.fullmatch(r"fig-(\d+)\.(\d+)(.*)", name).groups()
+    return int(chapter), int(number), suffix
+
+
 def figures() -> dict:
     """Figure name -> function, in the report's order."""
     from . import data_figures, model_figures
 
     table = {**model_figures.FIGURES, **data_figures.FIGURES}
-    return dict(sorted(table.items(), key=lambda kv: tuple(int(p) for p in
-                                                           kv[0][4:].split("."))))
+    return dict(sorted(table.items(), key=lambda kv: _order(kv[0])))
+
+
+def carrier_side_inertia(params: Parameters) -> float:
+    """Inertia [kg m^2] at each carrier: the carrier's own plus the end-effector's,
+    reflected through transmission and differential (eq 3.30-3.31 give each input
+    ``(I_x + I_y) / 4``, the transmission divides by its ratio squared). This is what
+    table 4.1's I_C ("the carrier and what is attached to it") lumps."""
+    d = params.differential
+    return (params.planetary.carrier_inertia
+            + (d.inertia_x + d.inertia_y) / (4.0 * params.transmission.ratio ** 2))
 
 
 def table_4_1(params: Parameters) -> list[Row]:
-    rows = [Row(f"{symbol} (table 4.1)", value, params[key], unit, "table 4.1",
-                "used as given" if math.isclose(params[key], value, rel_tol=1e-9) else
-                "differs: " + params.sources[key])
-            for key, (symbol, value, unit) in TABLE_4_1.items()]
+    """Table 4.1 beside the parameter set: inputs used as given."""
+    rows = []
+    for key, (symbol, value, unit) in TABLE_4_1.items():
+        if key == "planetary.carrier_inertia":
+            vsj = carrier_side_inertia(params)
+            how = ("at each carrier: planetary.carrier_inertia plus the end-effector's share "
+                   "through transmission and differential (" + params.sources[key] + ")")
+        else:
+            vsj, how = params[key], "used as given"
+        if not math.isclose(vsj, value, rel_tol=1e-9):
+            how = "differs: " + params.sources[key]
+        rows.append(Row(f"{symbol} (table 4.1)", value, vsj, unit, "table 4.1", how,
+                        category=INPUT))
     rows.append(Row("a2 (table 4.1)", -1.45, params["elastic_element.a2"] / 100, "1/cm",
-                    "table 4.1", "used as given"))
+                    "table 4.1", "used as given", category=INPUT))
     return rows
 
 
@@ -86,6 +123,25 @@ class Reproduction:
                 out += [(o.name, r) for r in o.figure.rows]
         return out
 
+    def headline(self) -> dict:
+        """Counts of the predictions only: compared (agree, differ) and shown where the
+        report gives no value; the other categories are counted apart."""
+        verdicts = [r.verdict() for _, r in self.rows() if r.category == PREDICTION]
+        return {"predictions": len(verdicts),
+                "agree": verdicts.count("agrees"), "differ": verdicts.count("differs"),
+                "not_stated": verdicts.count("not compared"),
+                "not_predictions": {c: sum(r.category == c for _, r in self.rows())
+                                    for c in CATEGORIES if c != PREDICTION}}
+
+    def headline_text(self) -> str:
+        h = self.headline()
+        others = h["not_predictions"]
+        return (f"{h['agree'] + h['differ']} predictions compared with the report: "
+                f"{h['agree']} agree, {h['differ']} differ; {h['not_stated']} more shown where "
+                f"the report gives no value. Not counted: {others[ROUND_TRIP]} round trips of "
+                f"synthetic data, {others[CALIBRATION]} calibration targets, {others[INPUT]} "
+                "inputs used as given.")
+
 
 def _value(v):
     if isinstance(v, float) and not math.isfinite(v):
@@ -94,9 +150,10 @@ def _value(v):
 
 
 def _row_json(where: str, row: Row) -> dict:
-    return {"figure": where, "quantity": row.quantity, "report": _value(row.report),
-            "vsj": _value(row.vsj), "unit": row.unit, "source": row.source,
-            "relative_difference": row.difference(), "note": row.note}
+    return {"figure": where, "quantity": row.quantity, "category": row.category,
+            "report": _value(row.report), "vsj": _value(row.vsj), "unit": row.unit,
+            "source": row.source, "relative_difference": row.difference(),
+            "verdict": row.verdict(), "note": row.note}
 
 
 #: A conservative bound on the bytes `run` writes (a full run writes about 8 MB).
@@ -128,6 +185,7 @@ def run(out: Path, params: Parameters, *, reduced: bool = False, only=None,
                 fig = table[name](ctx)
                 png = results.path(f"{name}.png")
                 save(fig.figure, png, svg=True)
+                results.path(f"{name}.svg")  # written beside the PNG: into the manifest
                 outcome.png = png.read_bytes()  # embedded in the page
                 outcome.figure = fig
                 outcome.files = [f"{name}.png", f"{name}.svg"]
@@ -145,6 +203,7 @@ def run(out: Path, params: Parameters, *, reduced: bool = False, only=None,
                                  "synthetic": o.figure.synthetic if o.figure else None,
                                  "caption": o.figure.caption if o.figure else None}
                         for o in outcomes},
+            "headline": result.headline(),
             "rows": [_row_json(w, r) for w, r in result.rows()],
             "success": not result.failed,
         }
@@ -161,20 +220,38 @@ def _fmt(v) -> str:
     return str(v)
 
 
+#: Section titles of the row tables, by category.
+TITLES = {PREDICTION: "Predictions", CALIBRATION: "Calibration targets (agree by tuning)",
+          ROUND_TRIP: "Round trips of synthetic data (check vsj's toolchain, not the report)",
+          INPUT: "Inputs used as given"}
+
+
 def _table_html(rows: list[tuple[str, Row]], with_figure: bool) -> str:
     head = ("<tr>" + ("<th>figure</th>" if with_figure else "") +
-            "<th>quantity</th><th>report</th><th>vsj</th><th>unit</th><th>difference</th>"
-            "<th>source</th><th>explanation</th></tr>")
+            "<th>quantity</th><th>category</th><th>report</th><th>vsj</th><th>unit</th>"
+            "<th>difference</th><th>verdict</th><th>source</th><th>explanation</th></tr>")
     body = []
     for where, r in rows:
         d = r.difference()
         diff = "" if d is None else f"{d * 100:+.1f} %"
-        body.append("<tr>" + (f"<td>{html.escape(where)}</td>" if with_figure else "") +
-                    f"<td>{html.escape(r.quantity)}</td><td>{html.escape(_fmt(r.report))}</td>"
-                    f"<td>{html.escape(_fmt(r.vsj))}</td><td>{html.escape(r.unit)}</td>"
-                    f"<td>{diff}</td><td>{html.escape(r.source)}</td>"
-                    f"<td>{html.escape(r.note)}</td></tr>")
+        verdict = r.verdict()
+        body.append(f"<tr class='{verdict.replace(' ', '-')}'>"
+                    + (f"<td><a href='#{html.escape(where)}'>{html.escape(where)}</a></td>"
+                       if with_figure else "")
+                    + f"<td>{html.escape(r.quantity)}</td><td>{html.escape(r.category)}</td>"
+                    f"<td>{html.escape(_fmt(r.report))}</td><td>{html.escape(_fmt(r.vsj))}</td>"
+                    f"<td>{html.escape(r.unit)}</td><td>{diff}</td><td>{verdict}</td>"
+                    f"<td>{html.escape(r.source)}</td><td>{html.escape(r.note)}</td></tr>")
     return f"<table>{head}{''.join(body)}</table>"
+
+
+def _by_category(rows: list[tuple[str, Row]], categories) -> str:
+    parts = []
+    for category in categories:
+        chosen = [(w, r) for w, r in rows if r.category == category]
+        if chosen:
+            parts.append(f"<h3>{TITLES[category]}</h3>" + _table_html(chosen, with_figure=False))
+    return "".join(parts)
 
 
 STYLE = """
@@ -182,11 +259,58 @@ body { font-family: sans-serif; max-width: 1150px; margin: 2em auto; color: #222
 table { border-collapse: collapse; font-size: 0.85em; margin: 0.5em 0 1.5em; }
 td, th { border: 1px solid #ccc; padding: 3px 6px; vertical-align: top; }
 th { background: #eee; }
+tr.differs td { background: #fdf1e6; }
 img { max-width: 100%; border: 1px solid #ddd; }
 .synthetic { background: #fff3cd; border: 1px solid #e0c060; padding: 2px 6px; }
 .error { background: #f8d7da; padding: 0.5em; }
+.headline { font-size: 1.1em; font-weight: bold; }
 figure { margin: 0 0 0.5em; }
+h3 { font-size: 1em; margin-bottom: 0.2em; }
 """
+
+#: Why the reproduction differs where it does: the structural reasons behind the rows
+#: marked "differs", each detailed in the rows' explanations.
+WHY = (
+    "The report publishes no raw measurements and not the dimensions of the elastic "
+    "element, so vsj regenerates data synthetically and calibrates its geometry to the "
+    "three stiffness values the report states; figures resting on that calibration agree "
+    "by construction and are not counted. Run forward, table 4.1 does not reproduce the "
+    "report's own torque-velocity curves with any one tooth ratio (fig 4.7), and the "
+    "report's eq 4.5 misses its own measured stiffness at the stiff and soft ends "
+    "(fig 4.13). Statements about curves of the old prototype's unpublished geometry "
+    "(fig 3.5-3.7) are not met by a geometry calibrated to the second prototype's "
+    "stiffness. Eq 3.27 is kept as printed (planetary module) and offered corrected as an "
+    "option; its effect is a row of fig 4.7.")
+
+
+def _summary(result: Reproduction) -> str:
+    rows = result.rows()
+    differ: dict[str, list[Row]] = {}
+    agree: dict[str, int] = {}
+    for where, r in rows:
+        if r.category != PREDICTION:
+            continue
+        if r.verdict() == "differs":
+            differ.setdefault(where, []).append(r)
+        elif r.verdict() == "agrees":
+            agree[where] = agree.get(where, 0) + 1
+    reproduced = [w for w in agree if w not in differ]
+    items = ", ".join(
+        f"<a href='#{html.escape(w)}'>{html.escape(w)}</a> ({len(rs)} of "
+        f"{len(rs) + agree.get(w, 0)})" for w, rs in differ.items())
+    return ("<h2>Summary</h2>"
+            f"<p class='headline'>{html.escape(result.headline_text())}</p>"
+            "<p>Only predictions are counted: values vsj computes from its inputs that the "
+            "report states independently. A number agrees within "
+            f"{AGREEMENT:.0%} unless its row says otherwise (the report states no "
+            "uncertainties). Inputs, round trips of synthetic data and calibration targets "
+            "agree by construction and are listed apart under each figure.</p>"
+            + ("<p>Reproduced without a differing prediction: "
+               + ", ".join(f"<a href='#{html.escape(w)}'>{html.escape(w)}</a>"
+                           for w in reproduced) + ".</p>" if reproduced else "")
+            + f"<p>Why vsj differs: {html.escape(WHY)}</p>"
+            + (f"<p>Predictions that differ, by figure (of those compared; the reason is "
+               f"in each row): {items}.</p>" if items else ""))
 
 
 def render_html(result: Reproduction, params: Parameters) -> str:
@@ -204,10 +328,7 @@ def render_html(result: Reproduction, params: Parameters) -> str:
     if result.failed:
         parts.append("<p class='error'>Failed figures: " + ", ".join(
             f"{html.escape(o.name)} ({html.escape(o.error)})" for o in result.failed) + "</p>")
-    parts.append("<h2>All numbers</h2>")
-    parts.append(_table_html(result.rows(), with_figure=True))
-    parts.append("<h2>Table 4.1</h2>" + _table_html([("table 4.1", r) for r in result.table],
-                                                     with_figure=False))
+    parts.append(_summary(result))
     for o in result.outcomes:
         parts.append(f"<h2 id='{o.name}'>{html.escape(o.name)}</h2>")
         if o.error is not None:
@@ -217,7 +338,12 @@ def render_html(result: Reproduction, params: Parameters) -> str:
         data = base64.b64encode(o.png).decode("ascii")
         parts.append(f"<figure><img alt='{o.name}' src='data:image/png;base64,{data}'>"
                      f"<figcaption>{html.escape(o.figure.caption)}{tag}</figcaption></figure>")
-        if o.figure.rows:
-            parts.append(_table_html([(o.name, r) for r in o.figure.rows], with_figure=False))
+        parts.append(_by_category([(o.name, r) for r in o.figure.rows],
+                                  (PREDICTION, CALIBRATION, ROUND_TRIP)))
+    inputs = [(w, r) for w, r in result.rows() if r.category == INPUT]
+    parts.append("<h2 id='inputs'>Inputs used as given</h2><p>The report's numbers vsj "
+                 "takes as they are (table 4.1 and the settings of the figures): they agree "
+                 "by construction and are not counted.</p>"
+                 + _table_html(inputs, with_figure=True))
     parts.append("</body></html>")
     return "\n".join(parts)
