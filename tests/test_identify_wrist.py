@@ -86,10 +86,6 @@ def test_eight_parameters_come_back_within_their_standard_errors(fits, truth):
     assert np.mean(np.abs(z) <= Z_LIMIT) >= COVERAGE, z
 
 
-@pytest.mark.xfail(reason="issue 23, open: the standard errors are about 1.7 times smaller "
-                          "than the spread on 8 s logs (residuals correlated over a whole "
-                          "window, which the 0.5 s block sandwich does not capture)",
-                   strict=False)
 def test_standard_errors_agree_with_the_spread(fits, truth):
     z = np.array([[(e.value - truth[e.name]) / e.stderr for e in f.estimates] for f in fits])
     rms = float(np.sqrt(np.mean(z ** 2)))

@@ -57,14 +57,18 @@ def _wrist_options(args):
     return options
 
 
-def _add_wrist_arguments(p, elastic_models, drives) -> None:
-    """The wrist's sub-model options (`vsj.wrist.WristOptions`) of a command."""
+def _add_wrist_arguments(p, elastic_models, drives, *, pivot_drive: bool = False) -> None:
+    """The wrist's sub-model options (`vsj.wrist.WristOptions`) of a command; with
+    ``pivot_drive`` the stiffness motor's too (the exported models)."""
     p.add_argument("--elastic", default="geometric", choices=list(elastic_models),
                    help="elastic element model (default geometric)")
     p.add_argument("--linear-stiffness", metavar="STIFFNESS",
                    help="stiffness of the 'linear' elastic model, e.g. '0.8 N m/rad'")
     p.add_argument("--motor-model", default="velocity", choices=list(drives),
                    help="primary motors: velocity sources or DC motors (default velocity)")
+    if pivot_drive:
+        p.add_argument("--pivot-drive", default="velocity", choices=list(drives),
+                       help="stiffness motor: velocity source or DC motor (default velocity)")
 
 
 def cmd_linearize(args) -> int:
@@ -241,9 +245,7 @@ def register(sub) -> None:
                     "at a time (examples/c/step_wrist.c).")
     p.add_argument("--out", metavar="FILE", required=True, help="model file to write (JSON)")
     p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
-    _add_wrist_arguments(p, ELASTIC_MODELS, DRIVES)
-    p.add_argument("--pivot-drive", default="velocity", choices=list(DRIVES),
-                   help="stiffness motor: velocity source or DC motor (default velocity)")
+    _add_wrist_arguments(p, ELASTIC_MODELS, DRIVES, pivot_drive=True)
     p.add_argument("--friction", default="arctan", choices=list(LAWS),
                    help="friction law (default arctan)")
     p.add_argument("--method", choices=list(METHODS),
@@ -269,9 +271,7 @@ def register(sub) -> None:
                     "the model in resources/. See the README, 'The wrist as an FMU'.")
     p.add_argument("--out", metavar="FILE", required=True, help="FMU to write (.fmu)")
     p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
-    _add_wrist_arguments(p, ELASTIC_MODELS, DRIVES)
-    p.add_argument("--pivot-drive", default="velocity", choices=list(DRIVES),
-                   help="stiffness motor: velocity source or DC motor (default velocity)")
+    _add_wrist_arguments(p, ELASTIC_MODELS, DRIVES, pivot_drive=True)
     p.add_argument("--friction", default="stiction", choices=list(LAWS),
                    help="friction law (default stiction: the time-stepper)")
     p.add_argument("--step", default="1 ms", metavar="TIME",

@@ -63,10 +63,10 @@ OUTPUTS = [  # name, unit, description; in the order of the C `enum output`
     ("motor_1_speed", "rad/s", "speed of primary motor 1"),
     ("motor_2_speed", "rad/s", "speed of primary motor 2"),
     ("motor_s_speed", "rad/s", "speed of the stiffness motor"),
-    ("power_in", "W", "mean power delivered by the motors and the external torques over the "
-                      "last communication step"),
-    ("power_dissipated", "W", "mean power dissipated by friction, armature resistance and end "
-                              "stops over the last communication step"),
+    ("power_in", "W", ("mean power delivered by the motors and the external torques over the "
+                       "last communication step")),
+    ("power_dissipated", "W", ("mean power dissipated by friction, armature resistance and "
+                               "end stops over the last communication step")),
 ]
 #: an affine map must reproduce the arrays to this fraction of their largest entry
 AFFINE_TOLERANCE = 1e-9
@@ -101,7 +101,7 @@ def _override(params: Parameters, values: dict[str, float]) -> Parameters:
     return params.with_overrides(texts, origin="vsj fmu (parameter map)")
 
 
-def _span(spec, value: float) -> tuple[float, float]:
+def _span(spec) -> tuple[float, float]:
     low = spec.minimum if spec.minimum is not None else -math.inf
     high = spec.maximum if spec.maximum is not None else math.inf
     return low, high
@@ -119,7 +119,7 @@ def tunable_map(params: Parameters, wrist_options, options, method, period
         spec = SCHEMA[section][name]
         if not math.isfinite(value):
             continue
-        low, high = _span(spec, value)
+        low, high = _span(spec)
         step = 1e-2 * (abs(value) if value != 0.0 else 1.0)
         if value + 2 * step > high:
             step = -step
@@ -338,7 +338,7 @@ def compile_binary(kind: str, out: Path) -> None:
     else:
         flags += ["-static-libgcc"]
     done = subprocess.run([cc, *flags, "-o", str(out), *sources, "-lm"], capture_output=True,
-                          text=True)
+                          text=True, check=False)
     if done.returncode != 0:
         raise InputError(f"vsj fmu: building the {kind} binary failed:\n{done.stderr[-2000:]}")
 
@@ -404,11 +404,11 @@ def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None =
             platforms.append("win64")
         from .output import atomic_write
 
-        with atomic_write(Path(out), "wb") as handle:
-            with zipfile.ZipFile(handle, "w", zipfile.ZIP_DEFLATED) as archive:
-                for path in sorted(root.rglob("*")):
-                    if path.is_file():
-                        archive.write(path, path.relative_to(root).as_posix())
+        with atomic_write(Path(out), "wb") as handle, \
+                zipfile.ZipFile(handle, "w", zipfile.ZIP_DEFLATED) as archive:
+            for path in sorted(root.rglob("*")):
+                if path.is_file():
+                    archive.write(path, path.relative_to(root).as_posix())
     return {"tunable": [t.key for t in tunables],
             "constant": [k for k in params.values if k not in {t.key for t in tunables}],
             "platforms": platforms, "guid": guid, "method": method}

@@ -100,12 +100,11 @@ def _quantity_of(name: str) -> str | None:
     return None
 
 
-def read(path: str | Path, *, required: Sequence[str] = (), min_points: int = 5) -> Measurement:
-    """Read and validate a measurement file; `InputError` says what is wrong and where."""
-    path = str(path)
-    text = read_text(path, "measurement file")
+def _lines(path: str, what: str) -> tuple[list[str], list[tuple[int, str]]]:
+    """The comment texts and the numbered non-blank, non-comment lines of a text
+    file; raises `InputError` if there is not even a header line."""
     comments, rows = [], []
-    for number, line in enumerate(text.splitlines(), start=1):
+    for number, line in enumerate(read_text(path, what).splitlines(), start=1):
         stripped = line.strip()
         if not stripped:
             continue
@@ -115,6 +114,13 @@ def read(path: str | Path, *, required: Sequence[str] = (), min_points: int = 5)
         rows.append((number, line))
     if not rows:
         raise InputError(f"{path}: no header line and no data")
+    return comments, rows
+
+
+def read(path: str | Path, *, required: Sequence[str] = (), min_points: int = 5) -> Measurement:
+    """Read and validate a measurement file; `InputError` says what is wrong and where."""
+    path = str(path)
+    comments, rows = _lines(path, "measurement file")
     header_line, header = rows[0]
     delimiter = _delimiter(header, path, header_line)
     names = _cells(header, delimiter, path, header_line)
@@ -240,18 +246,7 @@ def read_log(path: str | Path, known: Mapping[str, str], *, min_points: int = 5)
     wrong dimension, a cell that is not a finite number, time that does not increase.
     """
     path = str(path)
-    text = read_text(path, "signal log")
-    comments, rows = [], []
-    for number, line in enumerate(text.splitlines(), start=1):
-        stripped = line.strip()
-        if not stripped:
-            continue
-        if stripped.startswith("#"):
-            comments.append(stripped[1:].strip())
-            continue
-        rows.append((number, line))
-    if not rows:
-        raise InputError(f"{path}: no header line and no data")
+    comments, rows = _lines(path, "signal log")
     if len(rows) - 1 > MAX_LOG_ROWS:
         raise InputError(f"{path}: {len(rows) - 1} data rows; at most {MAX_LOG_ROWS} are read")
     header_line, header = rows[0]

@@ -190,7 +190,7 @@ def check(example: Example, result: Result, reference: Mapping[str, np.ndarray],
         switches = np.array([t for t, _, _ in compare.changes(t_ref, mode == 0)])
         if differ.size and switches.size:
             gap = np.abs(result.time[differ][:, None] - switches[None, :]).min(axis=1)
-            worst = int(math.ceil(float(gap.max()) / h - 1e-9))
+            worst = math.ceil(float(gap.max()) / h - 1e-9)
         else:
             worst = 0 if not differ.size else math.inf
         modes[ref_name] = {"differ": int(differ.size), "samples": int(stuck.size),

@@ -25,6 +25,7 @@
  * nothing: any number may run at once, each from one thread at a time.
  */
 #include <math.h>
+#include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -94,10 +95,6 @@ typedef struct {
     int mode, rebuild;
     size_t history_size;
 } fmu;
-
-static void say(const fmu *f, fmi2Status status, const char *category, const char *format, ...);
-
-#include <stdarg.h>
 
 static void say(const fmu *f, fmi2Status status, const char *category, const char *format, ...) {
     char text[1024];
