@@ -4,7 +4,7 @@ Builds the extension and the C example with ``-fsanitize=address,undefined``
 into a scratch directory, then, in a process that preloads the sanitizer
 runtime, runs what the engine does for users: every regression scenario
 (smooth, stiction, both elastic models, benches), the MSL drive trains
-(clutches, brakes, breakaway peaks), batches on two threads with
+(clutches, brakes, breakaway peaks), the FMU through FMPy, batches on two threads with
 both solvers, the step function with all three methods, the C example on
 good and bad model files, and the binding's refusal of bad arrays. Any
 sanitizer report ends the run with a non-zero exit code.
@@ -51,6 +51,10 @@ def build(scratch: Path) -> tuple[Path, Path]:
     example = scratch / "step_wrist"
     subprocess.run([cc, "-std=c99", *FLAGS, "-I", str(ENGINE / "c"), "-o", str(example),
                     str(ROOT / "examples" / "c" / "step_wrist.c"),
+                    *map(str, sorted((ENGINE / "c").glob("*.c"))), "-lm"], check=True)
+    fmi = ROOT / "src" / "vsj" / "fmi"
+    subprocess.run([cc, "-std=c99", *FLAGS, "-shared", "-fPIC", "-I", str(ENGINE / "c"), "-I",
+                    str(fmi), "-o", str(scratch / "vsj_wrist.so"), str(fmi / "vsj_fmu.c"),
                     *map(str, sorted((ENGINE / "c").glob("*.c"))), "-lm"], check=True)
     return pkg, example
 
@@ -138,6 +142,55 @@ for change in ({"xc": np.full_like(model.xc, 10 ** 9)}, {"first": model.first + 
     else:
         raise AssertionError(f"accepted a bad model: {list(change)}")
 print("refusals", flush=True)
+
+import shutil                                      # the FMU: two instances, state, bad calls
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+from vsj import fmu as fmu_module
+fmu_path = Path(sys.argv[3]) / "wrist.fmu"
+fmu_module.build(fmu_path, params, win64=False)
+unzipped = extract(str(fmu_path))
+shutil.copy(Path(sys.argv[3]) / "vsj_wrist.so",
+            Path(unzipped) / "binaries" / "linux64" / "vsj_wrist.so")
+md = read_model_description(str(fmu_path))
+vr = {v.name: v.valueReference for v in md.modelVariables}
+slaves = []
+for name, stiction in (("a", 0.001), ("b", 0.01)):
+    s = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier="vsj_wrist",
+                  instanceName=name)
+    s.instantiate()
+    s.setupExperiment(startTime=0.0)
+    s.enterInitializationMode()
+    s.setReal([vr["transmission.stiction"]], [stiction])
+    s.exitInitializationMode()
+    slaves.append(s)
+t = 0.0
+for k in range(200):
+    for s in slaves:
+        s.setReal([vr["motor_1"], vr["tau_x"]], [np.sin(t), 0.2])
+        s.doStep(t, 1e-3 if k % 2 else 2.5e-3)
+    t += 1e-3 if k % 2 else 2.5e-3
+state = slaves[0].getFMUstate()
+blob = slaves[0].serializeFMUstate(state)
+again = slaves[0].deSerializeFMUstate(blob)
+slaves[0].setFMUstate(again)
+slaves[0].getReal([vr[n] for n in ("theta_x", "q", "power_in", "motor_1_speed")])
+slaves[0].getInteger([0])
+for bad in (lambda s: s.setReal([vr["tau_x"]], [float("nan")]),
+            lambda s: s.doStep(99.0, 1e-3), lambda s: s.getReal([12345])):
+    try:
+        bad(slaves[1])
+    except Exception:
+        pass
+    else:
+        raise AssertionError("the FMU accepted a bad call")
+slaves[0].freeFMUstate(state)
+slaves[0].freeFMUstate(again)
+slaves[1].reset()
+for s in slaves:
+    s.terminate()
+    s.freeInstance()
+print("fmu", flush=True)
 '''
 
 
