@@ -114,8 +114,9 @@ def cmd_reproduce(args) -> int:
     for o in result.outcomes:
         status = "ok" if o.error is None else f"FAILED: {o.error}"
         print(f"{o.name:<9} {status}")
-    print(f"{len(result.rows())} numbers compared; wrote {len(result.outcomes) - len(result.failed)}"
-          f" figures, {Path(args.out) / 'report.html'} and {Path(args.out) / 'results.json'} in "
+    print(result.headline_text())
+    print(f"wrote {len(result.outcomes) - len(result.failed)} figures, "
+          f"{Path(args.out) / 'report.html'} and {Path(args.out) / 'results.json'} in "
           f"{time.perf_counter() - start:.0f} s")
     if result.failed:
         for o in result.failed:
