@@ -15,14 +15,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from vsj import characteristics as ch
-from vsj.components.elastic_element import (
-    GEOMETRIC,
-    GEOMETRY_FIELDS,
-    ElasticElement,
-    coil_pretension,
-    evaluate,
-    extensions,
-)
+from vsj.components import ElasticElement
+from vsj.springs import GEOMETRIC, GEOMETRY_FIELDS, coil_pretension, evaluate, extensions
 from vsj.wrist import geometry
 
 #: Central-difference step [rad] for dV/dphi, and the agreement it allows: the error is

@@ -6,8 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from vsj import characteristics as ch
-from vsj.components.elastic_element import (EXPONENTIAL, GEOMETRIC, GEOMETRIC_REPORT, LINEAR,
-                                            evaluate)
+from vsj.springs import EXPONENTIAL, GEOMETRIC, GEOMETRIC_REPORT, LINEAR, evaluate
 from vsj.wrist import exponential, geometry
 
 #: Central differences with step 1e-6 rad are accurate to about 1e-9 relative here.

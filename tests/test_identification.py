@@ -19,7 +19,7 @@ from vsj.identification.planetary import fit_planetary
 from vsj.identification.stiffness import fit_curve as fit_loop
 from vsj.identification.stiffness import fit_stiffness
 from vsj.wrist import elastic_element, geometry
-from vsj.components.elastic_element import GEOMETRY_FIELDS
+from vsj.springs import GEOMETRY_FIELDS
 
 #: Issue acceptance: fitted curves within 3 % RMS of the true curve's range.
 CURVE_TOL = 0.03

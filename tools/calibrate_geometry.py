@@ -10,7 +10,7 @@ restarts) and takes about five minutes on two cores:
 import sys
 
 from vsj import params
-from vsj.components.elastic_element import GEOMETRY_FIELDS
+from vsj.springs import GEOMETRY_FIELDS
 from vsj.identification.geometry import TESTED_Q, calibrate_to_report
 from vsj.wrist import geometry
 

@@ -1,7 +1,7 @@
 """Static characteristics of the VSM elastic element (report section 3.2.2, 4.2).
 
 All functions take a law code and parameter row of
-`vsj.components.elastic_element` and SI values: deflections in rad, pivot
+`vsj.springs` and SI values: deflections in rad, pivot
 positions in m, torques in N m. "Torque" here is the element's restoring
 torque magnitude ``-tau`` (positive for positive deflection), the quantity the
 report plots.
@@ -14,8 +14,8 @@ import math
 import numpy as np
 from scipy.optimize import brentq
 
-from .components.elastic_element import (GEOMETRIC, GEOMETRIC_REPORT, N_PARAMETERS, evaluate,
-                                         extensions, geometry, shortest_extension)
+from .springs import (GEOMETRIC, GEOMETRIC_REPORT, N_PARAMETERS, evaluate, extensions,
+                      geometry, shortest_extension)
 
 #: Deflection grid resolution used to search curves [rad].
 GRID = 2e-3

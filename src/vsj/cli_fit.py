@@ -219,7 +219,7 @@ def cmd_fit_planetary(args) -> int:
 def cmd_fit_stiffness(args) -> int:
     from . import characteristics as ch
     from . import measurements
-    from .components.elastic_element import GEOMETRIC, GEOMETRY_FIELDS
+    from .springs import GEOMETRIC, GEOMETRY_FIELDS
     from .identification.plots import geometry_figure, stiffness_figure
     from .identification.stiffness import fit_stiffness
     from .output import write_meta
@@ -304,7 +304,7 @@ def cmd_fit_stiffness(args) -> int:
 def _row(dims: dict, start: dict):
     import numpy as np
 
-    from .components.elastic_element import GEOMETRY_FIELDS
+    from .springs import GEOMETRY_FIELDS
 
     return np.array([dims.get(k, start.get(k)) for k in GEOMETRY_FIELDS])
 

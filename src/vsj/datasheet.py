@@ -70,7 +70,7 @@ def _kinematics(params, elastic: str):
 
 def _output_curve(element, T, q: float, theta: np.ndarray) -> dict[str, np.ndarray]:
     """Torque, tangent stiffness and stored energy about theta_x at deflections ``theta``."""
-    from .components.elastic_element import evaluate
+    from .springs import evaluate
 
     c = np.linalg.solve(T, np.array([1.0, 0.0]))  # ring deflection per unit theta_x
     torque = np.zeros_like(theta)

@@ -33,6 +33,7 @@ import numpy as np
 
 from .errors import InputError
 from .ports import SEPARATOR
+from .springs import spring_law
 
 #: Priority of flanges driven by a source or fixed to the ground: never free.
 PRESCRIBED = -1_000_000
@@ -84,7 +85,7 @@ class Spring:
     """An elastic element on the deflection ``d = sum(c_i phi_i)``.
 
     ``law`` and ``parameters`` select a law of
-    `vsj.components.elastic_element`; laws that depend on the pivot position
+    `vsj.springs`; laws that depend on the pivot position
     read the network's `Pivot`.
     """
 
@@ -323,8 +324,6 @@ def _rigid_motion(Sx: np.ndarray, Su: np.ndarray, springs, pivot) -> np.ndarray:
     n, s = Sx.shape[1], Su.shape[1]
     if n == 0 or s == 0 or not len(springs) or not np.any(Su):
         return np.zeros((n, s))
-    from .components.elastic_element import spring_law
-
     q = pivot.fixed
     weights = np.array([max(spring_law(sp.law, tuple(sp.parameters), 0.0, q)[1], 1e-12)
                         for sp in springs])

@@ -189,7 +189,7 @@ def _initial(structure: Structure, inputs: Mapping[str, Input], initial: Initial
 
 def rigid_stops(structure: Structure) -> list[str]:
     """Springs of ``structure`` whose end stop is rigid (infinite stiffness)."""
-    from .components.elastic_element import end_stop
+    from .springs import end_stop
 
     return [sp.name for sp in structure.springs
             if (stop := end_stop(sp.law, sp.parameters)) is not None and math.isinf(stop[1])]
@@ -347,7 +347,7 @@ def check_run_size(structure: Structure, duration: float, options: SimulationOpt
 
 
 def _stop_angles(structure: Structure) -> dict[str, float]:
-    from .components.elastic_element import end_stop
+    from .springs import end_stop
 
     angles = {}
     for sp in structure.springs:
@@ -525,7 +525,7 @@ def ledger(structure: Structure, engine: Engine, layout: Layout, y0, y_end, dura
     stored = {"kinetic": float(kin1 - kin0), "springs": float(pot1 - pot0),
               "inductors": float(ind1 - ind0)}
     nonconservative = {}
-    from .components.elastic_element import GEOMETRIC_REPORT
+    from .springs import GEOMETRIC_REPORT
 
     for k, sp in enumerate(structure.springs):
         if sp.law == GEOMETRIC_REPORT:

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 from .components import (DCMotor, Differential, ElasticElement, FixedPivot, PivotMechanism,
                          PlanetaryGearModule, TorqueSource, Transmission, VelocitySource)
-from .components.elastic_element import EXPONENTIAL_FIELDS, GEOMETRY_FIELDS
+from .springs import EXPONENTIAL_FIELDS, GEOMETRY_FIELDS
 from .errors import InputError
 from .network import Network, Signal
 from .params import Parameters

@@ -11,7 +11,7 @@ import math
 
 from ..network import PRESCRIBED, Component, Constraint, Friction, Load, Parts, Source, Spring
 from ._values import _peak, _positive
-from .elastic_element import LINEAR, N_PARAMETERS
+from ..springs import LINEAR, N_PARAMETERS
 
 
 class Inertia(Component):

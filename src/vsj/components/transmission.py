@@ -17,7 +17,7 @@ import math
 
 from ..network import Component, Constraint, Friction, Parts, Spring
 from ._values import _peak, _positive
-from .elastic_element import LINEAR, N_PARAMETERS
+from ..springs import LINEAR, N_PARAMETERS
 
 
 class Transmission(Component):

@@ -38,7 +38,7 @@ import numpy as np
 from scipy.optimize import differential_evolution
 
 from .. import characteristics as ch
-from ..components.elastic_element import GEOMETRIC, GEOMETRY_FIELDS
+from ..springs import GEOMETRIC, GEOMETRY_FIELDS
 
 #: Pivot positions of the report's stiffness test (section 4.2.2) [m].
 TESTED_Q = tuple(q / 100 for q in (2.0, 1.4, 0.8, 0.2, -0.4, -1.0, -1.6, -2.2))

@@ -158,7 +158,7 @@ def stiffness_figure(fit, model_K=None) -> Figure:
 def geometry_figure(calibration, curves, start_row, calibrated_row) -> Figure:
     """Measured elastic torque against the geometric model before and after calibration."""
     from .. import characteristics as ch
-    from ..components.elastic_element import GEOMETRIC
+    from ..springs import GEOMETRIC
 
     n = len(curves)
     cols = min(4, n)

@@ -15,7 +15,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..components.elastic_element import end_stop
+from ..springs import end_stop
 from ..errors import InputError, SimulationError
 from ..network import Signal, Structure
 from ..simulate import SimulationOptions
@@ -256,7 +256,7 @@ def linearize_structure(structure: Structure, *, angles: Mapping[str, float] | N
 
 
 def _spring_torque(spring, deflection: float, q: float) -> tuple[float, float]:
-    from ..components.elastic_element import evaluate
+    from ..springs import evaluate
 
     torque, stiffness, _, _ = evaluate(spring.law, spring.parameters, deflection, q)
     return float(torque[0]), float(stiffness[0])

@@ -9,7 +9,7 @@ for that figure beside vsj's value. The report's figures are images; what the
 report *states* is its text (section 3.2.2, 4.2.2, 4.3), so where a figure
 carries only a curve the row says so and vsj's value stands alone.
 
-The elastic element is shown in three forms (`vsj.components.elastic_element`):
+The elastic element is shown in three forms (`vsj.springs`):
 the physical potential model (``geometric``), eq 3.8 as printed
 (``geometric-report``) and the simplified linear spring of eq 4.5
 (``exponential``). Fig 3.7 adds the coil-pretension option of the potential
@@ -34,7 +34,7 @@ from scipy.optimize import brentq
 
 from .. import characteristics as ch
 from .. import scenario as scenarios
-from ..components.elastic_element import (
+from ..springs import (
     EXPONENTIAL,
     GEOMETRIC,
     GEOMETRIC_REPORT,

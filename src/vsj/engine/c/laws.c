@@ -1,4 +1,4 @@
-/* Element laws: friction (vsj.friction) and springs (vsj.components.elastic_element).
+/* Element laws: friction (vsj.friction) and springs (vsj.springs).
  *
  * Friction laws give the resistive torque f(s) of a relative speed s, which
  * the element applies against s; every law saturates at the Coulomb level

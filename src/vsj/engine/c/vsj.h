@@ -61,7 +61,7 @@ enum vsj_friction_law {
     VSJ_STICTION = 4  /* b s plus a Coulomb impulse decided by the time-stepper */
 };
 
-/* Spring laws (vsj.components.elastic_element). */
+/* Spring laws (vsj.springs). */
 enum vsj_spring_law {
     VSJ_LINEAR = 0,           /* par: k */
     VSJ_EXPONENTIAL = 1,      /* par: a1, a2, a3, phi_stop, k_stop (eq 4.5) */
