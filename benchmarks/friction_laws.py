@@ -17,7 +17,6 @@ from __future__ import annotations
 import sys
 import time
 
-import numpy as np
 
 from vsj import params as params_module
 from vsj import scenario as scenarios
@@ -42,13 +41,12 @@ def hold(structure, law, extra):
     return abs(r["theta_x"][-1] - r["theta_x"][after][0]), wall
 
 
-def run(structure, inputs, case, rng, law, extra, step=1e-3):
+def run(structure, inputs, case, law, extra, step=1e-3):
     options = SimulationOptions(friction=law, step=step, max_steps=5_000_000, **extra)
-    simulate(structure, inputs, 1.0, options=options, initial=case.initial, pivot_range=rng,
+    simulate(structure, inputs, 1.0, options=options, initial=case.initial,
              ports=False)
     start = time.perf_counter()
-    r = simulate(structure, inputs, case.duration, options=options, initial=case.initial,
-                 pivot_range=rng, ports=False)
+    r = simulate(structure, inputs, case.duration, options=options, initial=case.initial, ports=False)
     return r, time.perf_counter() - start
 
 
@@ -57,17 +55,18 @@ def main() -> int:
     structure = build_wrist(p).assemble()
     scen = scenarios.load("fig-4.15")
     case = scen.cases[0]
-    _, wrist, inputs, rng = scenarios.prepare_case(scen, case, p)
+    prep = scenarios.prepare_case(scen, case, p)
+    wrist, inputs = prep.structure, prep.inputs
     print(f"{'law':<22} {'hold: drift 2-12 s [rad]':>26} {'fig 4.15: wall [s]':>19} "
           f"{'steps':>9} {'transitions (1 ms / 0.25 ms)':>30}")
     for law, extra in LAWS:
         label = law + (f" w={extra['slope_width']:g}" if extra else "")
         drift, _ = hold(structure, law, extra)
-        r, wall = run(wrist, inputs, case, rng, law, extra)
+        r, wall = run(wrist, inputs, case, law, extra)
         steps = r.solver["steps"] if r.success else "-"
         flips = ""
         if law == "stiction":
-            fine, _ = run(wrist, inputs, case, rng, law, extra, step=2.5e-4)
+            fine, _ = run(wrist, inputs, case, law, extra, step=2.5e-4)
             flips = f"{sum(r.transitions.values())} / {sum(fine.transitions.values())}"
         drift_text = f"{drift:.2e}" if isinstance(drift, float) else drift
         wall_text = f"{wall:.3f}" if r.success else "failed"

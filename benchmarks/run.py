@@ -76,14 +76,15 @@ def setup():
     p = params_module.default()
     scen = scenarios.load("fig-4.15")
     case = scen.cases[0]
-    _, structure, inputs, rng = scenarios.prepare_case(scen, case, p)
+    prep = scenarios.prepare_case(scen, case, p)
+    structure, inputs = prep.structure, prep.inputs
     consts = ref.constants(p, case.initial.q, 1.4584, 0.5, 2.0)
-    return p, case, structure, inputs, rng, consts
+    return p, case, structure, inputs, consts
 
 
-def vsj_core(structure, inputs, case, rng, rtol, atol, ledger):
+def vsj_core(structure, inputs, case, rtol, atol, ledger):
     """vsj's integrator alone (no sampling of derived signals), states every 10 ms."""
-    model, layout, y0 = prepare(structure, inputs, DURATION, SimulationOptions(), case.initial, rng)
+    model, layout, y0 = prepare(structure, inputs, DURATION, SimulationOptions(), case.initial)
     t_out = np.arange(int(round(DURATION / SAMPLE)) + 1) * SAMPLE
     y_start = y0 if ledger else y0[:layout.n_state]
     engine = Engine(model)
@@ -97,8 +98,8 @@ def vsj_core(structure, inputs, case, rng, rtol, atol, ledger):
     return run, t_out
 
 
-def theta_x_of(structure, states, t_out, inputs, case, rng):
-    model, layout, _ = prepare(structure, inputs, DURATION, SimulationOptions(), case.initial, rng)
+def theta_x_of(structure, states, t_out, inputs, case):
+    model, layout, _ = prepare(structure, inputs, DURATION, SimulationOptions(), case.initial)
     sigma, _ = Engine(model).source_signals(t_out)
     rx, ru = structure.rows("diff.theta_x")
     return states[:, :structure.n] @ rx + sigma @ ru
@@ -125,8 +126,9 @@ def cold_start() -> dict[str, float]:
     # from Python: importing vsj, then the first stiction simulation (fig 4.15, one case)
     code = ("import time; t0 = time.perf_counter(); import vsj; from vsj import scenario as s;"
             "from vsj.simulate import SimulationOptions; p = vsj.params.default();"
-            "sc = s.load('fig-4.15'); c = sc.cases[0]; _, st, i, r = s.prepare_case(sc, c, p);"
-            "vsj.simulate(st, i, 10.0, initial=c.initial, pivot_range=r,"
+            "sc = s.load('fig-4.15'); c = sc.cases[0]; pc = s.prepare_case(sc, c, p);"
+            "st, i = pc.structure, pc.inputs;"
+            "vsj.simulate(st, i, 10.0, initial=c.initial,"
             " options=SimulationOptions(friction='stiction'));"
             "print(time.perf_counter() - t0)")
     done = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
@@ -136,32 +138,31 @@ def cold_start() -> dict[str, float]:
 
 
 def main() -> int:
-    p, case, structure, inputs, rng, consts = setup()
+    p, case, structure, inputs, consts = setup()
     print("vsj benchmarks: fig 4.15 wrist, q = -1.5 cm, 10 s simulated; times are the best of "
           "several runs\n")
     rows = []
 
     # reference
-    run, t_out = vsj_core(structure, inputs, case, rng, 1e-12, 1e-14, False)
-    theta_ref = theta_x_of(structure, run(), t_out, inputs, case, rng)
+    run, t_out = vsj_core(structure, inputs, case, 1e-12, 1e-14, False)
+    theta_ref = theta_x_of(structure, run(), t_out, inputs, case)
 
     # vsj dopri at the loosest tolerance that meets the accuracy
     for rtol in tolerances(-3, -7):
         atol = rtol * 1e-3
-        run, _ = vsj_core(structure, inputs, case, rng, rtol, atol, False)
-        err_vsj = np.max(np.abs(theta_x_of(structure, run(), t_out, inputs, case, rng)
+        run, _ = vsj_core(structure, inputs, case, rtol, atol, False)
+        err_vsj = np.max(np.abs(theta_x_of(structure, run(), t_out, inputs, case)
                                 - theta_ref))
         if err_vsj <= ACCURACY:
             break
     else:
         raise RuntimeError(f"vsj dopri: no tolerance down to 1e-7 meets {ACCURACY:g} rad")
-    run_vsj = vsj_core(structure, inputs, case, rng, rtol, atol, False)[0]
-    run_ledger = vsj_core(structure, inputs, case, rng, rtol, atol, True)[0]
+    run_vsj = vsj_core(structure, inputs, case, rtol, atol, False)[0]
+    run_ledger = vsj_core(structure, inputs, case, rtol, atol, True)[0]
     opts = SimulationOptions(rtol=rtol, atol=atol, output_step=SAMPLE)
 
     def run_full():
-        return simulate(structure, inputs, DURATION, options=opts, initial=case.initial,
-                        pivot_range=rng)
+        return simulate(structure, inputs, DURATION, options=opts, initial=case.initial)
 
     # compiled fixed-step loop at the largest step that meets the accuracy
     for h_rk4 in (0.01, 0.005, 0.0025, 0.002, 0.001, 0.0005):
@@ -186,7 +187,7 @@ def main() -> int:
 
     # true stiction
     sopts = SimulationOptions(friction="stiction")
-    model, layout, y0 = prepare(structure, inputs, DURATION, sopts, case.initial, rng)
+    model, layout, y0 = prepare(structure, inputs, DURATION, sopts, case.initial)
     stick_engine = Engine(model)
 
     def stick_run(h):
@@ -198,11 +199,11 @@ def main() -> int:
                                       coulomb, stuck)[3]
         return out[:, :layout.n_state], flips.sum()
 
-    theta_stick_ref = theta_x_of(structure, stick_run(1e-4)[0], t_out, inputs, case, rng)
+    theta_stick_ref = theta_x_of(structure, stick_run(1e-4)[0], t_out, inputs, case)
     stick_errors = {}
     for h in (1e-3, 2e-3):
         states, flips = stick_run(h)
-        err = np.max(np.abs(theta_x_of(structure, states, t_out, inputs, case, rng)
+        err = np.max(np.abs(theta_x_of(structure, states, t_out, inputs, case)
                             - theta_stick_ref))
         stick_errors[h] = (flips, err)
 
@@ -245,12 +246,10 @@ def main() -> int:
              "true stiction": SimulationOptions(friction="stiction", output_step=SAMPLE)}
     wall = dict.fromkeys(kinds, math.inf)
     for options in kinds.values():
-        simulate_batch(structure, inputs, DURATION, initials=initials[:4], options=options,
-                       pivot_range=rng)
+        simulate_batch(structure, inputs, DURATION, initials=initials[:4], options=options)
     for _ in range(BATCH_REPEAT):
         for label, options in kinds.items():
-            b = simulate_batch(structure, inputs, DURATION, initials=initials, options=options,
-                               pivot_range=rng)
+            b = simulate_batch(structure, inputs, DURATION, initials=initials, options=options)
             if not b.success.all():
                 failed = next(m for m, ok in zip(b.messages, b.success) if not ok)
                 raise RuntimeError(f"batch benchmark ({label}): a run failed: {failed}")

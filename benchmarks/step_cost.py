@@ -40,7 +40,7 @@ from vsj import params as params_module
 from vsj.inputs import Constant
 from vsj.simulate import InitialState, SimulationOptions, simulate
 from vsj.stepper import Stepper
-from vsj.wrist import build_wrist, pivot_range
+from vsj.wrist import build_wrist
 
 PERIOD = 1e-3
 PERIODS = 2000
@@ -130,19 +130,17 @@ def main() -> int:
             final[name] = (python_loop(), state)
 
     structure = build_wrist(p).assemble()
-    rng = pivot_range(p)
     names = Stepper.wrist(p, period=PERIOD).input_names
     held = {ch: Constant(0.1 * k) for k, ch in enumerate(names) if ch != "motor_s"}
 
     def one_period(ports):
-        return lambda: simulate(structure, held, PERIOD, initial=initial, pivot_range=rng,
+        return lambda: simulate(structure, held, PERIOD, initial=initial,
                                 ports=ports)
 
     one_period(True)()
     t_sim = best(one_period(True), repeat=20)
     t_sim_bare = best(one_period(False), repeat=20)
-    t_long = best(lambda: simulate(structure, held, PERIODS * PERIOD, initial=initial,
-                                   pivot_range=rng, ports=False,
+    t_long = best(lambda: simulate(structure, held, PERIODS * PERIOD, initial=initial, ports=False,
                                    options=SimulationOptions(output_step=PERIOD)),
                   repeat=3) / PERIODS
 

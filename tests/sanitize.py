@@ -99,12 +99,13 @@ for name, build in msl.EXAMPLES.items():
     assert r.success and msl.check(example, r, msl.reference(example)).passed, name
     print("msl", name, flush=True)
 scen = scenarios.load("fig-4.15")
-_, structure, inputs, rng = scenarios.prepare_case(scen, scen.cases[0], params)
+prep = scenarios.prepare_case(scen, scen.cases[0], params)
+structure, inputs = prep.structure, prep.inputs
 for friction in ("arctan", "stiction"):           # batches on two threads
     b = simulate_batch(structure, inputs, 1.0, initials=[InitialState(q=q) for q in
                        np.linspace(-0.02, 0.015, 6)],
                        options=SimulationOptions(friction=friction, output_step=0.01),
-                       pivot_range=rng, threads=2)
+                       threads=2)
     assert b.success.all()
     print("batch", friction, flush=True)
 

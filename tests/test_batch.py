@@ -12,15 +12,16 @@ from vsj.wrist import build_wrist
 def test_batch_runs_equal_single_runs(params, friction):
     scen = scenarios.load("fig-4.15")
     case = scen.cases[0]
-    _, structure, inputs, rng = scenarios.prepare_case(scen, case, params)
+    prep = scenarios.prepare_case(scen, case, params)
+    structure, inputs = prep.structure, prep.inputs
     qs = [-0.02, -0.005, 0.01]
     options = SimulationOptions(friction=friction, output_step=0.01)
     batch = simulate_batch(structure, inputs, 2.0, initials=[InitialState(q=q) for q in qs],
-                           options=options, pivot_range=rng)
+                           options=options)
     assert batch.success.all()
     for r, q in enumerate(qs):
         single = simulate(structure, inputs, 2.0, initial=InitialState(q=q), options=options,
-                          pivot_range=rng, ports=False)
+                          ports=False)
         assert np.array_equal(batch.angle("diff.theta_x")[r], single["theta_x"])
         assert np.array_equal(batch.speed("vsm_1.ring")[r], single["phi_1.speed"])
     # the pivot position matters: softer settings deflect more
@@ -51,9 +52,10 @@ def test_time_stepper_checks_the_shapes_of_its_sample_arrays(params):
 
     scen = scenarios.load("fig-4.15")
     case = scen.cases[0]
-    _, structure, inputs, rng = scenarios.prepare_case(scen, case, params)
+    prep = scenarios.prepare_case(scen, case, params)
+    structure, inputs = prep.structure, prep.inputs
     options = SimulationOptions(friction="stiction")
-    model, layout, y0 = prepare(structure, inputs, 0.05, options, case.initial, rng)
+    model, layout, y0 = prepare(structure, inputs, 0.05, options, case.initial)
     t_out = np.arange(6) * 0.01
     nf = layout.n_frictions
     engine = Engine(model)
@@ -80,11 +82,12 @@ def test_time_stepper_checks_the_shapes_of_its_sample_arrays(params):
 def test_batch_results_do_not_depend_on_the_number_of_threads(params, friction):
     scen = scenarios.load("fig-4.15")
     case = scen.cases[0]
-    _, structure, inputs, rng = scenarios.prepare_case(scen, case, params)
+    prep = scenarios.prepare_case(scen, case, params)
+    structure, inputs = prep.structure, prep.inputs
     options = SimulationOptions(friction=friction, output_step=0.01)
     initials = [InitialState(q=q) for q in np.linspace(-0.02, 0.015, 7)]
     one, two = (simulate_batch(structure, inputs, 1.0, initials=initials, options=options,
-                               pivot_range=rng, threads=k) for k in (1, 2))
+                               threads=k) for k in (1, 2))
     assert one.success.all() and two.success.all()
     assert np.array_equal(one.states, two.states)
     assert np.array_equal(one.transitions, two.transitions)

@@ -20,8 +20,8 @@ from vsj.stepper import Stepper
 def model(params):
     scen = scenarios.load("fig-4.15")
     case = scen.cases[0]
-    _, structure, inputs, rng = scenarios.prepare_case(scen, case, params)
-    return prepare(structure, inputs, 1.0, SimulationOptions(), case.initial, rng)[0]
+    prep = scenarios.prepare_case(scen, case, params)
+    return prepare(prep.structure, prep.inputs, 1.0, SimulationOptions(), case.initial)[0]
 
 
 def test_spline_ranges_that_overflow_are_refused(model):

@@ -19,7 +19,7 @@ from vsj import export
 from vsj.cli import main
 from vsj.inputs import Constant
 from vsj.simulate import InitialState, SimulationOptions, simulate
-from vsj.wrist import build_wrist, pivot_range
+from vsj.wrist import build_wrist
 
 ROOT = Path(__file__).resolve().parents[1]
 ENGINE = ROOT / "src" / "vsj" / "engine" / "c"
@@ -108,7 +108,7 @@ def test_the_c_program_agrees_with_simulate(step_wrist, params, tmp_path):
     header, data = run_example(step_wrist, path, periods, inputs, tmp_path)
     result = simulate(build_wrist(params).assemble(),
                       {k: Constant(v) for k, v in values.items()}, periods * 1e-3,
-                      initial=initial, options=options, pivot_range=pivot_range(params),
+                      initial=initial, options=options,
                       ports=False)
     assert result.success
     for name in ("theta_x", "theta_y", "phi_1", "phi_2"):

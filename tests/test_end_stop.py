@@ -16,7 +16,7 @@ import pytest
 from vsj.errors import InputError
 from vsj.inputs import Constant, Table
 from vsj.simulate import SimulationOptions, InitialState, simulate
-from vsj.wrist import WristOptions, build_wrist, pivot_range
+from vsj.wrist import WristOptions, build_wrist
 
 STOP = 1.40  # rad, the bundled end stop
 LOAD = 20.0  # N m on theta_x
@@ -37,8 +37,7 @@ def run(params, stiffness, friction, elastic="exponential", load=LOAD, duration=
     structure = build_wrist(p, WristOptions(elastic=elastic)).assemble()
     ramp = Table((0.0, min(4.0, duration / 2), duration), (0.0, load, load))
     return simulate(structure, {"tau_x": ramp}, duration, initial=InitialState(q=-0.01),
-                    options=SimulationOptions(friction=friction, output_step=0.01),
-                    pivot_range=pivot_range(p), ports=False)
+                    options=SimulationOptions(friction=friction, output_step=0.01), ports=False)
 
 
 @pytest.fixture(scope="module")
@@ -80,8 +79,7 @@ def test_a_soft_stop_stores_and_returns_its_energy(params):
     structure = build_wrist(p, WristOptions(elastic="exponential")).assemble()
     pulse = Table((0.0, 2.0, 4.0, 6.0, 10.0), (0.0, LOAD, LOAD, 0.0, 0.0))
     result = simulate(structure, {"tau_x": pulse}, 10.0, initial=InitialState(q=-0.01),
-                      options=SimulationOptions(friction="stiction", output_step=0.01),
-                      pivot_range=pivot_range(p), ports=False)
+                      options=SimulationOptions(friction="stiction", output_step=0.01), ports=False)
     assert result.success
     phi = result["phi_1"]
     assert np.max(phi) > STOP + 0.2 and abs(phi[-1]) < 0.2

@@ -3,7 +3,6 @@
 import pytest
 
 from vsj import scenario as scenarios
-from vsj.simulate import simulate
 
 #: dopri runs at rtol 1e-8; the issue asks 1e-6 of the work done.
 LEDGER_TOL = 1e-6
@@ -11,11 +10,9 @@ LEDGER_TOL = 1e-6
 
 def test_ledger_closes_on_fig_4_15_with_smooth_friction(params):
     scen = scenarios.load("fig-4.15")
-    for case in scen.cases:
-        assert case.options.friction == "arctan"
-        _, structure, inputs, rng = scenarios.prepare_case(scen, case, params)
-        result = simulate(structure, inputs, case.duration, options=case.options,
-                          initial=case.initial, pivot_range=rng, ports=False)
+    for run in scenarios.run(scen, params, ports=False):
+        assert run.case.options.friction == "arctan"
+        result = run.result
         assert result.success, result.message
         led = result.ledger
         assert led["relative_residual"] < LEDGER_TOL

@@ -22,7 +22,7 @@ from vsj.errors import InputError, SimulationError
 from vsj.inputs import Constant, Table
 from vsj.simulate import InitialState, SimulationOptions, simulate
 from vsj.stepper import Stepper
-from vsj.wrist import WristOptions, build_wrist, pivot_range
+from vsj.wrist import WristOptions, build_wrist
 
 #: Twin matrices: the linear model's right-hand side is linear, so central
 #: differences are exact up to round-off (about 1e-16 / JACOBIAN_STEP = 1e-11
@@ -108,8 +108,7 @@ def _simulate_from(params, lin, inputs, duration):
     structure = build_wrist(params).assemble()  # the pivot driven (at rest), not fixed
     initial = InitialState(q=Q_OP, angles={"vsm_1.ring": op["vsm_1.ring.angle"],
                                            "vsm_2.ring": op["vsm_2.ring.angle"]})
-    result = simulate(structure, inputs, duration, initial=initial, options=SIM, ports=False,
-                      pivot_range=pivot_range(params))
+    result = simulate(structure, inputs, duration, initial=initial, options=SIM, ports=False)
     assert result.success, result.message
     return result
 
@@ -201,7 +200,7 @@ def test_exponential_model_has_the_stiffness_and_pivot_sensitivity_of_eq_4_5(par
 
 
 def test_natural_frequencies_rise_with_stiffness(params):
-    lo, hi = pivot_range(params)
+    lo, hi = params.pivot.q_min, params.pivot.q_max
     qs = np.linspace(hi, lo, 7)  # from soft to stiff
     models = linear.sweep(params, qs)
     lowest = [linear.natural_frequencies(m)[0] for m in models]

@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 
 from vsj import scenario as scenarios
-from vsj.simulate import simulate
 from vsj.wrist import planetary
 
 #: Required agreement with the closed forms (issue 2); the integrator runs at rtol 1e-8
@@ -29,8 +28,7 @@ def plateau_ends(case, result):
 def run(name, params):
     scen = scenarios.load(name)
     case = scen.cases[0]
-    resolved, structure, inputs, rng = scenarios.prepare_case(scen, case, params)
-    result = simulate(structure, inputs, case.duration, options=case.options, ports=False)
+    result = scenarios.prepare_case(scen, case, params).run(ports=False)
     assert result.success, result.message
     return case, result
 

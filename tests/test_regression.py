@@ -60,14 +60,11 @@ def test_scenario_stays_inside_its_reference_tube(name):
 def test_the_tube_is_tight_enough_to_see_a_parameter_change(params):
     """A 1 % change of one friction parameter leaves the tube: the test can fail."""
     from vsj import scenario as scenarios
-    from vsj.simulate import simulate
 
     scen = make_references.load("fig-4.15-arctan")
     case = scen.cases[0]
     changed = params.with_overrides({"transmission.viscous": "0.00303 N m s/rad"}, origin="t")
-    _, structure, inputs, rng = scenarios.prepare_case(scen, case, changed)
-    result = simulate(structure, inputs, case.duration, options=case.options,
-                      initial=case.initial, pivot_range=rng, ports=False)
+    result = scenarios.prepare_case(scen, case, changed).run(ports=False)
     ref = np.load(REFERENCES / "fig-4.15-arctan.npz")[f"{case.label}/theta_x"]
     now = result["theta_x"][::make_references.DECIMATE]
     assert np.max(np.abs(now - ref)) > 10 * SMOOTH_TUBE * np.ptp(ref)

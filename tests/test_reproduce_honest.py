@@ -19,7 +19,7 @@ import pytest
 from vsj import synth
 from vsj.cli import main
 from vsj.components.planetary import PlanetaryGearModule
-from vsj.reproduce import Reproduction, carrier_side_inertia, table_4_1
+from vsj.reproduce import Reproduction, carrier_side_inertia
 from vsj.reproduce.base import (
     CALIBRATION,
     CATEGORIES,
@@ -288,7 +288,6 @@ def test_moving_inertia_between_carrier_and_end_effector_leaves_the_motion(param
     carriers exactly, so only the total at each carrier matters (the split in the
     parameter file is free)."""
     from vsj import scenario as scenarios
-    from vsj.simulate import simulate
 
     lumped = params.with_overrides({"differential.inertia_x": "0 kg m^2",
                                     "differential.inertia_y": "0 kg m^2",
@@ -299,9 +298,7 @@ def test_moving_inertia_between_carrier_and_end_effector_leaves_the_motion(param
     case = scen.cases[-1]
     out = []
     for p in (params, lumped):
-        _, structure, inputs, rng = scenarios.prepare_case(scen, case, p)
-        result = simulate(structure, inputs, 3.0, options=case.options, initial=case.initial,
-                          pivot_range=rng, ports=False)
+        result = scenarios.prepare_case(scen, case, p).run(duration=3.0, ports=False)
         assert result.success
         out.append(result["theta_x"])
     # solver tolerance of the adaptive run (rtol 1e-8) on a 0.5 rad signal
@@ -309,7 +306,6 @@ def test_moving_inertia_between_carrier_and_end_effector_leaves_the_motion(param
     # and the test can fail: doubling the total moves the motion far outside that
     heavier = params.with_overrides({"planetary.carrier_inertia":
                                      f"{2 * carrier_side_inertia(params)} kg m^2"}, origin="t")
-    _, structure, inputs, rng = scenarios.prepare_case(scen, case, heavier)
-    moved = simulate(structure, inputs, 3.0, options=case.options, initial=case.initial,
-                     pivot_range=rng, ports=False)["theta_x"]
+    moved = scenarios.prepare_case(scen, case, heavier).run(duration=3.0,
+                                                             ports=False)["theta_x"]
     assert np.max(np.abs(moved - out[0])) > 1e-4

@@ -378,17 +378,14 @@ def test_size_estimates_bound_what_is_written(tmp_path):
     """The estimate behind the free-space check covers what a run writes."""
     from vsj import params as params_module
     from vsj import scenario as scenarios
-    from vsj.simulate import simulate
 
     params = params_module.default()
     for name in scenarios.builtin_names():
         scen = scenarios.load(name)
         for case in scen.cases:
-            _, structure, inputs, pivot_range = scenarios.prepare_case(scen, case, params)
-            duration = 20 * case.options.output_step
-            result = simulate(structure, inputs, duration, options=case.options,
-                              initial=case.initial, pivot_range=pivot_range)
-            assert len(result.signals) <= signals_bound(structure), (name, case.label)
+            prep = scenarios.prepare_case(scen, case, params)
+            result = prep.run(duration=20 * case.options.output_step)
+            assert len(result.signals) <= signals_bound(prep.structure), (name, case.label)
     out = tmp_path / "out"
     assert main(["simulate", str(scenario(tmp_path)), "--out", str(out), "--csv"]) == 0
     written = sum(p.stat().st_size for p in out.iterdir())

@@ -9,7 +9,7 @@ from vsj.errors import InputError, SimulationError
 from vsj.inputs import Constant, Table
 from vsj.simulate import InitialState, SimulationOptions, simulate
 from vsj.stepper import Stepper
-from vsj.wrist import WristOptions, build_wrist, pivot_range
+from vsj.wrist import WristOptions, build_wrist
 
 #: One period, same integrator and tolerances as simulate: the same computation
 #: up to the round-off of converting momenta to speeds and back.
@@ -48,7 +48,7 @@ def test_one_step_agrees_with_simulate(params, case):
     after = stepper.step(state, values)
     result = simulate(build_wrist(params, wrist_options).assemble(),
                       {k: Constant(v) for k, v in values.items()}, PERIOD, initial=initial,
-                      options=options, pivot_range=pivot_range(params), ports=False)
+                      options=options, ports=False)
     assert result.success, result.message
     u = stepper.input_vector(values)
     speeds = stepper.speeds(after, u)

@@ -221,8 +221,7 @@ def test_elastic_bench_hysteresis_is_independent_of_speed(params):
     scen = scenarios.load("elastic-bench")
     widths = {}
     for case in scen.cases:
-        _, structure, inputs, _ = scenarios.prepare_case(scen, case, params)
-        r = simulate(structure, inputs, case.duration, options=case.options, ports=False)
+        r = scenarios.prepare_case(scen, case, params).run(ports=False)
         assert r.success
         widths[case.label] = hysteresis_width(r)
     expected = 2 * params.elastic_element.lever_stiction * math.pi / 2  # both branches
@@ -234,11 +233,12 @@ def test_elastic_bench_hysteresis_is_independent_of_speed(params):
 def fig415_stiction(params):
     scen = scenarios.load("fig-4.15")
     case = scen.cases[0]
-    _, structure, inputs, rng = scenarios.prepare_case(scen, case, params)
+    prep = scenarios.prepare_case(scen, case, params)
+    structure, inputs = prep.structure, prep.inputs
     runs = {}
     for h in (1e-3, 5e-4, 2.5e-4):
         runs[h] = simulate(structure, inputs, case.duration, initial=case.initial,
-                           pivot_range=rng, ports=False,
+                           ports=False,
                            options=SimulationOptions(friction="stiction", step=h,
                                                      output_step=1e-3))
         assert runs[h].success, runs[h].message

@@ -97,10 +97,9 @@ def test_runs_equal_single_runs_and_failures_are_recorded(reference, params):
                          f"{float(ds['elastic_element.lever_length'][r])!r} m"}
         case = scen.cases[0]
         run_params = params.with_overrides(overrides, origin="test")
-        _, structure, inputs, rng = scenarios.prepare_case(scen, case, run_params)
-        single = simulate(structure, inputs, 1.0, options=case.options,
-                          initial=InitialState(q=float(ds["q"][r])), pivot_range=rng,
-                          ports=False)
+        prep = scenarios.prepare_case(scen, case, run_params)
+        single = simulate(prep.structure, prep.inputs, 1.0, options=case.options,
+                          initial=InitialState(q=float(ds["q"][r])), ports=False)
         for j, name in enumerate(keep):
             assert np.array_equal(single[name][::stride], ds["signals"].values[r, :, j]), name
 

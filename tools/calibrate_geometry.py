@@ -10,8 +10,8 @@ restarts) and takes about five minutes on two cores:
 import sys
 
 from vsj import params
-from vsj.springs import GEOMETRY_FIELDS
 from vsj.identification.geometry import TESTED_Q, calibrate_to_report
+from vsj.springs import GEOMETRY_FIELDS
 from vsj.wrist import geometry
 
 SYMBOLS = {"ring_radius": "R", "lever_length": "L", "lever_width": "W", "anchor_x": "x0",

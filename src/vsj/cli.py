@@ -38,7 +38,6 @@ def cmd_simulate(args) -> int:
     from .output import (ResultSet, cases_dataset, parameters_record, signals_bound,
                          trajectory_bytes, write_dataset, write_meta, write_trajectory)
     from .progress import progress
-    from .simulate import simulate
 
     params = _params(args.params)
     scen = scenarios.load(args.scenario)
@@ -49,23 +48,21 @@ def cmd_simulate(args) -> int:
                          "that they fit one trajectory file")
     (duration, output_step), = grids
     size = trajectory_bytes(int(duration / output_step + 1e-9) + 1,
-                            max(signals_bound(structure) for _, structure, _, _ in prepared),
+                            max(signals_bound(p.structure) for p in prepared),
                             len(scen.cases), csv=args.csv, plot=not args.no_plot)
     out = Path(args.out)
     runs, records = [], []
     with ResultSet(out, "simulate", size=size) as results:
-        for case, (resolved, structure, inputs, pivot_range) in progress(
-                list(zip(scen.cases, prepared)), desc=f"simulate {scen.name}", unit="case"):
-            result = simulate(structure, inputs, case.duration, options=case.options,
-                              initial=case.initial, pivot_range=pivot_range)
-            runs.append((case.label, result))
-            records.append({"label": case.label, "success": result.success,
+        for case in progress(prepared, desc=f"simulate {scen.name}", unit="case"):
+            result = case.run()
+            runs.append((case.case.label, result))
+            records.append({"label": case.case.label, "success": result.success,
                             "message": result.message, "solver": result.solver,
                             "ledger": result.ledger,
                             "stick_slip_transitions": result.transitions,
                             "warnings": list(result.warnings),
-                            "parameters_hash": resolved.hash(),
-                            "parameter_overrides": dict(case.params)})
+                            "parameters_hash": case.params.hash(),
+                            "parameter_overrides": dict(case.case.params)})
         write_dataset(results.path("trajectory.nc"), cases_dataset(runs))
         if args.csv:
             write_trajectory(results.path("trajectory.csv"), runs)

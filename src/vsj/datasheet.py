@@ -145,11 +145,9 @@ def _stiffness_change(params, q_from: float, q_to: float) -> dict:
 def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = None,
             friction: str = DEFAULT_FRICTION, elastic: str = "geometric") -> dict:
     """Every datasheet quantity as plain data (SI units; see the module docstring)."""
-    from .wrist import pivot_range
-
     if not (isinstance(q_points, int) and q_points >= 2):
         raise InputError(f"datasheet: q_points must be an integer >= 2, got {q_points!r}")
-    q_min, q_max = pivot_range(params)
+    q_min, q_max = params.pivot.q_min, params.pivot.q_max
     qs = np.linspace(q_max, q_min, q_points)
     curve_qs = list(np.linspace(q_max, q_min, 5) if curve_qs is None else curve_qs)
     for q in curve_qs:

@@ -138,11 +138,16 @@ class Pivot:
     ``q = amplitude * sin(angle of flange)`` (report section 3.4: the sine of
     the pivot planetary's carrier angle times the ring radius and a gain), or a
     constant ``fixed`` when ``flange`` is None (a bench with a pinned pivot).
+    ``[q_min, q_max]`` [m] is the range the mechanism is allowed to use: a run
+    whose pivot leaves it fails (the model carries its own limit, so no caller
+    can forget to pass it).
     """
 
     flange: str | None
     amplitude: float = 0.0
     fixed: float = 0.0
+    q_min: float = -math.inf
+    q_max: float = math.inf
 
 
 @dataclass(frozen=True)

@@ -61,10 +61,10 @@ from . import benches
 from .errors import InputError, read_text
 from .friction import law_code
 from .inputs import Constant, Input, Position, Sine, Step, Table, circle
-from .network import Network
+from .network import Network, Structure
 from .params import Parameters
-from .simulate import (InitialState, SimulationOptions, check_run_size, choose_solver,
-                       prepare)
+from .simulate import (InitialState, Result, SimulationOptions, check_run_size, choose_solver,
+                       prepare, simulate)
 from .units import to_si
 from .wrist import DRIVES, ELASTIC_MODELS, WristOptions, build_wrist
 
@@ -120,7 +120,6 @@ class Case:
     options: SimulationOptions
     initial: InitialState
     params: Mapping[str, Any]
-    pivot_from_params: bool
     where: Where
 
 
@@ -401,7 +400,7 @@ def _case(table: Mapping, label: str, where: Where) -> Case:
     return Case(label=label, network=network, build=build,
                 inputs=dict(_table(table, "inputs", where)), duration=duration,
                 options=options, initial=initial, params=dict(_table(table, "params", where)),
-                pivot_from_params=(network == "wrist"), where=where)
+                where=where)
 
 
 def parse_inputs(case: Case, net: Network) -> dict[str, Input]:
@@ -471,25 +470,72 @@ def load(name_or_path: str) -> Scenario:
     return loads(read_text(builtin, "scenario file"), f"built-in scenario {name_or_path}")
 
 
-def prepare_case(scenario: Scenario, case: Case, params: Parameters):
-    """Everything `vsj.simulate.simulate` needs for one case, checked as far as it can be
-    without running: what a run would refuse in its inputs is raised here, before anything
-    is written, with the file and key."""
+@dataclass(frozen=True)
+class Prepared:
+    """One case built and checked against its parameters, ready to run."""
+
+    case: Case
+    params: Parameters  # the set with the case's overrides
+    network: Network
+    structure: Structure
+    inputs: Mapping[str, Input]
+
+    def run(self, *, duration: float | None = None, ports: bool = True) -> Result:
+        """Simulate the case (for ``duration`` instead of its own, if given)."""
+        return simulate(self.structure, self.inputs, duration or self.case.duration,
+                        options=self.case.options, initial=self.case.initial, ports=ports)
+
+
+def prepare_case(scenario: Scenario, case: Case, params: Parameters) -> Prepared:
+    """Everything a run of ``case`` needs, checked as far as it can be without
+    running: what a run would refuse in its inputs is raised here, before
+    anything is written, with the file and key."""
     where = case.where
     resolved = scenario.resolved_params(case, params)
     with _context(where):
         net = case.build(resolved)
         structure = net.assemble()
     inputs = parse_inputs(case, net)
-    pivot_range = (resolved.pivot.q_min, resolved.pivot.q_max) if case.pivot_from_params else None
-    if case.initial.q is not None and pivot_range is not None:
-        lo, hi = pivot_range
-        if not lo <= case.initial.q <= hi:
-            raise InputError(f"{where.key('initial').key('q')}: {case.initial.q * 100:g} cm is "
-                             f"outside the pivot range [{lo * 100:g}, {hi * 100:g}] cm")
+    pivot = structure.pivot
+    if case.initial.q is not None and not pivot.q_min <= case.initial.q <= pivot.q_max:
+        raise InputError(f"{where.key('initial').key('q')}: {case.initial.q * 100:g} cm is "
+                         f"outside the pivot range [{pivot.q_min * 100:g}, "
+                         f"{pivot.q_max * 100:g}] cm")
     options = case.options
     with _context(where.key("solver")):
         check_run_size(structure, case.duration, options, choose_solver(structure, options))
     with _context(where):  # the initial state against the network, and the compiled inputs
-        prepare(structure, inputs, case.duration, options, case.initial, pivot_range)
-    return resolved, structure, inputs, pivot_range
+        prepare(structure, inputs, case.duration, options, case.initial)
+    return Prepared(case=case, params=resolved, network=net, structure=structure,
+                    inputs=inputs)
+
+
+@dataclass(frozen=True)
+class Run:
+    """A case and what running it gave."""
+
+    case: Case
+    params: Parameters
+    result: Result
+
+
+def run(scenario: Scenario | str, params: Parameters | None = None, *,
+        duration: float | None = None, ports: bool = True, progress: bool = False,
+        ) -> list[Run]:
+    """Run every case of a scenario (a `Scenario`, a built-in name or a file).
+
+    All cases are prepared before the first runs, so a bad case is refused
+    before any time is spent. ``params`` defaults to the bundled set;
+    ``duration`` replaces the cases' own; ``ports`` adds connection torques
+    and powers to the results; ``progress`` shows a bar on stderr. A failed
+    run is returned with ``result.success`` False: the caller decides.
+    """
+    from .params import default
+    from .progress import progress as bar
+
+    scen = load(scenario) if isinstance(scenario, str) else scenario
+    params = default() if params is None else params
+    prepared = [prepare_case(scen, case, params) for case in scen.cases]
+    if progress:
+        prepared = bar(prepared, desc=f"simulate {scen.name}", unit="case")
+    return [Run(p.case, p.params, p.run(duration=duration, ports=ports)) for p in prepared]

@@ -214,15 +214,14 @@ def choose_solver(structure: Structure, options: SimulationOptions) -> str:
 
 
 def prepare(structure: Structure, inputs: Mapping[str, Input], duration: float,
-            options: SimulationOptions, initial: InitialState,
-            pivot_range: tuple[float, float] | None):
+            options: SimulationOptions, initial: InitialState):
     """Compile the model and build the initial state vector."""
     if not (math.isfinite(duration) and duration > 0.0):
         raise InputError(f"duration must be > 0 s, got {duration!r}")
     options.validate()
     model, layout = compile_model(structure, inputs, duration, friction=options.friction,
                                   friction_overrides=options.friction_overrides,
-                                  slope_width=options.slope_width, pivot_range=pivot_range)
+                                  slope_width=options.slope_width)
     u0 = Engine(model).source_speeds(0.0)
     x0, v0, sigma0, currents = _initial(structure, inputs, initial, u0)
     model = model._replace(src_pos0=np.ascontiguousarray(sigma0, dtype=float))
@@ -232,12 +231,12 @@ def prepare(structure: Structure, inputs: Mapping[str, Input], duration: float,
 
 def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float, *,
              options: SimulationOptions | None = None, initial: InitialState | None = None,
-             pivot_range: tuple[float, float] | None = None, ports: bool = True) -> Result:
+             ports: bool = True) -> Result:
     """Simulate ``structure`` for ``duration`` seconds.
 
     ``inputs`` maps channel names to `vsj.inputs.Input` (missing channels are
-    zero). ``pivot_range`` (q_min, q_max) [m] makes the run fail if the pivot
-    leaves it. ``ports`` adds the torque and power of every connection.
+    zero). A run fails if the pivot leaves the range its mechanism allows
+    (`vsj.network.Pivot`). ``ports`` adds the torque and power of every connection.
     A failed run returns ``success=False`` with the time and state of the
     failure in ``message``; its samples up to the failure are kept.
     """
@@ -245,7 +244,7 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
     initial = initial or InitialState()
     solver = choose_solver(structure, options)
     check_run_size(structure, duration, options, solver)
-    model, layout, y0 = prepare(structure, inputs, duration, options, initial, pivot_range)
+    model, layout, y0 = prepare(structure, inputs, duration, options, initial)
     n_out = int(math.floor(duration / options.output_step + 1e-9)) + 1
     t_out = np.arange(n_out) * options.output_step
     started = _time.perf_counter()
@@ -586,10 +585,30 @@ class BatchResult:
         return self.states[:, :, n:2 * n] @ rx + (self.source_speeds @ ru)[None, :]
 
 
+#: Compiled arrays that a batch run may change: the rest are shared by every run.
+_PER_RUN = ("mass", "Minv", "par")
+
+
+def _same_topology(base, layout, model, layout_r, r: int) -> None:
+    """Refuse a batch structure that differs from the first in anything but the
+    per-run arrays (`_PER_RUN`): the batch engine would silently take the first
+    structure's connection matrices, laws, inputs or tables for it."""
+    if layout_r != layout:
+        raise InputError(f"simulate_batch: structure {r} differs in topology ({layout_r} "
+                         f"against {layout})")
+    for name in base._fields:
+        if name in _PER_RUN:
+            continue
+        a, b = np.asarray(getattr(base, name)), np.asarray(getattr(model, name))
+        if a.shape != b.shape or not np.array_equal(a, b):
+            raise InputError(f"simulate_batch: structure {r} differs from the first in "
+                             f"{name!r}; batch runs may differ only in inertias and element "
+                             f"parameters (run the others separately)")
+
+
 def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: float, *,
                    initials: list[InitialState], options: SimulationOptions | None = None,
                    structures: list[Structure] | None = None,
-                   pivot_range: tuple[float, float] | None = None,
                    threads: int | None = None) -> BatchResult:
     """Run one model many times in parallel, on every core.
 
@@ -606,7 +625,7 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
     if structures is not None and len(structures) != len(initials):
         raise InputError(f"simulate_batch: {len(structures)} structures for {len(initials)} runs")
     solver = choose_solver(structure, options)
-    base, layout, _ = prepare(structure, inputs, duration, options, InitialState(), pivot_range)
+    base, layout, _ = prepare(structure, inputs, duration, options, InitialState())
     engine = Engine(base)
     u0 = engine.source_speeds(0.0)
     runs = len(initials)
@@ -624,10 +643,8 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
         if structures is not None:
             m_r, layout_r = compile_model(struct_r, inputs, duration, friction=options.friction,
                                           friction_overrides=options.friction_overrides,
-                                          slope_width=options.slope_width,
-                                          pivot_range=pivot_range)
-            if layout_r != layout or m_r.rows.shape != base.rows.shape:
-                raise InputError(f"simulate_batch: structure {r} differs in topology")
+                                          slope_width=options.slope_width)
+            _same_topology(base, layout, m_r, layout_r, r)
             masses[r], Minvs[r], pars[r] = m_r.mass, m_r.Minv, m_r.par
         x0, v0, sigma0, currents = _initial(struct_r, inputs, initial, u0)
         y0s[r, :n_state] = np.concatenate([x0, v0, currents])

@@ -58,7 +58,6 @@ from __future__ import annotations
 
 import numpy as np
 
-
 LINEAR = 0
 EXPONENTIAL = 1
 GEOMETRIC = 2

@@ -97,15 +97,14 @@ class Stepper:
     or any other); ``period`` [s]: the control period; ``options``: friction
     law and tolerances as for `vsj.simulate.simulate` (``rtol`` and ``atol``
     steer ``method="dopri"``, whose steps are bounded by the period only;
-    ``max_steps`` bounds them per period); ``substeps`` sets ``method="rk4"``;
-    ``pivot_range`` (q_min, q_max) [m] makes a step fail when the pivot leaves
-    it.
+    ``max_steps`` bounds them per period); ``substeps`` sets ``method="rk4"``'s
+    steps per period. A step fails when the pivot leaves the range its
+    mechanism allows (`vsj.network.Pivot`).
     """
 
     def __init__(self, structure: Structure, period: float = 1e-3, *,
                  options: SimulationOptions | None = None, method: str = "dopri",
-                 substeps: int = 4, pivot_range: tuple[float, float] | None = None,
-                 max_steps: int = 100_000):
+                 substeps: int = 4, max_steps: int = 100_000):
         options = options or SimulationOptions()
         options.validate()
         if not (math.isfinite(period) and period > 0.0):
@@ -135,13 +134,11 @@ class Stepper:
         self.rtol = float(options.rtol)
         self.atol = float(options.atol)
         self.step_size = float(options.step)
-        self.pivot_range = pivot_range
         self.input_names = structure.channels()
         held = {ch: Constant(0.0) for ch in self.input_names}
         model, self.layout = compile_model(
             structure, held, self.period, friction=options.friction,
-            friction_overrides=options.friction_overrides, slope_width=options.slope_width,
-            pivot_range=pivot_range)
+            friction_overrides=options.friction_overrides, slope_width=options.slope_width)
         self.use_model(model)
         n, nm, s = self.layout.n, self.layout.n_motors, self.layout.n_sources
         self.state_names = tuple(
@@ -163,10 +160,9 @@ class Stepper:
 
     @classmethod
     def wrist(cls, params, wrist_options=None, period: float = 1e-3, **kwargs) -> "Stepper":
-        """A stepper of the whole wrist (`vsj.wrist.build_wrist`), with its pivot range."""
-        from .wrist import build_wrist, pivot_range
+        """A stepper of the whole wrist (`vsj.wrist.build_wrist`)."""
+        from .wrist import build_wrist
 
-        kwargs.setdefault("pivot_range", pivot_range(params))
         return cls(build_wrist(params, wrist_options).assemble(), period, **kwargs)
 
     # -- sizes and names ----------------------------------------------------------------
@@ -220,7 +216,7 @@ class Stepper:
         u = self.input_vector(inputs)
         held = {ch: Constant(float(v)) for ch, v in zip(self.input_names, u)}
         model, layout, y0 = prepare(self.structure, held, self.period, self.options,
-                                    initial or InitialState(), self.pivot_range)
+                                    initial or InitialState())
         n, nm = layout.n, layout.n_motors
         state = np.empty(self.n_state)
         state[:n] = y0[:n]

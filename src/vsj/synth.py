@@ -268,7 +268,7 @@ def wrist(experiment, params: Parameters, *, seed: int = 1) -> SynthFile:
     commands (motor speeds or voltages) are logged as sent.
     """
     from .simulate import SimulationOptions, simulate
-    from .wrist import WristOptions, build_wrist, pivot_range
+    from .wrist import WristOptions, build_wrist
 
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise InputError(f"seed = {seed!r}: must be a whole number >= 0")
@@ -287,7 +287,7 @@ def wrist(experiment, params: Parameters, *, seed: int = 1) -> SynthFile:
     ru = structure.rows(structure.pivot.flange)[1][j]
     motor_s = np.arcsin(q_path / structure.pivot.amplitude) / ru
     inputs["motor_s"] = Position(Table(tuple(grid), tuple(motor_s)))
-    result = simulate(structure, inputs, e.duration, ports=False, pivot_range=pivot_range(params),
+    result = simulate(structure, inputs, e.duration, ports=False,
                       options=SimulationOptions(friction="stiction", step=e.step,
                                                 output_step=e.step))
     if not result.success:

@@ -150,7 +150,7 @@ def build_wrist(params: Parameters, options: WristOptions | None = None) -> Netw
         net.add(motor("motor_s", params, options.pivot_drive, "s"),
                 PivotMechanism("pivot", ratio=pv.ratio, amplitude=pv.amplitude,
                                inertia=pv.inertia, viscous=pv.viscous, stiction=pv.stiction,
-                               sharpness=sharp, peak=peak))
+                               sharpness=sharp, peak=peak, q_min=pv.q_min, q_max=pv.q_max))
         net.connect("motor_s.flange", "pivot.input")
     for name, flange, text in [
         ("theta_x", "diff.theta_x", "end-effector angle about x"),
@@ -168,7 +168,3 @@ def build_wrist(params: Parameters, options: WristOptions | None = None) -> Netw
     if options.pivot_drive != "fixed":
         net.signal(Signal("motor_s", "pivot.input", "stiffness motor output"))
     return net
-
-
-def pivot_range(params: Parameters) -> tuple[float, float]:
-    return params.pivot.q_min, params.pivot.q_max

@@ -27,7 +27,6 @@ import numpy as np
 
 from vsj import params as parameters
 from vsj import scenario as scenarios
-from vsj.simulate import simulate
 
 HERE = Path(__file__).resolve().parent
 #: Keep every DECIMATE-th output sample (10 ms at the scenarios' 1 ms output step).
@@ -73,9 +72,7 @@ def run(name: str) -> dict[str, np.ndarray]:
     params = parameters.default()
     out = {}
     for case in scen.cases:
-        _, structure, inputs, rng = scenarios.prepare_case(scen, case, params)
-        result = simulate(structure, inputs, case.duration, options=case.options,
-                          initial=case.initial, pivot_range=rng, ports=False)
+        result = scenarios.prepare_case(scen, case, params).run(ports=False)
         if not result.success:
             raise RuntimeError(f"{name} [{case.label}]: {result.message}")
         out[f"{case.label}/time"] = result.time[::DECIMATE]

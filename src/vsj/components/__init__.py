@@ -1,6 +1,14 @@
 """Sub-models of the wrist, one module per physical part, all on flanges (`vsj.ports`)."""
 
-from .basic import Bearing, Fixed, IdealGear, Inertia, SpringDamper, TorqueSource, VelocitySource
+from .basic import (
+    Bearing,
+    Fixed,
+    IdealGear,
+    Inertia,
+    SpringDamper,
+    TorqueSource,
+    VelocitySource,
+)
 from .clutch import Brake, Clutch
 from .differential import Differential
 from .elastic_element import ElasticElement

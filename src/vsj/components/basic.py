@@ -9,9 +9,18 @@ from __future__ import annotations
 
 import math
 
-from ..network import PRESCRIBED, Component, Constraint, Friction, Load, Parts, Source, Spring
-from ._values import _peak, _positive
+from ..network import (
+    PRESCRIBED,
+    Component,
+    Constraint,
+    Friction,
+    Load,
+    Parts,
+    Source,
+    Spring,
+)
 from ..springs import LINEAR, N_PARAMETERS
+from ._values import _peak, _positive
 
 
 class Inertia(Component):

@@ -10,9 +10,19 @@ from __future__ import annotations
 import numpy as np
 
 from ..network import Component, Friction, Parts, Spring
-from ..springs import (EXPONENTIAL, EXPONENTIAL_FIELDS, GEOMETRIC, GEOMETRIC_REPORT,
-                       GEOMETRY_FIELDS, MODELS, N_PARAMETERS, coil_pretension, evaluate)
+from ..springs import (
+    EXPONENTIAL,
+    EXPONENTIAL_FIELDS,
+    GEOMETRIC,
+    GEOMETRIC_REPORT,
+    GEOMETRY_FIELDS,
+    MODELS,
+    N_PARAMETERS,
+    coil_pretension,
+    evaluate,
+)
 from ._values import _peak
+
 
 class ElasticElement(Component):
     """One elastic element of the VSM, acting on the ring flange of its planetary.

@@ -7,6 +7,8 @@ carrier angle ``phi_C`` gives ``q = amplitude * sin(phi_C)`` where
 ``amplitude`` is the gain times the ring radius of the report. The gears'
 inertia and friction load the motor; the springs do not push back on ``q``
 (non-backdrivable, section 3.1), so the mechanism is a chain of its own.
+``q_min`` and ``q_max`` bound the range a run may use (default: the whole
+reach ``+-amplitude``); the engine fails a run that leaves it.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ class PivotMechanism(Component):
 
     def __init__(self, name: str, *, ratio: float, amplitude: float, inertia: float = 0.0,
                  viscous: float = 0.0, stiction: float = 0.0, sharpness: float = 10.0,
-                 peak: float = 1.0):
+                 peak: float = 1.0, q_min: float | None = None, q_max: float | None = None):
         super().__init__(name)
         self.peak = _peak(name, peak)
         if not (math.isfinite(ratio) and ratio != 0.0):
@@ -35,6 +37,11 @@ class PivotMechanism(Component):
         self.viscous = _positive(f"{name}: viscous", viscous)
         self.stiction = _positive(f"{name}: stiction", stiction)
         self.sharpness = _positive(f"{name}: sharpness", sharpness, allow_zero=False)
+        self.q_min = -self.amplitude if q_min is None else float(q_min)
+        self.q_max = self.amplitude if q_max is None else float(q_max)
+        if not -self.amplitude <= self.q_min < self.q_max <= self.amplitude:
+            raise ValueError(f"{name}: the pivot range [{self.q_min}, {self.q_max}] m must be "
+                             f"increasing and within the reach +-{self.amplitude} m")
 
     def carrier_angle(self, q: float) -> float:
         """Carrier angle [rad] that places the pivot at ``q`` [m] (principal branch)."""
@@ -53,7 +60,7 @@ class PivotMechanism(Component):
                                     {motor: 1.0, carrier: -self.ratio})],
             frictions=[Friction(f"{self.name}.gears", {carrier: 1.0}, self.viscous,
                                 self.stiction, self.sharpness, peak=self.peak)],
-            pivots=[Pivot(carrier, self.amplitude)],
+            pivots=[Pivot(carrier, self.amplitude, q_min=self.q_min, q_max=self.q_max)],
             priority={carrier: 2},
         )
 

@@ -16,8 +16,8 @@ from __future__ import annotations
 import math
 
 from ..network import Component, Constraint, Friction, Parts, Spring
-from ._values import _peak, _positive
 from ..springs import LINEAR, N_PARAMETERS
+from ._values import _peak, _positive
 
 
 class Transmission(Component):

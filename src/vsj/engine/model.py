@@ -170,8 +170,8 @@ def input_bank(structure: Structure, inputs: Mapping[str, Input], t_end: float):
 
 def compile_model(structure: Structure, inputs: Mapping[str, Input], t_end: float, *,
                   friction: str = "arctan", friction_overrides: Mapping[str, str] | None = None,
-                  slope_width: float = 0.01, pivot_range: tuple[float, float] | None = None,
-                  source_angles: np.ndarray | None = None) -> tuple[EngineModel, Layout]:
+                  slope_width: float = 0.01, source_angles: np.ndarray | None = None,
+                  ) -> tuple[EngineModel, Layout]:
     """Arrays for the engine. ``t_end`` bounds the input splines; ``source_angles``
     are the sources' angles at t = 0 (see `Structure.initial_positions`)."""
     if not (math.isfinite(slope_width) and slope_width > 0.0):
@@ -209,10 +209,10 @@ def compile_model(structure: Structure, inputs: Mapping[str, Input], t_end: floa
         add(AB[structure.index(motor.flange)],
             [motor.resistance, motor.inductance, motor.torque_constant], chan[motor.channel])
     pivot = structure.pivot
-    lo, hi = pivot_range if pivot_range is not None else (-np.inf, np.inf)
     pivot_row = (AB[structure.index(pivot.flange)] if pivot.flange is not None
                  else np.zeros(n + s))
-    add(pivot_row, [pivot.amplitude, pivot.fixed, 0.0 if pivot.flange is None else 1.0, lo, hi],
+    add(pivot_row, [pivot.amplitude, pivot.fixed, 0.0 if pivot.flange is None else 1.0,
+                    pivot.q_min, pivot.q_max],
         0)
     bank = input_bank(structure, inputs, t_end)
     dense = np.array(rows).reshape(len(rows), n + s)

@@ -58,7 +58,7 @@ from ..errors import InputError
 from ..inputs import Position, Table
 from ..measurements import Measurement
 from ..params import SCHEMA, Parameters
-from ..wrist import WristOptions, build_wrist, pivot_range
+from ..wrist import WristOptions, build_wrist
 
 #: Half-width [s] of the parabola fit that gives a measured angle and its slope at a
 #: window's start: long enough to average encoder quantisation and noise over about 40
@@ -424,8 +424,7 @@ class WristModel:
         log = self.logs[w.log]
         inputs = self._inputs(log, w.start, w.duration)
         model, _ = compile_model(self.structure, inputs, w.duration, friction=law,
-                                 slope_width=self.setup.slope_width,
-                                 pivot_range=pivot_range(self.params))
+                                 slope_width=self.setup.slope_width)
         engine = Engine(model)
         w.engines[law] = engine
         if w.t_out is not None:
@@ -539,8 +538,7 @@ class WristModel:
             self._prepare(w, law)
         base = w.engines[law].model
         model, _ = compile_model(structure, self._inputs(self.logs[w.log], w.start, w.duration),
-                                 w.duration, friction=law, slope_width=self.setup.slope_width,
-                                 pivot_range=pivot_range(params))
+                                 w.duration, friction=law, slope_width=self.setup.slope_width)
         if model.rows.shape != base.rows.shape or not np.allclose(
                 model.rows, base.rows, rtol=0.0, atol=1e-9 * max(np.max(np.abs(base.rows)), 1.0)):
             changed = [n for n, v, b in zip(self.names, key, self.base) if v != b]

@@ -278,9 +278,9 @@ def linearize(params, q: float = 0.0, *, motors: tuple[float, float] = (0.0, 0.0
     `LinearModel` (python-control), or with ``statespace=False`` the plain
     `LinearData`.
     """
-    from ..wrist import WristOptions, build_wrist, pivot_range
+    from ..wrist import WristOptions, build_wrist
 
-    lo, hi = pivot_range(params)
+    lo, hi = params.pivot.q_min, params.pivot.q_max
     if not (isinstance(q, (int, float)) and math.isfinite(q)):
         raise InputError(f"pivot position q must be a finite number of metres, got {q!r}")
     if not (lo - 1e-12 <= q <= hi + 1e-12):

@@ -44,7 +44,6 @@ from ..springs import (
 from ..errors import SimulationError
 from ..identification.geometry import TESTED_Q, ReportTargets
 from ..params import Parameters
-from ..simulate import simulate
 from ..units import to_si
 from ..wrist import exponential, geometry
 from .base import CALIBRATION, INPUT, NOT_STATED, Context, Figure, Row
@@ -512,13 +511,10 @@ def _run(scen: scenarios.Scenario, params: Parameters, duration: float | None):
     Returns (case, resolved parameters, result) per case.
     """
     runs = []
-    for case in scen.cases:
-        resolved, structure, inputs, pivot_range = scenarios.prepare_case(scen, case, params)
-        result = simulate(structure, inputs, duration or case.duration, options=case.options,
-                          initial=case.initial, pivot_range=pivot_range, ports=False)
-        if not result.success:
-            raise SimulationError(f"{scen.origin} [{case.label}]: {result.message}")
-        runs.append((case, resolved, result))
+    for run in scenarios.run(scen, params, duration=duration, ports=False):
+        if not run.result.success:
+            raise SimulationError(f"{scen.origin} [{run.case.label}]: {run.result.message}")
+        runs.append((run.case, run.params, run.result))
     return runs
 
 
