@@ -55,8 +55,15 @@ not linearised: ``viscous`` keeps only the viscous part ``b s`` (eq 3.19)
 and ``removed`` drops friction altogether.
 """
 
-from .analysis import (bandwidth, dynamic_states, modes, natural_frequencies, output_stiffness,
-                       static_gain, transfer)
+from .analysis import (
+    bandwidth,
+    dynamic_states,
+    modes,
+    natural_frequencies,
+    output_stiffness,
+    static_gain,
+    transfer,
+)
 from .build import EQUILIBRIUM_ITERATIONS, EQUILIBRIUM_TOL, linearize, linearize_structure, sweep
 from .data import FRICTION_TREATMENTS, PIVOT_INPUT, LinearData, signal_name
 from .files import FORMAT, FORMAT_VERSION, from_dict, load, save, to_dict

@@ -15,10 +15,10 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..springs import end_stop
 from ..errors import InputError, SimulationError
 from ..network import Signal, Structure
 from ..simulate import SimulationOptions
+from ..springs import end_stop
 from ..stepper import JACOBIAN_STEP, Stepper
 from .data import FRICTION_TREATMENTS, PIVOT_INPUT, LinearData, select, signal_name
 
@@ -118,24 +118,26 @@ def _equilibrium(stepper: Stepper, state: np.ndarray, u: np.ndarray,
     return state, u
 
 
-def _pivot_sensitivity(stepper: Stepper, state, u) -> np.ndarray:
-    """d rate / d q of a fixed pivot (the engine's pivot row is the last)."""
-    model = stepper.model
-    q0 = model.par[-1, 1]
+def _pivot_sensitivity(structure: Structure, options: SimulationOptions, state, u
+                       ) -> np.ndarray:
+    """d rate / d q of a fixed pivot, by moving the pivot of the network itself."""
+    pivot = structure.pivot
 
     def f(dq):
-        par = model.par.copy()
-        par[-1, 1] = q0 + dq
-        stepper.use_model(model._replace(par=par))
-        try:
-            return stepper.rate(state, u)
-        finally:
-            stepper.use_model(model)
+        moved = dataclasses.replace(structure, pivot=dataclasses.replace(pivot,
+                                                                          fixed=pivot.fixed + dq))
+        return Stepper(moved, 1.0, options=options).rate(state, u)
 
     h = JACOBIAN_STEP * 1e-2  # the pivot moves centimetres: 1e-7 m
     d1 = (f(h) - f(-h)) / (2 * h)
     d2 = (f(h / 2) - f(-h / 2)) / h
     return (4.0 * d2 - d1) / 3.0
+
+
+def _without_friction(structure: Structure) -> Structure:
+    """The same network with every friction element's viscous and Coulomb parts at zero."""
+    return dataclasses.replace(structure, frictions=tuple(
+        dataclasses.replace(f, viscous=0.0, stiction=0.0) for f in structure.frictions))
 
 
 def linearize_structure(structure: Structure, *, angles: Mapping[str, float] | None = None,
@@ -154,11 +156,10 @@ def linearize_structure(structure: Structure, *, angles: Mapping[str, float] | N
     select (and order) the model's inputs and outputs by name.
     """
     friction = _treatment(friction)
-    stepper = Stepper(structure, 1.0, options=SimulationOptions(friction=_ENGINE_LAW[friction]))
     if friction == "removed":
-        par = stepper.model.par.copy()
-        par[:stepper.layout.n_frictions, :2] = 0.0
-        stepper.use_model(stepper.model._replace(par=par))
+        structure = _without_friction(structure)
+    options = SimulationOptions(friction=_ENGINE_LAW[friction])
+    stepper = Stepper(structure, 1.0, options=options)
     n, nm = stepper.layout.n, stepper.layout.n_motors
     channels = stepper.input_names
     loads = dict(loads or {})
@@ -189,8 +190,9 @@ def linearize_structure(structure: Structure, *, angles: Mapping[str, float] | N
     q0 = stepper.pivot_position(state0)
     input_names = list(channels) + ([PIVOT_INPUT] if fixed_pivot else [])
     input_units = list(stepper.input_units) + (["m"] if fixed_pivot else [])
-    B_all = np.hstack([ju, _pivot_sensitivity(stepper, state0, u0)[:, None]]) if fixed_pivot \
-        else ju
+    B_all = ju
+    if fixed_pivot:
+        B_all = np.hstack([ju, _pivot_sensitivity(structure, options, state0, u0)[:, None]])
 
     # outputs: angles and speeds are linear in the state and inputs (vsj.network)
     table = _output_table(structure)

@@ -73,7 +73,7 @@ def from_dict(data: Mapping, *, origin: str = "data", statespace: bool = True):
 def save(model: LinearData, path: Path) -> None:
     """Write ``.json`` (everything as text) or ``.npz`` (matrices as arrays, names and
     units as string arrays, the rest as JSON text under ``meta``)."""
-    from ..output import atomic_write, _jsonable
+    from ..output import _jsonable, atomic_write
 
     path = Path(path)
     data = _jsonable(to_dict(model))

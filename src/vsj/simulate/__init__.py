@@ -1,0 +1,37 @@
+"""One entry point to simulate a network: `simulate`.
+
+The model (a `vsj.network.Structure`), the solver (`vsj.engine`) and this
+driver are separate: `simulate` compiles the structure with the run's inputs
+and options, integrates, samples every signal on a uniform output grid, and
+returns a `Result` that says whether the run succeeded, how, and where energy
+went (`Result.ledger`).
+
+Two solvers:
+
+``dopri``
+    adaptive Dormand-Prince 5(4), for friction laws that are functions of
+    speed (viscous, arctan, sign, slope);
+``timestep``
+    fixed-step, linearly implicit, with exact Coulomb stiction impulses solved
+    jointly for every element at each step (`vsj.engine.timestep`); required
+    by the ``stiction`` law and usable with every other law.
+
+``solver="auto"`` picks ``timestep`` when any element uses ``stiction``.
+
+The package is laid out by job: `options` (how to run), `driver` (one run),
+`signals` (naming the samples), `ledger` (the energy balance), `checks`
+(judging a finished run), `batch` (many runs) and `result` (what they return).
+"""
+
+from .batch import simulate_batch
+from .checks import DIVERGED, INTO_STOP, judge, warnings_of
+from .driver import check_run_size, choose_solver, prepare, rigid_stops, simulate
+from .ledger import ledger
+from .options import LEDGER_TOLERANCE, RANGES, InitialState, SimulationOptions
+from .result import BatchResult, Result
+from .signals import collect, port_flows, state_names
+
+__all__ = ["BatchResult", "DIVERGED", "INTO_STOP", "InitialState", "LEDGER_TOLERANCE", "RANGES",
+           "Result", "SimulationOptions", "check_run_size", "choose_solver", "collect", "judge",
+           "ledger", "port_flows", "prepare", "rigid_stops", "simulate", "simulate_batch",
+           "state_names", "warnings_of"]

@@ -1,0 +1,101 @@
+"""Many runs of one model in one call, on every core (`simulate_batch`)."""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from typing import Mapping
+
+import numpy as np
+
+from ..engine import STATUS_TEXT, Engine, compile_model, core
+from ..errors import InputError
+from ..inputs import Input
+from ..network import Structure
+from .driver import _initial, choose_solver, prepare
+from .options import InitialState, SimulationOptions
+from .result import BatchResult
+from .signals import state_names
+
+#: Compiled arrays that a batch run may change: the rest are shared by every run.
+_PER_RUN = ("mass", "Minv", "par")
+
+
+def _same_topology(base, layout, model, layout_r, r: int) -> None:
+    """Refuse a batch structure that differs from the first in anything but the
+    per-run arrays (`_PER_RUN`): the batch engine would silently take the first
+    structure's connection matrices, laws, inputs or tables for it."""
+    if layout_r != layout:
+        raise InputError(f"simulate_batch: structure {r} differs in topology ({layout_r} "
+                         f"against {layout})")
+    for name in base._fields:
+        if name in _PER_RUN:
+            continue
+        a, b = np.asarray(getattr(base, name)), np.asarray(getattr(model, name))
+        if a.shape != b.shape or not np.array_equal(a, b):
+            raise InputError(f"simulate_batch: structure {r} differs from the first in "
+                             f"{name!r}; batch runs may differ only in inertias and element "
+                             f"parameters (run the others separately)")
+
+
+def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: float, *,
+                   initials: list[InitialState], options: SimulationOptions | None = None,
+                   structures: list[Structure] | None = None,
+                   threads: int | None = None) -> BatchResult:
+    """Run one model many times in parallel, on every core.
+
+    Each run starts from its own `InitialState` (a sweep over the pivot
+    position, say); with ``structures`` (one per run, same topology) the runs
+    may also differ in every parameter. All runs share inputs, duration and
+    options. Only the states are integrated and sampled (no energy ledger); use
+    `BatchResult.angle` and `speed`. ``threads`` (default: every core) share
+    the runs; the results do not depend on their number.
+    """
+    options = options or SimulationOptions()
+    if not initials:
+        raise InputError("simulate_batch needs at least one initial state")
+    if structures is not None and len(structures) != len(initials):
+        raise InputError(f"simulate_batch: {len(structures)} structures for {len(initials)} runs")
+    solver = choose_solver(structure, options)
+    base, layout, _ = prepare(structure, inputs, duration, options, InitialState())
+    engine = Engine(base)
+    u0 = engine.source_speeds(0.0)
+    runs = len(initials)
+    n_state = layout.n_state
+    # dopri integrates the state only: batch runs keep no ledger, and the engine
+    # then skips the elements that only the sources feel; the time-stepper's
+    # vector keeps room for the accumulators, which batch runs leave unbooked
+    y0s = np.zeros((runs, n_state if solver == "dopri" else n_state + layout.n_acc))
+    src0s = np.zeros((runs, layout.n_sources))
+    masses = np.repeat(base.mass[None], runs, axis=0)
+    Minvs = np.repeat(base.Minv[None], runs, axis=0)
+    pars = np.repeat(base.par[None], runs, axis=0)
+    for r, initial in enumerate(initials):
+        struct_r = structure if structures is None else structures[r]
+        if structures is not None:
+            m_r, layout_r = compile_model(struct_r, inputs, duration, friction=options.friction,
+                                          friction_overrides=options.friction_overrides,
+                                          slope_width=options.slope_width)
+            _same_topology(base, layout, m_r, layout_r, r)
+            masses[r], Minvs[r], pars[r] = m_r.mass, m_r.Minv, m_r.par
+        x0, v0, sigma0, currents = _initial(struct_r, inputs, initial, u0)
+        y0s[r, :n_state] = np.concatenate([x0, v0, currents])
+        src0s[r] = sigma0
+    step = options.output_step
+    n_out = int(math.floor(duration / step + 1e-9)) + 1
+    t_out = np.arange(n_out) * step
+    started = _time.perf_counter()
+    outs, y_end, status, t_stop, steps, flips = core.run_batch(
+        solver, engine, masses, Minvs, pars, src0s, y0s, duration, t_out, rtol=options.rtol,
+        atol=options.atol, h_max=options.max_step, max_steps=options.max_steps, h=options.step,
+        threads=threads)
+    wall = _time.perf_counter() - started
+    messages = [STATUS_TEXT[int(s)] if s == core.OK else
+                f"{STATUS_TEXT[int(s)]} at t = {t_stop[r]:.6g} s" for r, s in enumerate(status)]
+    sigma, speeds = engine.source_signals(t_out)
+    return BatchResult(time=t_out, states=outs, state_names=state_names(structure),
+                       success=status == core.OK, messages=messages, stop_time=t_stop,
+                       steps=steps, transitions=flips, wall_time=wall, solver=solver,
+                       structure=structure,
+                       source_angles=sigma[None, :, :] + (src0s - base.src_pos0)[:, None, :],
+                       source_speeds=speeds)

@@ -1,0 +1,103 @@
+"""What runs return: `Result` (one run, named signals with units) and
+`BatchResult` (many runs of one model, their states)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..network import Structure
+
+
+@dataclass
+class Result:
+    """Trajectory of every signal, energy ledger and solver report of one run."""
+
+    time: np.ndarray
+    signals: dict[str, np.ndarray]
+    units: dict[str, str]
+    ledger: dict
+    success: bool
+    message: str
+    solver: dict
+    transitions: dict[str, int] = field(default_factory=dict)
+    #: Where the run left what the parameter set describes (it still succeeded).
+    warnings: list[str] = field(default_factory=list)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        try:
+            return self.signals[name]
+        except KeyError:
+            raise KeyError(f"no signal {name!r}; signals include "
+                           f"{', '.join(list(self.signals)[:12])}, ...") from None
+
+    def columns(self) -> list[str]:
+        return list(self.signals)
+
+    def to_xarray(self):
+        """The run as an `xarray.Dataset`: one variable per signal over ``time`` [s],
+        each with its unit (``units``, as CF names it); the run's success, message
+        and solver as attributes."""
+        import xarray as xr
+
+        from . import __version__
+
+        data = {name: ("time", values, {"units": self.units[name]})
+                for name, values in self.signals.items()}
+        ds = xr.Dataset(data, coords={"time": ("time", self.time, {"units": "s"})})
+        ds.attrs.update(success=int(self.success), message=self.message,
+                        solver=str(self.solver.get("name", "")),
+                        steps=int(self.solver.get("steps", 0)), vsj_version=__version__)
+        return ds
+
+    def summary(self) -> str:
+        lines = [f"{'success' if self.success else 'FAILED'}: {self.message}",
+                 f"solver {self.solver['name']}: {self.solver['steps']} steps in "
+                 f"{self.solver['wall_time']:.3f} s"]
+        led = self.ledger
+        if led:
+            lines.append(f"energy ledger: work in {led['total_in']:.6g} J = stored "
+                         f"{led['total_stored']:.6g} J + dissipated {led['total_dissipated']:.6g} J"
+                         f" + residual {led['residual']:.3g} J "
+                         f"({led['relative_residual']:.2g} of the energy in play)")
+        if self.transitions:
+            lines.append(f"stick/slip transitions: {sum(self.transitions.values())}")
+        lines += [f"warning: {text}" for text in self.warnings]
+        return "\n".join(lines)
+
+
+@dataclass
+class BatchResult:
+    """States of many runs of one model, sampled on a common grid.
+
+    ``states[r, k]`` is the state vector (angles, speeds, currents; see
+    ``state_names``) of run ``r`` at ``time[k]``; `angle` and `speed` give any
+    flange of the network for all runs.
+    """
+
+    time: np.ndarray
+    states: np.ndarray
+    state_names: list[str]
+    success: np.ndarray
+    messages: list[str]
+    stop_time: np.ndarray
+    steps: np.ndarray
+    transitions: np.ndarray
+    wall_time: float
+    solver: str
+    structure: Structure = field(repr=False)
+    source_angles: np.ndarray = field(repr=False)
+    source_speeds: np.ndarray = field(repr=False)
+
+    def angle(self, flange: str) -> np.ndarray:
+        """Angle [rad] of a flange, shape (runs, samples)."""
+        rx, ru = self.structure.rows(flange)
+        n = self.structure.n
+        return self.states[:, :, :n] @ rx + self.source_angles @ ru
+
+    def speed(self, flange: str) -> np.ndarray:
+        """Speed [rad/s] of a flange, shape (runs, samples)."""
+        rx, ru = self.structure.rows(flange)
+        n = self.structure.n
+        return self.states[:, :, n:2 * n] @ rx + (self.source_speeds @ ru)[None, :]
