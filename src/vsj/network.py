@@ -211,6 +211,19 @@ class Component:
         return f"{self.name}{SEPARATOR}{local}"
 
     def parts(self) -> Parts:
+        """What this component adds to a network (the extension point of `Component`).
+
+        Return a fresh `Parts` every call. Flanges are named with `port` (for
+        the ports in ``ports``, which other components connect to) or `node`
+        (internal ones); every flange an element refers to must be listed in
+        ``flanges``. Inertias add up where several components give one to the
+        same flange. Element names (frictions, springs, ...) should start with
+        the component's name, since they name the signals of a run
+        (``friction.<name>.torque``). Relations between flange speeds go in
+        ``constraints``; ``priority`` says which flanges a component prefers
+        as states (higher: more likely free). Parameters are checked in the
+        constructor, so that ``parts`` cannot fail.
+        """
         raise NotImplementedError
 
     def __repr__(self) -> str:
@@ -235,6 +248,28 @@ class Network:
             self.components.append(c)
         return self
 
+    def replace(self, component: Component) -> "Network":
+        """Put ``component`` in place of the sub-model of the same name.
+
+        The connections stay as they are, so the new component must offer
+        every port they use (a custom elastic element named ``vsm_1`` with a
+        ``ring`` port, say). Returns the network, for chaining.
+        """
+        names = [c.name for c in self.components]
+        if component.name not in names:
+            raise InputError(f"network {self.name!r} has no component {component.name!r} to "
+                             f"replace; its components are {', '.join(names)}")
+        used = {flange.split(SEPARATOR, 1)[1] for pair in self.connections for flange in pair
+                if flange.split(SEPARATOR, 1)[0] == component.name}
+        missing = sorted(used - set(component.ports))
+        if missing:
+            raise InputError(f"{type(component).__name__} {component.name!r} cannot replace the "
+                             f"{type(self.components[names.index(component.name)]).__name__}: "
+                             f"the network connects its port(s) {', '.join(missing)}, which it "
+                             f"lacks (its ports: {', '.join(component.ports) or 'none'})")
+        self.components[names.index(component.name)] = component
+        return self
+
     def connect(self, a: str, b: str) -> "Network":
         """Join two flanges rigidly (common speed, report section 3.1)."""
         self.connections.append((a, b))
@@ -253,6 +288,10 @@ class Network:
         return total
 
     def assemble(self) -> "Structure":
+        """The network's `Structure`: every component's parts collected and the rigid
+        constraints eliminated once (`Structure.build`). Raises `InputError` for a
+        network the engine cannot run (an unknown flange, a degree of freedom
+        without inertia, over-determined sources)."""
         return Structure.build(self.name, self.parts(), self.connections)
 
 
@@ -380,6 +419,14 @@ class Structure:
 
     @classmethod
     def build(cls, name: str, parts: Parts, connections) -> "Structure":
+        """Eliminate the rigid constraints of ``parts`` plus ``connections`` (pairs of
+        flanges) into ``omega = A v + B u`` and collect every element's row.
+
+        Free flanges are chosen by ``parts.priority`` (sources never are); a
+        spring-weighted offset keeps the free coordinates as small as the
+        deflections (`_rigid_motion`). The result is immutable in use: the
+        engine compiles it (`vsj.engine.compile_model`) once per run.
+        """
         nodes, constraints, C = kinematics(parts, connections)
         index = {n: i for i, n in enumerate(nodes)}
         rows = list(C)
