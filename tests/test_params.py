@@ -5,6 +5,7 @@ from pathlib import Path
 import pytest
 
 from vsj import params as params_module
+from vsj.errors import InputError
 from vsj.cli import main
 
 DEFAULT = Path(params_module._bundled(params_module.DEFAULT_FILE)).read_text()
@@ -91,3 +92,40 @@ def test_round_trip_through_toml(params):
     for key, value in params.values.items():
         assert again[key] == pytest.approx(value, rel=1e-9)
         assert again.sources[key] == params.sources[key]
+
+
+def test_a_three_line_file_extends_the_bundled_set(tmp_path):
+    file = tmp_path / "mine.toml"
+    file.write_text('extends = "second_prototype"\n[transmission]\n'
+                    'stiction = { value = "0.004 N m", source = "my bench" }\n')
+    mine, base = params_module.load(file), params_module.default()
+    assert mine["transmission.stiction"] == pytest.approx(0.004)
+    assert mine.sources["transmission.stiction"] == "my bench"
+    changed = {k for k in base.values if mine.values[k] != base.values[k]}
+    assert changed == {"transmission.stiction"}
+    # a file can extend a file, relative to itself
+    (tmp_path / "sub").mkdir()
+    child = tmp_path / "sub" / "child.toml"
+    child.write_text('extends = "../mine.toml"\n[differential]\n'
+                     'inertia_x = { value = "1e-4 kg m^2", source = "CAD" }\n')
+    grand = params_module.load(child)
+    assert grand["transmission.stiction"] == pytest.approx(0.004)
+    assert grand["differential.inertia_x"] == pytest.approx(1e-4)
+
+
+def test_extends_names_the_nearest_key_and_refuses_cycles(tmp_path):
+    file = tmp_path / "typo.toml"
+    file.write_text('extends = "second_prototype"\n[transmission]\n'
+                    'stiktion = { value = "0.004 N m", source = "my bench" }\n')
+    with pytest.raises(InputError, match=r"transmission\.stiktion: unknown key \(did you mean "
+                                         r"'stiction'\?\)"):
+        params_module.load(file)
+    bad = tmp_path / "bad.toml"
+    bad.write_text('extends = "second_prototyp"\n')
+    with pytest.raises(InputError, match="did you mean 'second_prototype'"):
+        params_module.load(bad)
+    a, b = tmp_path / "a.toml", tmp_path / "b.toml"
+    a.write_text('extends = "b.toml"\n')
+    b.write_text('extends = "a.toml"\n')
+    with pytest.raises(InputError, match="cycle"):
+        params_module.load(a)

@@ -8,9 +8,17 @@ Values are parsed with their units and converted to SI on load (`vsj.units`),
 so ``"-1.45 1/cm"`` or ``"-0.4 cm"`` work as the report writes them. Loading
 checks everything against `SCHEMA` and reports *all* problems at once, each
 naming the file, the key, the value and what is allowed: unknown or missing
-keys, missing or wrong units, NaN, values outside physical bounds, and the
-relations between keys (the pivot range inside the ring, the lever longer than
-the pivot's reach).
+keys (with the nearest valid key), missing or wrong units, NaN, values outside
+physical bounds, and the relations between keys (the pivot range inside the
+ring, the lever longer than the pivot's reach).
+
+A file may start from another set and give only what changes::
+
+    extends = "second_prototype"      # a bundled set, or a file path
+    [transmission]
+    stiction = { value = "0.004 N m", source = "my bench, 2026-11" }
+
+Paths in ``extends`` are relative to the file that names them.
 
 Physical parameters live here; numerical knobs (tolerances, the slope width of
 the slope friction law) belong to `vsj.simulate.SimulationOptions`.
@@ -18,6 +26,7 @@ the slope friction law) belong to `vsj.simulate.SimulationOptions`.
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import json
 import math
@@ -249,6 +258,12 @@ class _Section:
         return self._params.values[full]
 
 
+def _nearest(name: str, choices) -> str:
+    """`` (did you mean 'x'?)`` for the closest of ``choices``, or nothing."""
+    close = difflib.get_close_matches(name, list(choices), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
 def _from_table(table: Mapping, origin: str) -> Parameters:
     problems: list[str] = []
     values: dict[str, float] = {}
@@ -271,8 +286,8 @@ def _from_table(table: Mapping, origin: str) -> Parameters:
                     meta[key] = str(text)
             continue
         if section not in SCHEMA:
-            problems.append(f"{origin}: unknown section [{section}]; sections: "
-                            f"{', '.join(SCHEMA)}")
+            problems.append(f"{origin}: unknown section [{section}]{_nearest(section, SCHEMA)}; "
+                            f"sections: {', '.join(SCHEMA)}")
             continue
         if not isinstance(body, Mapping):
             problems.append(f"{origin}: [{section}] must be a table")
@@ -281,8 +296,8 @@ def _from_table(table: Mapping, origin: str) -> Parameters:
             key = f"{section}.{name}"
             spec = SCHEMA[section].get(name)
             if spec is None:
-                problems.append(f"{origin}: {key}: unknown key; [{section}] has "
-                                f"{', '.join(SCHEMA[section])}")
+                problems.append(f"{origin}: {key}: unknown key{_nearest(name, SCHEMA[section])}; "
+                                f"[{section}] has {', '.join(SCHEMA[section])}")
                 continue
             if not isinstance(entry, Mapping) or "value" not in entry:
                 problems.append(f"{origin}: {key}: write it as {{ value = \"<number> <unit>\", "
@@ -355,19 +370,54 @@ def load(path: str | Path | None = None) -> Parameters:
     if path is None:
         file = _bundled(DEFAULT_FILE)
         origin = f"vsj default ({DEFAULT_FILE})"
-    else:
-        file = Path(path)
-        origin = str(path)
-    return loads(read_text(file, "parameter file"), origin)
+        return loads(read_text(file, "parameter file"), origin, base=file.parent)
+    file = Path(path)
+    return loads(read_text(file, "parameter file"), str(path), base=file.parent)
 
 
-def loads(text: str, origin: str = "<string>") -> Parameters:
-    """Parse parameter-file text; ``origin`` names it in messages."""
+def loads(text: str, origin: str = "<string>", *, base: Path | None = None) -> Parameters:
+    """Parse parameter-file text; ``origin`` names it in messages, and a relative
+    ``extends`` path is read from ``base`` (default: the working directory)."""
+    return _from_table(_table(text, origin, base or Path("."), ()), origin)
+
+
+def bundled_names() -> list[str]:
+    """The parameter sets that ship with vsj (names for ``extends``)."""
+    return sorted(p.stem for p in _bundled("").glob("*.toml"))
+
+
+def _table(text: str, origin: str, base: Path, chain: tuple[str, ...]) -> dict:
+    """The TOML table of a parameter file with what it ``extends`` merged beneath it."""
     try:
         table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{origin}: not valid TOML: {exc}") from None
-    return _from_table(table, origin)
+    parent = table.pop("extends", None)
+    if parent is None:
+        return table
+    if not isinstance(parent, str) or not parent.strip():
+        raise InputError(f"{origin}: extends must name a bundled parameter set "
+                         f"({', '.join(bundled_names())}) or a file, in quotes; got {parent!r}")
+    if parent in bundled_names():
+        file = _bundled(f"{parent}.toml")
+        name = f"bundled set {parent}"
+    else:
+        file = base / parent
+        if file.suffix != ".toml" and not file.exists():
+            raise InputError(f"{origin}: extends = {parent!r}: no such file, and not a bundled "
+                             f"parameter set ({', '.join(bundled_names())})"
+                             f"{_nearest(parent, bundled_names())}")
+        name = str(file)
+    key = str(file.resolve())
+    if key in chain:
+        raise InputError(f"{origin}: extends = {parent!r} makes a cycle of parameter files")
+    merged = _table(read_text(file, "parameter file"), name, file.parent, chain + (key,))
+    for section, body in table.items():
+        if isinstance(body, Mapping) and isinstance(merged.get(section), Mapping):
+            merged[section] = {**merged[section], **body}
+        else:
+            merged[section] = body
+    return merged
 
 
 def default() -> Parameters:
