@@ -9,10 +9,11 @@ import re
 
 import numpy as np
 import pytest
-
 from test_twin import hand_matrices
-from vsj import cli_control, datasheet
+
+from vsj import datasheet
 from vsj.characteristics import stiffness
+from vsj.cli import control as cli_control
 from vsj.errors import InputError
 from vsj.wrist import elastic_element
 

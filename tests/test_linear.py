@@ -14,10 +14,11 @@ import math
 import control
 import numpy as np
 import pytest
-
 from conftest import override
 from test_twin import K, hand_matrices
-from vsj import cli_control, linear
+
+from vsj import linear
+from vsj.cli import control as cli_control
 from vsj.errors import InputError, SimulationError
 from vsj.inputs import Constant, Table
 from vsj.simulate import InitialState, SimulationOptions, simulate

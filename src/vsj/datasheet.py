@@ -28,7 +28,6 @@ report's three measured stiffnesses) the datasheet says so in its notes.
 
 from __future__ import annotations
 
-import base64
 import html
 import io
 import json
@@ -38,7 +37,7 @@ from typing import Sequence
 
 import numpy as np
 
-from . import __version__
+from . import __version__, pages
 from . import linear as linear_models
 from .errors import InputError, SimulationError
 
@@ -451,14 +450,8 @@ def _png(fig, plt) -> bytes:
 # -- the page ---------------------------------------------------------------------------
 
 
-_CSS = """body{font-family:sans-serif;max-width:60em;margin:2em auto;color:#222}
-table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:.25em .6em;
-text-align:right}th{background:#eee}td.l,th.l{text-align:left}figure{margin:1.5em 0}
-figcaption{font-size:.9em;color:#444}img{max-width:100%}"""
-
-
 def html_page(sheet: dict, figs: dict[str, tuple[str, bytes]]) -> str:
-    """The datasheet as one self-contained HTML page."""
+    """The datasheet as one self-contained HTML page (`vsj.pages`)."""
     esc = html.escape
     rows = []
     for key, r in sheet["ratings"].items():
@@ -474,10 +467,7 @@ def html_page(sheet: dict, figs: dict[str, tuple[str, bytes]]) -> str:
             f"<td>{r['natural_frequencies'][0] / (2 * math.pi):.4g}</td>"
             f"<td>{slow['frequency'] / (2 * math.pi):.4g}</td><td>{slow['damping']:.3g}</td>"
             f"<td>{r['position_bandwidth'] / (2 * math.pi):.4g}</td></tr>")
-    parts = [
-        "<!DOCTYPE html>", "<html lang=en><head><meta charset=utf-8>",
-        f"<title>{esc(sheet['title'])}</title><style>{_CSS}</style></head><body>",
-        f"<h1>{esc(sheet['title'])}</h1>",
+    body = [
         f"<p>vsj {esc(sheet['vsj_version'])}, parameters {esc(sheet['parameters']['origin'])} "
         f"(hash {esc(sheet['parameters']['hash'][:12])}), elastic model "
         f"{esc(sheet['elastic_model'])}. In the spirit of Grioli et al. 2015, \"Variable "
@@ -491,15 +481,11 @@ def html_page(sheet: dict, figs: dict[str, tuple[str, bytes]]) -> str:
         "<th>position bandwidth [Hz]</th></tr>", *per_q, "</table>",
         "<h2>Figures</h2>",
     ]
-    for name, (caption, png) in figs.items():
-        data = base64.b64encode(png).decode("ascii")
-        parts.append(f"<figure id={esc(name)}><img alt=\"{esc(caption)}\" "
-                     f"src=\"data:image/png;base64,{data}\"><figcaption>{esc(caption)}"
-                     "</figcaption></figure>")
-    parts.append("<h2>Notes</h2><ul>")
-    parts += [f"<li>{esc(note)}</li>" for note in sheet["notes"]]
-    parts.append("</ul></body></html>")
-    return "\n".join(parts) + "\n"
+    body += [pages.figure(png, caption, anchor=name) for name, (caption, png) in figs.items()]
+    body.append("<h2>Notes</h2><ul>")
+    body += [f"<li>{esc(note)}</li>" for note in sheet["notes"]]
+    body.append("</ul>")
+    return pages.document(sheet["title"], body)
 
 
 def _finite(value: float) -> str:

@@ -52,7 +52,7 @@ def _png(fig) -> bytes:
 def html_page(fit, figures: dict[str, bytes]) -> str:
     """One self-contained page: estimates, identifiability, correlations, starts, fit
     quality and the figures."""
-    from ..datasheet import _CSS
+    from ..pages import STYLE as _CSS
 
     esc = html.escape
     rows = []

@@ -13,7 +13,6 @@ failed or interrupted run leaves the previous reproduction as it was.
 
 from __future__ import annotations
 
-import base64
 import html
 import json
 import math
@@ -22,6 +21,7 @@ import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .. import pages
 from ..params import Parameters
 from .base import (
     AGREEMENT,
@@ -254,20 +254,6 @@ def _by_category(rows: list[tuple[str, Row]], categories) -> str:
     return "".join(parts)
 
 
-STYLE = """
-body { font-family: sans-serif; max-width: 1150px; margin: 2em auto; color: #222; }
-table { border-collapse: collapse; font-size: 0.85em; margin: 0.5em 0 1.5em; }
-td, th { border: 1px solid #ccc; padding: 3px 6px; vertical-align: top; }
-th { background: #eee; }
-tr.differs td { background: #fdf1e6; }
-img { max-width: 100%; border: 1px solid #ddd; }
-.synthetic { background: #fff3cd; border: 1px solid #e0c060; padding: 2px 6px; }
-.error { background: #f8d7da; padding: 0.5em; }
-.headline { font-size: 1.1em; font-weight: bold; }
-figure { margin: 0 0 0.5em; }
-h3 { font-size: 1em; margin-bottom: 0.2em; }
-"""
-
 #: Why the reproduction differs where it does: the structural reasons behind the rows
 #: marked "differs", each detailed in the rows' explanations.
 WHY = (
@@ -316,10 +302,7 @@ def _summary(result: Reproduction) -> str:
 def render_html(result: Reproduction, params: Parameters) -> str:
     from .. import __version__
 
-    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>vsj: the report "
-             f"reproduced</title><style>{STYLE}</style></head><body>",
-             "<h1>The 2-DOF variable stiffness joint report, reproduced by vsj</h1>",
-             f"<p>vsj {html.escape(__version__)}, parameter set "
+    parts = [f"<p>vsj {html.escape(__version__)}, parameter set "
              f"'{html.escape(str(params.meta.get('name', params.origin)))}' (hash "
              f"{params.hash()[:12]}){' — reduced setting' if result.reduced else ''}. "
              "The report publishes no raw measurements: every figure marked "
@@ -334,10 +317,7 @@ def render_html(result: Reproduction, params: Parameters) -> str:
         if o.error is not None:
             parts.append(f"<p class='error'>This figure failed: {html.escape(o.error)}</p>")
             continue
-        tag = " <span class='synthetic'>synthetic data</span>" if o.figure.synthetic else ""
-        data = base64.b64encode(o.png).decode("ascii")
-        parts.append(f"<figure><img alt='{o.name}' src='data:image/png;base64,{data}'>"
-                     f"<figcaption>{html.escape(o.figure.caption)}{tag}</figcaption></figure>")
+        parts.append(pages.figure(o.png, o.figure.caption, synthetic=o.figure.synthetic))
         parts.append(_by_category([(o.name, r) for r in o.figure.rows],
                                   (PREDICTION, CALIBRATION, ROUND_TRIP)))
     inputs = [(w, r) for w, r in result.rows() if r.category == INPUT]
@@ -345,5 +325,4 @@ def render_html(result: Reproduction, params: Parameters) -> str:
                  "takes as they are (table 4.1 and the settings of the figures): they agree "
                  "by construction and are not counted.</p>"
                  + _table_html(inputs, with_figure=True))
-    parts.append("</body></html>")
-    return "\n".join(parts)
+    return pages.document("The 2-DOF variable stiffness joint report, reproduced by vsj", parts)

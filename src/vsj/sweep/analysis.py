@@ -157,7 +157,7 @@ def page(title: str, facts: list[tuple[str, str]], stats: list[list], figures: d
          method: str | None, rows: list[list], failures: list[tuple[int, str]]) -> str:
     """``summary.html``: facts, a table of each metric's statistics, the sensitivity
     table, the figures (embedded), the failed runs."""
-    from ..reproduce import STYLE  # one look for vsj's pages
+    from ..pages import STYLE  # one look for vsj's pages
 
     esc = html.escape
     parts = [(f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{esc(title)}</title>"

@@ -8,8 +8,8 @@ from pathlib import Path
 
 
 def cmd_sweep(args) -> int:
-    from . import sweep
-    from .errors import InputError
+    from .. import sweep
+    from ..errors import InputError
 
     if args.chunk is not None and args.chunk < 1:
         raise InputError(f"--chunk {args.chunk}: must be a whole number >= 1")
@@ -28,7 +28,7 @@ def cmd_sweep(args) -> int:
     print(f"{outcome.runs} runs ({outcome.ran} now, {outcome.failed} failed) in "
           f"{outcome.chunks} chunks, {outcome.seconds:.1f} s")
     if outcome.sensitivity:
-        from .sweep.analysis import header
+        from ..sweep.analysis import header
 
         head = header(outcome.method)
         print("  ".join(head))

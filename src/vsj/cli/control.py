@@ -17,17 +17,17 @@ import math
 import sys
 from pathlib import Path
 
-from .errors import InputError, SimulationError
+from ..errors import InputError, SimulationError
 
 
 def _params(path: str | None):
-    from . import params
+    from .. import params
 
     return params.load(path)
 
 
 def _quantity(text: str, unit: str, option: str) -> float:
-    from .units import to_si
+    from ..units import to_si
 
     value = to_si(text, unit, where=f"option {option}")
     if not math.isfinite(value):
@@ -46,7 +46,7 @@ def _names(text: str | None) -> list[str] | None:
 
 def _wrist_options(args):
     """WristOptions from the options `_add_wrist_arguments` adds."""
-    from .wrist import WristOptions
+    from ..wrist import WristOptions
 
     options = WristOptions(elastic=args.elastic, motors=args.motor_model,
                            pivot_drive=getattr(args, "pivot_drive", "velocity"),
@@ -72,8 +72,8 @@ def _add_wrist_arguments(p, elastic_models, drives, *, pivot_drive: bool = False
 
 
 def cmd_linearize(args) -> int:
-    from . import linear
-    from .output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
+    from .. import linear
+    from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
     if args.out is not None and Path(args.out).suffix not in (".json", ".npz"):
         raise InputError(f"--out {args.out}: a linear model is written to a .json or .npz file")
@@ -93,7 +93,7 @@ def cmd_linearize(args) -> int:
         with write_errors("--out", args.out):
             linear.save(model, Path(args.out))
     if args.json:
-        from .output import _jsonable
+        from ..output import _jsonable
 
         print(json.dumps(_jsonable(linear.to_dict(model)), indent=1))
         return 0
@@ -119,8 +119,8 @@ def cmd_linearize(args) -> int:
 
 
 def cmd_datasheet(args) -> int:
-    from . import datasheet
-    from .output import ResultSet
+    from .. import datasheet
+    from ..output import ResultSet
 
     params = _params(args.params)
     with ResultSet(Path(args.out), "datasheet", size=datasheet.OUTPUT_BYTES) as results:
@@ -135,9 +135,9 @@ def cmd_datasheet(args) -> int:
 
 
 def cmd_export_model(args) -> int:
-    from . import export
-    from .output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
-    from .simulate import InitialState, SimulationOptions
+    from .. import export
+    from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
+    from ..simulate import InitialState, SimulationOptions
 
     check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES)
     params = _params(args.params)
@@ -162,8 +162,8 @@ def cmd_export_model(args) -> int:
 
 
 def cmd_fmu(args) -> int:
-    from . import fmu
-    from .output import check_output_file
+    from .. import fmu
+    from ..output import check_output_file
 
     if Path(args.out).suffix != ".fmu":
         raise InputError(f"--out {args.out}: an FMU is written to a .fmu file")
@@ -189,8 +189,8 @@ def cmd_fmu(args) -> int:
 def register(sub) -> None:
     """Add ``linearize``, ``datasheet`` and ``export-model`` to the ``vsj`` command's
     subparsers."""
-    from .friction import LINEAR_TREATMENTS as FRICTION_TREATMENTS
-    from .wrist import DRIVES, ELASTIC_MODELS
+    from ..friction import LINEAR_TREATMENTS as FRICTION_TREATMENTS
+    from ..wrist import DRIVES, ELASTIC_MODELS
 
     p = sub.add_parser(
         "linearize", help="linear state-space model of the wrist around an operating point",
@@ -235,8 +235,8 @@ def register(sub) -> None:
                    help="elastic element model (default geometric)")
     p.set_defaults(func=cmd_datasheet)
 
-    from .friction import LAWS
-    from .stepper import METHODS
+    from ..friction import LAWS
+    from ..stepper import METHODS
 
     p = sub.add_parser(
         "export-model", help="write the wrist as a model file for the C engine (vsj.h)",

@@ -13,7 +13,7 @@ import math
 import sys
 from pathlib import Path
 
-from .errors import InputError
+from ..errors import InputError
 
 
 def _floats(text: str, count: int, what: str) -> tuple[float, ...]:
@@ -27,7 +27,7 @@ def _floats(text: str, count: int, what: str) -> tuple[float, ...]:
 
 
 def _params(path):
-    from . import params
+    from .. import params
 
     return params.load(path)
 
@@ -39,7 +39,7 @@ def _say(args, text: str) -> None:
 
 def _print_json(args, record: dict) -> None:
     if args.json:
-        from .output import _jsonable
+        from ..output import _jsonable
 
         print(json.dumps(_jsonable(record), indent=2))
 
@@ -47,7 +47,7 @@ def _print_json(args, record: dict) -> None:
 def _results(out: Path | None, kind: str, **options):
     """The `vsj.output.ResultSet` of ``--out DIR`` (entering it checks the directory, so
     enter it before the work), or, without ``--out``, a context that gives None."""
-    from .output import SMALL_OUTPUT_BYTES, ResultSet
+    from ..output import SMALL_OUTPUT_BYTES, ResultSet
 
     if out is None:
         return contextlib.nullcontext()
@@ -55,8 +55,8 @@ def _results(out: Path | None, kind: str, **options):
 
 
 def cmd_synth_friction(args) -> int:
-    from . import measurements, synth
-    from .output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
+    from .. import measurements, synth
+    from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
     check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES)
     if args.report:  # argparse has checked it is 'old' or 'second'
@@ -77,8 +77,8 @@ def cmd_synth_friction(args) -> int:
 def cmd_synth_stiffness(args) -> int:
     """One curve per pivot position: into a directory as one result set, or, for a single
     curve, into a ``.csv`` file."""
-    from . import measurements, synth
-    from .output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
+    from .. import measurements, synth
+    from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
     params = _params(args.params)
     bad = [q for q in args.q if not math.isfinite(q)]
@@ -112,11 +112,11 @@ def _out(args) -> Path | None:
 
 
 def cmd_fit_friction(args) -> int:
-    from . import measurements
-    from .identification.friction import fit_curve
-    from .identification.plots import friction_figure
-    from .output import write_meta
-    from .plots import save
+    from .. import measurements
+    from ..identification.friction import fit_curve
+    from ..identification.plots import friction_figure
+    from ..output import write_meta
+    from ..plots import save
 
     m = measurements.read(args.file, required=("velocity", "torque"))
     out = _out(args)
@@ -149,7 +149,7 @@ def cmd_fit_friction(args) -> int:
 
 
 def _write_params(path: str, overrides: dict, base: str | None) -> None:
-    from .output import atomic_write, write_errors
+    from ..output import atomic_write, write_errors
 
     params = _params(base)
     identified = params.with_overrides(overrides, origin=str(path))
@@ -158,19 +158,19 @@ def _write_params(path: str, overrides: dict, base: str | None) -> None:
 
 
 def _check_write_params(args) -> None:
-    from .output import SMALL_OUTPUT_BYTES, check_output_file
+    from ..output import SMALL_OUTPUT_BYTES, check_output_file
 
     if args.write_params:
         check_output_file(args.write_params, "--write-params", size=SMALL_OUTPUT_BYTES)
 
 
 def cmd_fit_planetary(args) -> int:
-    from . import measurements
-    from .identification.friction import fit_curve
-    from .identification.planetary import fit_planetary
-    from .identification.plots import planetary_figure
-    from .output import write_meta
-    from .plots import save
+    from .. import measurements
+    from ..identification.friction import fit_curve
+    from ..identification.planetary import fit_planetary
+    from ..identification.plots import planetary_figure
+    from ..output import write_meta
+    from ..plots import save
 
     sun_data = measurements.read(args.fixed_sun, required=("velocity", "torque"))
     ring_data = measurements.read(args.fixed_ring, required=("velocity", "torque"))
@@ -217,13 +217,13 @@ def cmd_fit_planetary(args) -> int:
 
 
 def cmd_fit_stiffness(args) -> int:
-    from . import characteristics as ch
-    from . import measurements
-    from .springs import GEOMETRIC, GEOMETRY_FIELDS
-    from .identification.plots import geometry_figure, stiffness_figure
-    from .identification.stiffness import fit_stiffness
-    from .output import write_meta
-    from .plots import save
+    from .. import characteristics as ch
+    from .. import measurements
+    from ..identification.plots import geometry_figure, stiffness_figure
+    from ..identification.stiffness import fit_stiffness
+    from ..output import write_meta
+    from ..plots import save
+    from ..springs import GEOMETRIC, GEOMETRY_FIELDS
 
     data = [measurements.read(f, required=("deflection", "torque")) for f in args.files]
     if args.write_params and len(data) < 4 and not args.calibrate_geometry:
@@ -236,8 +236,8 @@ def cmd_fit_stiffness(args) -> int:
         fit = fit_stiffness(data)
         record = fit.to_json()
         if args.calibrate_geometry:
-            from .identification.geometry import calibrate_to_curves
-            from .wrist import geometry
+            from ..identification.geometry import calibrate_to_curves
+            from ..wrist import geometry
 
             start = dict(zip(GEOMETRY_FIELDS, geometry(_params(args.params))))
             calibration = calibrate_to_curves(fit.curves, start)
@@ -304,7 +304,7 @@ def cmd_fit_stiffness(args) -> int:
 def _row(dims: dict, start: dict):
     import numpy as np
 
-    from .springs import GEOMETRY_FIELDS
+    from ..springs import GEOMETRY_FIELDS
 
     return np.array([dims.get(k, start.get(k)) for k in GEOMETRY_FIELDS])
 
@@ -315,8 +315,8 @@ def _row(dims: dict, start: dict):
 def _free(items) -> tuple[tuple[str, ...], dict]:
     """``--free NAME`` or ``NAME=LOW,HIGH`` (bounds in the parameter's display unit, as
     `vsj params` shows it) -> names and SI bounds."""
-    from .params import SCHEMA
-    from .units import to_si
+    from ..params import SCHEMA
+    from ..units import to_si
 
     names, bounds = [], {}
     for item in items:
@@ -341,7 +341,7 @@ def _setup_file(path) -> dict:
     (seconds as text with units)."""
     import tomllib
 
-    from .errors import read_text
+    from ..errors import read_text
 
     try:
         doc = tomllib.loads(read_text(path, "fit set-up file"))
@@ -359,12 +359,12 @@ def _setup_file(path) -> dict:
 
 
 def cmd_fit_wrist(args) -> int:
-    from . import measurements
-    from .identification import wrist_report
-    from .identification.wrist import fit_wrist
-    from .identification.wrist_model import Setup, all_known_columns, check_free
-    from .units import to_si
-    from .wrist import WristOptions
+    from .. import measurements
+    from ..identification import wrist_report
+    from ..identification.wrist import fit_wrist
+    from ..identification.wrist_model import Setup, all_known_columns, check_free
+    from ..units import to_si
+    from ..wrist import WristOptions
 
     setup_doc = _setup_file(args.setup) if args.setup else {}
     free_items = list(args.free or []) + list(setup_doc.get("free", []))
@@ -423,9 +423,9 @@ def cmd_fit_wrist(args) -> int:
 
 
 def cmd_synth_wrist(args) -> int:
-    from . import measurements, synth
-    from .identification import wrist_experiment
-    from .output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
+    from .. import measurements, synth
+    from ..identification import wrist_experiment
+    from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
     experiment = wrist_experiment.load(args.experiment)
     check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES)
@@ -437,18 +437,18 @@ def cmd_synth_wrist(args) -> int:
 
 
 def cmd_excite(args) -> int:
-    from .identification import wrist_experiment
-    from .output import (
+    from ..identification import wrist_experiment
+    from ..output import (
         SMALL_OUTPUT_BYTES,
         atomic_write,
         check_output_file,
         write_errors,
     )
-    from .units import to_si
+    from ..units import to_si
 
     names, _ = _free(args.free)
     params = _params(args.params)
-    from .identification.wrist_model import check_free
+    from ..identification.wrist_model import check_free
 
     check_free(names, params)
     duration = to_si(args.duration, "s", where="--duration")

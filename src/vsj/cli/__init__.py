@@ -9,11 +9,11 @@ import argparse
 import sys
 from pathlib import Path
 
-from .errors import InputError, SimulationError
+from ..errors import InputError, SimulationError
 
 
 def _params(path: str | None):
-    from . import params
+    from .. import params
 
     return params.load(path)
 
@@ -34,10 +34,18 @@ def cmd_params(args) -> int:
 
 
 def cmd_simulate(args) -> int:
-    from . import scenario as scenarios
-    from .output import (ResultSet, cases_dataset, parameters_record, signals_bound,
-                         trajectory_bytes, write_dataset, write_meta, write_trajectory)
-    from .progress import progress
+    from .. import scenario as scenarios
+    from ..output import (
+        ResultSet,
+        cases_dataset,
+        parameters_record,
+        signals_bound,
+        trajectory_bytes,
+        write_dataset,
+        write_meta,
+        write_trajectory,
+    )
+    from ..progress import progress
 
     params = _params(args.params)
     scen = scenarios.load(args.scenario)
@@ -67,7 +75,7 @@ def cmd_simulate(args) -> int:
         if args.csv:
             write_trajectory(results.path("trajectory.csv"), runs)
         if not args.no_plot:
-            from .plots import trajectory_figure
+            from ..plots import trajectory_figure
 
             trajectory_figure(runs, scen.cases[0].network, results.path("trajectory.png"),
                               title=f"{scen.name}: {scen.description}")
@@ -92,7 +100,7 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_scenarios(args) -> int:
-    from . import scenario as scenarios
+    from .. import scenario as scenarios
 
     for name in scenarios.builtin_names():
         scen = scenarios.load(name)
@@ -103,7 +111,7 @@ def cmd_scenarios(args) -> int:
 def cmd_reproduce(args) -> int:
     import time
 
-    from .reproduce import run
+    from ..reproduce import run
 
     params = _params(args.params)
     start = time.perf_counter()
@@ -123,7 +131,7 @@ def cmd_reproduce(args) -> int:
 
 
 def cmd_verify(args) -> int:
-    from .output import MANIFEST, read_manifest, verify
+    from ..output import MANIFEST, read_manifest, verify
 
     directory = Path(args.dir)
     if not directory.is_dir():
@@ -141,9 +149,9 @@ def cmd_verify(args) -> int:
 def cmd_msl(args) -> int:
     from dataclasses import asdict
 
-    from . import msl
-    from .output import ResultSet, cases_dataset, write_dataset, write_meta
-    from .units import to_si
+    from .. import msl
+    from ..output import ResultSet, cases_dataset, write_dataset, write_meta
+    from ..units import to_si
 
     if args.example not in msl.EXAMPLES:
         raise InputError(f"msl: unknown example {args.example!r}; allowed: "
@@ -180,7 +188,7 @@ def cmd_msl(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import __version__
+    from .. import __version__
 
     parser = argparse.ArgumentParser(
         prog="vsj", description="Model, simulate and characterise the 2-DOF variable "
@@ -229,11 +237,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plot", action="store_true", help="skip the PNG")
     p.set_defaults(func=cmd_msl)
 
-    from . import cli_control, cli_fit, cli_sweep
+    from . import control, fit, sweep
 
-    cli_fit.register(sub)
-    cli_control.register(sub)
-    cli_sweep.register(sub)
+    fit.register(sub)
+    control.register(sub)
+    sweep.register(sub)
     return parser
 
 
