@@ -91,3 +91,22 @@ def test_batch_results_do_not_depend_on_the_number_of_threads(params, friction):
     assert one.success.all() and two.success.all()
     assert np.array_equal(one.states, two.states)
     assert np.array_equal(one.transitions, two.transitions)
+
+
+def test_batch_signals_carry_the_names_and_units_of_a_single_run(params):
+    scen = scenarios.load("fig-4.15")
+    prep = scenarios.prepare_case(scen, scen.cases[0], params)
+    options = SimulationOptions(output_step=0.01)
+    qs = [-0.01, 0.005]
+    batch = simulate_batch(prep.structure, prep.inputs, 0.5,
+                           initials=[InitialState(q=q) for q in qs], options=options)
+    ds = batch.to_xarray()
+    single = simulate(prep.structure, prep.inputs, 0.5, initial=InitialState(q=qs[1]),
+                      options=options, ports=False)
+    for name in batch.columns():
+        assert name in single.signals, name
+        assert ds[name].attrs["units"] == single.units[name]
+        assert np.array_equal(ds[name].values[1], single[name])
+    assert "theta_x.speed" in batch.columns() and list(ds["success"].values) == [1, 1]
+    with pytest.raises(KeyError, match="no signal"):
+        batch["theta_z"]

@@ -141,12 +141,12 @@ def test_stiffness_change_through_the_dc_motor(params, written):
 
 def test_html_is_self_contained(written):
     sheet, page = written
-    images = re.findall(r'<img[^>]*src="([^"]+)"', page)
+    images = re.findall(r"<img[^>]*src=[\"']([^\"']+)[\"']", page)
     assert len(images) == 7
     for src in images:
         assert src.startswith("data:image/png;base64,")
         assert base64.b64decode(src.split(",", 1)[1])[:8] == b"\x89PNG\r\n\x1a\n"
-    assert not re.search(r'(src|href)="(https?:|//|file:)', page)
+    assert not re.search(r"(src|href)=[\"'](https?:|//|file:)", page)
     assert "<table>" in page and sheet["title"] in page
     for key in sheet["ratings"]:
         assert key.replace("_", " ") in page

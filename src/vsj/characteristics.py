@@ -14,8 +14,8 @@ import math
 import numpy as np
 from scipy.optimize import brentq
 
-from .springs import (GEOMETRIC, GEOMETRIC_REPORT, N_PARAMETERS, evaluate, extensions,
-                      geometry, shortest_extension)
+from .springs import (GEOMETRIC, GEOMETRIC_REPORT, N_PARAMETERS, end_stop, evaluate,
+                      extensions, geometry, shortest_extension)
 
 #: Deflection grid resolution used to search curves [rad].
 GRID = 2e-3
@@ -38,12 +38,24 @@ def spring_extensions(par, q: float, phi: float) -> tuple[float, float]:
     return extensions(phi, q, tuple(row[0]))
 
 
-def pretension_loss(par, q: float, limit: float = 1.40) -> float:
+def _limit(law: int, par, limit: float | None) -> float:
+    """``limit``, or by default the end stop of the law's parameter row."""
+    if limit is not None:
+        return float(limit)
+    stop = end_stop(law, np.pad(np.asarray(par, dtype=float), (0, N_PARAMETERS))[:N_PARAMETERS])
+    if stop is None:
+        raise ValueError("this spring law has no end stop: give the deflection limit")
+    return stop[0]
+
+
+def pretension_loss(par, q: float, limit: float | None = None) -> float:
     """Smallest positive deflection [rad] at which a spring goes slack, or ``inf``.
 
     Springs only pull; where one loses its pretension the torque-deflection
-    curve kinks (report fig 3.7, 4.11). Searched up to ``limit``.
+    curve kinks (report fig 3.7, 4.11). Searched up to ``limit`` (default: the
+    geometric row's end stop).
     """
+    limit = _limit(GEOMETRIC, par, limit)
     row = np.zeros((1, N_PARAMETERS))
     row[0, :len(par)] = par
     phis = np.arange(0.0, limit + GRID, GRID)
@@ -57,12 +69,14 @@ def pretension_loss(par, q: float, limit: float = 1.40) -> float:
     return brentq(lambda p: min(spring_extensions(par, q, p)), phis[i - 1], phis[i], xtol=1e-9)
 
 
-def deflection_under(law: int, par, q: float, torque: float, limit: float = 1.40) -> float:
+def deflection_under(law: int, par, q: float, torque: float,
+                     limit: float | None = None) -> float:
     """Deflection [rad] where the restoring torque first reaches ``torque``.
 
-    Returns ``limit`` (the end stop) when the element cannot hold that torque
-    before it (report fig 3.5).
+    Returns ``limit`` (default: the law's end stop) when the element cannot
+    hold that torque before it (report fig 3.5).
     """
+    limit = _limit(law, par, limit)
     phis = np.arange(0.0, limit + GRID, GRID)
     tau = torque_curve(law, par, q, phis)
     above = np.flatnonzero(tau >= torque)
@@ -75,8 +89,8 @@ def deflection_under(law: int, par, q: float, torque: float, limit: float = 1.40
                   xtol=1e-9)
 
 
-def nonlinearity(law: int, par, q: float, max_torque: float = 1.0, limit: float = 1.40,
-                 points: int = 400) -> float:
+def nonlinearity(law: int, par, q: float, max_torque: float = 1.0,
+                 limit: float | None = None, points: int = 400) -> float:
     """Relative RMS between the torque curve and its small-deflection tangent (fig 3.6).
 
     Evaluated over ``0 <= phi <= phi_max`` with ``phi_max`` the deflection

@@ -44,6 +44,10 @@ STICTION = 4
 LAWS = {"viscous": VISCOUS, "arctan": ARCTAN, "sign": SIGN, "slope": SLOPE, "stiction": STICTION}
 LAW_NAMES = {code: name for name, code in LAWS.items()}
 
+#: Arctan sharpness k_b [s/rad] of an element built without one (a component used
+#: outside a parameter set; the wrist takes friction.arctan_sharpness from its set).
+DEFAULT_SHARPNESS = 10.0
+
 #: Column order of a friction element's parameter row.
 PARAMETERS = ("viscous", "stiction", "sharpness", "width")
 

@@ -33,6 +33,7 @@ import numpy as np
 
 from .errors import InputError
 from .ports import SEPARATOR
+from .friction import DEFAULT_SHARPNESS
 from .springs import spring_law
 
 #: Priority of flanges driven by a source or fixed to the ground: never free.
@@ -72,7 +73,7 @@ class Friction:
     speed: Mapping[str, float]
     viscous: float = 0.0
     stiction: float = 0.0
-    sharpness: float = 10.0
+    sharpness: float = DEFAULT_SHARPNESS
     law: str | None = None
     peak: float = 1.0
     normal: str | None = None
@@ -175,6 +176,39 @@ class Parts:
     signals: list[Signal] = field(default_factory=list)
     priority: dict[str, int] = field(default_factory=dict)
 
+    def embedded(self, flanges: Mapping[str, str], prefix: str) -> "Parts":
+        """These parts as a piece of a larger component: every flange renamed through
+        ``flanges`` (names not in it get ``prefix``), every element and constraint
+        name prefixed with ``prefix``; the flange priorities are dropped (the
+        larger component states its own)."""
+        def fl(name: str) -> str:
+            return flanges.get(name, f"{prefix}{name}")
+
+        def over(mapping: Mapping[str, float]) -> dict[str, float]:
+            out: dict[str, float] = {}
+            for name, value in mapping.items():
+                out[fl(name)] = out.get(fl(name), 0.0) + value
+            return out
+
+        rename = dataclasses.replace
+        return Parts(
+            flanges=[fl(f) for f in self.flanges],
+            inertia=over(self.inertia),
+            constraints=[Constraint(prefix + c.name, over(c.coefficients))
+                         for c in self.constraints],
+            frictions=[rename(f, name=prefix + f.name, speed=over(f.speed))
+                       for f in self.frictions],
+            springs=[rename(s, name=prefix + s.name, deflection=over(s.deflection))
+                     for s in self.springs],
+            sources=[rename(s, name=prefix + s.name, flange=fl(s.flange)) for s in self.sources],
+            loads=[rename(ld, name=prefix + ld.name, flange=fl(ld.flange)) for ld in self.loads],
+            motors=[rename(m, name=prefix + m.name, flange=fl(m.flange)) for m in self.motors],
+            pivots=[rename(pv, flange=None if pv.flange is None else fl(pv.flange))
+                    for pv in self.pivots],
+            signals=[rename(sg, name=prefix + sg.name, flange=fl(sg.flange))
+                     for sg in self.signals],
+        )
+
     def merge(self, other: "Parts") -> "Parts":
         for f in dataclasses.fields(self):
             mine = getattr(self, f.name)
@@ -209,6 +243,23 @@ class Component:
     def node(self, local: str) -> str:
         """Full name of a flange of this component (a port or an internal one)."""
         return f"{self.name}{SEPARATOR}{local}"
+
+    def embed(self, child: "Component", **ports: str) -> Parts:
+        """The parts of ``child`` as a piece of this component (composition, as
+        MSL's ``Gearbox`` is a ``LossyGear`` plus an ``ElastoBacklash``).
+
+        ``ports`` joins each named port of the child to a flange of this one
+        (``sun="pg_1.sun"``); the child's other flanges become internal nodes of
+        this component, and its elements are named ``<this>.<child's name>``
+        (a `Bearing` called ``bearing_sun`` in ``pg_1`` gives the friction
+        element ``pg_1.bearing_sun``).
+        """
+        unknown = sorted(set(ports) - set(child.ports))
+        if unknown:
+            raise ValueError(f"{self.name}: {type(child).__name__} {child.name!r} has no port(s) "
+                             f"{', '.join(unknown)}; ports: {', '.join(child.ports)}")
+        joined = {child.port(port): flange for port, flange in ports.items()}
+        return child.parts().embedded(joined, f"{self.name}{SEPARATOR}")
 
     def parts(self) -> Parts:
         """What this component adds to a network (the extension point of `Component`).

@@ -187,6 +187,12 @@ class Parameters:
         except KeyError:
             raise KeyError(f"no parameter {key!r}") from None
 
+    def values_of(self, section: str) -> dict[str, float]:
+        """The SI values of one section, keyed by their names within it."""
+        if section not in SCHEMA:
+            raise KeyError(f"no parameter section {section!r}")
+        return {name: self.values[f"{section}.{name}"] for name in SCHEMA[section]}
+
     def section(self, name: str) -> "_Section":
         if name not in SCHEMA:
             raise KeyError(f"no parameter section {name!r}")

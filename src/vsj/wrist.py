@@ -90,18 +90,13 @@ def elastic_element(name: str, params: Parameters, model: str,
                           friction_peak=params.friction.peak)
 
 
-def planetary(name: str, params: Parameters) -> PlanetaryGearModule:
-    pg = params.planetary
-    return PlanetaryGearModule(
-        name, sun_teeth=pg.sun_teeth, ring_teeth=pg.ring_teeth, sun_inertia=pg.sun_inertia,
-        ring_inertia=pg.ring_inertia, carrier_inertia=pg.carrier_inertia,
-        sun_bearing_viscous=pg.sun_bearing_viscous, sun_bearing_stiction=pg.sun_bearing_stiction,
-        ring_bearing_viscous=pg.ring_bearing_viscous,
-        ring_bearing_stiction=pg.ring_bearing_stiction,
-        carrier_bearing_viscous=pg.carrier_bearing_viscous,
-        carrier_bearing_stiction=pg.carrier_bearing_stiction, mesh_stiction=pg.mesh_stiction,
-        mesh_sharpness=pg.mesh_sharpness, bearing_sharpness=params.friction.arctan_sharpness,
-        peak=params.friction.peak)
+def planetary(name: str, params: Parameters, *,
+              mesh_relation: str = "printed") -> PlanetaryGearModule:
+    """The planetary module of a parameter set (its ``[planetary]`` section as named
+    there; bearings take the set's arctan sharpness and breakaway peak)."""
+    return PlanetaryGearModule.from_values(
+        name, params.values_of("planetary"), bearing_sharpness=params.friction.arctan_sharpness,
+        peak=params.friction.peak, mesh_relation=mesh_relation)
 
 
 def motor(name: str, params: Parameters, drive: str, channel: str):

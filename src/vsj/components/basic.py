@@ -19,6 +19,7 @@ from ..network import (
     Source,
     Spring,
 )
+from ..friction import DEFAULT_SHARPNESS
 from ..springs import LINEAR, N_PARAMETERS
 from ._values import _peak, _positive
 
@@ -113,7 +114,7 @@ class Bearing(Component):
     ports = ("flange",)
 
     def __init__(self, name: str, *, viscous: float = 0.0, stiction: float = 0.0,
-                 sharpness: float = 10.0, peak: float = 1.0):
+                 sharpness: float = DEFAULT_SHARPNESS, peak: float = 1.0):
         super().__init__(name)
         self.viscous = _positive(f"viscous friction of {name}", viscous)
         self.stiction = _positive(f"stiction of {name}", stiction)
@@ -125,6 +126,28 @@ class Bearing(Component):
         return Parts(flanges=[f], frictions=[Friction(self.name, {f: 1.0}, self.viscous,
                                                       self.stiction, self.sharpness,
                                                       peak=self.peak)])
+
+
+class SlipFriction(Component):
+    """Friction on the slip ``omega_a - omega_b`` between two flanges (a gear mesh, a
+    sliding contact): viscous [N m s/rad], stiction parameter ``k`` [N m] and arctan
+    sharpness [s/rad], as `Bearing` has against the ground."""
+
+    ports = ("a", "b")
+
+    def __init__(self, name: str, *, viscous: float = 0.0, stiction: float = 0.0,
+                 sharpness: float = DEFAULT_SHARPNESS, peak: float = 1.0):
+        super().__init__(name)
+        self.viscous = _positive(f"viscous friction of {name}", viscous)
+        self.stiction = _positive(f"stiction of {name}", stiction)
+        self.sharpness = _positive(f"arctan sharpness of {name}", sharpness, allow_zero=False)
+        self.peak = _peak(name, peak)
+
+    def parts(self) -> Parts:
+        a, b = self.port("a"), self.port("b")
+        return Parts(flanges=[a, b], frictions=[Friction(self.name, {a: 1.0, b: -1.0},
+                                                         self.viscous, self.stiction,
+                                                         self.sharpness, peak=self.peak)])
 
 
 class SpringDamper(Component):

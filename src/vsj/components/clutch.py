@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from typing import Sequence
 
+from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Friction, Parts
 from ._values import _peak, _positive
 
@@ -52,7 +53,7 @@ class _NormalForceFriction(Component):
 
     def __init__(self, name: str, *, fn_max: float, mu: float | Sequence = 0.5,
                  peak: float = 1.0, cgeo: float = 1.0, channel: str | None = None,
-                 sharpness: float = 10.0):
+                 sharpness: float = DEFAULT_SHARPNESS):
         super().__init__(name)
         self.fn_max = _positive(f"fn_max of {name}", fn_max)
         self.cgeo = _positive(f"cgeo of {name}", cgeo, allow_zero=False)

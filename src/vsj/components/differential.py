@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Constraint, Friction, Parts
 from ._values import _peak, _positive
 
@@ -27,7 +28,7 @@ class Differential(Component):
     ports = ("input_1", "input_2", "theta_x", "theta_y")
 
     def __init__(self, name: str, *, inertia_x: float = 0.0, inertia_y: float = 0.0,
-                 viscous: float = 0.0, stiction: float = 0.0, sharpness: float = 10.0,
+                 viscous: float = 0.0, stiction: float = 0.0, sharpness: float = DEFAULT_SHARPNESS,
                  peak: float = 1.0):
         super().__init__(name)
         self.peak = _peak(name, peak)

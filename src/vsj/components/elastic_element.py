@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Friction, Parts, Spring
 from ..springs import (
     EXPONENTIAL,
@@ -45,7 +46,7 @@ class ElasticElement(Component):
 
     def __init__(self, name: str, *, model: str, geometry=None, exponential=None,
                  stiffness: float | None = None, friction_viscous: float = 0.0,
-                 friction_stiction: float = 0.0, friction_sharpness: float = 10.0,
+                 friction_stiction: float = 0.0, friction_sharpness: float = DEFAULT_SHARPNESS,
                  friction_peak: float = 1.0, initial_tension: float = 0.0):
         super().__init__(name)
         self.friction_peak = _peak(name, friction_peak)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 
+from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Constraint, Friction, Parts, Pivot
 from ._values import _peak, _positive
 
@@ -25,7 +26,7 @@ class PivotMechanism(Component):
     ports = ("input",)
 
     def __init__(self, name: str, *, ratio: float, amplitude: float, inertia: float = 0.0,
-                 viscous: float = 0.0, stiction: float = 0.0, sharpness: float = 10.0,
+                 viscous: float = 0.0, stiction: float = 0.0, sharpness: float = DEFAULT_SHARPNESS,
                  peak: float = 1.0, q_min: float | None = None, q_max: float | None = None):
         super().__init__(name)
         self.peak = _peak(name, peak)

@@ -46,11 +46,13 @@ atan(k_b1 w / x)`` or ``(2 k_1 / x) atan(k_b1 w / x)`` (eq 3.29).
 from __future__ import annotations
 
 import math
+from typing import Mapping
 
 import numpy as np
 
-from ..network import Component, Constraint, Friction, Parts
-from ._values import _peak, _positive
+from ..friction import DEFAULT_SHARPNESS
+from ..network import Component, Constraint, Parts
+from .basic import Bearing, Inertia, SlipFriction
 
 #: Relations of eq 3.27 between the sun mesh's friction constants (k_1, k_b1) and the
 #: ring mesh's (k_a2, k_b2), as functions of x = N_S/N_R: (k_a2 / k_1, k_b2 / k_b1).
@@ -103,75 +105,102 @@ class IdealPlanetary(Component):
                      priority={c: 1})
 
 
-class PlanetaryGearModule(IdealPlanetary):
-    """A planetary gear set with inertias, mesh friction and bearing friction.
+#: The module's named values (as in the ``[planetary]`` section of a parameter file):
+#: the flange and the part each one sets.
+PORTS = ("sun", "ring", "carrier")
 
-    Parameters are SI: inertias [kg m^2], viscous coefficients [N m s/rad],
-    stiction parameters ``k`` [N m] (Coulomb level ``k pi/2``), the mesh arctan
-    sharpness ``k_b1`` [s/rad]. ``mesh_relation`` picks eq 3.27 as printed
-    (``"printed"``, the default) or the equal-force relation (``"equal-force"``);
-    see the module docstring.
+
+class PlanetaryGearModule(Component):
+    """A planetary gear set with inertias, mesh friction and bearing friction, built
+    by composition (fig 3.10): the `IdealPlanetary`, an `Inertia` and a `Bearing`
+    on each of sun, ring and carrier, and the sun mesh's `SlipFriction`; the ring
+    mesh follows from the sun mesh by eq 3.27 (``mesh_relation``, see the module
+    docstring). ``inertia`` and ``bearings`` are keyed by port; a port left out
+    has none. `from_values` builds it from a parameter section's names.
     """
 
+    ports = PORTS
+
     def __init__(self, name: str, *, sun_teeth: float, ring_teeth: float,
-                 sun_inertia: float = 0.0, ring_inertia: float = 0.0,
-                 carrier_inertia: float = 0.0,
-                 sun_bearing_viscous: float = 0.0, sun_bearing_stiction: float = 0.0,
-                 ring_bearing_viscous: float = 0.0, ring_bearing_stiction: float = 0.0,
-                 carrier_bearing_viscous: float = 0.0, carrier_bearing_stiction: float = 0.0,
-                 mesh_stiction: float = 0.0, mesh_sharpness: float = 10.0,
-                 bearing_sharpness: float | None = None, peak: float = 1.0,
-                 mesh_relation: str = "printed"):
-        super().__init__(name, sun_teeth, ring_teeth)
+                 inertia: Mapping[str, float] | None = None,
+                 bearings: Mapping[str, Bearing] | None = None,
+                 mesh: SlipFriction | None = None, mesh_relation: str = "printed"):
+        super().__init__(name)
+        self.gears = IdealPlanetary("gears", sun_teeth, ring_teeth)
         if mesh_relation not in MESH_RELATIONS:
             raise ValueError(f"{name}: mesh_relation must be one of "
                              f"{', '.join(MESH_RELATIONS)}, got {mesh_relation!r}")
         self.mesh_relation = mesh_relation
-        self.peak = _peak(name, peak)
-        values = dict(
-            sun_inertia=sun_inertia, ring_inertia=ring_inertia, carrier_inertia=carrier_inertia,
-            sun_bearing_viscous=sun_bearing_viscous, sun_bearing_stiction=sun_bearing_stiction,
-            ring_bearing_viscous=ring_bearing_viscous,
-            ring_bearing_stiction=ring_bearing_stiction,
-            carrier_bearing_viscous=carrier_bearing_viscous,
-            carrier_bearing_stiction=carrier_bearing_stiction, mesh_stiction=mesh_stiction)
-        for key, value in values.items():
-            setattr(self, key, _positive(f"{name}: {key}", value))
-        self.mesh_sharpness = _positive(f"{name}: mesh_sharpness", mesh_sharpness,
-                                        allow_zero=False)
-        self.bearing_sharpness = (self.mesh_sharpness if bearing_sharpness is None
-                                  else _positive(f"{name}: bearing_sharpness", bearing_sharpness,
-                                                 allow_zero=False))
+        for what, given in (("inertia", inertia or {}), ("bearings", bearings or {})):
+            unknown = sorted(set(given) - set(PORTS))
+            if unknown:
+                raise ValueError(f"{name}: {what} keyed by unknown port(s) "
+                                 f"{', '.join(unknown)}; ports: {', '.join(PORTS)}")
+        self.inertias = {port: Inertia(f"{port}_inertia", value)
+                         for port, value in (inertia or {}).items()}
+        self.bearings = dict(bearings or {})
+        self.mesh = mesh if mesh is not None else SlipFriction("mesh_sun")
+
+    @classmethod
+    def from_values(cls, name: str, values: Mapping[str, float], *,
+                    bearing_sharpness: float | None = None, peak: float = 1.0,
+                    mesh_relation: str = "printed") -> "PlanetaryGearModule":
+        """The module from values named as in a parameter file's ``[planetary]``
+        section (``sun_teeth``, ``ring_inertia``, ``carrier_bearing_stiction``,
+        ``mesh_sharpness``, ...; absent ones are zero, teeth are required).
+        Bearings take ``bearing_sharpness`` (default: the mesh's)."""
+        known = {"sun_teeth", "ring_teeth", "mesh_stiction", "mesh_sharpness"} | {
+            f"{port}_{what}" for port in PORTS
+            for what in ("inertia", "bearing_viscous", "bearing_stiction")}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"{name}: unknown planetary value(s) {', '.join(unknown)}; "
+                             f"known: {', '.join(sorted(known))}")
+        mesh_sharpness = values.get("mesh_sharpness", DEFAULT_SHARPNESS)
+        sharp = mesh_sharpness if bearing_sharpness is None else bearing_sharpness
+        return cls(
+            name, sun_teeth=values["sun_teeth"], ring_teeth=values["ring_teeth"],
+            inertia={port: values.get(f"{port}_inertia", 0.0) for port in PORTS},
+            bearings={port: Bearing(f"bearing_{port}",
+                                    viscous=values.get(f"{port}_bearing_viscous", 0.0),
+                                    stiction=values.get(f"{port}_bearing_stiction", 0.0),
+                                    sharpness=sharp, peak=peak) for port in PORTS},
+            mesh=SlipFriction("mesh_sun", stiction=values.get("mesh_stiction", 0.0),
+                              sharpness=mesh_sharpness, peak=peak),
+            mesh_relation=mesh_relation)
+
+    @property
+    def sun_teeth(self) -> float:
+        return self.gears.sun_teeth
+
+    @property
+    def ring_teeth(self) -> float:
+        return self.gears.ring_teeth
 
     @property
     def tooth_ratio(self) -> float:
         """``x = N_S / N_R``."""
-        return self.sun_teeth / self.ring_teeth
+        return self.gears.sun_teeth / self.gears.ring_teeth
 
     @property
-    def ring_mesh(self) -> tuple[float, float]:
-        """``(k_a2 [N m], k_b2 [s/rad])`` of the ring mesh (eq 3.27, `mesh_relation`)."""
+    def ring_mesh(self) -> SlipFriction:
+        """The ring mesh's friction: ``k_a2``, ``k_b2`` from the sun mesh's by eq 3.27
+        (`mesh_relation`)."""
         scale_a, scale_b = MESH_RELATIONS[self.mesh_relation](self.tooth_ratio)
-        return scale_a * self.mesh_stiction, scale_b * self.mesh_sharpness
+        return SlipFriction("mesh_ring", stiction=scale_a * self.mesh.stiction,
+                            sharpness=scale_b * self.mesh.sharpness, peak=self.mesh.peak)
 
     def parts(self) -> Parts:
-        parts = super().parts()
-        s, r, c = (self.port(p) for p in self.ports)
-        kb = self.bearing_sharpness
-        k_a2, k_b2 = self.ring_mesh
-        parts.inertia.update({s: self.sun_inertia, r: self.ring_inertia, c: self.carrier_inertia})
-        parts.frictions += [
-            Friction(f"{self.name}.mesh_sun", {s: 1.0, c: -1.0}, 0.0, self.mesh_stiction,
-                     self.mesh_sharpness, peak=self.peak),
-            Friction(f"{self.name}.mesh_ring", {r: 1.0, c: -1.0}, 0.0, k_a2, k_b2,
-                     peak=self.peak),
-            Friction(f"{self.name}.bearing_sun", {s: 1.0}, self.sun_bearing_viscous,
-                     self.sun_bearing_stiction, kb, peak=self.peak),
-            Friction(f"{self.name}.bearing_ring", {r: 1.0}, self.ring_bearing_viscous,
-                     self.ring_bearing_stiction, kb, peak=self.peak),
-            Friction(f"{self.name}.bearing_carrier", {c: 1.0}, self.carrier_bearing_viscous,
-                     self.carrier_bearing_stiction, kb, peak=self.peak),
-        ]
+        s, r, c = (self.port(p) for p in PORTS)
+        flange = {"sun": s, "ring": r, "carrier": c}
+        parts = self.embed(self.gears, sun=s, ring=r, carrier=c)
+        parts.merge(self.embed(self.mesh, a=s, b=c))
+        parts.merge(self.embed(self.ring_mesh, a=r, b=c))
+        for port, bearing in self.bearings.items():
+            parts.merge(self.embed(bearing, flange=flange[port]))
+        for port, inertia in self.inertias.items():
+            parts.merge(self.embed(inertia, flange=flange[port]))
+        parts.priority = {c: 1}
         return parts
 
     def closed_form_torque(self, fixed: str, carrier_speed, law: str = "arctan"):

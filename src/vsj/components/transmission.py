@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 
+from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Constraint, Friction, Parts, Spring
 from ..springs import LINEAR, N_PARAMETERS
 from ._values import _peak, _positive
@@ -26,8 +27,8 @@ class Transmission(Component):
     ports = ("input", "output")
 
     def __init__(self, name: str, *, ratio: float = 1.0, viscous: float = 0.0,
-                 stiction: float = 0.0, sharpness: float = 10.0, compliance: float = 0.0,
-                 damping: float = 0.0, peak: float = 1.0):
+                 stiction: float = 0.0, sharpness: float = DEFAULT_SHARPNESS,
+                 compliance: float = 0.0, damping: float = 0.0, peak: float = 1.0):
         super().__init__(name)
         self.peak = _peak(name, peak)
         if not (math.isfinite(ratio) and ratio != 0.0):

@@ -23,7 +23,6 @@ All data sets use fixed seeds, so every run gives the same numbers.
 
 from __future__ import annotations
 
-import copy
 import functools
 import math
 
@@ -173,9 +172,7 @@ def _eq_4_2(w, c1, c2, c3):
 
 def _module(params, relation: str = "printed"):
     """Table 4.1's planetary module (`vsj.wrist.planetary`) with eq 3.27 ``relation``."""
-    module = copy.copy(planetary("pg", params))
-    module.mesh_relation = relation
-    return module
+    return planetary("pg", params, mesh_relation=relation)
 
 
 def _forward_constants(module, fixed: str) -> tuple[float, float, float]:

@@ -73,7 +73,9 @@ class BatchResult:
 
     ``states[r, k]`` is the state vector (angles, speeds, currents; see
     ``state_names``) of run ``r`` at ``time[k]``; `angle` and `speed` give any
-    flange of the network for all runs.
+    flange of the network for all runs, and ``batch["theta_x.speed"]`` a
+    signal by the name a single run's `Result` gives it (`to_xarray`: all of
+    them, with units).
     """
 
     time: np.ndarray
@@ -101,3 +103,45 @@ class BatchResult:
         rx, ru = self.structure.rows(flange)
         n = self.structure.n
         return self.states[:, :, n:2 * n] @ rx + (self.source_speeds @ ru)[None, :]
+
+    # -- the same names as a single run's `Result` ---------------------------------------
+    def _flanges(self) -> dict[str, str]:
+        """Signal name -> flange: the network's named signals, then unnamed free flanges
+        (as `Result` names them)."""
+        named = {s.name: s.flange for s in self.structure.signals}
+        taken = set(named.values())
+        named.update({f: f for f in self.structure.free if f not in taken})
+        return named
+
+    def columns(self) -> list[str]:
+        """Every signal a batch gives: each angle [rad] and its ``.speed`` [rad/s], spelt
+        as in `Result` (``theta_x``, ``theta_x.speed``)."""
+        return [name + suffix for name in self._flanges() for suffix in ("", ".speed")]
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """A signal by its `Result` name, shape (runs, samples)."""
+        base, speed = (name[:-len(".speed")], True) if name.endswith(".speed") else (name, False)
+        flange = self._flanges().get(base)
+        if flange is None:
+            raise KeyError(f"no signal {name!r} in a batch; signals: "
+                           f"{', '.join(self.columns()[:12])}, ...")
+        return self.speed(flange) if speed else self.angle(flange)
+
+    def to_xarray(self):
+        """The batch as an `xarray.Dataset` over ``run`` and ``time`` [s]: one variable
+        per signal with its unit, and each run's success, message and stop time; the
+        same layout as `Result.to_xarray` with a ``run`` dimension in front."""
+        import xarray as xr
+
+        from .. import __version__
+
+        data = {name: (("run", "time"), self[name],
+                       {"units": "rad/s" if name.endswith(".speed") else "rad"})
+                for name in self.columns()}
+        data["success"] = ("run", self.success.astype(np.int8))
+        data["message"] = ("run", np.array(self.messages, dtype=str))
+        data["stop_time"] = ("run", self.stop_time, {"units": "s"})
+        ds = xr.Dataset(data, coords={"run": np.arange(len(self.success)),
+                                      "time": ("time", self.time, {"units": "s"})})
+        ds.attrs.update(solver=self.solver, vsj_version=__version__)
+        return ds
