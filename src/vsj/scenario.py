@@ -12,6 +12,7 @@ overrides, and optionally several ``[[cases]]`` that each override part of it
 
     [model]                           # wrist: which sub-models (vsj.wrist.WristOptions)
     elastic = "geometric"
+    mesh_relation = "printed"         # eq 3.27: printed | equal-force
 
     [solver]
     friction = "stiction"             # viscous | arctan | sign | slope | stiction
@@ -34,8 +35,8 @@ overrides, and optionally several ``[[cases]]`` that each override part of it
     initial = { q = "0.5 cm" }
 
 Input kinds: ``constant`` (value), ``sine`` (amplitude, frequency, phase,
-offset, start, fade_in, stop), ``step`` (height, start, offset), ``table`` (times, values, time_unit, unit,
-interpolation), ``steps`` (levels, unit, hold, ramp, start: plateaus joined by
+offset, start, fade_in, stop), ``step`` (height, start, offset), ``table`` (times,
+values, time_unit, unit, interpolation), ``steps`` (levels, unit, hold, ramp, start: plateaus joined by
 ramps), ``position`` (signal: an angle whose derivative drives a velocity
 source) and ``circle`` (radius, period, fade_in, axis: a position input).
 
@@ -58,13 +59,21 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from . import benches
+from .components.planetary import MESH_RELATIONS
 from .errors import InputError, read_text
 from .friction import law_code
 from .inputs import Constant, Input, Position, Sine, Step, Table, circle
 from .network import Network, Structure
 from .params import Parameters
-from .simulate import (InitialState, Result, SimulationOptions, check_run_size, choose_solver,
-                       prepare, simulate)
+from .simulate import (
+    InitialState,
+    Result,
+    SimulationOptions,
+    check_run_size,
+    choose_solver,
+    prepare,
+    simulate,
+)
 from .units import to_si
 from .wrist import DRIVES, ELASTIC_MODELS, WristOptions, build_wrist
 
@@ -72,7 +81,8 @@ TOP_KEYS = {"name", "description", "network", "duration", "model", "bench", "sol
             "initial", "inputs", "params", "cases"}
 CASE_KEYS = {"label", "model", "bench", "solver", "initial", "inputs", "params", "duration"}
 NETWORKS = ("wrist", "planetary-bench", "elastic-bench")
-MODEL_KEYS = {"elastic", "motors", "pivot_drive", "end_effector", "linear_stiffness", "fixed_q"}
+MODEL_KEYS = {"elastic", "motors", "pivot_drive", "end_effector", "linear_stiffness", "fixed_q",
+              "mesh_relation"}
 #: [bench] keys of each bench network, with the choices of its text keys.
 PLANETARY_BENCH = {"fixed": ("sun", "ring"), "drive": ("speed", "torque"),
                    "sensor_stiffness": None}
@@ -324,7 +334,8 @@ def _network(network: str, model: Mapping, bench: Mapping,
             end_effector=_choice(model, "end_effector", ("loaded", "driven"), mw, "loaded"),
             linear_stiffness=_quantity(model, "linear_stiffness", "N*m", mw, None,
                                        positive=True),
-            fixed_q=_quantity(model, "fixed_q", "m", mw, 0.0))
+            fixed_q=_quantity(model, "fixed_q", "m", mw, 0.0),
+            mesh_relation=_choice(model, "mesh_relation", tuple(MESH_RELATIONS), mw, "printed"))
         with _context(mw):
             options.validate()
         return lambda params: build_wrist(params, options)

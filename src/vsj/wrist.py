@@ -24,12 +24,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .components import (DCMotor, Differential, ElasticElement, FixedPivot, PivotMechanism,
-                         PlanetaryGearModule, TorqueSource, Transmission, VelocitySource)
-from .springs import EXPONENTIAL_FIELDS, GEOMETRY_FIELDS
+from .components import (
+    DCMotor,
+    Differential,
+    ElasticElement,
+    FixedPivot,
+    PivotMechanism,
+    PlanetaryGearModule,
+    TorqueSource,
+    Transmission,
+    VelocitySource,
+)
+from .components.planetary import MESH_RELATIONS
 from .errors import InputError
 from .network import Network, Signal
 from .params import Parameters
+from .springs import EXPONENTIAL_FIELDS, GEOMETRY_FIELDS
 
 ELASTIC_MODELS = ("geometric", "geometric-report", "exponential", "linear")
 DRIVES = ("velocity", "dc")
@@ -44,7 +54,9 @@ class WristOptions:
     [N m/rad]). ``motors`` and ``pivot_drive``: ``velocity`` or ``dc``;
     ``pivot_drive`` may also be ``fixed`` (pivot pinned at ``fixed_q`` [m]).
     ``end_effector``: ``loaded`` (external torques) or ``driven`` (prescribed
-    end-effector speeds, as in fig 4.14).
+    end-effector speeds, as in fig 4.14). ``mesh_relation``: eq 3.27 as
+    ``printed`` (table 4.1's k_1 was derived with it) or ``equal-force`` (see
+    `vsj.components.planetary`).
     """
 
     elastic: str = "geometric"
@@ -53,6 +65,7 @@ class WristOptions:
     end_effector: str = "loaded"
     linear_stiffness: float | None = None
     fixed_q: float = 0.0
+    mesh_relation: str = "printed"
 
     def validate(self) -> None:
         if self.elastic not in ELASTIC_MODELS:
@@ -65,6 +78,9 @@ class WristOptions:
         if self.pivot_drive not in DRIVES + ("fixed",):
             raise InputError(f"pivot_drive must be velocity, dc or fixed, got "
                              f"{self.pivot_drive!r}")
+        if self.mesh_relation not in MESH_RELATIONS:
+            raise InputError(f"mesh_relation must be one of {', '.join(MESH_RELATIONS)}, got "
+                             f"{self.mesh_relation!r}")
         if self.end_effector not in ("loaded", "driven"):
             raise InputError(f"end_effector must be 'loaded' or 'driven', got "
                              f"{self.end_effector!r}")
@@ -123,7 +139,7 @@ def build_wrist(params: Parameters, options: WristOptions | None = None) -> Netw
                          peak=peak))
     for i in (1, 2):
         net.add(motor(f"motor_{i}", params, options.motors, str(i)),
-                planetary(f"pg_{i}", params),
+                planetary(f"pg_{i}", params, mesh_relation=options.mesh_relation),
                 elastic_element(f"vsm_{i}", params, options.elastic, options.linear_stiffness),
                 Transmission(f"tr_{i}", ratio=tr.ratio, viscous=tr.viscous, stiction=tr.stiction,
                              sharpness=sharp, peak=peak,
