@@ -226,7 +226,7 @@ def test_the_wrist_friction_peak_is_a_parameter(params):
     assert older.friction.peak == 1.0 and "default" in older.sources["friction.peak"]
     peaked = params.with_overrides({"friction.peak": "1.5"}, origin="test")
     structure = build_wrist(peaked).assemble()
-    assert {fr.peak for fr in structure.frictions if fr.stiction > 0} == {1.5}
+    assert {fr.peak for fr in structure.frictions if fr.k > 0} == {1.5}
     with pytest.raises(Exception, match="friction.peak"):
         params.with_overrides({"friction.peak": "0.9"}, origin="test")
 

@@ -66,7 +66,7 @@ def coulomb_reference(t_end):
 
 def coulomb_run(h, t_end):
     net = Network("coulomb")
-    net.add(Inertia("mass", J), Bearing("bearing", stiction=LEVEL * 2 / math.pi),
+    net.add(Inertia("mass", J), Bearing("bearing", coulomb=LEVEL),
             TorqueSource("push", "tau"))
     net.connect("mass.flange", "bearing.flange").connect("mass.flange", "push.flange")
     return simulate(net.assemble(), {"tau": Sine(AMPLITUDE, FREQ)}, t_end,
@@ -119,12 +119,12 @@ def geared_run(split):
     net.add(Inertia("mass", J), TorqueSource("push", "tau"))
     net.connect("mass.flange", "push.flange")
     if split:
-        net.add(Bearing("near", stiction=near * 2 / math.pi), IdealGear("gear", ratio),
-                Bearing("far", stiction=far * 2 / math.pi))
+        net.add(Bearing("near", coulomb=near), IdealGear("gear", ratio),
+                Bearing("far", coulomb=far))
         net.connect("mass.flange", "near.flange").connect("mass.flange", "gear.a")
         net.connect("gear.b", "far.flange")
     else:
-        net.add(Bearing("near", stiction=(near + far / abs(ratio)) * 2 / math.pi))
+        net.add(Bearing("near", coulomb=near + far / abs(ratio)))
         net.connect("mass.flange", "near.flange")
     r = simulate(net.assemble(), {"tau": Sine(AMPLITUDE, FREQ)}, 8.0, ports=False,
                  options=SimulationOptions(friction="stiction", step=1e-3, output_step=1e-3))
@@ -176,7 +176,7 @@ def test_wrist_holds_a_constant_load_exactly(params):
     # its torque times w over its Coulomb level
     i = int(np.searchsorted(slope.time, 6.0))
     for element in structure.frictions:
-        level = element.stiction * math.pi / 2
+        level = element.coulomb
         if level == 0 or element.law is not None:
             continue
         torque = slope[f"friction.{element.name}.torque"][i]

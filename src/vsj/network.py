@@ -52,9 +52,12 @@ class Constraint:
 class Friction:
     """A resistive element on the relative speed ``s = sum(c_i omega_i)``.
 
-    ``viscous`` [N m s/rad], ``stiction`` (the report's ``k``, saturation level
-    ``k pi/2``) [N m] and ``sharpness`` (arctan ``k_b``) [s/rad] are physical;
-    the law is chosen per run (`vsj.friction`), unless ``law`` fixes it here.
+    ``viscous`` [N m s/rad], ``k`` [N m] and ``sharpness`` (arctan ``k_b``)
+    [s/rad] are physical; the law is chosen per run (`vsj.friction`), unless
+    ``law`` fixes it here. ``k`` is the report's stiction parameter: the gain
+    of the equivalent arctan law ``k atan(k_b s)`` (section 4.1.3), so every
+    law's Coulomb level is ``coulomb`` = ``k pi/2``. Components take the level
+    as they prefer (`vsj.components.Bearing` accepts either).
 
     Clutches and brakes (`vsj.components.clutch`) scale the level: by the value
     of input channel ``normal`` (a normalised normal force, clipped to [0, 1])
@@ -72,13 +75,18 @@ class Friction:
     name: str
     speed: Mapping[str, float]
     viscous: float = 0.0
-    stiction: float = 0.0
+    k: float = 0.0
     sharpness: float = DEFAULT_SHARPNESS
     law: str | None = None
     peak: float = 1.0
     normal: str | None = None
     table: tuple[tuple[float, float], ...] | None = None
     damper: bool = False
+
+    @property
+    def coulomb(self) -> float:
+        """The Coulomb (kinetic) friction level ``k pi/2`` [N m]."""
+        return self.k * math.pi / 2
 
 
 @dataclass(frozen=True)

@@ -35,9 +35,9 @@ overrides, and optionally several ``[[cases]]`` that each override part of it
     initial = { q = "0.5 cm" }
 
 Input kinds: ``constant`` (value), ``sine`` (amplitude, frequency, phase,
-offset, start, fade_in, stop), ``step`` (height, start, offset), ``table`` (times,
-values, time_unit, unit, interpolation), ``steps`` (levels, unit, hold, ramp, start: plateaus joined by
-ramps), ``position`` (signal: an angle whose derivative drives a velocity
+offset, start, fade_in, stop), ``step`` (height, start, offset), ``table``
+(times, values, time_unit, unit, interpolation), ``steps`` (levels, unit, hold,
+ramp, start: plateaus joined by ramps), ``position`` (signal: an angle whose derivative drives a velocity
 source) and ``circle`` (radius, period, fade_in, axis: a position input).
 
 Every value is checked as it is read: its type, unit and range. `prepare_case`

@@ -15,6 +15,16 @@ def _positive(name: str, value: float, *, allow_zero: bool = True) -> float:
     return value
 
 
+def _stiction(name: str, stiction: float, coulomb: float | None) -> float:
+    """The report's stiction parameter ``k`` [N m], given as ``k`` itself or as the
+    Coulomb level ``coulomb = k pi/2`` (not both)."""
+    if coulomb is None:
+        return _positive(f"stiction of {name}", stiction)
+    if stiction:
+        raise ValueError(f"{name}: give the stiction parameter k or the Coulomb level, not both")
+    return _positive(f"Coulomb level of {name}", coulomb) * 2.0 / math.pi
+
+
 def _peak(name: str, peak: float) -> float:
     """A static-to-kinetic friction ratio (MSL's ``peak``): finite and >= 1."""
     peak = float(peak)

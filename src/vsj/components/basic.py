@@ -21,7 +21,7 @@ from ..network import (
 )
 from ..friction import DEFAULT_SHARPNESS
 from ..springs import LINEAR, N_PARAMETERS
-from ._values import _peak, _positive
+from ._values import _peak, _positive, _stiction
 
 
 class Inertia(Component):
@@ -109,15 +109,18 @@ class IdealGear(Component):
 
 
 class Bearing(Component):
-    """Friction between a flange and the ground, on the flange's absolute speed."""
+    """Friction between a flange and the ground, on the flange's absolute speed:
+    viscous [N m s/rad], and the report's stiction parameter ``k`` [N m] given as
+    ``stiction`` or as the Coulomb level ``coulomb`` (= k pi/2) [N m]."""
 
     ports = ("flange",)
 
     def __init__(self, name: str, *, viscous: float = 0.0, stiction: float = 0.0,
-                 sharpness: float = DEFAULT_SHARPNESS, peak: float = 1.0):
+                 sharpness: float = DEFAULT_SHARPNESS, peak: float = 1.0,
+                 coulomb: float | None = None):
         super().__init__(name)
         self.viscous = _positive(f"viscous friction of {name}", viscous)
-        self.stiction = _positive(f"stiction of {name}", stiction)
+        self.stiction = _stiction(name, stiction, coulomb)
         self.sharpness = _positive(f"arctan sharpness of {name}", sharpness, allow_zero=False)
         self.peak = _peak(name, peak)
 
@@ -130,16 +133,18 @@ class Bearing(Component):
 
 class SlipFriction(Component):
     """Friction on the slip ``omega_a - omega_b`` between two flanges (a gear mesh, a
-    sliding contact): viscous [N m s/rad], stiction parameter ``k`` [N m] and arctan
-    sharpness [s/rad], as `Bearing` has against the ground."""
+    sliding contact): viscous [N m s/rad], stiction parameter ``k`` [N m] (or the
+    Coulomb level ``coulomb``) and arctan sharpness [s/rad], as `Bearing` has
+    against the ground."""
 
     ports = ("a", "b")
 
     def __init__(self, name: str, *, viscous: float = 0.0, stiction: float = 0.0,
-                 sharpness: float = DEFAULT_SHARPNESS, peak: float = 1.0):
+                 sharpness: float = DEFAULT_SHARPNESS, peak: float = 1.0,
+                 coulomb: float | None = None):
         super().__init__(name)
         self.viscous = _positive(f"viscous friction of {name}", viscous)
-        self.stiction = _positive(f"stiction of {name}", stiction)
+        self.stiction = _stiction(name, stiction, coulomb)
         self.sharpness = _positive(f"arctan sharpness of {name}", sharpness, allow_zero=False)
         self.peak = _peak(name, peak)
 

@@ -235,6 +235,6 @@ class PlanetaryGearModule(Component):
             if ratio == 0.0:
                 continue
             total += ratio * friction.torque(law, ratio * w, viscous=element.viscous,
-                                             stiction=element.stiction,
+                                             stiction=element.k,
                                              sharpness=element.sharpness)
         return total if np.ndim(carrier_speed) else float(total[0])

@@ -196,7 +196,7 @@ def compile_model(structure: Structure, inputs: Mapping[str, Input], t_end: floa
     table: list[tuple[float, float]] = []
     for element, row, law in zip(structure.frictions, structure.friction_rows, laws):
         mu = list(element.table or ())
-        add(row @ AB, [element.viscous, element.stiction, element.sharpness, slope_width,
+        add(row @ AB, [element.viscous, element.k, element.sharpness, slope_width,
                        element.peak, -1 if element.normal is None else chan[element.normal],
                        len(table) if mu else 0, len(mu), float(element.damper)],
             friction_laws.law_code(law))
