@@ -264,7 +264,7 @@ def test_ring_mesh_force_and_dissipation_under_each_relation(relation, expected_
         short = element.name.rsplit(".", 1)[1]
         if short in slips:
             s = slips[short]
-            power[short] = element.stiction * math.atan(element.sharpness * s) * s
+            power[short] = element.k * math.atan(element.sharpness * s) * s
     ratio = power["mesh_ring"] / power["mesh_sun"]
     assert ratio == pytest.approx(x * x if expected_ratio == "x2" else 1.0, rel=EXACT)
 

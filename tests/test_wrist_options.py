@@ -17,8 +17,8 @@ def test_mesh_relation_sets_the_ring_mesh_of_both_planetaries(params):
     printed = build_wrist(params).assemble()
     equal = build_wrist(params, WristOptions(mesh_relation="equal-force")).assemble()
     for name in ("pg_1.mesh_ring", "pg_2.mesh_ring"):
-        assert _ring_mesh(printed, name).stiction == pytest.approx(x * pg.mesh_stiction)
-        assert _ring_mesh(equal, name).stiction == pytest.approx(pg.mesh_stiction / x)
+        assert _ring_mesh(printed, name).k == pytest.approx(x * pg.mesh_stiction)
+        assert _ring_mesh(equal, name).k == pytest.approx(pg.mesh_stiction / x)
         assert _ring_mesh(equal, name).sharpness == pytest.approx(pg.mesh_sharpness / x)
 
 
@@ -28,6 +28,6 @@ def test_a_scenario_chooses_the_relation_and_a_wrong_one_is_named(params, tmp_pa
     scen = scenarios.loads(text, "mine.toml")
     structure = scenarios.prepare_case(scen, scen.cases[0], params).structure
     x = params.planetary.sun_teeth / params.planetary.ring_teeth
-    assert _ring_mesh(structure).stiction == pytest.approx(params.planetary.mesh_stiction / x)
+    assert _ring_mesh(structure).k == pytest.approx(params.planetary.mesh_stiction / x)
     with pytest.raises(InputError, match=r"mine.toml: model.mesh_relation: 'equal' is not one of"):
         scenarios.loads(text.replace('"equal-force"', '"equal"'), "mine.toml")

@@ -119,11 +119,7 @@ def motor(name: str, params: Parameters, drive: str, channel: str):
     """A motor port: velocity source or DC motor with gearhead."""
     if drive == "velocity":
         return VelocitySource(name, channel=f"motor_{channel}")
-    mo = params.motor
-    return DCMotor(name, resistance=mo.resistance, inductance=mo.inductance,
-                   torque_constant=mo.torque_constant, rotor_inertia=mo.rotor_inertia,
-                   gear_ratio=mo.gear_ratio, viscous=mo.viscous, channel=f"voltage_{channel}",
-                   voltage_limit=mo.voltage_limit)
+    return DCMotor(name, channel=f"voltage_{channel}", **params.values_of("motor"))
 
 
 def build_wrist(params: Parameters, options: WristOptions | None = None) -> Network:
@@ -133,10 +129,8 @@ def build_wrist(params: Parameters, options: WristOptions | None = None) -> Netw
     net = Network("wrist")
     tr = params.transmission
     sharp, peak = params.friction.arctan_sharpness, params.friction.peak
-    dif = params.differential
-    net.add(Differential("diff", inertia_x=dif.inertia_x, inertia_y=dif.inertia_y,
-                         viscous=dif.viscous, stiction=dif.stiction, sharpness=sharp,
-                         peak=peak))
+    # components take their parameters under the names of the file's sections
+    net.add(Differential("diff", sharpness=sharp, peak=peak, **params.values_of("differential")))
     for i in (1, 2):
         net.add(motor(f"motor_{i}", params, options.motors, str(i)),
                 planetary(f"pg_{i}", params, mesh_relation=options.mesh_relation),
@@ -154,14 +148,11 @@ def build_wrist(params: Parameters, options: WristOptions | None = None) -> Netw
     else:
         net.add(VelocitySource("ee_x", "theta_x"), VelocitySource("ee_y", "theta_y"))
     net.connect("diff.theta_x", "ee_x.flange").connect("diff.theta_y", "ee_y.flange")
-    pv = params.pivot
     if options.pivot_drive == "fixed":
         net.add(FixedPivot("pivot", options.fixed_q))
     else:
         net.add(motor("motor_s", params, options.pivot_drive, "s"),
-                PivotMechanism("pivot", ratio=pv.ratio, amplitude=pv.amplitude,
-                               inertia=pv.inertia, viscous=pv.viscous, stiction=pv.stiction,
-                               sharpness=sharp, peak=peak, q_min=pv.q_min, q_max=pv.q_max))
+                PivotMechanism("pivot", sharpness=sharp, peak=peak, **params.values_of("pivot")))
         net.connect("motor_s.flange", "pivot.input")
     for name, flange, text in [
         ("theta_x", "diff.theta_x", "end-effector angle about x"),
