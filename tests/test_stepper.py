@@ -85,6 +85,12 @@ def test_many_steps_agree_with_one_simulation(params):
         < MANY_STEPS_TOL
     theta = stepper.angle_rows(["theta_x"]) @ state
     assert abs(theta[0] - result["theta_x"][-1]) < MANY_STEPS_TOL
+    # the state by the names and units of a run's signals
+    named = stepper.signals(state, u)
+    for name in ("theta_x", "theta_y.speed", "phi_1", "phi_2.speed", "motor_1.speed", "q"):
+        assert abs(named[name] - result[name][-1]) < MANY_STEPS_TOL * max(
+            1.0, abs(result[name][-1])), name
+    assert set(named) <= set(result.signals)
 
 
 def _zoh_and_ramps(params, eps):

@@ -252,6 +252,28 @@ class Stepper:
             C[k, 2 * n + nm:] = ru
         return C
 
+    def signals(self, state, inputs) -> dict[str, float]:
+        """The state as a single run's `vsj.simulate.Result` names it: every named
+        signal's angle [rad] and ``.speed`` [rad/s] (``theta_x``, ``theta_x.speed``,
+        ``phi_1``, ...), the free flanges not named, and the pivot position ``q``
+        [m], for ``inputs`` held at this instant."""
+        y = self._state_vector(state)
+        u = self.input_vector(inputs)
+        n, nm = self.layout.n, self.layout.n_motors
+        v = self.speeds(y, u)
+        sigma, u_src = y[2 * n + nm:], u[self.model.src_ch]
+        named = {s.name: s.flange for s in self.structure.signals}
+        taken = set(named.values())
+        named.update({f: f for f in self.structure.free if f not in taken})
+        out: dict[str, float] = {}
+        for name, flange in named.items():
+            rx, ru = self.structure.rows(flange)
+            out[name] = float(rx @ y[:n] + ru @ sigma)
+            out[f"{name}.speed"] = float(rx @ v + ru @ u_src)
+        if self.structure.pivot.flange is not None or self.structure.springs:
+            out["q"] = self.pivot_position(y)
+        return out
+
     # -- stepping -----------------------------------------------------------------------
     def step(self, state, inputs, out: np.ndarray | None = None) -> np.ndarray:
         """The state one period later, for ``inputs`` held over the period.
