@@ -262,6 +262,9 @@ def test_input_and_output_selection_and_names(params):
     assert lin.input_units == ("N m", "m") and lin.output_units == ("rad", "N m")
     assert isinstance(lin, control.StateSpace) and lin.friction == "linearised"
     assert "pivot q = 0 cm" in lin.describe()
+    # a run's spelling of a signal selects the same output
+    dotted = linear.linearize(params, 0.0, inputs=["tau_x"], outputs=["theta_x.speed"])
+    assert list(dotted.output_labels) == ["theta_x_speed"]
 
 
 @pytest.mark.parametrize("kwargs, match", [

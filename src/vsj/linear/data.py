@@ -30,11 +30,13 @@ def signal_name(name: str) -> str:
 
 
 def select(kind: str, wanted: Sequence[str] | None, available: Sequence[str]) -> list[int]:
-    """Indices of the ``wanted`` names in ``available`` (all if None); `InputError`
-    names unknown or repeated ones."""
+    """Indices of the ``wanted`` names in ``available`` (all if None); a name may be
+    spelt as a run's result spells it (``theta_x.speed``) or as python-control does
+    (``theta_x_speed``). `InputError` names unknown or repeated ones."""
     if wanted is None:
         return list(range(len(available)))
     index = {name: i for i, name in enumerate(available)}
+    wanted = [w if w in index else signal_name(w) for w in wanted]
     unknown = [w for w in wanted if w not in index]
     if unknown:
         raise InputError(f"unknown {kind}(s) {', '.join(map(repr, unknown))}; available: "
