@@ -20,7 +20,6 @@ from vsj.components import (
     Fixed,
     IdealGear,
     IdealPlanetary,
-    Inertia,
     TorqueSource,
     Transmission,
     VelocitySource,
