@@ -2,15 +2,55 @@
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
 from vsj import params as params_module
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: each worker reproduces on its own
+    fcntl = None
 
 
 @pytest.fixture(scope="session")
 def params():
     """The bundled parameter set (report table 4.1 plus estimates)."""
     return params_module.default()
+
+
+def _reproduce(out) -> int:
+    from vsj.cli import main
+
+    return main(["reproduce", "--reduced", "--out", str(out)])
+
+
+@pytest.fixture(scope="session")
+def reproduction(tmp_path_factory):
+    """``vsj reproduce --reduced`` run once per test session: ``(exit code, output dir)``.
+
+    It makes every report figure (about a minute of work), and three test files
+    read what it writes. Under pytest-xdist each worker is a process of its
+    own, so the first worker to ask makes the figures in this session's
+    temporary directory (shared by its workers) while holding a lock; the
+    others wait for it and read the same files. Tests must not change them.
+    """
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    if worker is None or fcntl is None:
+        out = tmp_path_factory.mktemp("reproduction")
+        return _reproduce(out), out
+    shared = tmp_path_factory.getbasetemp().parent  # this session's, above the workers'
+    out = shared / "reproduction"
+    code_file = shared / "reproduction.code"
+    with open(shared / "reproduction.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            if not code_file.exists():
+                code_file.write_text(str(_reproduce(out)))
+            return int(code_file.read_text()), out
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
 
 
 def override(params, **values):

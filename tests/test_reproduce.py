@@ -17,10 +17,9 @@ FIGURES = ["fig-3.5", "fig-3.6", "fig-3.7", "fig-4.2", "fig-4.3", "fig-4.4", "fi
 
 
 @pytest.fixture(scope="module")
-def reproduced(tmp_path_factory):
-    out = tmp_path_factory.mktemp("reproduction")
-    code = main(["reproduce", "--reduced", "--out", str(out)])
-    return code, out
+def reproduced(reproduction):
+    """The session's reduced reproduction (`conftest.reproduction`)."""
+    return reproduction
 
 
 def test_every_figure_is_written(reproduced):

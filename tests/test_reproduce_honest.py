@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 
 from vsj import synth
-from vsj.cli import main
 from vsj.components.planetary import PlanetaryGearModule
 from vsj.reproduce import Reproduction, carrier_side_inertia
 from vsj.reproduce.base import (
@@ -43,9 +42,10 @@ EXACT = 1e-12
 
 
 @pytest.fixture(scope="module")
-def record(tmp_path_factory):
-    out = tmp_path_factory.mktemp("honest")
-    assert main(["reproduce", "--reduced", "--out", str(out)]) == 0
+def record(reproduction):
+    """results.json and report.html of the session's reduced reproduction."""
+    code, out = reproduction
+    assert code == 0
     return json.loads((out / "results.json").read_text()), (out / "report.html").read_text()
 
 

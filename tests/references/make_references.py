@@ -14,7 +14,8 @@ engine with them inside tubes in the manner of the Modelica Standard Library's
 regression tests.
 
 The first set was recorded from the numba engine (vsj 0.1.0, commit 43b50eb),
-before the compiled C core replaced it.
+before the compiled C core replaced it; ``fig-4.15-dc-motors`` was added later
+(issue 20), recorded from the C core.
 """
 
 from __future__ import annotations
@@ -32,16 +33,39 @@ HERE = Path(__file__).resolve().parent
 #: Keep every DECIMATE-th output sample (10 ms at the scenarios' 1 ms output step).
 DECIMATE = 10
 
-#: name -> (built-in scenario, overrides of its top-level tables)
+#: The DC-motor variant of fig 4.15: the primary motors are armature circuits
+#: (`vsj.components.DCMotor`) fed sine voltages 90 degrees apart, two stiffness
+#: settings, 4 s (the motors' electrical and the wrist's mechanical dynamics).
+DC_MOTORS = {
+    "duration": "4 s",
+    "model": {"motors": "dc"},
+    "inputs": {
+        "voltage_1": {"kind": "sine", "amplitude": "1 V", "frequency": "0.5 Hz",
+                    "phase": "0 deg", "fade_in": "1 s"},
+        "voltage_2": {"kind": "sine", "amplitude": "1 V", "frequency": "0.5 Hz",
+                    "phase": "90 deg", "fade_in": "1 s"},
+    },
+    "cases": [{"label": "q=-1.5cm", "initial": {"q": "-1.5 cm"}},
+              {"label": "q=0.5cm", "initial": {"q": "0.5 cm"}}],
+}
+
+#: name -> (built-in scenario, overrides of its top-level keys: the [model] and
+#: [solver] tables are merged key by key (`MERGED`), any other value replaces the
+#: scenario's)
 REFERENCES = {
     "fig-4.15-arctan": ("fig-4.15", {}),
     "fig-4.15-stiction": ("fig-4.15", {"solver": {"friction": "stiction"}}),
     "fig-4.15-geometric": ("fig-4.15", {"model": {"elastic": "geometric"}}),
+    "fig-4.15-dc-motors": ("fig-4.15", DC_MOTORS),
     "fig-4.14": ("fig-4.14", {}),
     "elastic-bench": ("elastic-bench", {}),
     "planetary-fixed-sun": ("planetary-fixed-sun", {}),
     "planetary-fixed-ring": ("planetary-fixed-ring", {}),
 }
+
+
+#: Top-level tables that an override amends rather than replaces.
+MERGED = ("model", "solver")
 
 
 def kept(name: str) -> bool:
@@ -58,9 +82,12 @@ def load(name: str):
     scen = scenarios.load(base)
     table = dict(scen.table)
     for key, value in over.items():
-        merged = dict(table.get(key, {}))
-        merged.update(value)
-        table[key] = merged
+        if key in MERGED:
+            merged = dict(table.get(key, {}))
+            merged.update(value)
+            table[key] = merged
+        else:
+            table[key] = value
     import tomli_w
 
     return scenarios.loads(tomli_w.dumps(table), f"reference {name}")
