@@ -37,6 +37,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/msl.py
 	$(BIN)/python benchmarks/identify_wrist.py
 	$(BIN)/python benchmarks/sweep.py
+	$(BIN)/python benchmarks/fmu.py
 
 clean:
 	rm -rf $(VENV) reproduction out build src/vsj.egg-info src/vsj/engine/*.so

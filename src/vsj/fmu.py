@@ -14,6 +14,10 @@ the Modelica Association's Reference FMUs are:
 * ``resources/model.json``: the wrist as `vsj.export` writes it, and
   ``resources/fmu.txt``: how each tunable parameter moves the engine's arrays.
 
+`cross_check` writes the FMU with inputs, vsj's reference result and options
+in the layout of the FMI cross-check repository (modelica/fmi-cross-check), which
+FMPy's ``fmpy.cross_check.validate_vendor_repo`` checks.
+
 Parameters. The C engine works on the assembled wrist (constraints already
 eliminated by `vsj.network`), so the FMU cannot re-assemble it. A parameter
 whose effect on the engine's arrays is affine (inertias, friction levels,
@@ -45,6 +49,7 @@ import numpy as np
 from . import __version__, export
 from .errors import InputError
 from .params import SCHEMA, Parameters
+from .params import default as default_params
 from .simulate import InitialState, SimulationOptions
 from .wrist import WristOptions
 
@@ -327,12 +332,15 @@ def compiler(kind: str = "linux64") -> str | None:
     return shutil.which("x86_64-w64-mingw32-gcc")
 
 
-def compile_binary(kind: str, out: Path) -> None:
+def compile_binary(kind: str, out: Path) -> str:
+    """Build the FMU's binary for ``kind`` (linux64 or win64) into ``out``; returns
+    what the compiler said (empty: no warning under -Wall -Wextra)."""
     cc = compiler(kind)
     if cc is None:
         raise InputError(f"vsj fmu: no C compiler for {kind}")
     sources = [str(p) for p in _source_paths() if p.suffix == ".c"]
-    flags = ["-std=c99", "-O2", "-shared", "-I", str(_engine_dir()), "-I", str(_fmi_dir())]
+    flags = ["-std=c99", "-O2", "-Wall", "-Wextra", "-shared", "-I", str(_engine_dir()),
+             "-I", str(_fmi_dir())]
     if kind == "linux64":
         flags += ["-fPIC", "-fvisibility=hidden"]
     else:
@@ -341,6 +349,22 @@ def compile_binary(kind: str, out: Path) -> None:
                           text=True, check=False)
     if done.returncode != 0:
         raise InputError(f"vsj fmu: building the {kind} binary failed:\n{done.stderr[-2000:]}")
+    return done.stderr.strip()
+
+
+METHODS = ("auto", "timestep", "dopri")
+
+
+def choose_method(friction: str, method: str = "auto") -> str:
+    """The step function an FMU runs (see `build`)."""
+    if method not in METHODS:
+        raise InputError(f"method {method!r}: one of {', '.join(METHODS)}")
+    if method == "auto":
+        return "timestep" if friction == "stiction" else "dopri"
+    if method == "dopri" and friction == "stiction":
+        raise InputError("the stiction law needs the time-stepper (method timestep); dopri "
+                         "integrates the smooth laws only")
+    return method
 
 
 #: values per engine row (VSJ_NPAR of vsj.h); the pivot's row is the last, with
@@ -355,12 +379,15 @@ def _pivot_range(document: dict) -> tuple[float, float]:
 
 def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None = None,
           friction: str = "stiction", step: float = 1e-3, q0: float = -0.01,
-          win64: bool | None = None) -> dict:
+          win64: bool | None = None, method: str = "auto") -> dict:
     """Write the FMU to ``out``; returns what was built (tunable parameters,
-    platforms). ``win64``: None builds the Windows DLL where the cross-compiler
-    is installed, True requires it, False skips it."""
+    platforms, compiler warnings). ``win64``: None builds the Windows DLL where the
+    cross-compiler is installed, True requires it, False skips it. ``method``: the
+    engine's step function, ``timestep`` (the time-stepper at ``step``; needed by
+    true stiction) or ``dopri`` (adaptive); ``auto`` takes the time-stepper for
+    stiction and dopri for the smooth laws."""
     wrist_options = wrist_options or WristOptions()
-    method = "timestep" if friction == "stiction" else "dopri"
+    method = choose_method(friction, method)
     options = SimulationOptions(friction=friction, step=step)
     stepper = export.wrist_stepper(params, wrist_options, options=options, method=method,
                                    period=step)
@@ -396,11 +423,13 @@ def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None =
         (root / "documentation" / "index.html").write_text(
             f"<html><body><h1>vsj wrist FMU</h1><p>{description}</p><p>Built by vsj "
             f"{__version__}; see vsj's README, section 'The wrist as an FMU'.</p></body></html>\n")
-        compile_binary("linux64", root / "binaries" / "linux64" / f"{MODEL_IDENTIFIER}.so")
+        said = {"linux64": compile_binary(
+            "linux64", root / "binaries" / "linux64" / f"{MODEL_IDENTIFIER}.so")}
         platforms = ["linux64"]
         if want_win:
             (root / "binaries" / "win64").mkdir()
-            compile_binary("win64", root / "binaries" / "win64" / f"{MODEL_IDENTIFIER}.dll")
+            said["win64"] = compile_binary(
+                "win64", root / "binaries" / "win64" / f"{MODEL_IDENTIFIER}.dll")
             platforms.append("win64")
         from .output import atomic_write
 
@@ -411,7 +440,144 @@ def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None =
                     archive.write(path, path.relative_to(root).as_posix())
     return {"tunable": [t.key for t in tunables],
             "constant": [k for k in params.values if k not in {t.key for t in tunables}],
-            "platforms": platforms, "guid": guid, "method": method}
+            "platforms": platforms, "guid": guid, "method": method,
+            "warnings": {k: v for k, v in said.items() if v}}
+
+
+# -- the FMI cross-check folder --------------------------------------------------------
+
+#: the cross-check run: length [s], how often the commands change [s] (a 100 Hz
+#: controller; also the communication step), and an external torque tau_x [N m]
+#: applied from CROSS_CHECK_LOAD_START [s] on
+CROSS_CHECK_DURATION = 4.0
+CROSS_CHECK_PERIOD = 0.01
+CROSS_CHECK_LOAD = 0.05
+CROSS_CHECK_LOAD_START = 3.0
+#: DC-motor wrists: voltage amplitude [V] of the circle (the fig-4.15 pattern)
+CROSS_CHECK_VOLTAGE = 1.5
+#: outputs in X_ref.csv, with the `vsj.stepper.Stepper` signal each is read from
+CROSS_CHECK_OUTPUTS = ("theta_x", "theta_y", "q", "motor_1_angle", "motor_2_angle")
+
+
+def _fade(t: np.ndarray, rise: float) -> np.ndarray:
+    z = np.clip(t / rise, 0.0, 1.0)
+    return z ** 3 * (10.0 - 15.0 * z + 6.0 * z * z)
+
+
+def cross_check_commands(names: list[str], period: float, steps: int) -> np.ndarray:
+    """The held inputs of the cross-check, one row per communication step.
+
+    The fig-4.15 motion (report fig 4.15, the built-in scenario): velocity-driven
+    motors get the mean speed of the scenario's motor angles over each step, so that
+    the motor angles at the communication points are the scenario's; DC motors get
+    sine voltages with the same frequency, phases and fade-in. ``tau_x`` steps to
+    `CROSS_CHECK_LOAD` at `CROSS_CHECK_LOAD_START`.
+    """
+    from . import scenario
+
+    t = np.arange(steps + 1) * period
+    u = np.zeros((steps, len(names)))
+    scen = scenario.load("fig-4.15")
+    case = scen.cases[0]
+    motion = scenario.parse_inputs(case, case.build(default_params()))
+    for j, name in enumerate(names):
+        if name in ("motor_1", "motor_2"):
+            u[:, j] = np.diff(motion[name].value(t)) / period
+        elif name in ("voltage_1", "voltage_2"):
+            phase = math.pi / 4 if name.endswith("1") else -math.pi / 4
+            start = t[:-1]
+            u[:, j] = CROSS_CHECK_VOLTAGE * _fade(start, 2.0) * np.sin(math.pi * start + phase)
+        elif name == "tau_x":
+            u[:, j] = np.where(t[:-1] >= CROSS_CHECK_LOAD_START - 1e-9, CROSS_CHECK_LOAD, 0.0)
+    return u
+
+
+def _csv(path: Path, names, rows) -> None:
+    lines = [",".join(f'"{n}"' for n in names)]
+    lines += [",".join(f"{float(x):.17g}" for x in row) for row in rows]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def cross_check(directory: Path, params: Parameters, *,
+                wrist_options: WristOptions | None = None, friction: str = "stiction",
+                step: float = 1e-3, q0: float = -0.01, win64: bool | None = None,
+                method: str = "auto") -> dict:
+    """Write an FMI cross-check folder (the modelica/fmi-cross-check layout):
+    ``fmus/2.0/cs/<platform>/vsj/<version>/vsj_wrist/`` with the FMU,
+    ``vsj_wrist_in.csv`` (held commands, a step at each change),
+    ``vsj_wrist_ref.csv`` (vsj's own run of the same held inputs: the step function
+    `vsj.stepper.Stepper`, one call per communication step), ``vsj_wrist_ref.opt``
+    and ``README.md``. One folder per platform the FMU has a binary for."""
+    from .stepper import Stepper
+
+    wrist_options = wrist_options or WristOptions()
+    chosen = choose_method(friction, method)
+    period = step * max(1, round(CROSS_CHECK_PERIOD / step))
+    steps = int(round(CROSS_CHECK_DURATION / period))
+    with tempfile.TemporaryDirectory() as scratch:
+        fmu_path = Path(scratch) / f"{MODEL_IDENTIFIER}.fmu"
+        info = build(fmu_path, params, wrist_options=wrist_options, friction=friction,
+                     step=step, q0=q0, win64=win64, method=chosen)
+        stepper = Stepper.wrist(params, wrist_options, period,
+                                options=SimulationOptions(friction=friction, step=step),
+                                method=chosen)
+        names = list(stepper.input_names)
+        commands = cross_check_commands(names, period, steps)
+        rows = stepper.angle_rows(["theta_x", "theta_y", "motor_1", "motor_2"])
+        state = stepper.initial_state(InitialState(q=q0))
+        t = np.arange(steps + 1) * period
+        ref = np.empty((steps + 1, 1 + len(CROSS_CHECK_OUTPUTS)))
+        for k in range(steps + 1):
+            if k:
+                state = stepper.step(state, commands[k - 1])
+            theta_x, theta_y, motor_1, motor_2 = rows @ state
+            ref[k] = (t[k], theta_x, theta_y, stepper.pivot_position(state), motor_1, motor_2)
+        held = []
+        for k in range(steps):
+            held.append((t[k], *commands[k]))
+            held.append((t[k + 1], *commands[k]))
+        written = []
+        for platform in info["platforms"]:
+            folder = (Path(directory) / "fmus" / "2.0" / "cs" / platform / "vsj" / __version__
+                      / MODEL_IDENTIFIER)
+            folder.mkdir(parents=True, exist_ok=True)
+            shutil.copy(fmu_path, folder / f"{MODEL_IDENTIFIER}.fmu")
+            _csv(folder / f"{MODEL_IDENTIFIER}_in.csv", ["time", *names], held)
+            _csv(folder / f"{MODEL_IDENTIFIER}_ref.csv", ["time", *CROSS_CHECK_OUTPUTS], ref)
+            (folder / f"{MODEL_IDENTIFIER}_ref.opt").write_text(
+                f"StartTime, 0.0\nStopTime, {CROSS_CHECK_DURATION!r}\nStepSize, {period!r}\n"
+                f"RelTol, 1e-06\nOutputIntervalLength, {period!r}\n")
+            (folder / "README.md").write_text(_cross_check_readme(
+                info, friction, chosen, step, period, q0, names, platform))
+            written.append(str(folder))
+    return {**info, "folders": written, "period": period, "steps": steps}
+
+
+def _cross_check_readme(info, friction, method, step, period, q0, names, platform) -> str:
+    binary = ("built on Linux with the system compiler" if platform == "linux64" else
+              "cross-compiled with mingw-w64; its results have not been checked on Windows "
+              "by vsj")
+    return f"""# vsj_wrist: vsj's 2-DOF variable stiffness wrist as an FMI 2.0 co-simulation FMU
+
+Exported by vsj {__version__} (`vsj fmu --cross-check`). The {platform} binary was {binary}.
+The FMU also carries its C sources and `sources/buildDescription.xml`.
+
+- Model: the wrist of the report, {friction} friction, step function `{method}` (internal
+  step {step:g} s), initial pivot position q = {q0:g} m (parameter `pivot_q0`).
+- Inputs (`vsj_wrist_in.csv`): {', '.join(names)}. The commands change every
+  {period:g} s and are held in between (the FMU holds its inputs over a communication
+  step); the file has two rows at each change, the old and the new value. The motion is
+  the circle of report fig 4.15 (built-in scenario `fig-4.15`, first case); `tau_x`
+  steps to {CROSS_CHECK_LOAD:g} N m at {CROSS_CHECK_LOAD_START:g} s.
+- Reference (`vsj_wrist_ref.csv`): vsj's own run of the same held inputs, its step
+  function (`vsj.stepper.Stepper`, method `{method}`) called once per communication step.
+- Options (`vsj_wrist_ref.opt`): communication step {period:g} s, stop time
+  {CROSS_CHECK_DURATION:g} s.
+
+Reproduce with FMPy:
+
+    python -m fmpy.cross_check.validate_vendor_repo <this repository>
+"""
 
 
 def json_text(document: dict) -> str:
@@ -431,4 +597,4 @@ def map_text(tunables: list[Tunable], q0: float, q_range: tuple[float, float]) -
     return "\n".join(lines) + "\n"
 
 
-__all__ = ["build", "tunable_map", "model_description", "MODEL_IDENTIFIER", "OUTPUTS"]
+__all__ = ["build", "cross_check", "choose_method", "compile_binary", "tunable_map", "model_description", "MODEL_IDENTIFIER", "OUTPUTS"]

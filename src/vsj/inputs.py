@@ -277,6 +277,75 @@ class Table(Input):
 
 
 @dataclass(frozen=True)
+class Hold(Input):
+    """Values held from one time to the next (zero-order hold): what a digital
+    controller applies, and what an FMU does with its inputs over a communication
+    step.
+
+    ``values[i]`` acts over ``(times[i], times[i + 1]]``: a step of the solver that
+    ends at ``times[i + 1]`` still sees it, the step that starts there sees the next
+    value. Before ``times[1]`` the first value, after the last time the last value.
+    Driving a velocity source, a Hold changes its speed in jumps; the time-stepper
+    gives the free flanges the matching impulse (their momentum is continuous), the
+    adaptive solver does not: run a Hold on a velocity source with ``timestep``.
+
+    The engine's spline is right-continuous at its knots, so each change sits
+    `KNOT_OFFSET` of the shortest interval after its time; the integral (a source's
+    angle) moves by that fraction of an interval times the jump.
+    """
+
+    times: tuple[float, ...]
+    values: tuple[float, ...]
+
+    #: where a change sits after its time, as a fraction of the shortest interval
+    KNOT_OFFSET = 1e-9
+
+    def __post_init__(self):
+        t = np.asarray(self.times, dtype=float)
+        v = np.asarray(self.values, dtype=float)
+        if t.ndim != 1 or t.shape != v.shape or t.size < 1:
+            raise InputError("hold input: times and values must be two lists of the same "
+                             f"length >= 1 (got {t.size} and {v.size})")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))):
+            raise InputError("hold input: times and values must be finite numbers")
+        if np.any(np.diff(t) <= 0.0):
+            i = int(np.flatnonzero(np.diff(t) <= 0.0)[0])
+            raise InputError(f"hold input: times must increase strictly (entry {i + 1}: "
+                             f"{t[i]} then {t[i + 1]})")
+
+    def value(self, t):
+        t = np.asarray(t, dtype=float)
+        index = np.searchsorted(np.asarray(self.times, dtype=float), t, side="left") - 1
+        return np.asarray(self.values, dtype=float)[np.clip(index, 0, len(self.values) - 1)]
+
+    def _offset(self) -> float:
+        t = np.asarray(self.times, dtype=float)
+        shortest = float(np.min(np.diff(t))) if t.size > 1 else 1.0
+        # and far above the rounding of the solver's step times
+        return max(self.KNOT_OFFSET * shortest, 64 * np.spacing(max(abs(t).max(), 1.0)))
+
+    def pieces(self, t_end: float) -> Pieces:
+        t = np.asarray(self.times, dtype=float)
+        v = np.asarray(self.values, dtype=float)
+        delta = self._offset()
+        start = min(0.0, float(t[0]))
+        knots = np.concatenate([[start], t[1:] + delta])
+        knots = np.append(knots, max(t_end, float(knots[-1]) + delta))
+        coef = np.zeros((v.size, 4))
+        coef[:, 0] = v
+        return knots, coef
+
+    def knots(self, t_end: float) -> int:
+        if len(self.times) + 1 > MAX_KNOTS:
+            raise InputError(f"hold input: {len(self.times)} values; at most {MAX_KNOTS - 1} "
+                             "are allowed")
+        return len(self.times) + 1
+
+    def describe(self) -> str:
+        return f"hold of {len(self.times)} values (zero-order)"
+
+
+@dataclass(frozen=True)
 class Position(Input):
     """Drive a velocity source by its angle: the speed is ``d angle / dt``."""
 

@@ -163,11 +163,17 @@ def cmd_export_model(args) -> int:
 
 def cmd_fmu(args) -> int:
     from .. import fmu
-    from ..output import check_output_file
+    from ..output import check_output_file, write_errors
 
-    if Path(args.out).suffix != ".fmu":
-        raise InputError(f"--out {args.out}: an FMU is written to a .fmu file")
-    check_output_file(args.out, "--out", size=8 * 2 ** 20)
+    if args.out is None and args.cross_check is None:
+        raise InputError("vsj fmu: give --out FILE.fmu, --cross-check DIR, or both")
+    if args.out is not None:
+        if Path(args.out).suffix != ".fmu":
+            raise InputError(f"--out {args.out}: an FMU is written to a .fmu file")
+        check_output_file(args.out, "--out", size=8 * 2 ** 20)
+    if args.cross_check is not None and Path(args.cross_check).exists() \
+            and not Path(args.cross_check).is_dir():
+        raise InputError(f"--cross-check {args.cross_check}: not a directory")
     params = _params(args.params)
     step = _quantity(args.step, "s", "--step")
     if not 1e-6 <= step <= 1e-2:
@@ -176,13 +182,27 @@ def cmd_fmu(args) -> int:
     if win64 and fmu.compiler("win64") is None:
         raise InputError("--win64 yes: the mingw-w64 cross-compiler (x86_64-w64-mingw32-gcc; "
                          "Debian: apt-get install gcc-mingw-w64-x86-64) is not installed")
-    info = fmu.build(Path(args.out), params, wrist_options=_wrist_options(args),
-                     friction=args.friction, step=step, q0=_quantity(args.q, "m", "--q"),
-                     win64=win64)
-    print(f"wrote {args.out}: FMI 2.0 co-simulation, {info['method']} at {step:g} s, "
-          f"binaries for {', '.join(info['platforms'])}, sources included; "
-          f"{len(info['tunable'])} tunable parameters, {len(info['constant'])} fixed by this "
-          f"export ({', '.join(info['constant'])})")
+    settings = dict(wrist_options=_wrist_options(args), friction=args.friction, step=step,
+                    q0=_quantity(args.q, "m", "--q"), win64=win64, method=args.method)
+    info = None
+    if args.out is not None:
+        info = fmu.build(Path(args.out), params, **settings)
+        print(f"wrote {args.out}: FMI 2.0 co-simulation, {info['method']} at {step:g} s, "
+              f"binaries for {', '.join(info['platforms'])}, sources included; "
+              f"{len(info['tunable'])} tunable parameters, {len(info['constant'])} fixed by "
+              f"this export ({', '.join(info['constant'])})")
+    if args.cross_check is not None:
+        with write_errors("--cross-check", args.cross_check):
+            info = fmu.cross_check(Path(args.cross_check), params, **settings)
+        print(f"wrote the FMI cross-check folder{'s' if len(info['folders']) > 1 else ''} "
+              f"{', '.join(info['folders'])}: the FMU, held inputs every {info['period']:g} s "
+              f"over {info['steps']} steps, vsj's reference run, options, README")
+    for platform, text in info["warnings"].items():
+        print(f"warning: the {platform} compiler said:\n{text}")
+    if "win64" not in info["platforms"] and win64 is None:
+        print("no win64 DLL: the mingw-w64 cross-compiler x86_64-w64-mingw32-gcc is not on "
+              "PATH (Debian: apt-get install gcc-mingw-w64-x86-64); an importer on Windows "
+              "can also build the FMU from its sources/")
     return 0
 
 
@@ -269,11 +289,19 @@ def register(sub) -> None:
                     "built from the C engine with the system compiler (and for win64 with "
                     "mingw-w64 where installed), its sources with buildDescription.xml, and "
                     "the model in resources/. See the README, 'The wrist as an FMU'.")
-    p.add_argument("--out", metavar="FILE", required=True, help="FMU to write (.fmu)")
+    p.add_argument("--out", metavar="FILE", help="FMU to write (.fmu)")
+    p.add_argument("--cross-check", metavar="DIR",
+                   help="also (or instead) write an FMI cross-check folder under DIR "
+                        "(fmus/2.0/cs/<platform>/vsj/<version>/vsj_wrist: the FMU, "
+                        "vsj_wrist_in.csv, vsj_wrist_ref.csv, vsj_wrist_ref.opt, README.md)")
     p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
     _add_wrist_arguments(p, ELASTIC_MODELS, DRIVES, pivot_drive=True)
     p.add_argument("--friction", default="stiction", choices=list(LAWS),
                    help="friction law (default stiction: the time-stepper)")
+    p.add_argument("--method", default="auto", choices=("auto", "timestep", "dopri"),
+                   help="step function inside the FMU: the time-stepper at --step, or dopri "
+                        "(adaptive; smooth laws only); auto: timestep for stiction, else "
+                        "dopri")
     p.add_argument("--step", default="1 ms", metavar="TIME",
                    help="internal step (the time-stepper's; default 1 ms)")
     p.add_argument("--q", default="-1 cm", metavar="LENGTH",
