@@ -157,6 +157,8 @@ def test_an_interrupted_sweep_resumed_equals_the_uninterrupted_one(reference, sp
     record = store.read_manifest(out)
     assert sorted(record["done"]) == ["0", "1"] and not record["complete"]
     assert not (out / store.METRICS).exists()
+    status = store.open_dataset(out / store.ZARR)["status"].values
+    assert np.all(status[4:] == store.NOT_RUN) and np.all(status[:4] != store.NOT_RUN)
     # a process killed while writing chunk 2 leaves part of its region written
     import xarray as xr
 
@@ -238,3 +240,31 @@ every = "50 ms"
     page = (out / "summary.html").read_text()
     assert "Sensitivity (sobol)" in page and "data:image/png;base64" in page
     assert (out / "sensitivity.csv").read_text().count("\n") == 3
+
+
+def test_pass_through_parameters_retune_a_shared_model_bit_for_bit(spec_file):
+    """Friction levels reach the compiled arrays unchanged, so their runs retune one
+    compiled model; the lever length changes the geometry, so its runs are compiled."""
+    from vsj.engine.retune import find_passthrough, retune
+    from vsj.sweep import runner
+
+    p = runner.prepared(runner.job_for(sweep.load(spec_file)))
+    assert set(p.passthrough) == {"transmission.stiction"}
+    (slots,) = p.passthrough["transmission.stiction"]
+    assert slots[0] == "par" and len(slots[1]) == 2  # the transmission's two bearings
+    values = np.array([-0.01, p.base_params["elastic_element.lever_length"], 0.0123456789])
+    run = runner._build(p, values)
+    alone = runner._compiled(p, p.parameters_for(values)).model
+    for name in alone._fields:
+        if name != "src_pos0":
+            assert np.asarray(getattr(run.model, name)).tobytes() == \
+                np.asarray(getattr(alone, name)).tobytes(), name
+    assert not np.array_equal(run.model.par, p.base_model.par)
+
+    # a quantity that enters as a product is not pass-through, one that enters as it is is
+    def build(v):
+        return {"par": np.array([v["a"], 3.0 * v["b"]]), "mass": np.array([1.0])}
+
+    found = find_passthrough(build, {"a": 1.0, "b": 1.0}, {"a": [2.0, 5.0], "b": [2.0, 5.0]})
+    assert list(found) == ["a"]
+    assert retune(build({"a": 1.0, "b": 1.0}), found, {"a": 7.5})["par"].tolist() == [7.5, 3.0]

@@ -108,10 +108,11 @@ def run(spec: SweepSpec, out: str | Path, *, resume: bool = False,
         bar = progress(None, desc="sweep", unit="run", total=runs) if show_progress else None
         if bar is not None:
             bar.update(runs - sum(len(v) for _, _, v in todo))
+        writer = store.Writer(directory.zarr)
         try:
             for index, result in execute(job, todo, scheduler, workers):
                 stop = bounds[index][2]
-                store.write_chunk(directory.zarr, result, stop)
+                writer.write(result, stop)
                 record["done"][str(index)] = {"runs": [result.start, stop],
                                               "failed": result.failed,
                                               "sha256": store.digest(result)}

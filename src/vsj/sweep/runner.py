@@ -26,6 +26,7 @@ from functools import cached_property
 import numpy as np
 
 from ..engine import STATUS_TEXT, Engine, compile_model, core, observation_layout
+from ..engine.retune import RETUNABLE, Slots, find_passthrough, retune
 from ..errors import InputError
 from ..params import Parameters, _relations
 from ..simulate import InitialState, _initial, choose_solver
@@ -34,6 +35,9 @@ from .spec import Q, SweepSpec, spec_of
 
 #: Status of a run that could not be built (the engine's codes are 0 and up).
 SETUP_FAILED = -1
+#: Compiled models a process keeps for runs that retune them (one per distinct set
+#: of values of the parameters that are not pass-through).
+MAX_SHARED = 64
 
 
 @dataclass(frozen=True)
@@ -152,6 +156,7 @@ class Prepared:
         from .. import scenario as scenarios
 
         spec = job.spec
+        self.spec = spec
         scen = scenarios.loads(job.scenario_text, job.scenario_origin)
         params = (params_module.default() if job.params_text is None
                   else params_module.loads(job.params_text, job.params_origin))
@@ -170,6 +175,8 @@ class Prepared:
         base, layout = self._compile(structure, pivot_range)
         self.layout = layout
         self.base_model = base
+        self.base_group = _fixed_arrays(base)
+        self._shared: dict[bytes, _Compiled | None] = {}
         self.u0 = Engine(base).source_speeds(0.0)
         step = case.options.output_step
         n_out = math.floor(self.duration / step + 1e-9) + 1
@@ -208,6 +215,68 @@ class Prepared:
         return compile_model(structure, self.inputs, self.duration, friction=o.friction,
                              friction_overrides=o.friction_overrides,
                              slope_width=o.slope_width, pivot_range=pivot_range)
+
+    @cached_property
+    def passthrough(self) -> dict[str, Slots]:
+        """The varied parameters that reach the compiled arrays unchanged, and where
+        (`vsj.engine.retune`); their runs retune a shared model instead of compiling."""
+        base = {k: self.base_params.values[k] for k in self.parameter_keys}
+        probes = {k: self._probe_values(k) for k in self.parameter_keys}
+        joint = [{k: v[i % len(v)] if v else base[k] for k, v in probes.items()}
+                 for i in range(3)]
+        return find_passthrough(self._probe_arrays, base, probes, joint)
+
+    def _probe_values(self, name: str) -> list[float]:
+        """Values of ``name`` to compile the model at: near the base value, and in the
+        range the sweep file gives it; all within the parameter's allowed range."""
+        from .sampling import to_values
+
+        spec = self.spec
+        base = self.base_params.values[name]
+        out = [base * (1.0 + d) for d in (0.0123, -0.0234, 0.0345)] if base != 0.0 else []
+        out += [v for f in spec.fixed if f.name == name for v in f.values]
+        out += [float(v) for d in spec.sampled if d.name == name
+                for v in to_values(np.array([[0.2], [0.5], [0.8]]), (d,))[:, 0]]
+        cov = spec.covariance
+        if cov is not None and name in cov.names:
+            j = cov.names.index(name)
+            sd, (lo, hi) = math.sqrt(cov.matrix[j][j]), cov.bounds[j]
+            out += [min(max(cov.mean[j] + k * sd, lo), hi) for k in (-0.5, 0.0, 0.5)]
+        return [v for v in out if math.isfinite(v) and not spec_of(name).check(v)]
+
+    def _probe_arrays(self, values: Mapping[str, float]) -> dict | None:
+        """The compiled arrays and initial state with ``values`` of the parameters
+        (the initial state the scenario's), or None if they cannot be built."""
+        vector = np.array([values.get(n, math.nan) for n in self.varied])
+        try:
+            params = self.parameters_for(vector)
+            shared = _compiled(self, params)
+            x0, v0, sigma0, currents = _initial(shared.structure, self.inputs,
+                                                self.case.initial, self.u0)
+        except (InputError, ArithmeticError, ValueError, np.linalg.LinAlgError):
+            return None
+        return {**shared.model._asdict(), "x0": np.asarray(x0, dtype=float),
+                "v0": np.asarray(v0, dtype=float), "sigma0": np.asarray(sigma0, dtype=float),
+                "currents": np.asarray(currents, dtype=float)}
+
+    def compiled_for(self, values: np.ndarray) -> _Compiled | None:
+        """The compiled model a run with ``values`` retunes: compiled with its values
+        of the parameters that are not pass-through and the base values of those that
+        are, once for all runs alike; None where that cannot be built (the run is then
+        compiled on its own)."""
+        passthrough = self.passthrough
+        key = np.array([v for n, v in zip(self.varied, values)
+                        if n != Q and n not in passthrough]).tobytes()
+        if key not in self._shared:
+            vector = np.array([self.base_params.values[n] if n in passthrough else v
+                               for n, v in zip(self.varied, values)])
+            try:
+                self._shared[key] = _compiled(self, self.parameters_for(vector))
+            except InputError:
+                self._shared[key] = None
+            if len(self._shared) > MAX_SHARED:
+                self._shared.pop(next(iter(self._shared)))
+        return self._shared[key]
 
     def parameters_for(self, values: np.ndarray) -> Parameters:
         """The base set with the run's parameter values (SI), checked as a file would be."""
@@ -279,6 +348,15 @@ class _Run:
     group: bytes = field(default=b"")
 
 
+@dataclass
+class _Compiled:
+    """A network built and compiled once, shared by the runs that retune it."""
+
+    structure: object
+    model: object
+    group: bytes
+
+
 def _fixed_arrays(model) -> bytes:
     """What a batch shares: everything of the compiled model but mass, Minv, par."""
     digest = hashlib.sha256()
@@ -289,24 +367,39 @@ def _fixed_arrays(model) -> bytes:
     return digest.digest()
 
 
+def _compiled(p: Prepared, params: Parameters) -> _Compiled:
+    """The network of ``params`` built, assembled and compiled as `vsj simulate` does."""
+    structure = p.case.build(params).assemble()
+    pivot_range = (params.pivot.q_min, params.pivot.q_max) if p.case.pivot_from_params \
+        else None
+    model, layout = p._compile(structure, pivot_range)
+    if layout != p.layout:
+        raise InputError("these values change the network's structure")
+    return _Compiled(structure, model, _fixed_arrays(model))
+
+
 def _build(p: Prepared, values: np.ndarray) -> _Run:
     params = p.parameters_for(values)
     initial = p.initial_for(values, params)
     if params is p.base_params:
-        structure, model = p.structure, p.base_model
+        structure, model, group = p.structure, p.base_model, p.base_group
     else:
-        structure = p.case.build(params).assemble()
-        pivot_range = (params.pivot.q_min, params.pivot.q_max) if p.case.pivot_from_params \
-            else None
-        model, layout = p._compile(structure, pivot_range)
-        if layout != p.layout:
-            raise InputError("these values change the network's structure")
+        shared = p.compiled_for(values)
+        if shared is None:
+            shared = _compiled(p, params)
+            model = shared.model
+        else:
+            model = shared.model
+            if p.passthrough:
+                named = dict(zip(p.varied, values.tolist()))
+                arrays = retune(model._asdict(), p.passthrough, named)
+                model = model._replace(**{k: arrays[k] for k in RETUNABLE})
+        structure, group = shared.structure, shared.group
     x0, v0, sigma0, currents = _initial(structure, p.inputs, initial, p.u0)
     n_state = p.layout.n_state
     y0 = np.zeros(n_state if p.solver == "dopri" else n_state + p.layout.n_acc)
     y0[:n_state] = np.concatenate([x0, v0, currents])
-    return _Run(params, structure, model, y0, np.asarray(sigma0, dtype=float),
-                _fixed_arrays(model))
+    return _Run(params, structure, model, y0, np.asarray(sigma0, dtype=float), group)
 
 
 def run_chunk(job: Job, start: int, values: np.ndarray, threads: int | None = None
