@@ -268,3 +268,26 @@ def test_pass_through_parameters_retune_a_shared_model_bit_for_bit(spec_file):
     found = find_passthrough(build, {"a": 1.0, "b": 1.0}, {"a": [2.0, 5.0], "b": [2.0, 5.0]})
     assert list(found) == ["a"]
     assert retune(build({"a": 1.0, "b": 1.0}), found, {"a": 7.5})["par"].tolist() == [7.5, 3.0]
+
+
+def test_runs_that_need_only_state_and_sources_skip_observe_with_the_same_bits(spec_file,
+                                                                               tmp_path):
+    from vsj.sweep import runner
+
+    path = tmp_path / "light.toml"
+    path.write_text(spec_file.read_text().replace(
+        ', "spring.vsm_1.deflection", "friction.tr_1.friction.power"', "").replace(
+        'energy = { kind = "energy_dissipated" }\n', ""))
+    job = runner.job_for(sweep.load(path))
+    p = runner.prepared(job)
+    values = np.array([[-0.01, p.base_params["elastic_element.lever_length"], 0.012]])
+    assert p.light
+    light = runner.run_chunk(job, 0, values, threads=1)
+    p.light = False
+    try:
+        full = runner.run_chunk(job, 0, values, threads=1)
+    finally:
+        p.light = True
+    assert light.status.tolist() == [0]
+    assert light.kept.tobytes() == full.kept.tobytes()
+    assert light.metrics.tobytes() == full.metrics.tobytes()

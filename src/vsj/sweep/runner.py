@@ -92,7 +92,8 @@ class _Memo:
 
 def signal_recipes(structure, layout) -> dict[str, tuple[str, Callable]]:
     """Each signal `vsj.simulate.collect` names (ports aside), with its unit and how it is
-    computed from `Engine.observe`'s columns; the same formulas, so the same bits."""
+    computed from `Engine.observe`'s columns; the same formulas, so the same bits.
+    `LIGHT_COLUMNS` says which of them need only the state and the sources."""
     cols = observation_layout(layout)
     out: dict[str, tuple[str, Callable]] = {}
 
@@ -140,6 +141,21 @@ def signal_recipes(structure, layout) -> dict[str, tuple[str, Callable]]:
         out[f"spring.{sp.name}.power"] = ("W", lambda raw, k=k:
                                           raw[:, cols["sp_tau"]][:, k] * raw[:, cols["sp_dd"]][:, k])
     return out
+
+
+#: Columns of `Engine.observe` that are the sampled state or the sources' angles and
+#: speeds (which `Engine.source_signals` gives without evaluating the model).
+LIGHT_COLUMNS = ("x", "v", "current", "sigma", "u")
+
+
+def _light(name: str, structure) -> bool:
+    """Whether the recipe of signal ``name`` reads `LIGHT_COLUMNS` only."""
+    if name.startswith("source.") and name.endswith(".speed"):
+        return True
+    if name.startswith("motor.") and name.endswith(".current"):
+        return True
+    probes = {s.name for s in structure.signals} | set(structure.free)
+    return name in probes or (name.endswith(".speed") and name[:-len(".speed")] in probes)
 
 
 #: Signals a batch run of the time-stepper cannot give: they need the stiction
@@ -209,6 +225,16 @@ class Prepared:
                                  f"this scenario or of [signals]{why}")
         self.keep = list(spec.keep)
         self.units = {**units, **{k: "" for k in self.derived}}
+        needed, todo = set(), [*self.keep, *(n for m in self.metrics for n in m.signals)]
+        while todo:
+            name = todo.pop()
+            if name not in needed:
+                needed.add(name)
+                if name in self.derived:
+                    todo += self.derived[name].signals
+        #: whether every signal the runs need is the state or a source (no observe)
+        self.light = all(_light(n, structure) for n in needed if n in self.recipes)
+        self.columns = observation_layout(layout)
 
     def _compile(self, structure, pivot_range):
         o = self.options
@@ -455,8 +481,16 @@ def _measure(p: Prepared, run: _Run, states: np.ndarray, transitions: int,
     if not (p.keep or p.metrics):
         return
     engine = Engine(run.model._replace(src_pos0=run.sigma0))
-    nf = p.layout.n_frictions
-    raw = engine.observe(p.t_out, states, np.zeros((len(p.t_out), nf)))
+    if p.light:  # the same numbers observe writes in these columns, the rest left NaN
+        cols = p.columns
+        raw = np.empty((len(p.t_out), cols["u"].stop))
+        n_state = p.layout.n_state
+        raw[:, :n_state] = states[:, :n_state]
+        raw[:, cols["a"]] = np.nan
+        raw[:, cols["sigma"]], raw[:, cols["u"]] = engine.source_signals(p.t_out)
+    else:
+        nf = p.layout.n_frictions
+        raw = engine.observe(p.t_out, states, np.zeros((len(p.t_out), nf)))
     cache: dict[str, np.ndarray] = {}
     values = run.params.values
 
