@@ -291,3 +291,30 @@ def test_runs_that_need_only_state_and_sources_skip_observe_with_the_same_bits(s
     assert light.status.tolist() == [0]
     assert light.kept.tobytes() == full.kept.tobytes()
     assert light.metrics.tobytes() == full.metrics.tobytes()
+
+
+def test_the_trajectory_file_reads_back_as_the_cases_dataset(tmp_path, params):
+    """`write_cases` writes netCDF without xarray; xarray reads it back as the dataset
+    `cases_dataset` builds, including a failed run's missing samples and a signal one
+    case lacks."""
+    import dataclasses
+
+    import xarray as xr
+
+    from vsj.output import cases_dataset, write_cases
+
+    scen = scenarios.load("fig-4.15")
+    case = scen.cases[0]
+    _, structure, inputs, rng = scenarios.prepare_case(scen, case, params)
+    full = simulate(structure, inputs, 0.2, options=case.options, initial=case.initial,
+                    pivot_range=rng)
+    short = dataclasses.replace(
+        full, time=full.time[:7], success=False,
+        signals={k: v[:7] for k, v in full.signals.items() if k != "theta_y"},
+        units={k: u for k, u in full.units.items() if k != "theta_y"})
+    runs = [("q=0.0cm", full), ("échec", short)]
+    write_cases(tmp_path / "t.nc", runs)
+    with xr.open_dataset(tmp_path / "t.nc") as ds:
+        xr.testing.assert_identical(ds.load(), cases_dataset(runs))
+        assert np.isnan(ds["theta_y"].values[1]).all()
+        assert np.isnan(ds["theta_x"].values[1, 7:]).all()
