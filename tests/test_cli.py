@@ -33,7 +33,8 @@ def write(tmp_path, text, name="scen.toml"):
 
 def test_simulate_writes_trajectory_meta_and_plot(tmp_path, capsys):
     out = tmp_path / "out"
-    assert main(["simulate", str(write(tmp_path, SHORT)), "--out", str(out), "--csv"]) == 0
+    assert main(["simulate", str(write(tmp_path, SHORT)), "--out", str(out), "--csv",
+                 "--plot"]) == 0
     header, data = read_trajectory(out / "trajectory.csv")
     assert header[0] == "time [s]"
     assert all(h.endswith("]") and " [" in h for h in header)

@@ -156,6 +156,8 @@ def test_an_interrupted_sweep_resumed_equals_the_uninterrupted_one(reference, sp
     record = store.read_manifest(out)
     assert sorted(record["done"]) == ["0", "1"] and not record["complete"]
     assert not (out / store.METRICS).exists()
+    status = store.open_dataset(out / store.ZARR)["status"].values
+    assert np.all(status[4:] == store.NOT_RUN) and np.all(status[:4] != store.NOT_RUN)
     # a process killed while writing chunk 2 leaves part of its region written
     import xarray as xr
 
@@ -237,3 +239,79 @@ every = "50 ms"
     page = (out / "summary.html").read_text()
     assert "Sensitivity (sobol)" in page and "data:image/png;base64" in page
     assert (out / "sensitivity.csv").read_text().count("\n") == 3
+
+
+def test_pass_through_parameters_retune_a_shared_model_bit_for_bit(spec_file):
+    """Friction levels reach the compiled arrays unchanged, so their runs retune one
+    compiled model; the lever length changes the geometry, so its runs are compiled."""
+    from vsj.engine.retune import find_passthrough, retune
+    from vsj.sweep import runner
+
+    p = runner.prepared(runner.job_for(sweep.load(spec_file)))
+    assert set(p.passthrough) == {"transmission.stiction"}
+    (slots,) = p.passthrough["transmission.stiction"]
+    assert slots[0] == "par" and len(slots[1]) == 2  # the transmission's two bearings
+    values = np.array([-0.01, p.base_params["elastic_element.lever_length"], 0.0123456789])
+    run = runner._build(p, values)
+    alone = runner._compiled(p, p.parameters_for(values)).model
+    for name in alone._fields:
+        if name != "src_pos0":
+            assert np.asarray(getattr(run.model, name)).tobytes() == \
+                np.asarray(getattr(alone, name)).tobytes(), name
+    assert not np.array_equal(run.model.par, p.base_model.par)
+
+    # a quantity that enters as a product is not pass-through, one that enters as it is is
+    def build(v):
+        return {"par": np.array([v["a"], 3.0 * v["b"]]), "mass": np.array([1.0])}
+
+    found = find_passthrough(build, {"a": 1.0, "b": 1.0}, {"a": [2.0, 5.0], "b": [2.0, 5.0]})
+    assert list(found) == ["a"]
+    assert retune(build({"a": 1.0, "b": 1.0}), found, {"a": 7.5})["par"].tolist() == [7.5, 3.0]
+
+
+def test_runs_that_need_only_state_and_sources_skip_observe_with_the_same_bits(spec_file,
+                                                                               tmp_path):
+    from vsj.sweep import runner
+
+    path = tmp_path / "light.toml"
+    path.write_text(spec_file.read_text().replace(
+        ', "spring.vsm_1.deflection", "friction.tr_1.friction.power"', "").replace(
+        'energy = { kind = "energy_dissipated" }\n', ""))
+    job = runner.job_for(sweep.load(path))
+    p = runner.prepared(job)
+    values = np.array([[-0.01, p.base_params["elastic_element.lever_length"], 0.012]])
+    assert p.light
+    light = runner.run_chunk(job, 0, values, threads=1)
+    p.light = False
+    try:
+        full = runner.run_chunk(job, 0, values, threads=1)
+    finally:
+        p.light = True
+    assert light.status.tolist() == [0]
+    assert light.kept.tobytes() == full.kept.tobytes()
+    assert light.metrics.tobytes() == full.metrics.tobytes()
+
+
+def test_the_trajectory_file_reads_back_as_the_cases_dataset(tmp_path, params):
+    """`write_cases` writes netCDF without xarray; xarray reads it back as the dataset
+    `cases_dataset` builds, including a failed run's missing samples and a signal one
+    case lacks."""
+    import dataclasses
+
+    import xarray as xr
+
+    from vsj.output import cases_dataset, write_cases
+
+    scen = scenarios.load("fig-4.15")
+    case = scen.cases[0]
+    full = scenarios.prepare_case(scen, case, params).run(duration=0.2)
+    short = dataclasses.replace(
+        full, time=full.time[:7], success=False,
+        signals={k: v[:7] for k, v in full.signals.items() if k != "theta_y"},
+        units={k: u for k, u in full.units.items() if k != "theta_y"})
+    runs = [("q=0.0cm", full), ("échec", short)]
+    write_cases(tmp_path / "t.nc", runs)
+    with xr.open_dataset(tmp_path / "t.nc") as ds:
+        xr.testing.assert_identical(ds.load(), cases_dataset(runs))
+        assert np.isnan(ds["theta_y"].values[1]).all()
+        assert np.isnan(ds["theta_x"].values[1, 7:]).all()

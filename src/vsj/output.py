@@ -941,6 +941,53 @@ def cases_dataset(runs: Sequence[tuple[str, Result]]):
     return ds
 
 
+def write_cases(path: Path, runs: Sequence[tuple[str, Result]]) -> None:
+    """Write `cases_dataset` (``runs``) as the netCDF file `write_dataset` makes of it,
+    without building the dataset: the same dimensions, variables, attributes and
+    encoding (xarray's for netCDF-3: float NaN as fill value, labels as UTF-8
+    characters), written by SciPy's netCDF-3 writer, which is what xarray uses for
+    this format. Importing xarray (and through it Dask) costs a ``vsj simulate``
+    more than simulating and writing; reading the file back with xarray gives
+    `cases_dataset`'s dataset (tested)."""
+    from scipy.io import netcdf_file
+
+    if not runs:
+        raise ValueError("no runs to write")
+    time = max(runs, key=lambda r: len(r[1].time))[1].time
+    names = list(dict.fromkeys(name for _, result in runs for name in result.columns()))
+    labels = [label.encode("utf-8") for label, _ in runs]
+    width = max(1, max(len(label) for label in labels))
+    chars = np.zeros((len(labels), width), dtype="S1")
+    for k, label in enumerate(labels):
+        chars[k, :len(label)] = np.frombuffer(label, dtype="S1")
+    with atomic_write(Path(path), "wb") as handle:
+        f = netcdf_file(handle, "w", version=2)
+        f.vsj_version = __version__
+        f.description = "vsj simulate: signals [SI units] of each case over time"
+        f.createDimension("case", len(runs))
+        f.createDimension("time", len(time))
+        f.createDimension(f"string{width}", width)
+        v = f.createVariable("time", "d", ("time",))
+        v[:] = time
+        v.units, v._FillValue = "s", math.nan
+        v = f.createVariable("case", "c", ("case", f"string{width}"))
+        v[:] = chars
+        v._Encoding = "utf-8"
+        for name in names:
+            v = f.createVariable(name, "d", ("case", "time"))
+            values = v.data
+            for k, (_, result) in enumerate(runs):
+                n = len(result.time) if name in result.signals else 0
+                if n:
+                    values[k, :n] = result.signals[name]
+                    units = result.units[name]
+                values[k, n:] = math.nan  # a failed run's missing samples, a missing signal
+            v.units, v._FillValue = units, math.nan
+        v = f.createVariable("success", "i", ("case",))
+        v[:] = np.array([int(r.success) for _, r in runs], dtype=np.int32)
+        f.flush()  # not close(): that would close the handle, which atomic_write syncs
+
+
 def write_dataset(path: Path, ds) -> None:
     """Write a dataset as netCDF (classic format, which MATLAB's ncread, xarray,
     netCDF4 and most tools read), through a temporary file that replaces

@@ -6,6 +6,7 @@ an SVG when asked). The report's figures live in `vsj.reproduce`.
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Sequence
 
@@ -24,6 +25,14 @@ MAIN_SIGNALS = {
     "elastic-bench": [("phi", "rad", "deflection phi"),
                       ("spring.sensor.compliance.torque", "N m", "measured torque")],
 }
+
+
+def figure(**options):
+    """A matplotlib `Figure` outside pyplot (no pyplot import, no figure registry to
+    close it from; `save` writes it through the Agg canvas)."""
+    from matplotlib.figure import Figure
+
+    return Figure(**options)
 
 
 def pyplot():
@@ -52,18 +61,18 @@ def save(fig, path: Path, *, svg: bool = False, tight: bool = True) -> None:
     if svg:
         with atomic_write(path.with_suffix(".svg"), "wb") as handle:
             fig.savefig(handle, format="svg", bbox_inches="tight")
-    pyplot().close(fig)
+    if "matplotlib.pyplot" in sys.modules:  # a figure of pyplot's (`figure`'s need not)
+        pyplot().close(fig)
 
 
 def trajectory_figure(runs: Sequence[tuple[str, Result]], network: str, path: Path, *,
                       title: str = "") -> None:
     """Main signals of every case over time, one panel per signal."""
-    plt = pyplot()
     signals = [s for s in MAIN_SIGNALS.get(network, []) if s[0] in runs[0][1].signals]
     if not signals:
         signals = [(name, runs[0][1].units[name], name) for name in runs[0][1].columns()[:4]]
-    fig, axes = plt.subplots(len(signals), 1, figsize=(8, 2.2 * len(signals) + 0.6),
-                             sharex=True, squeeze=False)
+    fig = figure(figsize=(8, 2.2 * len(signals) + 0.6))
+    axes = fig.subplots(len(signals), 1, sharex=True, squeeze=False)
     alphas = np.linspace(0.35, 1.0, len(runs)) if len(runs) > 1 else [1.0]
     for ax, (name, unit, text) in zip(axes[:, 0], signals):
         for (label, result), alpha in zip(runs, alphas):

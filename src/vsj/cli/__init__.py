@@ -35,16 +35,8 @@ def cmd_params(args) -> int:
 
 def cmd_simulate(args) -> int:
     from .. import scenario as scenarios
-    from ..output import (
-        ResultSet,
-        cases_dataset,
-        parameters_record,
-        signals_bound,
-        trajectory_bytes,
-        write_dataset,
-        write_meta,
-        write_trajectory,
-    )
+    from ..output import (ResultSet, parameters_record, signals_bound, trajectory_bytes,
+                          write_cases, write_meta, write_trajectory)
     from ..progress import progress
 
     params = _params(args.params)
@@ -57,7 +49,7 @@ def cmd_simulate(args) -> int:
     (duration, output_step), = grids
     size = trajectory_bytes(int(duration / output_step + 1e-9) + 1,
                             max(signals_bound(p.structure) for p in prepared),
-                            len(scen.cases), csv=args.csv, plot=not args.no_plot)
+                            len(scen.cases), csv=args.csv, plot=args.plot)
     out = Path(args.out)
     runs, records = [], []
     with ResultSet(out, "simulate", size=size) as results:
@@ -71,10 +63,10 @@ def cmd_simulate(args) -> int:
                             "warnings": list(result.warnings),
                             "parameters_hash": case.params.hash(),
                             "parameter_overrides": dict(case.case.params)})
-        write_dataset(results.path("trajectory.nc"), cases_dataset(runs))
+        write_cases(results.path("trajectory.nc"), runs)
         if args.csv:
             write_trajectory(results.path("trajectory.csv"), runs)
-        if not args.no_plot:
+        if args.plot:
             from ..plots import trajectory_figure
 
             trajectory_figure(runs, scen.cases[0].network, results.path("trajectory.png"),
@@ -206,7 +198,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenario", help="built-in scenario name (see 'vsj scenarios') or a file")
     p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
     p.add_argument("--out", metavar="DIR", default="out", help="output directory (default out)")
-    p.add_argument("--no-plot", action="store_true", help="skip the PNG")
+    p.add_argument("--plot", action="store_true",
+                   help="also draw trajectory.png (off by default: matplotlib more than "
+                        "doubles the command's time)")
+    p.add_argument("--no-plot", action="store_false", dest="plot",
+                   help="no PNG (the default; kept for scripts written before --plot)")
     p.add_argument("--csv", action="store_true",
                    help="also write trajectory.csv (a spreadsheet's format; slower to write)")
     p.set_defaults(func=cmd_simulate)

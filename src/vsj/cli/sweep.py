@@ -53,7 +53,7 @@ def register(sub) -> None:
                    help="run chunks on Dask: 'local' starts a LocalCluster, an address "
                         "(tcp://host:8786) uses a running scheduler (default: every core of "
                         "this machine)")
-    p.add_argument("--chunk", type=int, metavar="N", help="runs per chunk (default: runs/64, "
+    p.add_argument("--chunk", type=int, metavar="N", help="runs per chunk (default: runs/16, "
                                                           "at most 256)")
     p.add_argument("--workers", type=int, metavar="N",
                    help="worker processes on this machine (default: every core)")

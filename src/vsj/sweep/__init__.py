@@ -22,15 +22,19 @@ import numpy as np
 
 from .spec import SweepSpec, load, loads, run_count, with_method
 
-#: Default runs per chunk: enough to keep the per-chunk cost (a task, a zarr region,
-#: a manifest update) small beside the runs, few enough to lose little when killed.
+#: Default runs per chunk at most: enough to keep the per-chunk cost (a task, a zarr
+#: region, a manifest update) small beside the runs, few enough to lose little when
+#: killed and to keep a cluster's workers busy.
 MAX_CHUNK = 256
+#: Default chunks per sweep at least (while chunks stay below `MAX_CHUNK`): enough to
+#: share the work among this machine's cores and show progress.
+MIN_CHUNKS = 16
 
 
 def default_chunk(runs: int) -> int:
     """Runs per chunk when ``--chunk`` is not given (a function of the run count only,
     so a resumed sweep on another machine chunks alike)."""
-    return max(1, min(MAX_CHUNK, math.ceil(runs / 64)))
+    return max(1, min(MAX_CHUNK, math.ceil(runs / MIN_CHUNKS)))
 
 
 @dataclass
@@ -47,6 +51,8 @@ class Outcome:
     files: list[str] = field(default_factory=list)
     sensitivity: list[list] = field(default_factory=list)
     method: str | None = None
+    #: seconds this process spent storing returned chunks (zarr regions, manifest)
+    storing: float = 0.0
 
 
 def run(spec: SweepSpec, out: str | Path, *, resume: bool = False,
@@ -86,32 +92,39 @@ def run(spec: SweepSpec, out: str | Path, *, resume: bool = False,
                 if not np.array_equal(ds[name].values, values[:, j]):
                     raise InputError(f"--resume {out}: the values of {name} drawn now differ "
                                      "from those stored (another NumPy, SciPy or SALib?)")
-        else:
-            base = info["base_params"]
-            store.create(directory.zarr, varied=spec.varied, values=values, units=units,
-                         time=info["time"], keep=info["keep"], keep_units=info["keep_units"],
-                         metrics=info["metrics"], metric_units=info["metric_units"],
-                         chunk=size, attrs={
-                             "vsj_version": __version__, "scenario": job.scenario_origin,
-                             "parameters": base.origin, "parameters_hash": base.hash(),
-                             "solver": info["solver"], "seed": spec.seed,
-                             "sweep_file": spec.origin, "sweep": spec.text,
-                             "method": spec.method or ""})
-            record = {"about": "chunks of this sweep whose runs are in sweep.zarr; "
-                               "'vsj sweep SPEC --out DIR --resume' runs the others",
-                      **expected, "chunks": math.ceil(runs / size), "done": {},
-                      "failed_runs": {}, "complete": False}
-            store.write_manifest(out, record)
         bounds = [(i, i * size, min(runs, (i + 1) * size)) for i in range(math.ceil(runs / size))]
-        todo = [(i, a, values[a:b]) for i, a, b in bounds if str(i) not in record["done"]]
+        done = set(record["done"]) if record is not None else set()
+        todo = [(i, a, values[a:b]) for i, a, b in bounds if str(i) not in done]
         ran = 0
-        bar = progress(None, desc="sweep", unit="run", total=runs) if show_progress else None
-        if bar is not None:
-            bar.update(runs - sum(len(v) for _, _, v in todo))
+        storing = 0.0
+        bar = None
+        # the workers start on their first chunks while this process makes the store
+        running = execute(job, todo, scheduler, workers)
         try:
-            for index, result in execute(job, todo, scheduler, workers):
+            if record is None:
+                base = info["base_params"]
+                store.create(directory.zarr, varied=spec.varied, values=values, units=units,
+                             time=info["time"], keep=info["keep"],
+                             keep_units=info["keep_units"], metrics=info["metrics"],
+                             metric_units=info["metric_units"], chunk=size, attrs={
+                                 "vsj_version": __version__, "scenario": job.scenario_origin,
+                                 "parameters": base.origin, "parameters_hash": base.hash(),
+                                 "solver": info["solver"], "seed": spec.seed,
+                                 "sweep_file": spec.origin, "sweep": spec.text,
+                                 "method": spec.method or ""})
+                record = {"about": "chunks of this sweep whose runs are in sweep.zarr; "
+                                   "'vsj sweep SPEC --out DIR --resume' runs the others",
+                          **expected, "chunks": math.ceil(runs / size), "done": {},
+                          "failed_runs": {}, "complete": False}
+                store.write_manifest(out, record)
+            if show_progress:
+                bar = progress(None, desc="sweep", unit="run", total=runs)
+                bar.update(runs - sum(len(v) for _, _, v in todo))
+            writer = store.Writer(directory.zarr)
+            for index, result in running:
+                began = time.perf_counter()
                 stop = bounds[index][2]
-                store.write_chunk(directory.zarr, result, stop)
+                writer.write(result, stop)
                 record["done"][str(index)] = {"runs": [result.start, stop],
                                               "failed": result.failed,
                                               "sha256": store.digest(result)}
@@ -122,14 +135,16 @@ def run(spec: SweepSpec, out: str | Path, *, resume: bool = False,
                 record["failed_runs"] = dict(sorted(record["failed_runs"].items(),
                                                     key=lambda kv: int(kv[0])))
                 store.write_manifest(out, record)
+                storing += time.perf_counter() - began
                 ran += len(result.status)
                 if bar is not None:
                     bar.update(len(result.status))
         finally:
+            running.close()
             if bar is not None:
                 bar.close()
         outcome = Outcome(out, runs, ran, len(record["failed_runs"]), len(bounds), True,
-                          0.0, method=spec.method)
+                          0.0, method=spec.method, storing=storing)
         _finish(spec, out, directory.zarr, record, unit, outcome, plots)
         record["complete"] = True
         store.write_manifest(out, record)

@@ -213,10 +213,28 @@ class Evaluator:
                                  "ledger through vsj simulate)")
             self.expressions["signal"] = Expression(
                 " + ".join(friction_powers), signals, parameters, where)
+        self._times = None  # (sample times, window, projection) cached for them
         signal = metric.options.get("signal")
         kind = KINDS.get(metric.kind)
         self.unit = ("" if kind is None else kind.unit if kind.unit is not None
                      else units.get(signal, ""))
+
+    def _window(self, time: np.ndarray) -> np.ndarray:
+        """The samples inside [start, stop] (every run of a sweep has the same times)."""
+        if self._times is None or not np.array_equal(self._times[0], time):
+            start = self.options.get("start", -math.inf)
+            stop = self.options.get("stop", math.inf)
+            self._times = (time.copy(), (time >= start - 1e-12) & (time <= stop + 1e-12), None)
+        return self._times[1]
+
+    def _projection(self, t: np.ndarray) -> np.ndarray:
+        """The least-squares projection on sine and cosine at the frequency over the
+        window's times ``t`` (2 x samples), made once."""
+        if self._times[2] is None:
+            w = 2.0 * math.pi * self.options["frequency"]
+            basis = np.column_stack([np.sin(w * t), np.cos(w * t)])
+            self._times = (*self._times[:2], (np.linalg.pinv(basis), w))
+        return self._times[2]
 
     @property
     def signals(self) -> set[str]:
@@ -228,8 +246,7 @@ class Evaluator:
             return float(c.transitions)
         if kind == "expression":
             return float(self.expressions["expression"](c))
-        start, stop = self.options.get("start", -math.inf), self.options.get("stop", math.inf)
-        window = (c.time >= start - 1e-12) & (c.time <= stop + 1e-12)
+        window = self._window(c.time)
         t = c.time[window]
         if len(t) == 0:
             return math.nan
@@ -239,7 +256,7 @@ class Evaluator:
         if kind in ("tracking_rms", "tracking_peak", "lag"):
             r = np.broadcast_to(self.expressions["reference"](c), c.time.shape)[window]
             if kind == "lag":
-                return _lag(s, r, t, self.options["frequency"])
+                return _lag(s, r, self._projection(t))
             s = s - r
         if kind in ("peak", "tracking_peak"):
             return float(np.max(np.abs(s)))
@@ -252,12 +269,12 @@ class Evaluator:
         return _settling(s, t, self.options.get("tolerance", 0.02))
 
 
-def _lag(signal, reference, t, frequency: float) -> float:
-    """Phase lag [s] of ``signal`` behind ``reference`` at ``frequency`` (both projected
-    on sine and cosine at that frequency over the window)."""
-    w = 2.0 * math.pi * frequency
-    basis = np.column_stack([np.sin(w * t), np.cos(w * t)])
-    (a_s, b_s), (a_r, b_r) = (np.linalg.lstsq(basis, v, rcond=None)[0] for v in (signal, reference))
+def _lag(signal, reference, projection) -> float:
+    """Phase lag [s] of ``signal`` behind ``reference`` at a frequency: both projected
+    (least squares) on sine and cosine at it over the window; ``projection`` is
+    (the pseudo-inverse of that basis, the angular frequency)."""
+    pinv, w = projection
+    (a_s, b_s), (a_r, b_r) = pinv @ signal, pinv @ reference
     delta = math.atan2(b_r, a_r) - math.atan2(b_s, a_s)
     delta = (delta + math.pi) % (2.0 * math.pi) - math.pi
     return delta / w

@@ -26,14 +26,19 @@ from functools import cached_property
 import numpy as np
 
 from ..engine import STATUS_TEXT, Engine, compile_model, core, observation_layout
+from ..engine.retune import RETUNABLE, Slots, find_passthrough, retune
 from ..errors import InputError
 from ..params import Parameters, _relations
-from ..simulate import InitialState, _initial, choose_solver
+from ..simulate import InitialState, choose_solver
+from ..simulate.driver import _initial
 from .metrics import Context, Evaluator, Expression
 from .spec import Q, SweepSpec, spec_of
 
 #: Status of a run that could not be built (the engine's codes are 0 and up).
 SETUP_FAILED = -1
+#: Compiled models a process keeps for runs that retune them (one per distinct set
+#: of values of the parameters that are not pass-through).
+MAX_SHARED = 64
 
 
 @dataclass(frozen=True)
@@ -88,7 +93,8 @@ class _Memo:
 
 def signal_recipes(structure, layout) -> dict[str, tuple[str, Callable]]:
     """Each signal `vsj.simulate.collect` names (ports aside), with its unit and how it is
-    computed from `Engine.observe`'s columns; the same formulas, so the same bits."""
+    computed from `Engine.observe`'s columns; the same formulas, so the same bits.
+    `LIGHT_COLUMNS` says which of them need only the state and the sources."""
     cols = observation_layout(layout)
     out: dict[str, tuple[str, Callable]] = {}
 
@@ -138,6 +144,21 @@ def signal_recipes(structure, layout) -> dict[str, tuple[str, Callable]]:
     return out
 
 
+#: Columns of `Engine.observe` that are the sampled state or the sources' angles and
+#: speeds (which `Engine.source_signals` gives without evaluating the model).
+LIGHT_COLUMNS = ("x", "v", "current", "sigma", "u")
+
+
+def _light(name: str, structure) -> bool:
+    """Whether the recipe of signal ``name`` reads `LIGHT_COLUMNS` only."""
+    if name.startswith("source.") and name.endswith(".speed"):
+        return True
+    if name.startswith("motor.") and name.endswith(".current"):
+        return True
+    probes = {s.name for s in structure.signals} | set(structure.free)
+    return name in probes or (name.endswith(".speed") and name[:-len(".speed")] in probes)
+
+
 #: Signals a batch run of the time-stepper cannot give: they need the stiction
 #: impulses, which only single runs (`vsj simulate`) sample.
 def _needs_impulses(name: str) -> bool:
@@ -152,24 +173,27 @@ class Prepared:
         from .. import scenario as scenarios
 
         spec = job.spec
+        self.spec = spec
         scen = scenarios.loads(job.scenario_text, job.scenario_origin)
         params = (params_module.default() if job.params_text is None
                   else params_module.loads(job.params_text, job.params_origin))
         case = pick_case(scen, spec)
         self.case = case
-        resolved, structure, inputs, pivot_range = scenarios.prepare_case(scen, case, params)
+        prepared = scenarios.prepare_case(scen, case, params)
+        resolved, structure, inputs = prepared.params, prepared.structure, prepared.inputs
         self.base_params = resolved
         self.structure = structure
         self.inputs = {k: _Memo(v) for k, v in inputs.items()}
-        self.pivot_range = pivot_range
         self.options = case.options
         self.duration = case.duration
         self.solver = choose_solver(structure, case.options)
         self.varied = spec.varied
         self.parameter_keys = [n for n in self.varied if n != Q]
-        base, layout = self._compile(structure, pivot_range)
+        base, layout = self._compile(structure)
         self.layout = layout
         self.base_model = base
+        self.base_group = _fixed_arrays(base)
+        self._shared: dict[bytes, _Compiled | None] = {}
         self.u0 = Engine(base).source_speeds(0.0)
         step = case.options.output_step
         n_out = math.floor(self.duration / step + 1e-9) + 1
@@ -202,12 +226,84 @@ class Prepared:
                                  f"this scenario or of [signals]{why}")
         self.keep = list(spec.keep)
         self.units = {**units, **{k: "" for k in self.derived}}
+        needed, todo = set(), [*self.keep, *(n for m in self.metrics for n in m.signals)]
+        while todo:
+            name = todo.pop()
+            if name not in needed:
+                needed.add(name)
+                if name in self.derived:
+                    todo += self.derived[name].signals
+        #: whether every signal the runs need is the state or a source (no observe)
+        self.light = all(_light(n, structure) for n in needed if n in self.recipes)
+        self.columns = observation_layout(layout)
 
-    def _compile(self, structure, pivot_range):
+    def _compile(self, structure):
         o = self.options
         return compile_model(structure, self.inputs, self.duration, friction=o.friction,
                              friction_overrides=o.friction_overrides,
-                             slope_width=o.slope_width, pivot_range=pivot_range)
+                             slope_width=o.slope_width)
+
+    @cached_property
+    def passthrough(self) -> dict[str, Slots]:
+        """The varied parameters that reach the compiled arrays unchanged, and where
+        (`vsj.engine.retune`); their runs retune a shared model instead of compiling."""
+        base = {k: self.base_params.values[k] for k in self.parameter_keys}
+        probes = {k: self._probe_values(k) for k in self.parameter_keys}
+        joint = [{k: v[i % len(v)] if v else base[k] for k, v in probes.items()}
+                 for i in range(3)]
+        return find_passthrough(self._probe_arrays, base, probes, joint)
+
+    def _probe_values(self, name: str) -> list[float]:
+        """Values of ``name`` to compile the model at: near the base value, and in the
+        range the sweep file gives it; all within the parameter's allowed range."""
+        from .sampling import to_values
+
+        spec = self.spec
+        base = self.base_params.values[name]
+        out = [base * (1.0 + d) for d in (0.0123, -0.0234, 0.0345)] if base != 0.0 else []
+        out += [v for f in spec.fixed if f.name == name for v in f.values]
+        out += [float(v) for d in spec.sampled if d.name == name
+                for v in to_values(np.array([[0.2], [0.5], [0.8]]), (d,))[:, 0]]
+        cov = spec.covariance
+        if cov is not None and name in cov.names:
+            j = cov.names.index(name)
+            sd, (lo, hi) = math.sqrt(cov.matrix[j][j]), cov.bounds[j]
+            out += [min(max(cov.mean[j] + k * sd, lo), hi) for k in (-0.5, 0.0, 0.5)]
+        return [v for v in out if math.isfinite(v) and not spec_of(name).check(v)]
+
+    def _probe_arrays(self, values: Mapping[str, float]) -> dict | None:
+        """The compiled arrays and initial state with ``values`` of the parameters
+        (the initial state the scenario's), or None if they cannot be built."""
+        vector = np.array([values.get(n, math.nan) for n in self.varied])
+        try:
+            params = self.parameters_for(vector)
+            shared = _compiled(self, params)
+            x0, v0, sigma0, currents = _initial(shared.structure, self.inputs,
+                                                self.case.initial, self.u0)
+        except (InputError, ArithmeticError, ValueError, np.linalg.LinAlgError):
+            return None
+        return {**shared.model._asdict(), "x0": np.asarray(x0, dtype=float),
+                "v0": np.asarray(v0, dtype=float), "sigma0": np.asarray(sigma0, dtype=float),
+                "currents": np.asarray(currents, dtype=float)}
+
+    def compiled_for(self, values: np.ndarray) -> _Compiled | None:
+        """The compiled model a run with ``values`` retunes: compiled with its values
+        of the parameters that are not pass-through and the base values of those that
+        are, once for all runs alike; None where that cannot be built (the run is then
+        compiled on its own)."""
+        passthrough = self.passthrough
+        key = np.array([v for n, v in zip(self.varied, values)
+                        if n != Q and n not in passthrough]).tobytes()
+        if key not in self._shared:
+            vector = np.array([self.base_params.values[n] if n in passthrough else v
+                               for n, v in zip(self.varied, values)])
+            try:
+                self._shared[key] = _compiled(self, self.parameters_for(vector))
+            except InputError:
+                self._shared[key] = None
+            if len(self._shared) > MAX_SHARED:
+                self._shared.pop(next(iter(self._shared)))
+        return self._shared[key]
 
     def parameters_for(self, values: np.ndarray) -> Parameters:
         """The base set with the run's parameter values (SI), checked as a file would be."""
@@ -279,6 +375,15 @@ class _Run:
     group: bytes = field(default=b"")
 
 
+@dataclass
+class _Compiled:
+    """A network built and compiled once, shared by the runs that retune it."""
+
+    structure: object
+    model: object
+    group: bytes
+
+
 def _fixed_arrays(model) -> bytes:
     """What a batch shares: everything of the compiled model but mass, Minv, par."""
     digest = hashlib.sha256()
@@ -289,24 +394,37 @@ def _fixed_arrays(model) -> bytes:
     return digest.digest()
 
 
+def _compiled(p: Prepared, params: Parameters) -> _Compiled:
+    """The network of ``params`` built, assembled and compiled as `vsj simulate` does."""
+    structure = p.case.build(params).assemble()
+    model, layout = p._compile(structure)
+    if layout != p.layout:
+        raise InputError("these values change the network's structure")
+    return _Compiled(structure, model, _fixed_arrays(model))
+
+
 def _build(p: Prepared, values: np.ndarray) -> _Run:
     params = p.parameters_for(values)
     initial = p.initial_for(values, params)
     if params is p.base_params:
-        structure, model = p.structure, p.base_model
+        structure, model, group = p.structure, p.base_model, p.base_group
     else:
-        structure = p.case.build(params).assemble()
-        pivot_range = (params.pivot.q_min, params.pivot.q_max) if p.case.pivot_from_params \
-            else None
-        model, layout = p._compile(structure, pivot_range)
-        if layout != p.layout:
-            raise InputError("these values change the network's structure")
+        shared = p.compiled_for(values)
+        if shared is None:
+            shared = _compiled(p, params)
+            model = shared.model
+        else:
+            model = shared.model
+            if p.passthrough:
+                named = dict(zip(p.varied, values.tolist()))
+                arrays = retune(model._asdict(), p.passthrough, named)
+                model = model._replace(**{k: arrays[k] for k in RETUNABLE})
+        structure, group = shared.structure, shared.group
     x0, v0, sigma0, currents = _initial(structure, p.inputs, initial, p.u0)
     n_state = p.layout.n_state
     y0 = np.zeros(n_state if p.solver == "dopri" else n_state + p.layout.n_acc)
     y0[:n_state] = np.concatenate([x0, v0, currents])
-    return _Run(params, structure, model, y0, np.asarray(sigma0, dtype=float),
-                _fixed_arrays(model))
+    return _Run(params, structure, model, y0, np.asarray(sigma0, dtype=float), group)
 
 
 def run_chunk(job: Job, start: int, values: np.ndarray, threads: int | None = None
@@ -362,8 +480,16 @@ def _measure(p: Prepared, run: _Run, states: np.ndarray, transitions: int,
     if not (p.keep or p.metrics):
         return
     engine = Engine(run.model._replace(src_pos0=run.sigma0))
-    nf = p.layout.n_frictions
-    raw = engine.observe(p.t_out, states, np.zeros((len(p.t_out), nf)))
+    if p.light:  # the same numbers observe writes in these columns, the rest left NaN
+        cols = p.columns
+        raw = np.empty((len(p.t_out), cols["u"].stop))
+        n_state = p.layout.n_state
+        raw[:, :n_state] = states[:, :n_state]
+        raw[:, cols["a"]] = np.nan
+        raw[:, cols["sigma"]], raw[:, cols["u"]] = engine.source_signals(p.t_out)
+    else:
+        nf = p.layout.n_frictions
+        raw = engine.observe(p.t_out, states, np.zeros((len(p.t_out), nf)))
     cache: dict[str, np.ndarray] = {}
     values = run.params.values
 

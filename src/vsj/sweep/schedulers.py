@@ -9,9 +9,10 @@ core; processes keep every core busy with it). ``"local"`` starts a Dask
 ``LocalCluster`` with one single-threaded worker process per core; any other
 text is the address of a running Dask scheduler (``tcp://host:8786``).
 
-`execute` yields ``(index, ChunkResult)`` as chunks finish, keeping at most two
-chunks per worker in flight, so memory stays bounded and an interruption loses
-only those.
+`execute` starts the workers and hands them their first chunks at once (so they
+start up while the caller makes the store), then yields ``(index, ChunkResult)`` as
+chunks finish, keeping at most two chunks per worker in flight, so memory stays
+bounded and an interruption loses only those. Close what it returns to stop.
 """
 
 from __future__ import annotations
@@ -23,20 +24,26 @@ from ..errors import InputError
 from .runner import ChunkResult, Job, run_chunk
 
 
+#: Imported once by the fork server the workers are forked from (see the module).
+PRELOAD = ["vsj.sweep._worker"]
+
+
 def execute(job: Job, chunks: list[tuple[int, int, object]], scheduler: str | None,
             workers: int | None = None) -> Iterator[tuple[int, ChunkResult]]:
-    """Run ``chunks`` (index, start, values) of ``job``; yields results as they finish."""
+    """Start running ``chunks`` (index, start, values) of ``job``; the generator returned
+    yields the results as they finish (its ``close`` stops the workers)."""
     if not chunks:
-        return
-    if scheduler is None:
-        yield from _local(job, chunks, workers)
-    else:
-        yield from _dask(job, chunks, scheduler, workers)
+        return iter(())
+    running = (_local(job, chunks, workers) if scheduler is None
+               else _dask(job, chunks, scheduler, workers))
+    next(running)  # up to the first chunks handed out
+    return running
 
 
 def _local(job, chunks, workers):
     cores = workers or available_cores()
     if cores == 1 or len(chunks) == 1:
+        yield None
         for index, start, values in chunks:
             yield index, run_chunk(job, start, values, threads=cores)
         return
@@ -46,15 +53,19 @@ def _local(job, chunks, workers):
     # a fork server imports the runner once and forks each worker from it: no fork of
     # this (threaded) process, and no worker importing everything anew
     context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload(["vsj.sweep.runner"])
+    context.set_forkserver_preload(PRELOAD)
     pending = list(reversed(chunks))
     running = {}
     with ProcessPoolExecutor(max_workers=min(cores, len(chunks)), mp_context=context) as pool:
         try:
+            started = False
             while pending or running:
                 while pending and len(running) < 2 * cores:
                     index, start, values = pending.pop()
                     running[pool.submit(run_chunk, job, start, values, 1)] = index
+                if not started:
+                    started = True
+                    yield None
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 for future in done:
                     yield running.pop(future), future.result()
@@ -99,6 +110,7 @@ def _dask(job, chunks, scheduler, workers):
             return future
 
         queue = as_completed([submit() for _ in range(min(slots, len(pending)))])
+        yield None
         for future in queue:
             index = running.pop(future)
             result = future.result()

@@ -117,28 +117,23 @@ def write_manifest(directory: Path, record: dict) -> None:
         handle.write(json.dumps(record, indent=1) + "\n")
 
 
+#: xarray's encoding of a NaN fill value in zarr v3 attributes (what ``to_zarr`` writes).
+_NAN_FILL = "AAAAAAAA+H8="
+
+
 def create(path: Path, *, varied: list[str], values: np.ndarray, units: list[str],
            time: np.ndarray, keep: list[str], keep_units: list[str], metrics: list[str],
            metric_units: list[str], chunk: int, attrs: dict) -> None:
-    """Make the store with every array's shape and fill values (metadata only)."""
-    import dask.array as da
+    """Make the store: the coordinates written, the per-run arrays allocated with
+    their fill values (NaN; status `NOT_RUN`) and chunked along ``run`` by ``chunk``.
+
+    The coordinates go through xarray; the per-run arrays are made with zarr
+    directly, in xarray's layout (dimension names, the ``coordinates`` attribute),
+    because xarray can allocate an array without writing it only through Dask."""
     import xarray as xr
+    import zarr
 
     runs, n_t = len(values), len(time)
-    shape = (runs, n_t, len(keep))
-    data = {
-        "signals": (("run", "time", "signal"),
-                    da.full(shape, np.nan, chunks=(chunk, n_t, max(1, len(keep)))),
-                    {"description": "kept signals, SI units (see the coordinate unit)"}),
-        "metrics": (("run", "metric"),
-                    da.full((runs, len(metrics)), np.nan, chunks=(chunk, max(1, len(metrics)))),
-                    {"description": "metrics per run (see the coordinate metric_unit)"}),
-        "status": (("run",), da.full((runs,), NOT_RUN, dtype=np.int64, chunks=chunk),
-                   {"description": "0 ok; >0 the engine's failure status; -1 not built; "
-                                   "-2 not run"}),
-        "steps": (("run",), da.zeros((runs,), dtype=np.int64, chunks=chunk),
-                  {"description": "solver steps"}),
-    }
     coords = {"run": ("run", np.arange(runs)),
               "time": ("time", time, {"units": "s"}),
               "signal": ("signal", np.array(keep, dtype=object)),
@@ -147,21 +142,46 @@ def create(path: Path, *, varied: list[str], values: np.ndarray, units: list[str
               "metric_unit": ("metric", np.array(metric_units, dtype=object))}
     for j, (name, unit) in enumerate(zip(varied, units)):
         coords[name] = ("run", values[:, j], {"units": unit})
-    ds = xr.Dataset(data, coords=coords, attrs=attrs)
-    encoding = {name: {"chunks": (chunk,)} for name in varied}
-    encoding["run"] = {"chunks": (chunk,)}
-    ds.to_zarr(path, mode="w", compute=False, consolidated=False, encoding=encoding)
+    encoding = {name: {"chunks": (chunk,)} for name in [*varied, "run"]}
+    xr.Dataset(coords=coords, attrs=attrs).to_zarr(path, mode="w", consolidated=False,
+                                                  encoding=encoding)
+    group = zarr.open_group(path, mode="r+")
+    arrays = [
+        ("signals", ("run", "time", "signal"), (runs, n_t, len(keep)),
+         (chunk, max(1, n_t), max(1, len(keep))), np.float64, np.nan,
+         "kept signals, SI units (see the coordinate unit)"),
+        ("metrics", ("run", "metric"), (runs, len(metrics)), (chunk, max(1, len(metrics))),
+         np.float64, np.nan, "metrics per run (see the coordinate metric_unit)"),
+        ("status", ("run",), (runs,), (chunk,), np.int64, NOT_RUN,
+         "0 ok; >0 the engine's failure status; -1 not built; -2 not run"),
+        ("steps", ("run",), (runs,), (chunk,), np.int64, 0, "solver steps"),
+    ]
+    for name, dims, shape, chunks, dtype, fill, description in arrays:
+        # the non-dimension coordinates along this array's dimensions, as xarray names them
+        along = sorted(c for c, spec in coords.items() if c not in dims and spec[0] in dims)
+        attributes = {"description": description, "coordinates": " ".join(along)}
+        if dtype is np.float64:
+            attributes["_FillValue"] = _NAN_FILL
+        group.create_array(name, shape=shape, chunks=chunks, dtype=dtype, fill_value=fill,
+                           dimension_names=dims, attributes=attributes)
 
 
-def write_chunk(path: Path, result, stop: int) -> None:
-    """Write one finished chunk into its region of the store."""
-    import xarray as xr
+class Writer:
+    """The store opened once for writing finished chunks into their regions."""
 
-    ds = xr.Dataset({"signals": (("run", "time", "signal"), result.kept),
-                     "metrics": (("run", "metric"), result.metrics),
-                     "status": (("run",), result.status),
-                     "steps": (("run",), result.steps)})
-    ds.to_zarr(path, region={"run": slice(result.start, stop)}, consolidated=False)
+    def __init__(self, path: Path):
+        import zarr
+
+        group = zarr.open_group(path, mode="r+")
+        self.arrays = {name: group[name] for name in ("signals", "metrics", "status", "steps")}
+
+    def write(self, result, stop: int) -> None:
+        """Write one finished chunk (runs ``result.start .. stop``)."""
+        region = slice(result.start, stop)
+        for name, data in (("signals", result.kept), ("metrics", result.metrics),
+                           ("status", result.status), ("steps", result.steps)):
+            if data.size:
+                self.arrays[name][region] = data
 
 
 def digest(result) -> str:
@@ -175,9 +195,10 @@ def digest(result) -> str:
 
 
 def open_dataset(path: Path):
+    """The store as an xarray Dataset (NumPy-backed: read on access, no Dask)."""
     import xarray as xr
 
-    return xr.open_zarr(path, consolidated=False)
+    return xr.open_dataset(path, engine="zarr", consolidated=False, chunks=None)
 
 
 def write_metrics_csv(path: Path, ds, messages: dict[str, str], varied: list[str]) -> None:
@@ -230,7 +251,7 @@ __all__ = [
     "digest",
     "open_dataset",
     "read_manifest",
-    "write_chunk",
+    "Writer",
     "write_manifest",
     "write_metrics_csv",
 ]
