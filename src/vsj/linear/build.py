@@ -137,7 +137,7 @@ def _pivot_sensitivity(structure: Structure, options: SimulationOptions, state, 
 def _without_friction(structure: Structure) -> Structure:
     """The same network with every friction element's viscous and Coulomb parts at zero."""
     return dataclasses.replace(structure, frictions=tuple(
-        dataclasses.replace(f, viscous=0.0, stiction=0.0) for f in structure.frictions))
+        dataclasses.replace(f, viscous=0.0, k=0.0) for f in structure.frictions))
 
 
 def linearize_structure(structure: Structure, *, angles: Mapping[str, float] | None = None,
