@@ -558,7 +558,7 @@ def fig_4_14(ctx: Context) -> Figure:
     Data: ``radius`` of the circle [rad]; ``cases``, one per parasitic
     compliance with ``compliance`` [rad/(N m)], its ``label``, and over the last
     full circle the end-effector torques ``torque_x``, ``torque_y`` [N m], the
-    direction of the displacement atan2(θy, θx) in [0, 2π), ``direction``
+    direction of the displacement atan2(θy, θx) modulo 2π, ``direction``
     [rad], and the torque's magnitude ``torque_magnitude`` [N m].
     """
     scen = scenarios.load("fig-4.14")
