@@ -153,11 +153,11 @@ class Figure:
     """
 
     name: str
-    data: Mapping[str, Any]
+    data: Mapping[str, Any] = field(compare=False)  # arrays: compared through the rows
     caption: str
     rows: list[Row] = field(default_factory=list)
     synthetic: bool = False  # True when it shows synthetic measurement data
-    draw: Callable[[Mapping[str, Any]], Any] | None = None
+    draw: Callable[[Mapping[str, Any]], Any] | None = field(default=None, compare=False)
     _drawn: Any = field(default=None, init=False, repr=False, compare=False)
 
     @property
