@@ -1,6 +1,7 @@
 """``vsj reproduce``: every result of the report regenerated, beside the report's numbers.
 
-`run` calls each figure function (`model_figures`, `data_figures`), writes
+`run` calls each figure function (`model_figures`, `data_figures`: numbers,
+rows and caption, no Matplotlib), draws it (`draw_model`, `draw_data`), writes
 ``fig-X.Y.png`` and ``.svg``, then ``results.json`` (every row with its
 category and verdict, machine readable) and ``report.html`` (one self-contained
 page: a summary whose headline counts predictions only, then each figure,

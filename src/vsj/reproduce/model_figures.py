@@ -3,9 +3,10 @@
 One function per figure, each ``fig_X_Y(ctx) -> Figure`` (`vsj.reproduce.base`):
 it computes with the library (`vsj.characteristics` for the elastic element's
 static curves, the built-in scenarios ``fig-4.14`` and ``fig-4.15`` for the
-whole wrist), draws the report's axes on a `matplotlib.figure.Figure` (no
-pyplot state), and returns one `Row` per number or statement the report gives
-for that figure beside vsj's value. The report's figures are images; what the
+whole wrist), and returns, without Matplotlib, the arrays the figure shows
+(`Figure.data`, SI units, keys listed in each docstring) and one `Row` per
+number or statement the report gives for that figure beside vsj's value; its
+drawing is `vsj.reproduce.draw_model`. The report's figures are images; what the
 report *states* is its text (section 3.2.2, 4.2.2, 4.3), so where a figure
 carries only a curve the row says so and vsj's value stands alone.
 
@@ -29,7 +30,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from matplotlib.figure import Figure as MplFigure
 from scipy.optimize import brentq
 
 from .. import characteristics as ch
@@ -39,6 +39,7 @@ from ..springs import (
     GEOMETRIC,
     GEOMETRIC_REPORT,
     GEOMETRY_FIELDS,
+    MODEL_NAMES,
     coil_pretension,
 )
 from ..errors import SimulationError
@@ -46,7 +47,7 @@ from ..identification.geometry import TESTED_Q, ReportTargets
 from ..params import Parameters
 from ..units import to_si
 from ..wrist import exponential, geometry
-from .base import CALIBRATION, INPUT, NOT_STATED, Context, Figure, Row
+from .base import CALIBRATION, INPUT, NOT_STATED, Context, Drawing, Figure, Row
 
 #: Largest axis ratio of fig 4.14's loop still read as an ellipse, not a circle: the
 #: rigid case's ratio differs from 1 by well under 2 % (the differential's stiction).
@@ -73,11 +74,12 @@ Q_STEP_REDUCED = 0.002
 #: Report's statements, kept with the calibration that uses them.
 TARGETS = ReportTargets()
 
-#: Elastic models drawn in fig 3.5 and 3.6: law, label, line style.
+#: Elastic models drawn in fig 3.5 and 3.6: law and label (their line styles are the
+#: drawing's, `vsj.reproduce.draw_model`).
 MODELS = (
-    (GEOMETRIC, "geometric model, potential form (physical)", "-"),
-    (GEOMETRIC_REPORT, "geometric model, eq 3.8 as printed", "--"),
-    (EXPONENTIAL, "simplified model, eq 4.5 (linear spring)", ":"),
+    (GEOMETRIC, "geometric model, potential form (physical)"),
+    (GEOMETRIC_REPORT, "geometric model, eq 3.8 as printed"),
+    (EXPONENTIAL, "simplified model, eq 4.5 (linear spring)"),
 )
 SHORT = {GEOMETRIC: "potential model", GEOMETRIC_REPORT: "eq 3.8 model",
          EXPONENTIAL: "eq 4.5 model"}
@@ -144,31 +146,28 @@ def _range_text(seen: list[float]) -> str:
 
 
 def fig_3_5(ctx: Context) -> Figure:
-    """Equilibrium deflection under 1 N m against the pivot position (report fig 3.5)."""
+    """Equilibrium deflection under 1 N m against the pivot position (report fig 3.5).
+
+    Data: ``q`` pivot positions [m]; ``end_stop`` [rad]; ``load`` [N m];
+    ``models``, one entry per elastic model with ``law`` (its name), ``label``,
+    ``deflection`` under the load [rad] and ``largest_torque`` before the end
+    stop [N m] at each ``q``.
+    """
     params = ctx.params
     stop = params.elastic_element.end_stop
     q_lo, q_hi = params.pivot.q_min, params.pivot.q_max
     qs = _q_grid(ctx, q_lo, 0.0)  # the report shows q <= 0 only
-    fig = MplFigure(figsize=(11, 4.2), layout="constrained")
-    ax_phi, ax_tau = fig.subplots(1, 2)
+    models = []
     largest = {}
-    for law, label, style in MODELS:
+    for law, label in MODELS:
         par = _law_row(params, law)
-        phi = [ch.deflection_under(law, par, q, LOAD, limit=stop) for q in qs]
-        torque = [_largest_torque(law, par, q, stop) for q in qs]
-        ax_phi.plot(qs * 100, phi, style, lw=1.6, label=label)
-        ax_tau.plot(qs * 100, torque, style, lw=1.6, label=label)
+        models.append({
+            "law": MODEL_NAMES[law], "label": label,
+            "deflection": np.array([ch.deflection_under(law, par, q, LOAD, limit=stop)
+                                    for q in qs]),
+            "largest_torque": np.array([_largest_torque(law, par, q, stop) for q in qs])})
         largest[law] = {q: _largest_torque(law, par, q, stop) for q in TESTED_Q if q <= 0.0}
-    ax_phi.axhline(stop, color="k", lw=0.8, ls="-.", label=f"end stop {stop:.2f} rad")
-    ax_phi.set(xlabel="pivot position q [cm]", ylabel="deflection φ under 1 N m [rad]",
-               title="equilibrium deflection under a 1 N m load", ylim=(0, stop * 1.12))
-    ax_tau.axhline(LOAD, color="k", lw=0.8, ls="-.", label="load 1 N m")
-    ax_tau.set(xlabel="pivot position q [cm]",
-               ylabel="largest restoring torque before the stop [N m]",
-               title="why: the element's torque capacity", yscale="log")
-    for ax in (ax_phi, ax_tau):
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+    data = {"q": qs, "end_stop": stop, "load": LOAD, "models": models}
 
     K_needed = LOAD / stop
     a1, a2, a3 = params.elastic_element.a1, params.elastic_element.a2, params.elastic_element.a3
@@ -176,7 +175,7 @@ def fig_3_5(ctx: Context) -> Figure:
     rows = [Row("physical end stop |φ|", 1.40, stop, "rad", "section 3.2.2",
                 "the report's value, used as the parameter elastic_element.end_stop",
                 category=INPUT)]
-    for law, _, _ in MODELS:
+    for law, _ in MODELS:
         par = _law_row(params, law)
         q_max = _largest_q_holding(law, par, LOAD, stop, q_lo, q_hi)
         if q_max >= 0.0:
@@ -215,7 +214,7 @@ def fig_3_5(ctx: Context) -> Figure:
                "curves of the three elastic models (no friction, no dynamics), "
                f"{_parameter_set(params)}: geometry calibrated to the measured stiffness, eq 4.5 "
                f"with a1 = {a1:g} N m/rad, a2 = {a2 / 100:g} 1/cm, a3 = {a3:g} N m/rad.")
-    return Figure("fig-3.5", fig, caption, rows)
+    return Figure("fig-3.5", data, caption, rows, draw=Drawing("draw_model", "fig_3_5"))
 
 
 # -- fig 3.6 -----------------------------------------------------------------
@@ -228,16 +227,22 @@ def fig_3_6(ctx: Context) -> Figure:
     1 N m or the end stop, whichever comes first) and over the range the hand
     tested at each q (fig 4.10-4.12). The first range jumps where the element
     stops holding 1 N m before the end stop, and its peak sits at that jump.
+
+    Data: ``q`` pivot positions [m]; ``report_range`` (low, high) [m] where the
+    report's model peaks; ``models``, one entry per geometric model with
+    ``law`` (its name), ``label``, at each ``q`` the ``relative`` non-linearity
+    [-] and the ``absolute`` one [N m] up to 1 N m or the end stop, the
+    ``tested_range`` relative one [-], and ``jump`` [m], the largest q holding
+    1 N m before the end stop.
     """
     params = ctx.params
     stop = params.elastic_element.end_stop
     q_lo, q_hi = params.pivot.q_min, params.pivot.q_max
     qs = _q_grid(ctx, q_lo, q_hi)
     report_lo, report_hi = TARGETS.nonlinearity_peak
-    fig = MplFigure(figsize=(11, 4.2), layout="constrained")
-    ax_rel, ax_abs = fig.subplots(1, 2)
     peaks, tested, jumps = {}, {}, {}
-    for law, label, style in MODELS[:2]:  # eq 4.5 is linear by definition
+    models = []
+    for law, label in MODELS[:2]:  # eq 4.5 is linear by definition
         par = _law_row(params, law)
         rel = np.array([ch.nonlinearity(law, par, q, max_torque=LOAD, limit=stop) for q in qs])
         absolute = rel * np.array([ch.stiffness(law, par, q)
@@ -245,27 +250,13 @@ def fig_3_6(ctx: Context) -> Figure:
                                    for q in qs])
         steady = np.array([ch.nonlinearity(law, par, q, max_torque=math.inf,
                                            limit=TARGETS.tested_range(q)) for q in qs])
-        line, = ax_rel.plot(qs * 100, rel, style, lw=1.6,
-                            label=f"{label}, to 1 N m or the end stop")
-        ax_rel.plot(qs * 100, steady, style, lw=1.0, color=line.get_color(), alpha=0.55,
-                    label=f"{label}, over the tested range")
-        ax_abs.plot(qs * 100, absolute, style, lw=1.6, label=label)
         jumps[law] = _largest_q_holding(law, par, LOAD, stop, q_lo, q_hi)
-        ax_rel.axvline(jumps[law] * 100, color=line.get_color(), lw=0.8, ls=":")
+        models.append({"law": MODEL_NAMES[law], "label": label, "relative": rel,
+                       "absolute": absolute, "tested_range": steady, "jump": jumps[law]})
         peaks[law] = (float(qs[int(np.argmax(rel))]), float(rel.max()),
                       float(qs[int(np.argmax(absolute))]))
         tested[law] = (float(qs[int(np.argmax(steady))]), float(steady.max()))
-    ax_rel.plot([], [], "k:", lw=0.8, label="φ_max jumps to the end stop")
-    for ax in (ax_rel, ax_abs):
-        ax.axvspan(report_lo * 100, report_hi * 100, color="tab:orange", alpha=0.15,
-                   label="report: highest non-linearity")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-    ax_rel.set(xlabel="pivot position q [cm]",
-               ylabel="RMS(curve - tangent) / tangent torque at φ_max [-]",
-               title="relative non-linearity")
-    ax_abs.set(xlabel="pivot position q [cm]", ylabel="RMS(curve - tangent) [N m]",
-               title="absolute non-linearity (to 1 N m or the end stop)")
+    data = {"q": qs, "report_range": (report_lo, report_hi), "models": models}
     slack = _range_text(_slack_range(ctx, params)[0])
     report_range = f"{report_hi * 100:.1f} to {report_lo * 100:.1f} cm"
     rows = []
@@ -310,7 +301,7 @@ def fig_3_6(ctx: Context) -> Figure:
                "(the report does not say which). Shaded: the range where the report's model "
                f"peaks (q = {report_hi * 100:.1f} ... {report_lo * 100:.1f} cm). Static curves, "
                f"no friction, {_parameter_set(params)}.")
-    return Figure("fig-3.6", fig, caption, rows)
+    return Figure("fig-3.6", data, caption, rows, draw=Drawing("draw_model", "fig_3_6"))
 
 
 # -- fig 3.7 -----------------------------------------------------------------
@@ -359,7 +350,15 @@ def _slack_switches(par, q: float, phis: np.ndarray) -> list[float]:
 
 
 def fig_3_7(ctx: Context) -> Figure:
-    """Torque-deflection curves with loss of spring pretension (report fig 3.7, sec 4.2.2)."""
+    """Torque-deflection curves with loss of spring pretension (report fig 3.7, sec 4.2.2).
+
+    Data: ``phi`` deflections [rad]; ``end_stop`` [rad]; ``panels``, one per
+    spring setting (calibrated, pretension cut, coil pretension) with its
+    ``title`` and ``curves``, one per pivot position with ``q`` [m], the
+    restoring ``torque`` [N m] at each ``phi``, and the deflections where a
+    spring goes slack or taut again, ``switches`` [rad], with the torque just
+    past them, ``switch_torque`` [N m].
+    """
     params = ctx.params
     stop = params.elastic_element.end_stop
     par = geometry(params)
@@ -367,30 +366,21 @@ def fig_3_7(ctx: Context) -> Figure:
     coil, tension = _with_coil_pretension(par, COIL_SHARE)
     shown = sorted(TARGETS.loss_seen, reverse=True)
     phis = np.linspace(-stop, stop, 141 if ctx.reduced else 561)
-    fig = MplFigure(figsize=(14, 4.8), layout="constrained")
-    axes = fig.subplots(1, 3, sharey=True)
-    colours = ("tab:blue", "tab:green", "tab:red")
-    for ax, row, f_i, title in (
-            (axes[0], par, 0.0, "springs as calibrated"),
-            (axes[1], low, 0.0, f"pretension cut to {LOW_PRETENSION:.0%}"),
-            (axes[2], coil, tension, (f"coil pretension F_i = {tension:.2f} N "
-                                      f"({COIL_SHARE:.0%} of the preload)"))):
-        for q, colour in zip(shown, colours):
-            ax.plot(phis, _coil_curve(row, f_i, q, phis), color=colour, lw=1.6,
-                    label=f"q = {_cm(q)}")
-            switches = _slack_switches(row, q, phis)
-            if switches:
-                ax.plot(switches, _coil_curve(row, f_i, q, np.array(switches) + 1e-6
-                                              * np.sign(switches)), "o",
-                        color=colour, mfc="none", ms=7)
-        ax.axvline(-stop, color="k", lw=0.8, ls="-.")
-        ax.axvline(stop, color="k", lw=0.8, ls="-.")
-        ax.set(xlabel="deflection φ [rad]", ylabel="restoring torque [N m]", title=title)
-        ax.grid(alpha=0.3)
-    axes[0].plot([], [], "ko", mfc="none", label="a spring goes slack or taut again")
-    axes[0].plot([], [], "k-.", lw=0.8, label=f"end stop ±{stop:.2f} rad")
-    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncol=5,
-               fontsize=8)
+    panels = []
+    for row, f_i, title in (
+            (par, 0.0, "springs as calibrated"),
+            (low, 0.0, f"pretension cut to {LOW_PRETENSION:.0%}"),
+            (coil, tension, (f"coil pretension F_i = {tension:.2f} N "
+                             f"({COIL_SHARE:.0%} of the preload)"))):
+        curves = []
+        for q in shown:
+            switches = np.array(_slack_switches(row, q, phis))
+            past = (_coil_curve(row, f_i, q, switches + 1e-6 * np.sign(switches))
+                    if len(switches) else np.array([]))
+            curves.append({"q": q, "torque": _coil_curve(row, f_i, q, phis),
+                           "switches": switches, "switch_torque": past})
+        panels.append({"title": title, "curves": curves})
+    data = {"phi": phis, "end_stop": stop, "panels": panels}
 
     rows = []
     for q in TESTED_Q:
@@ -493,7 +483,7 @@ def fig_3_7(ctx: Context) -> Figure:
                f"length {coil[s] * 100:.3f} cm), where a spring going slack makes the torque "
                f"jump. {_parameter_set(params)}. The "
                "measurements of [2] (right part of the report's figure) are not published.")
-    return Figure("fig-3.7", fig, caption, rows)
+    return Figure("fig-3.7", data, caption, rows, draw=Drawing("draw_model", "fig_3_7"))
 
 
 # -- whole-wrist scenarios ---------------------------------------------------
@@ -563,7 +553,14 @@ def _ellipse(tx: np.ndarray, ty: np.ndarray) -> tuple[float, float, float]:
 
 
 def fig_4_14(ctx: Context) -> Figure:
-    """2D stiffness characteristic at a 1.1 rad displacement, motors held (report fig 4.14)."""
+    """2D stiffness characteristic at a 1.1 rad displacement, motors held (report fig 4.14).
+
+    Data: ``radius`` of the circle [rad]; ``cases``, one per parasitic
+    compliance with ``compliance`` [rad/(N m)], its ``label``, and over the last
+    full circle the end-effector torques ``torque_x``, ``torque_y`` [N m], the
+    direction of the displacement atan2(θy, θx) modulo 2π, ``direction``
+    [rad], and the torque's magnitude ``torque_magnitude`` [N m].
+    """
     scen = scenarios.load("fig-4.14")
     circle = scen.table["inputs"]["theta_x"]
     where = f"{scen.origin}: inputs.theta_x"
@@ -572,33 +569,20 @@ def fig_4_14(ctx: Context) -> Figure:
     fade = _quantity(circle, "fade_in", "s", where)
     # reduced: one circle after the spiral-out instead of the scenario's two
     runs = _run(scen, ctx.params, fade + period if ctx.reduced else None)
-    fig = MplFigure(figsize=(11, 5), layout="constrained")
-    ax_tau, ax_mag = fig.subplots(1, 2)
-    loops = []
-    for (case, resolved, result), alpha in zip(runs, np.linspace(0.35, 1.0, len(runs))):
+    loops, shown = [], []
+    for case, resolved, result in runs:
         t = result.time
         last = t >= t[-1] - period + 0.5 * (t[1] - t[0])  # the last full circle
         tx, ty = result["source.ee_x.torque"][last], result["source.ee_y.torque"][last]
         th_x, th_y = result["theta_x"][last], result["theta_y"][last]
         compliance = resolved.transmission.series_compliance_1
         label = "rigid" if compliance == 0.0 else f"parasitic compliance {compliance:g} rad/(N m)"
-        line, = ax_tau.plot(tx, ty, lw=1.8, alpha=alpha, label=label)
-        direction = np.degrees(np.arctan2(th_y, th_x)) % 360.0
-        order = np.argsort(direction)
-        ax_mag.plot(direction[order], np.hypot(tx, ty)[order], lw=1.8, alpha=alpha,
-                    color=line.get_color())
+        shown.append({"compliance": compliance, "label": label, "torque_x": tx,
+                      "torque_y": ty, "direction": np.arctan2(th_y, th_x) % (2.0 * math.pi),
+                      "torque_magnitude": np.hypot(tx, ty)})
         loops.append(_Loop(case.label, resolved.hash()[:12], compliance, *_ellipse(tx, ty),
                            float(np.mean(np.hypot(th_x, th_y)))))
-    ax_tau.set_aspect("equal", adjustable="datalim")
-    ax_tau.set(xlabel="end-effector torque τx [N m]", ylabel="end-effector torque τy [N m]",
-               title=f"torque to hold the end-effector {radius:g} rad off centre")
-    ax_mag.set(xlabel="direction of the displacement atan2(θy, θx) [deg]",
-               ylabel="|τ| [N m]", title="torque magnitude around the circle", xlim=(0, 360))
-    ax_mag.set_xticks(range(0, 361, 45))
-    for ax in (ax_tau, ax_mag):
-        ax.grid(alpha=0.3)
-    fig.legend(*ax_tau.get_legend_handles_labels(), loc="outside lower center", ncol=4,
-               fontsize=8)
+    data = {"radius": radius, "cases": shown}
 
     rows = [Row("end-effector displacement", 1.1, round(loops[0].displacement, 4), "rad",
                 "fig 4.14", "prescribed by the scenario (mean |θ| over the last circle)",
@@ -633,7 +617,7 @@ def fig_4_14(ctx: Context) -> Figure:
                + ", ".join(f"{loop.label}: {loop.parameters_hash}" for loop in loops)
                + ". The older measurements of [2] (right part of the report's figure) are not "
                  "published.")
-    return Figure("fig-4.14", fig, caption, rows)
+    return Figure("fig-4.14", data, caption, rows, draw=Drawing("draw_model", "fig_4_14"))
 
 
 # -- fig 4.15 ----------------------------------------------------------------
@@ -696,7 +680,17 @@ def _following(runs, gain: float, frequency: float, settle: float) -> list[_Foll
 
 def fig_4_15(ctx: Context) -> Figure:
     """Circular motion driven by the primary motors at five stiffness settings (fig 4.15),
-    with true stiction, and the lags under the arctan law beside it."""
+    with true stiction, and the lags under the arctan law beside it.
+
+    Data: ``traces``, one per stiffness setting under true stiction, with ``q``
+    [m] and over ``time`` [s] the end-effector angles ``theta_x``, ``theta_y``
+    and the elastic deflections ``phi_1``, ``phi_2`` [rad]; ``rigid``, the path
+    rigid springs would give (``time`` [s], ``theta_x``, ``theta_y`` [rad]);
+    ``laws``, one per friction law (true stiction first) with its ``label`` and,
+    per setting, ``q`` [m], the phase ``lag`` behind the motors [s] (mean of
+    ``lag_x`` and ``lag_y``) and the largest elastic ``deflection`` after the
+    transient [rad].
+    """
     params = ctx.params
     base = scenarios.load("fig-4.15")
     drive = base.table["inputs"]["motor_1"]["signal"]
@@ -714,39 +708,20 @@ def fig_4_15(ctx: Context) -> Figure:
     gain = pg.sun_teeth / (pg.sun_teeth + pg.ring_teeth) / params.transmission.ratio
     following = {law: _following(r, gain, frequency, settle) for law, r in runs.items()}
     shown = FIG_4_15_LAWS[0]
-    fig = MplFigure(figsize=(15, 7), layout="constrained")
-    axes = fig.subplot_mosaic([["theta_x", "theta_y", "lag"], ["phi_1", "phi_2", "deflection"]])
-    panels = (("theta_x", "end-effector θx [rad]"), ("theta_y", "end-effector θy [rad]"),
-              ("phi_1", "elastic deflection φ1 [rad]"), ("phi_2", "elastic deflection φ2 [rad]"))
-    alphas = np.linspace(0.3, 1.0, len(runs[shown]))  # as the report: stiff light, soft solid
     cases = following[shown]
-    for i, ((case, resolved, result), alpha) in enumerate(zip(runs[shown], alphas)):
-        t = result.time
-        for signal, _ in panels:
-            axes[signal].plot(t, result[signal], color=f"C{i}", alpha=alpha, lw=1.4,
-                              label=f"q = {cases[i].q * 100:+.1f} cm")
+    traces = [{"q": c.q, "time": result.time,
+               **{signal: result[signal] for signal in ("theta_x", "theta_y", "phi_1", "phi_2")}}
+              for c, (_, _, result) in zip(cases, runs[shown])]
+    result = runs[shown][-1][2]  # the rigid path is drawn along the last setting's run
+    t = result.time
     sun_1, sun_2 = result["motor_1"], result["motor_2"]
-    for key, rigid in (("theta_x", gain * (sun_1 + sun_2) / 2.0),
-                       ("theta_y", gain * (sun_1 - sun_2) / 2.0)):
-        axes[key].plot(t, rigid, "k--", lw=0.9, label="rigid springs (motor command)")
-    for signal, label in panels:
-        axes[signal].set(xlabel="time [s]", ylabel=label, xlim=(t[0], t[-1]))
-        axes[signal].grid(alpha=0.3)
-    for law, style in zip(FIG_4_15_LAWS, ("o-", "s--")):
-        qs = [c.q * 100 for c in following[law]]
-        axes["lag"].plot(qs, [c.lag * 1e3 for c in following[law]], style, color="k",
-                         mfc="none", label=f"{law} ({FRICTION_TEXT[law]})")
-        axes["deflection"].plot(qs, [c.deflection for c in following[law]], style, color="k",
-                                mfc="none", label=f"{law} ({FRICTION_TEXT[law]})")
-    axes["lag"].set(xlabel="pivot position q [cm]", ylabel="lag behind the motors [ms]",
-                    title="phase lag at the drive frequency")
-    axes["deflection"].set(xlabel="pivot position q [cm]", ylabel="largest |φ1|, |φ2| [rad]",
-                           title="elastic deflection after the transient")
-    for key in ("lag", "deflection"):
-        axes[key].grid(alpha=0.3)
-        axes[key].legend(fontsize=8)
-    fig.legend(*axes["theta_x"].get_legend_handles_labels(), loc="outside lower center",
-               ncol=len(cases) + 1, fontsize=8)
+    data = {"traces": traces,
+            "rigid": {"time": t, "theta_x": gain * (sun_1 + sun_2) / 2.0,
+                      "theta_y": gain * (sun_1 - sun_2) / 2.0},
+            "laws": [{"law": law, "label": f"{law} ({FRICTION_TEXT[law]})",
+                      **{key: np.array([getattr(c, key) for c in following[law]])
+                         for key in ("q", "lag", "lag_x", "lag_y", "deflection")}}
+                     for law in FIG_4_15_LAWS]}
 
     first, last = cases[0], cases[-1]
     ordered = all(b.lag > a.lag for a, b in zip(cases, cases[1:]))
@@ -793,7 +768,7 @@ def fig_4_15(ctx: Context) -> Figure:
                "true stiction, the closest vsj has to the report's final stiction model "
                "(fig 4.8), since the report found the arctan law cannot stick (section "
                f"4.1.3). {_parameter_set(params)}.")
-    return Figure("fig-4.15", fig, caption, rows)
+    return Figure("fig-4.15", data, caption, rows, draw=Drawing("draw_model", "fig_4_15"))
 
 
 FIGURES = {
