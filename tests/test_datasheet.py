@@ -99,9 +99,13 @@ def test_dynamics_against_q(params, written):
     bandwidth = [r["position_bandwidth"] for r in per_q]
     assert np.all(np.diff(natural) > 0.0) and np.all(np.diff(bandwidth) > 0.0)
     for r in per_q:
-        # with friction linearised the slow modes are heavily damped; viscous only, lightly
+        # friction linearised damps the slow modes more than the viscous part alone does
         assert all(0.0 < m["damping"] <= 1.0 + 1e-12 for m in r["modes"])
-        assert all(m["damping"] < 0.5 for m in r["modes_viscous"])
+        assert max(m["damping"] for m in r["modes_viscous"]) < min(
+            m["damping"] for m in r["modes"])
+    # viscous only, damping falls as the setting stiffens (zeta = b / (2 sqrt(K I)))
+    viscous = [min(m["damping"] for m in r["modes_viscous"]) for r in per_q]
+    assert np.all(np.diff(viscous) < 0.0)
     bode = sheet["frequency_response"]
     omega = np.array(bode["omega"])
     stiffest = bode["compliance"][-1]
@@ -109,10 +113,13 @@ def test_dynamics_against_q(params, written):
     # static at low frequency: 1 / K_out; inertial at high frequency: 1 / (I_x omega^2)
     assert stiffest["magnitude"][0] == pytest.approx(1 / per_q[-1]["output_stiffness"],
                                                      rel=1e-3)
+    # well above the modes the output is a mass: |compliance| omega^2 tends to 1 / I_x
+    # (at the grid's top the linearised friction's damping still takes a few per cent)
     inertia = sheet["ratings"]["output_inertia_x"]["value"]
     for compliance in bode["compliance"]:
-        assert compliance["magnitude"][-1] == pytest.approx(1 / (inertia * omega[-1] ** 2),
-                                                            rel=2e-2)
+        apparent = 1 / (np.array(compliance["magnitude"]) * omega ** 2)
+        assert apparent[-1] == pytest.approx(inertia, rel=5e-2)
+        assert abs(apparent[-1] / inertia - 1) < abs(apparent[-10] / inertia - 1)
     # motors to theta_x, statically: the sun-to-carrier ratio over the transmission's
     pg = params.planetary
     ratio = pg.sun_teeth / (pg.ring_teeth + pg.sun_teeth) / params.transmission.ratio

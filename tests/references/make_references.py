@@ -13,9 +13,10 @@ ledger's relative residual. `tests/test_regression.py` compares the current
 engine with them inside tubes in the manner of the Modelica Standard Library's
 regression tests.
 
-The first set was recorded from the numba engine (vsj 0.1.0, commit 43b50eb),
-before the compiled C core replaced it; ``fig-4.15-dc-motors`` was added later
-(issue 20), recorded from the C core.
+All were recorded from the C core once the bundled parameter set counted table
+4.1's I_C once, the end-effector included (issue 21); the first set had been
+recorded from the numba engine (vsj 0.1.0, commit 43b50eb) and agreed with the
+C core inside these tubes.
 """
 
 from __future__ import annotations
