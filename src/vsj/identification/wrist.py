@@ -138,13 +138,21 @@ class WristFit:
         def matrix(a):
             return [[None if not math.isfinite(v) else float(v) for v in row] for row in a]
 
+        # "names", "parameters" and "covariance" are what a sweep's [covariance] file holds
+        # (`vsj.sweep.spec.read_covariance`): the determined parameters only, whose
+        # covariance is finite; "free" lists every free parameter
+        keep = [i for i, e in enumerate(self.estimates) if e.status == "determined"]
+        cov = self.covariance[np.ix_(keep, keep)]
+        cov = 0.5 * (cov + cov.T)
         return {
             "files": self.files, "validation_files": self.validation_files,
             "synthetic": self.synthetic,
-            "names": self.names, "values": [float(v) for v in self.values],
+            "names": [self.names[i] for i in keep],
+            "covariance": matrix(cov),
+            "correlation": matrix(self.correlation[np.ix_(keep, keep)]),
+            "covariance_note": "SI, over the determined parameters (names), in their order",
+            "free": self.names, "values": [float(v) for v in self.values],
             "units": [e.unit for e in self.estimates],
-            "covariance": matrix(self.covariance), "correlation": matrix(self.correlation),
-            "covariance_note": "SI; null where a parameter is not determined",
             "parameters": {e.name: e.to_json() for e in self.estimates},
             "undetermined": self.undetermined, "combinations": self.combinations,
             "starts": self.starts, "starts_reaching_best": self.reached,
@@ -439,22 +447,25 @@ def _pct(x: float) -> str:
 
 
 def _quality(model: WristModel, values: np.ndarray):
-    """Per compared signal: NRMSE and fit % with true stiction; and the traces (time,
-    measured, simulated, per signal) for the figures."""
+    """Per compared signal: NRMSE and fit % with true stiction; and the traces for the
+    figures: per signal, per log, (time of that log, measured, simulated)."""
     sims, _ = model.simulate(values[None], FINAL)
     out, traces = {}, {}
     for c, o in enumerate(model.outputs):
-        meas, sim, times = [], [], []
+        meas, sim, times, logs = [], [], [], []
         for k, w in enumerate(model.windows):
             meas.append(model.measured(k)[c])
             sim.append(sims[k][0, c])
-            times.append(model.logs[w.log]["time"][w.samples] + 1e6 * w.log)
+            times.append(model.logs[w.log]["time"][w.samples])
+            logs.append(np.full(len(w.samples), w.log))
         y, ys, tt = np.concatenate(meas), np.concatenate(sim), np.concatenate(times)
+        which = np.concatenate(logs)
         err = ys - y
         rng = float(np.ptp(y)) or 1.0
         spread = float(np.linalg.norm(y - np.mean(y))) or 1.0
         out[o.name] = SignalQuality(nrmse=float(np.sqrt(np.mean(err ** 2)) / rng),
                                     fit_percent=float(100 * (1 - np.linalg.norm(err) / spread)),
                                     noise=float(model.noise[o.name]), samples=len(y))
-        traces[o.name] = (tt, y, ys)
+        traces[o.name] = {model.logs[i].path: (tt[which == i], y[which == i], ys[which == i])
+                          for i in range(len(model.logs))}
     return out, traces
