@@ -249,3 +249,27 @@ def test_free_parameter_that_changes_the_kinematics_is_refused(tmp_path, capsys)
     exp.write_text(experiment(2.0).to_toml())
     assert main(["fit", "wrist", "x.csv", "--free", "transmission.ratio"]) == 2
     assert "kinematics" in capsys.readouterr().err
+
+
+def test_starts_are_spread_over_the_bounds_and_the_count_reaching_the_best_is_honest(truth):
+    """The starts are the given point and a Latin hypercube over the bounds (log scale):
+    distinct, inside the bounds, one in each third of every parameter's range. Given
+    enough iterations every start of this two-parameter fit reaches the one optimum;
+    cut to one iteration, the starts far from it do not, and the count says so."""
+    free = ("differential.inertia_x", "transmission.stiction")
+    log = log_of(synth.wrist(experiment(3.0), truth, seed=7), "starts.csv")
+    full = fit_wrist([log], truth, Setup(free=free), starts=4, seed=3)
+    cut = fit_wrist([log], truth, Setup(free=free), starts=4, seed=3, max_iterations=1)
+    points = np.array([[s["start"][n] for n in free] for s in full.starts])
+    assert len({tuple(p) for p in points}) == 4
+    for i, e in enumerate(full.estimates):
+        lo, hi = e.bounds
+        assert np.all((points[:, i] >= lo) & (points[:, i] <= hi))
+        thirds = np.floor(3 * np.log(points[1:, i] / lo) / np.log(hi / lo))
+        assert sorted(thirds) == [0, 1, 2]
+    for fit in (full, cut):
+        assert fit.reached == sum(s["reached_best"] for s in fit.starts)
+    assert full.reached == 4
+    assert 1 <= cut.reached < 4
+    ends = np.array([[s["end"][n] for n in free] for s in full.starts])
+    np.testing.assert_allclose(ends, ends[:1].repeat(4, axis=0), rtol=0.02)

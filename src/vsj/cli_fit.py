@@ -384,7 +384,7 @@ def cmd_fit_wrist(args) -> int:
                   inputs=tuple(inputs) if inputs else None,
                   outputs=tuple(outputs) if outputs else None,
                   window=to_si(args.window, "s", where="--window"),
-                  threads=args.threads)
+                  threads=args.threads, delays=not args.no_delays)
     if not setup.window > 0:
         raise InputError(f"--window {args.window}: must be > 0 s")
     _check_write_params(args)
@@ -404,6 +404,10 @@ def cmd_fit_wrist(args) -> int:
                          f"(95 %: {e.ci95[0]:.5g} .. {e.ci95[1]:.5g})")
         else:
             lines.append(f"  {e.name} = {e.value:.6g} {e.unit}  ({e.status}: no interval)")
+    for e in fit.delays:
+        lines.append(f"  {e.name} = {e.value * 1e3:.4g} +- {e.stderr * 1e3:.2g} ms (behind the "
+                     "inputs)" if e.status == "determined" else
+                     f"  {e.name} = {e.value * 1e3:.4g} ms ({e.status})")
     for c in fit.combinations:
         lines.append(f"  not determined by these data: {c}")
     lines.append(f"  {fit.reached} of {len(fit.starts)} starts reached the best cost")
@@ -580,6 +584,8 @@ def register(sub) -> None:
                    help="primary motors (default: dc when the log has voltages)")
     w.add_argument("--window", default="5 s", help="window length (default 5 s)")
     w.add_argument("--starts", type=int, default=4, help="starting points (default 4)")
+    w.add_argument("--no-delays", action="store_true", help="do not estimate each compared "
+                   "signal's delay behind the inputs (channels recorded simultaneously)")
     w.add_argument("--seed", type=int, default=0, help="seed of the space-filling starts")
     w.add_argument("--threads", type=int, help="engine threads (default: every core)")
     w.add_argument("--json", action="store_true")

@@ -401,7 +401,8 @@ def predicted(experiment: Experiment, params, free, *, threads=None, run=None):
     data = synth.wrist(replace(experiment, sensors=quiet), params, seed=0, run=run)
     log = Measurement("<design>", {k: v[0] for k, v in data.columns.items()},
                       {k: v[1] for k, v in data.columns.items()}, data.comments)
-    model = WristModel([log], params, Setup(free=tuple(free), threads=threads))
+    # no delays: the design's own log has none
+    model = WristModel([log], params, Setup(free=tuple(free), threads=threads, delays=False))
     s = experiment.sensors
     angle = math.sqrt(s.angle_noise ** 2 + (2 * math.pi / s.encoder_counts) ** 2 / 12)
     model.set_noise({o.name: (s.current_noise if o.kind == "current" else

@@ -36,6 +36,16 @@ constants, the elastic element's constants); one that changes the kinematic
 rows (a gear ratio, a tooth count) or the topology (a compliance or damping
 that is zero in the base set) is refused with a message that says so.
 
+**Delays.** A recorder's channels need not be simultaneous: an end-effector
+encoder read a fraction of a millisecond after the motor commands makes its
+signal lead or lag the model's, and a fit that cannot shift it bends the
+damping to explain the phase (on synthetic logs, a 0.2 ms offset moved the
+viscous friction by seven standard errors). With ``Setup.delays`` each compared
+signal therefore gets its own delay behind the inputs, a nuisance parameter of
+the fit: the model's signal is read at ``t - delay`` (linear interpolation on
+the simulation's grid), which needs no extra run, so a Jacobian column of a
+delay costs no simulation.
+
 Outputs compared: angles and speeds of any named signal that moves with the
 generalised coordinates (``theta_x``, ``theta_y``, ``phi_1``, ``motor_1``
 with DC motors, ...), the pivot position ``q`` when it does, and DC motor
@@ -86,7 +96,9 @@ class Setup:
     ``inputs``/``outputs``: log column names (None: every input channel found, and
     every measured signal that the model's states determine). ``window`` and
     ``lead`` [s]: window length and the part of each not compared; ``step`` [s]:
-    the time-stepper's step; ``threads``: engine threads (None: every core).
+    the time-stepper's step; ``threads``: engine threads (None: every core);
+    ``delays``: estimate each compared signal's delay behind the inputs (see
+    `WristModel`).
     """
 
     free: tuple[str, ...]
@@ -98,6 +110,7 @@ class Setup:
     step: float = 1e-3
     slope_width: float = 0.01
     threads: int | None = None
+    delays: bool = True
 
 
 def known_columns(structure) -> dict[str, str]:
@@ -180,8 +193,7 @@ class Window:
     start: float                   # s, absolute time of the log
     duration: float
     samples: np.ndarray            # indices into the log of the compared samples
-    interp_index: np.ndarray       # sim grid index left of each compared sample
-    interp_frac: np.ndarray
+    tau: np.ndarray                # their times from the window's start, in steps
     engines: dict = field(default_factory=dict)   # law -> Engine
     sigma0: np.ndarray | None = None
     x0: np.ndarray | None = None
@@ -266,6 +278,8 @@ class WristModel:
         self.outputs = self._outputs()
         self.names = list(setup.free)
         self.base = np.array([params[n] for n in self.names])
+        self.delay_names = ([f"delay.{o.name}" for o in self.outputs] if setup.delays
+                            else [])
         self.n_state = 2 * self.structure.n + len(self.structure.motors)
         self.windows = [w for i in range(len(self.logs)) for w in self._windows(i)]
         if not self.windows:
@@ -366,9 +380,7 @@ class WristModel:
             duration = (n_out - 1) * h
             samples = np.flatnonzero((t >= start + lead) & (t <= start + duration))
             if samples.size:
-                tau = (t[samples] - start) / h
-                idx = np.minimum(np.floor(tau).astype(np.int64), n_out - 2)
-                out.append(Window(i, start, duration, samples, idx, tau - idx))
+                out.append(Window(i, start, duration, samples, (t[samples] - start) / h))
             start += duration - lead
         return out
 
@@ -624,16 +636,23 @@ class WristModel:
     # -- evaluation --------------------------------------------------------------------
 
     def simulate(self, values: np.ndarray, law: str, windows: Sequence[int] | None = None):
-        """Simulated compared signals of every parameter set (rows of ``values``):
-        a list over windows of arrays (sets, outputs, compared samples); and per
-        set whether every window ran."""
+        """Simulated compared signals of every parameter set (rows of ``values``: the
+        free parameters, then, with delays, each compared signal's delay [s]): a list
+        over windows of arrays (sets, outputs, compared samples); and per set whether
+        every window ran. Sets that differ in their delays only share one run."""
         values = np.atleast_2d(np.asarray(values, dtype=float))
+        n_phys = len(self.names)
+        physical, row_of = np.unique(values[:, :n_phys], axis=0, return_inverse=True)
+        row_of = row_of.reshape(-1)
+        delays = np.zeros((len(values), len(self.outputs)))
+        if values.shape[1] > n_phys:
+            delays[:] = values[:, n_phys:]
         chosen = range(len(self.windows)) if windows is None else windows
         for k in chosen:
             if law not in self.windows[k].engines:
                 self._prepare(self.windows[k], law)
-        compiled = [self._compiled_for(v, law) for v in values]
-        runs = len(values)
+        compiled = [self._compiled_for(v, law) for v in physical]
+        runs = len(physical)
         tasks = []
         threads = max(1, self.setup.threads or core.available_cores())
         chunks = max(1, min(runs, -(-threads * 3 // max(len(chosen), 1))))
@@ -642,7 +661,7 @@ class WristModel:
             for lo in range(0, runs, size):
                 tasks.append((k, lo, min(runs, lo + size)))
         ok = np.ones(runs, dtype=bool)
-        outs = {k: np.empty((runs, len(self.outputs), len(self.windows[k].samples)))
+        outs = {k: np.empty((len(values), len(self.outputs), len(self.windows[k].samples)))
                 for k in chosen}
 
         def work(task):
@@ -661,8 +680,9 @@ class WristModel:
                 "timestep", engine, masses, Minvs, pars, src0s, y0s, w.duration, w.t_out,
                 h=self.setup.step, max_steps=int(w.duration / self.setup.step) + 10,
                 threads=1)
-            sim = self._observe(w, states)
-            outs[k][lo:hi] = sim
+            signals = self._signals(w, states)
+            sets = np.flatnonzero((row_of >= lo) & (row_of < hi))
+            outs[k][sets] = self._sample(w, signals[row_of[sets] - lo], delays[sets])
             return lo, hi, status
 
         if threads == 1 or len(tasks) == 1:
@@ -674,24 +694,34 @@ class WristModel:
             ok[lo:hi] &= status == core.OK
         self.runs += runs * len(chosen)
         self.simulated += runs * sum(self.windows[k].duration for k in chosen)
-        return [outs[k] for k in chosen], ok
+        return [outs[k] for k in chosen], ok[row_of]
 
-    def _observe(self, w: Window, states: np.ndarray) -> np.ndarray:
-        """Compared signals at the compared samples, from the sampled states."""
+    def _signals(self, w: Window, states: np.ndarray) -> np.ndarray:
+        """Compared signals on the simulation's time grid (runs, outputs, grid)."""
         n = self.structure.n
-        i, f = w.interp_index, w.interp_frac
-        out = np.empty((states.shape[0], len(self.outputs), len(i)))
+        out = np.empty((states.shape[0], len(self.outputs), states.shape[1]))
         sigma = w.source_angles + w.sigma0[None, :]
         for c, o in enumerate(self.outputs):
             if o.kind == "current":
-                s = states[:, :, o.index]
+                out[:, c] = states[:, :, o.index]
             elif o.kind == "speed":
-                s = states[:, :, n:2 * n] @ o.rx + (w.source_speeds @ o.ru)[None]
+                out[:, c] = states[:, :, n:2 * n] @ o.rx + (w.source_speeds @ o.ru)[None]
             else:
                 s = states[:, :, :n] @ o.rx + (sigma @ o.ru)[None]
-                if o.kind == "q":
-                    s = self.structure.pivot.amplitude * np.sin(s)
-            out[:, c] = s[:, i] * (1 - f) + s[:, i + 1] * f
+                out[:, c] = self.structure.pivot.amplitude * np.sin(s) if o.kind == "q" else s
+        return out
+
+    def _sample(self, w: Window, signals: np.ndarray, delays: np.ndarray) -> np.ndarray:
+        """The signals (sets, outputs, grid) at the compared samples, each output
+        ``delays`` [s] (sets, outputs) behind the inputs: linear interpolation on the
+        grid."""
+        grid = signals.shape[2]
+        tau = w.tau[None, None, :] - delays[:, :, None] / self.setup.step
+        idx = np.clip(np.floor(tau).astype(np.int64), 0, grid - 2)
+        frac = tau - idx
+        left = np.take_along_axis(signals, idx, axis=2)
+        right = np.take_along_axis(signals, idx + 1, axis=2)
+        out = left * (1.0 - frac) + right * frac
         return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
 
     def measured(self, k: int) -> np.ndarray:

@@ -70,6 +70,9 @@ def html_page(fit, figures: dict[str, bytes]) -> str:
         rows.append((f"<td>{e.ci95[0]:.6g} .. {e.ci95[1]:.6g}</td>" if ok else "<td>-</td>")
                     + f"<td class=l>{esc(e.unit)}</td><td class=l>{esc(e.status)}</td>"
                     f"<td>{e.start:.4g}</td><td>{e.bounds[0]:.3g} .. {e.bounds[1]:.3g}</td></tr>")
+    delays = [f"<tr><td class=l>{esc(e.name)}</td><td>{e.value * 1e3:.4g}</td><td>"
+              + (f"{e.stderr * 1e3:.2g}" if e.status == "determined" else "-")
+              + f"</td><td class=l>{esc(e.status)}</td></tr>" for e in fit.delays]
     corr = ["<tr><th></th>" + "".join(f"<th>{i + 1}</th>" for i in range(len(fit.names)))
             + "</tr>"]
     for i, name in enumerate(fit.names):
@@ -100,6 +103,11 @@ def html_page(fit, figures: dict[str, bytes]) -> str:
              "<h2>Estimates</h2><table><tr><th class=l>parameter</th><th>value</th>"
              "<th>standard error</th><th>95 % interval</th><th class=l>unit (SI)</th>"
              "<th class=l>status</th><th>start</th><th>bounds</th></tr>", *rows, "</table>",
+             *(["<h2>Channel delays</h2><p>Each compared signal's delay behind the inputs "
+                "(a nuisance parameter: the recorder's channels need not be "
+                "simultaneous).</p><table><tr><th class=l>signal</th><th>delay [ms]</th>"
+                "<th>standard error [ms]</th><th class=l>status</th></tr>", *delays,
+                "</table>"] if delays else []),
              "<h2>Identifiability</h2><ul>", *ident, "</ul>",
              "<h2>Correlation</h2><table>", *corr, "</table>",
              f"<h2>Starts</h2><p>{fit.reached} of {len(fit.starts)} starts reached the best "
