@@ -17,12 +17,13 @@ signals, weighted by each signal's noise:
 3. **Smooth, then true stiction.** The best start is refined on every window
    with the smooth law, then with true stiction (the time-stepper's exact
    Coulomb impulses), which is how the wrist behaves. The smooth law is the
-   slope law (`vsj.friction`: the Coulomb level reached linearly within
-   ``Setup.slope_width`` of zero speed), not the arctan law: with the sharpness of
-   a parameter set (10 s/rad in the bundled one) the arctan law creeps under loads
-   that stiction holds, and its optimum lies far from the stiction one (on a
-   synthetic log, a thousand times the stiction cost at the true parameters; the
-   slope law's about thirty times).
+   arctan law (report eq 3.17) with the parameter set's sharpness. Its optimum
+   lies some way from the stiction one (the arctan law creeps under loads that
+   stiction holds), but its cost is smooth in the parameters, so starts far apart
+   reach the same optimum. The slope law (`vsj.friction`), closer to stiction,
+   was tried and left: its cost is rough at the scale of the steps (starts an
+   order of magnitude apart ended at different points after 30 iterations on a
+   3 s synthetic log).
 
 Least squares: `scipy.optimize.least_squares` (trust region, bounds) in
 parameters scaled by their start; Jacobians by forward differences, every
@@ -68,12 +69,13 @@ BLIND_SHARE = 0.1
 #: parameter, in units of the best start's residual variance): a start that stopped
 #: elsewhere, or at a point with a cost the noise cannot explain, did not.
 SAME_OPTIMUM = 0.95
-#: Relative forward-difference steps of the Jacobian: the arctan law is smooth; the
-#: slope law has kinks at the slope width's edges, and true
+#: Relative forward-difference steps of the Jacobian: the arctan law is smooth; true
 #: stiction makes the outputs piecewise smooth in the parameters (kinks where a
 #: stick phase begins or ends), which a step a hundred times the noise in a
 #: parameter averages over.
-FD_STEP = {"arctan": 1e-4, "slope": 1e-3, "stiction": 1e-3}
+FD_STEP = {"arctan": 1e-4, "stiction": 1e-3}
+#: Step of the covariance's central differences, in standard errors (`_central_jacobian`).
+COVARIANCE_STEP = 0.5
 #: Default bounds: the start divided and multiplied by this.
 BOUND_FACTOR = 5.0
 #: Block length [s] of the covariance's sandwich (see `_statistics`).
@@ -82,8 +84,11 @@ BLOCK = 0.5
 #: way (well inside a window's lead, which leaves room to read the model's signal that
 #: much earlier or later) and the unit [s] they are fitted and judged in.
 DELAY_BOUND, DELAY_UNIT = 0.02, 1e-3
+#: Seconds of the log that each start is fitted to (`_subset`): a start only has to find
+#: its basin; the best one is then refined on every window.
+START_SECONDS = 10.0
 #: Laws of the two stages.
-SMOOTH, FINAL = "slope", "stiction"
+SMOOTH, FINAL = "arctan", "stiction"
 
 
 @dataclass(frozen=True)
@@ -262,11 +267,14 @@ def _solve(problem: _Problem, theta0, lo, hi, max_nfev: int):
                          x_scale="jac", max_nfev=max_nfev, ftol=1e-6, xtol=1e-6, gtol=1e-10)
 
 
-def _subset(count: int) -> list[int]:
-    """Windows for the starts: about a quarter of them, at least four, spread evenly."""
-    if count <= 4:
+def _subset(model: WristModel) -> list[int]:
+    """Windows for the starts: about `START_SECONDS` of the log, spread evenly (all of a
+    shorter log)."""
+    count = len(model.windows)
+    length = float(np.mean([w.duration for w in model.windows]))
+    take = max(2, math.ceil(START_SECONDS / max(length, 1e-9)))
+    if count <= take:
         return list(range(count))
-    take = max(4, count // 4)
     return sorted(set(np.linspace(0, count - 1, take).round().astype(int).tolist()))
 
 
@@ -306,7 +314,7 @@ def fit_wrist(logs: Sequence[Measurement], params: Parameters, setup: Setup, *,
                             np.full(n_delay, DELAY_UNIT)])
     lo_t, hi_t = lo / scale, hi / scale
     points = points / scale
-    subset = _subset(len(model.windows))
+    subset = _subset(model)
     smooth_subset = _Problem(model, scale, SMOOTH, subset)
     runs = []
     for k, theta0 in enumerate(points):
@@ -336,6 +344,7 @@ def fit_wrist(logs: Sequence[Measurement], params: Parameters, setup: Setup, *,
     fit_quality, fit_traces, ok = _quality(model, values)
     if not ok:
         raise SimulationError("the wrist failed to simulate at the identified parameters")
+    final.jac = _central_jacobian(_Problem(model, scale, FINAL), final)
     result = _statistics(model, final, scale, lo, hi, base)
     result.starts = [{"start": {n: float(v) for n, v in zip(model.names, p * scale)},
                       "end": {n: float(v) for n, v in zip(model.names, r.x * scale)},
@@ -369,6 +378,32 @@ def fit_wrist(logs: Sequence[Measurement], params: Parameters, setup: Setup, *,
                      f"compared: {', '.join(o.name for o in model.outputs)}; inputs: "
                      + ", ".join(f"{c} <- {col}" for c, (col, _) in model.channels.items())]
     return result
+
+
+def _central_jacobian(problem: _Problem, result) -> np.ndarray:
+    """The Jacobian the uncertainties come from: central differences at the optimum,
+    each step `COVARIANCE_STEP` of the parameter's standard error (from the solver's
+    forward-difference Jacobian) but at least the solver's own step and at most a
+    tenth of the parameter (a delay: of `DELAY_UNIT`). With true stiction the
+    outputs have kinks where a stick phase begins or ends; a step as small as the
+    solver's makes a column depend on which kinks it happens to cross, and the
+    standard errors with it (by a factor of two between neighbouring optima on
+    synthetic logs); a step of about the standard error sees the slope that the
+    noise-driven scatter of the estimate sees."""
+    theta = result.x
+    J = np.asarray(result.jac, dtype=float)
+    dof = max(len(result.fun) - len(theta), 1)
+    s2 = float(np.sum(result.fun ** 2)) / dof
+    with np.errstate(divide="ignore", invalid="ignore"):
+        se = np.sqrt(s2 * np.clip(np.diag(np.linalg.pinv(J.T @ J)), 0.0, None))
+    magnitude = np.maximum(np.abs(theta), 1.0)
+    smallest = FD_STEP[problem.law] * np.maximum(np.abs(theta), 1e-2)
+    step = np.clip(COVARIANCE_STEP * np.nan_to_num(se, nan=0.0, posinf=0.0), smallest,
+                   0.1 * magnitude)
+    n = len(theta)
+    batch = np.vstack([theta[None] + np.diag(step), theta[None] - np.diag(step)])
+    r, _ = problem.model.residuals(batch * problem.scale[None], problem.law, problem.windows)
+    return ((r[:n] - r[n:]) / (2.0 * step[:, None])).T
 
 
 def _same_optimum(runs, best: int) -> np.ndarray:

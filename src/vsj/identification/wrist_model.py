@@ -83,6 +83,9 @@ FAILED_RESIDUAL = 1e3
 #: A compared signal's noise is never taken below this fraction of its range: a signal
 #: measured without noise would otherwise get an infinite weight.
 NOISE_FLOOR = 1e-6
+#: Relative tolerance (of the arrays' largest entry) of the affinity check of
+#: `WristModel._affine`: round-off of the network's assembly, far below any step.
+AFFINE_TOLERANCE = 1e-12
 #: Parameters whose change moves the kinematic rows or the topology: not free.
 _KINEMATIC = ("planetary.sun_teeth", "planetary.ring_teeth", "transmission.ratio",
               "motor.gear_ratio", "pivot.ratio", "pivot.amplitude", "pivot.q_min",
@@ -541,10 +544,29 @@ class WristModel:
     # -- parameter sets ----------------------------------------------------------------
 
     def _compiled_for(self, values: np.ndarray, law: str):
+        """``(mass, Minv, par)`` of the engine for one parameter set: from the affine
+        map of `_affine` when only parameters that act affinely differ from the
+        start, else by building and compiling the wrist."""
         key = tuple(float(v) for v in values)
         hit = self._compiled.get(key)
         if hit is not None:
             return hit
+        affine = self._affine(law)
+        change = np.asarray(key) - self.base
+        if affine is not None and not np.any(change[~affine[0]]):
+            _, mass0, par0, dmass, dpar = affine
+            mass = mass0 + np.tensordot(change, dmass, axes=1)
+            par = par0 + np.tensordot(change, dpar, axes=1)
+            n = self.structure.n
+            hit = (mass, np.linalg.inv(mass[:n, :n]) if n else np.zeros((0, 0)), par)
+        else:
+            hit = self._compile(key, law)
+        if len(self._compiled) > 512:
+            self._compiled.clear()
+        self._compiled[key] = hit
+        return hit
+
+    def _compile(self, key: tuple, law: str):
         params = with_values(self.params, dict(zip(self.names, key)))
         structure = build_wrist(params, self.wrist).assemble()
         w = self.windows[0]
@@ -561,11 +583,53 @@ class WristModel:
             changed = [n for n, v, b in zip(self.names, key, self.base) if v != b]
             raise InputError(f"free parameter(s) {', '.join(changed)} change the network's "
                              "kinematic rows; they cannot be identified in one batch")
-        hit = (model.mass, model.Minv, model.par)
-        if len(self._compiled) > 512:
-            self._compiled.clear()
-        self._compiled[key] = hit
-        return hit
+        return model.mass, model.Minv, model.par
+
+    def _affine(self, law: str):
+        """Which free parameters the mass matrix and the element parameters depend on
+        affinely (inertias, friction levels: most of them), with that map:
+        ``(affine, mass0, par0, dmass, dpar)``; None if none is affine.
+
+        Building the wrist for every parameter set of every Jacobian costs more than
+        its runs on a short window; an affine parameter's effect is a sum instead.
+        Affinity is checked, not assumed: two steps of each parameter must change
+        the arrays by the same amount, and all of them together by the sum of their
+        own changes (to `AFFINE_TOLERANCE`); a parameter that fails (a compliance
+        turned into a stiffness) is compiled each time it differs from the start."""
+        cache = self.__dict__.setdefault("_affine_cache", {})
+        if law in cache:
+            return cache[law]
+        base = tuple(float(v) for v in self.base)
+        mass0, _, par0 = self._compile(base, law)
+        size = max(float(np.max(np.abs(mass0))), float(np.max(np.abs(par0))), 1e-300)
+        n_par = len(base)
+        affine = np.zeros(n_par, dtype=bool)
+        dmass = np.zeros((n_par,) + mass0.shape)
+        dpar = np.zeros((n_par,) + par0.shape)
+        steps = np.where(self.base != 0, 0.1 * np.abs(self.base), 1e-3)
+        for i in range(n_par):
+            one, two = list(base), list(base)
+            one[i] += steps[i]
+            two[i] += 2 * steps[i]
+            m1, _, p1 = self._compile(tuple(one), law)
+            m2, _, p2 = self._compile(tuple(two), law)
+            tol = AFFINE_TOLERANCE * size
+            if (np.max(np.abs((m2 - m1) - (m1 - mass0))) <= tol
+                    and np.max(np.abs((p2 - p1) - (p1 - par0))) <= tol):
+                affine[i] = True
+                dmass[i] = (m1 - mass0) / steps[i]
+                dpar[i] = (p1 - par0) / steps[i]
+        result = None
+        if affine.any():
+            together = np.where(affine, self.base + steps, self.base)
+            m, _, p = self._compile(tuple(float(v) for v in together), law)
+            change = together - self.base
+            tol = AFFINE_TOLERANCE * size
+            if (np.max(np.abs(m - mass0 - np.tensordot(change, dmass, axes=1))) <= tol
+                    and np.max(np.abs(p - par0 - np.tensordot(change, dpar, axes=1))) <= tol):
+                result = (affine, mass0, par0, dmass, dpar)
+        cache[law] = result
+        return result
 
     def _initial(self, w: Window, law: str, mass, Minv, par) -> np.ndarray:
         """Initial state of a window for one parameter set (quasi-static in the

@@ -111,7 +111,8 @@ def html_page(fit, figures: dict[str, bytes]) -> str:
              "<h2>Identifiability</h2><ul>", *ident, "</ul>",
              "<h2>Correlation</h2><table>", *corr, "</table>",
              f"<h2>Starts</h2><p>{fit.reached} of {len(fit.starts)} starts reached the best "
-             "cost (smooth friction law, part of the windows).</p><table><tr><th>start</th>"
+             "optimum: the same cost and the same end point, to within the noise (smooth "
+             "friction law, part of the windows).</p><table><tr><th>start</th>"
              "<th>cost</th><th class=l>reached best</th></tr>", *starts, "</table>",
              "<h2>Fit quality</h2><table><tr><th class=l>data</th><th class=l>signal</th>"
              "<th>fit %</th><th>NRMSE</th><th>noise (SI)</th><th>samples</th></tr>",
