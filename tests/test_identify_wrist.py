@@ -281,3 +281,24 @@ def test_starts_are_spread_over_the_bounds_and_the_count_reaching_the_best_is_ho
     assert 1 <= cut.reached < 4
     ends = np.array([[s["end"][n] for n in free] for s in full.starts])
     np.testing.assert_allclose(ends, ends[:1].repeat(4, axis=0), rtol=0.02)
+
+
+def test_several_logs_are_plotted_each_on_its_own_time_axis(truth):
+    from vsj.identification.wrist_report import signals_figure
+
+    logs = [log_of(synth.wrist(experiment(2.0), truth, seed=s), f"log{s}.csv") for s in (1, 2)]
+    fit = fit_wrist(logs, truth, Setup(free=("differential.inertia_x",)), starts=1,
+                    max_iterations=2)
+    fig = signals_figure(fit, "fit")
+    signals = len(fit.quality["fit"])
+    grid = np.array(fig.axes).reshape(2 * signals, 2)
+    for col, log in enumerate(logs):
+        for ax in grid[:, col]:
+            lo, hi = ax.get_xlim()
+            # every trace of this column lies within its own log's time span
+            for line in ax.get_lines():
+                x = np.asarray(line.get_xdata(), dtype=float)
+                if x.size > 2:
+                    assert log["time"][0] <= x.min() and x.max() <= log["time"][-1]
+        assert hi < 10.0
+    assert "log1.csv" in grid[0, 0].get_title() and "log2.csv" in grid[0, 1].get_title()

@@ -460,7 +460,9 @@ def _statistics(model: WristModel, result, scale, lo, hi, base) -> WristFit:
     blind = rel_se > UNDETERMINED
     share = np.sum(Vt[blind] ** 2, axis=0) if blind.any() else np.zeros(n_par)
     active = np.asarray(result.active_mask) != 0
-    undetermined = [names[i] for i in range(n_par) if share[i] > BLIND_SHARE and not active[i]]
+    # a parameter the data leave open may drift to a bound: it is reported as not
+    # determined (the reason), not as at a bound
+    undetermined = [names[i] for i in range(n_par) if share[i] > BLIND_SHARE]
     combinations = []
     for k in np.flatnonzero(blind):
         v = Vt[k]
@@ -497,7 +499,7 @@ def _statistics(model: WristModel, result, scale, lo, hi, base) -> WristFit:
     estimates = []
     for i, name in enumerate(names):
         section, key = name.split(".", 1)
-        status = ("at a bound" if active[i] else "not determined" if name in undetermined
+        status = ("not determined" if name in undetermined else "at a bound" if active[i]
                   else "determined")
         e = float(sd[i]) if status == "determined" else math.inf if \
             status == "not determined" else math.nan

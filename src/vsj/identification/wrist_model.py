@@ -99,7 +99,10 @@ class Setup:
     ``inputs``/``outputs``: log column names (None: every input channel found, and
     every measured signal that the model's states determine). ``window`` and
     ``lead`` [s]: window length and the part of each not compared; ``step`` [s]:
-    the time-stepper's step; ``threads``: engine threads (None: every core);
+    the time-stepper's step with true stiction, ``smooth_step`` [s] with a smooth
+    friction law (the stages that only find the basin: a coarser step costs less,
+    and its discretisation error, which biases estimates by about a standard
+    error at 1 ms against a 0.5 ms truth, does not reach the final fit); ``threads``: engine threads (None: every core);
     ``delays``: estimate each compared signal's delay behind the inputs (see
     `WristModel`).
     """
@@ -110,7 +113,8 @@ class Setup:
     outputs: tuple[str, ...] | None = None
     window: float = 5.0
     lead: float = 0.05
-    step: float = 1e-3
+    step: float = 5e-4
+    smooth_step: float = 1e-3
     slope_width: float = 0.01
     threads: int | None = None
     delays: bool = True
@@ -196,7 +200,7 @@ class Window:
     start: float                   # s, absolute time of the log
     duration: float
     samples: np.ndarray            # indices into the log of the compared samples
-    tau: np.ndarray                # their times from the window's start, in steps
+    offsets: np.ndarray            # their times from the window's start [s]
     engines: dict = field(default_factory=dict)   # law -> Engine
     sigma0: np.ndarray | None = None
     x0: np.ndarray | None = None
@@ -204,9 +208,7 @@ class Window:
     null: np.ndarray | None = None  # basis of the unmeasured position directions
     later: tuple | None = None      # (dt, x0, sigma) a moment later, for null-space speeds
     currents: np.ndarray | None = None
-    t_out: np.ndarray | None = None
-    source_angles: np.ndarray | None = None  # (samples, sources), relative to sigma0
-    source_speeds: np.ndarray | None = None
+    grids: dict = field(default_factory=dict)  # step -> (t_out, source angles, speeds)
     quasi_static: dict = field(default_factory=dict)  # spring parameters -> (x0, v0)
 
 
@@ -253,6 +255,11 @@ class WristModel:
         if not logs:
             raise InputError("no log to fit")
         check_free(setup.free, params)
+        coarse, fine = max(setup.step, setup.smooth_step), min(setup.step, setup.smooth_step)
+        if not (fine > 0 and abs(coarse / fine - round(coarse / fine)) < 1e-9):
+            raise InputError(f"steps {setup.step:g} s (true stiction) and {setup.smooth_step:g}"
+                             " s (smooth law): each must be > 0 and the larger a whole "
+                             "multiple of the smaller")
         self.logs = list(logs)
         self.params = params
         self.setup = setup
@@ -369,7 +376,9 @@ class WristModel:
     def _windows(self, i: int) -> list[Window]:
         log = self.logs[i]
         t = log["time"]
-        W, lead, h = self.setup.window, self.setup.lead, self.setup.step
+        # windows last a whole number of either step
+        W, lead, h = self.setup.window, self.setup.lead, max(self.setup.step,
+                                                              self.setup.smooth_step)
         if not (W > lead + 10 * h):
             raise InputError(f"window {W:g} s must exceed lead {lead:g} s by 10 steps")
         out = []
@@ -383,7 +392,7 @@ class WristModel:
             duration = (n_out - 1) * h
             samples = np.flatnonzero((t >= start + lead) & (t <= start + duration))
             if samples.size:
-                out.append(Window(i, start, duration, samples, (t[samples] - start) / h))
+                out.append(Window(i, start, duration, samples, t[samples] - start))
             start += duration - lead
         return out
 
@@ -444,12 +453,12 @@ class WristModel:
                                  pivot_range=pivot_range(self.params))
         engine = Engine(model)
         w.engines[law] = engine
-        if w.t_out is not None:
+        for h in {self.setup.step, self.setup.smooth_step}:
+            if h not in w.grids:
+                t_out = np.arange(round(w.duration / h) + 1) * h
+                w.grids[h] = (t_out, *engine.source_signals(t_out))
+        if w.sigma0 is not None:
             return
-        h = self.setup.step
-        w.t_out = np.arange(round(w.duration / h) + 1) * h
-        angles, speeds = engine.source_signals(w.t_out)
-        w.source_angles, w.source_speeds = angles, speeds
         w.sigma0, w.x0, w.v0, w.null, w.later = self._measured_state(log, w.start, engine,
                                                                      inputs)
         w.currents = np.array([self._local(log, f"motor.{m.name}.current", w.start)[0]
@@ -716,6 +725,7 @@ class WristModel:
             if law not in self.windows[k].engines:
                 self._prepare(self.windows[k], law)
         compiled = [self._compiled_for(v, law) for v in physical]
+        h = self.step_of(law)
         runs = len(physical)
         tasks = []
         threads = max(1, self.setup.threads or core.available_cores())
@@ -741,12 +751,11 @@ class WristModel:
             y0s = np.hstack([y0s, np.zeros((hi - lo, layout.n_acc))])
             src0s = np.repeat(w.sigma0[None], hi - lo, axis=0)
             states, _, status, _, _, _ = core.run_batch(
-                "timestep", engine, masses, Minvs, pars, src0s, y0s, w.duration, w.t_out,
-                h=self.setup.step, max_steps=int(w.duration / self.setup.step) + 10,
-                threads=1)
-            signals = self._signals(w, states)
+                "timestep", engine, masses, Minvs, pars, src0s, y0s, w.duration,
+                w.grids[h][0], h=h, max_steps=int(w.duration / h) + 10, threads=1)
+            signals = self._signals(w, states, h)
             sets = np.flatnonzero((row_of >= lo) & (row_of < hi))
-            outs[k][sets] = self._sample(w, signals[row_of[sets] - lo], delays[sets])
+            outs[k][sets] = self._sample(w, signals[row_of[sets] - lo], delays[sets], h)
             return lo, hi, status
 
         if threads == 1 or len(tasks) == 1:
@@ -760,27 +769,34 @@ class WristModel:
         self.simulated += runs * sum(self.windows[k].duration for k in chosen)
         return [outs[k] for k in chosen], ok[row_of]
 
-    def _signals(self, w: Window, states: np.ndarray) -> np.ndarray:
-        """Compared signals on the simulation's time grid (runs, outputs, grid)."""
+    def step_of(self, law: str) -> float:
+        """The time-stepper's step [s] with ``law``."""
+        return self.setup.step if law == "stiction" else self.setup.smooth_step
+
+    def _signals(self, w: Window, states: np.ndarray, h: float) -> np.ndarray:
+        """Compared signals on the simulation's time grid of step ``h`` (runs, outputs,
+        grid)."""
         n = self.structure.n
         out = np.empty((states.shape[0], len(self.outputs), states.shape[1]))
-        sigma = w.source_angles + w.sigma0[None, :]
+        _, source_angles, source_speeds = w.grids[h]
+        sigma = source_angles + w.sigma0[None, :]
         for c, o in enumerate(self.outputs):
             if o.kind == "current":
                 out[:, c] = states[:, :, o.index]
             elif o.kind == "speed":
-                out[:, c] = states[:, :, n:2 * n] @ o.rx + (w.source_speeds @ o.ru)[None]
+                out[:, c] = states[:, :, n:2 * n] @ o.rx + (source_speeds @ o.ru)[None]
             else:
                 s = states[:, :, :n] @ o.rx + (sigma @ o.ru)[None]
                 out[:, c] = self.structure.pivot.amplitude * np.sin(s) if o.kind == "q" else s
         return out
 
-    def _sample(self, w: Window, signals: np.ndarray, delays: np.ndarray) -> np.ndarray:
-        """The signals (sets, outputs, grid) at the compared samples, each output
-        ``delays`` [s] (sets, outputs) behind the inputs: linear interpolation on the
-        grid."""
+    def _sample(self, w: Window, signals: np.ndarray, delays: np.ndarray, h: float
+                ) -> np.ndarray:
+        """The signals (sets, outputs, grid of step ``h``) at the compared samples,
+        each output ``delays`` [s] (sets, outputs) behind the inputs: linear
+        interpolation on the grid."""
         grid = signals.shape[2]
-        tau = w.tau[None, None, :] - delays[:, :, None] / self.setup.step
+        tau = (w.offsets[None, None, :] - delays[:, :, None]) / h
         idx = np.clip(np.floor(tau).astype(np.int64), 0, grid - 2)
         frac = tau - idx
         left = np.take_along_axis(signals, idx, axis=2)
