@@ -2,8 +2,9 @@
 truth (`vsj.synth.wrist`).
 
 Cost: the logs are 8 s (the issue's benchmark uses 60 s), the truth is simulated with the
-fit's own step (1 ms) so that the time-stepper's discretisation error does not masquerade
-as a bias, and the coverage study runs `SEEDS` seeds here; the full 20-seed study is
+fit's own step (0.5 ms with true stiction) so that the time-stepper's discretisation error
+does not masquerade as a bias, and the coverage study runs `SEEDS` seeds here; the full
+20-seed study (truth at a finer step than the fit's) is
 ``benchmarks/identify_wrist_coverage.py``.
 """
 
@@ -60,7 +61,7 @@ def experiment(duration=8.0, both_axes=True):
                    "tau_x": signals["tau_x"]}
     # the default sensors: the end-effector encoders 0.2 ms behind the motor channels,
     # which the fit estimates (each compared signal's delay)
-    return WE.Experiment(duration=duration, signals=signals, q=-0.004, step=1e-3)
+    return WE.Experiment(duration=duration, signals=signals, q=-0.004, step=5e-4)
 
 
 def log_of(data, name):
