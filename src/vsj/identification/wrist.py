@@ -29,8 +29,15 @@ Least squares: `scipy.optimize.least_squares` (trust region, bounds) in
 parameters scaled by their start; Jacobians by forward differences, every
 perturbed parameter set of one Jacobian run as one batch.
 
-**Uncertainty.** The covariance is the Gauss-Newton one, ``s^2 (J^T J)^-1``
-with ``s^2`` the residual variance per degree of freedom. Identifiability comes
+Each compared signal's delay behind the inputs is fitted with the parameters
+(`vsj.identification.wrist_model`, `DELAY_BOUND`); the delays start at zero
+from every start and are reported apart from the parameters.
+
+**Uncertainty.** The covariance is a sandwich over blocks of `BLOCK` s of
+residuals (see `_statistics`), from a central-difference Jacobian at the
+optimum with steps of about half a standard error (`_central_jacobian`); the
+physical parameters' block of it is reported (the delays' uncertainty is in
+it). Identifiability comes
 from the singular values of the Jacobian in relative parameter changes: a
 direction whose relative standard error exceeds `UNDETERMINED` (the data fix
 that combination of parameters to worse than +-50 %) is not determined; the
