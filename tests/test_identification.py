@@ -83,7 +83,7 @@ def _curves(proto, seed=11):
 
 
 def test_second_prototype_needs_bearing_stiction():
-    """Report section 4.1.4: mesh friction alone cannot give c1..c6 of fig 4.4-4.5."""
+    """Report section 4.1.3: mesh friction alone cannot give c1..c6 of fig 4.4-4.5."""
     result = fit_planetary(*_curves("second"))
     assert not result.fits["mesh"].explains
     assert result.chosen is not None and result.chosen.structure == "bearing-stiction"
@@ -92,7 +92,7 @@ def test_second_prototype_needs_bearing_stiction():
 
 
 def test_old_prototype_is_not_explained():
-    """Report section 4.1.4: no parameter set gives both old-prototype curves."""
+    """Report section 4.1.3: no parameter set gives both old-prototype curves."""
     result = fit_planetary(*_curves("old"))
     assert result.chosen is None
     assert "no parameter set" in result.verdict

@@ -256,22 +256,12 @@ def stiffness(*, q: float, params: Parameters, noise: float = 0.01, play: float 
                       "pivot": (np.full(len(torque), q), "cm")}, comments)
 
 
-def wrist(experiment, params: Parameters, *, seed: int = 1) -> SynthFile:
-    """A log of the whole wrist running ``experiment`` (`vsj.identification.wrist_experiment`)
-    with the parameter set ``params`` as the truth.
-
-    The wrist is simulated with true stiction at the experiment's step; the log then
-    gets the artefacts of real sensors (`Sensors`): sample times with jitter, the
-    end-effector channels delayed behind the motor channels, encoder quantisation of
-    every angle after white noise, a current sensor with an offset and noise, a torque
-    sensor with noise on the applied external torques, and a noisy pivot sensor. The
-    commands (motor speeds or voltages) are logged as sent.
-    """
+def wrist_run(experiment, params: Parameters):
+    """The noiseless run of ``experiment`` with ``params`` (true stiction, at the
+    experiment's step): the `vsj.simulate` result every synthetic wrist log samples."""
     from .simulate import SimulationOptions, simulate
     from .wrist import WristOptions, build_wrist
 
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise InputError(f"seed = {seed!r}: must be a whole number >= 0")
     e = experiment
     options = WristOptions(motors=e.motors, elastic=e.elastic)
     structure = build_wrist(params, options).assemble()
@@ -292,6 +282,25 @@ def wrist(experiment, params: Parameters, *, seed: int = 1) -> SynthFile:
                                                 output_step=e.step))
     if not result.success:
         raise InputError(f"{e.origin}: the wrist simulation failed: {result.message}")
+    return result
+
+
+def wrist(experiment, params: Parameters, *, seed: int = 1, run=None) -> SynthFile:
+    """A log of the whole wrist running ``experiment`` (`vsj.identification.wrist_experiment`)
+    with the parameter set ``params`` as the truth.
+
+    The wrist is simulated with true stiction at the experiment's step; the log then
+    gets the artefacts of real sensors (`Sensors`): sample times with jitter, the
+    end-effector channels delayed behind the motor channels, encoder quantisation of
+    every angle after white noise, a current sensor with an offset and noise, a torque
+    sensor with noise on the applied external torques, and a noisy pivot sensor. The
+    commands (motor speeds or voltages) are logged as sent. ``run``: the result of
+    `wrist_run` for this experiment and parameter set, if already at hand.
+    """
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise InputError(f"seed = {seed!r}: must be a whole number >= 0")
+    e = experiment
+    result = wrist_run(e, params) if run is None else run
     s = e.sensors
     rng = np.random.default_rng(seed)
     n = int(math.floor(e.duration / e.sample_period + 1e-9))

@@ -384,7 +384,7 @@ def cmd_fit_wrist(args) -> int:
                   inputs=tuple(inputs) if inputs else None,
                   outputs=tuple(outputs) if outputs else None,
                   window=to_si(args.window, "s", where="--window"),
-                  threads=args.threads)
+                  threads=args.threads, delays=not args.no_delays)
     if not setup.window > 0:
         raise InputError(f"--window {args.window}: must be > 0 s")
     _check_write_params(args)
@@ -404,9 +404,14 @@ def cmd_fit_wrist(args) -> int:
                          f"(95 %: {e.ci95[0]:.5g} .. {e.ci95[1]:.5g})")
         else:
             lines.append(f"  {e.name} = {e.value:.6g} {e.unit}  ({e.status}: no interval)")
+    for e in fit.delays:
+        lines.append(f"  {e.name} = {e.value * 1e3:.4g} +- {e.stderr * 1e3:.2g} ms (behind the "
+                     "inputs)" if e.status == "determined" else
+                     f"  {e.name} = {e.value * 1e3:.4g} ms ({e.status})")
     for c in fit.combinations:
         lines.append(f"  not determined by these data: {c}")
-    lines.append(f"  {fit.reached} of {len(fit.starts)} starts reached the best cost")
+    lines.append(f"  {fit.reached} of {len(fit.starts)} starts reached the best optimum (same "
+                 "cost and end point within the noise)")
     for kind, per in fit.quality.items():
         lines.append(f"  {kind}: " + ", ".join(f"{n} fit {q.fit_percent:.4g} % (NRMSE "
                                                   f"{q.nrmse:.3g})" for n, q in per.items()))
@@ -438,43 +443,52 @@ def cmd_synth_wrist(args) -> int:
 
 def cmd_excite(args) -> int:
     from ..identification import wrist_experiment
-    from ..output import (
-        SMALL_OUTPUT_BYTES,
-        atomic_write,
-        check_output_file,
-        write_errors,
-    )
+    from ..identification.wrist_model import check_free
+    from ..output import SMALL_OUTPUT_BYTES, atomic_write, check_output_file, write_errors
     from ..units import to_si
 
     names, _ = _free(args.free)
     params = _params(args.params)
-    from ..identification.wrist_model import check_free
-
     check_free(names, params)
     duration = to_si(args.duration, "s", where="--duration")
     if not 1.0 <= duration <= 600.0:
         raise InputError(f"--duration {args.duration}: from 1 s to 600 s")
-    mo = params.motor
-    no_load = mo.voltage_limit / mo.torque_constant / mo.gear_ratio
     max_speed = (to_si(args.max_speed, "rad/s", where="--max-speed") if args.max_speed
-                 else 0.5 * no_load)
+                 else None)
+    max_motor_torque = (to_si(args.max_motor_torque, "N*m", where="--max-motor-torque")
+                        if args.max_motor_torque else None)
+    for flag, value in (("--max-speed", max_speed), ("--max-motor-torque", max_motor_torque)):
+        if value is not None and not value > 0:
+            raise InputError(f"{flag}: must be > 0")
     max_torque = to_si(args.max_torque, "N*m", where="--max-torque")
+    if not max_torque >= 0:
+        raise InputError(f"--max-torque {args.max_torque}: must be >= 0 N m")
     q = to_si(args.q, "m", where="--q")
     check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES)
-    experiment, se, logdet, ref_se, ref_logdet = wrist_experiment.design(
-        params, names, duration, max_speed=max_speed, max_torque=max_torque, q=q,
-        candidates=args.candidates, seed=args.seed,
+    d = wrist_experiment.design(
+        params, names, duration, max_speed=max_speed, max_torque=max_torque,
+        max_motor_torque=max_motor_torque, q=q, candidates=args.candidates, seed=args.seed,
         progress=lambda text: print(text, file=sys.stderr))
     with write_errors("--out", args.out), atomic_write(Path(args.out)) as handle:
-        handle.write(experiment.to_toml())
-    lines = [f"wrote {args.out}: {experiment.description}",
-             f"  log det of the Fisher information (relative units): {logdet:.4g}; plain sine "
-             f"{ref_logdet:.4g}", "  predicted standard errors (design / plain sine):"]
+        handle.write(d.experiment.to_toml())
+    lim = d.limits
+    lines = [f"wrote {args.out}: {d.experiment.description}",
+             f"  motor limits: speed {lim.max_speed:.4g} rad/s, torque {lim.max_torque:.4g} N m, "
+             f"supply {lim.voltage:.4g} V; the design's peaks: "
+             + "; ".join(f"{m} {u['speed']:.4g} rad/s, {u['torque']:.4g} N m, "
+                         f"{u['voltage']:.3g} V" for m, u in d.use.items() if m != "worst"),
+             f"  log det of the Fisher information (relative units): {d.logdet:.4g}; plain sine "
+             f"{d.reference_logdet:.4g}", "  predicted standard errors (design / plain sine):"]
     for n in names:
-        lines.append(f"    {n}: {se[n]:.3g} / {ref_se[n]:.3g} (start {params[n]:.4g}, SI)")
-    record = {"experiment": args.out, "logdet": logdet, "plain_sine_logdet": ref_logdet,
-              "predicted_stderr": se, "plain_sine_stderr": ref_se,
-              "max_speed": max_speed, "max_torque": max_torque}
+        lines.append(f"    {n}: {d.stderr[n]:.3g} / {d.reference_stderr[n]:.3g} (start "
+                     f"{params[n]:.4g}, SI)")
+    record = {"experiment": args.out, "logdet": d.logdet, "plain_sine_logdet": d.reference_logdet,
+              "predicted_stderr": d.stderr, "plain_sine_stderr": d.reference_stderr,
+              "max_speed": lim.max_speed, "max_motor_torque": lim.max_torque,
+              "voltage_limit": lim.voltage, "max_torque": max_torque,
+              "motor_peaks": {m: u for m, u in d.use.items() if m != "worst"},
+              "plain_sine_motor_peaks": {m: u for m, u in d.reference_use.items()
+                                         if m != "worst"}}
     _print_json(args, record)
     _say(args, "\n".join(lines))
     return 0
@@ -571,6 +585,8 @@ def register(sub) -> None:
                    help="primary motors (default: dc when the log has voltages)")
     w.add_argument("--window", default="5 s", help="window length (default 5 s)")
     w.add_argument("--starts", type=int, default=4, help="starting points (default 4)")
+    w.add_argument("--no-delays", action="store_true", help="do not estimate each compared "
+                   "signal's delay behind the inputs (channels recorded simultaneously)")
     w.add_argument("--seed", type=int, default=0, help="seed of the space-filling starts")
     w.add_argument("--threads", type=int, help="engine threads (default: every core)")
     w.add_argument("--json", action="store_true")
@@ -585,6 +601,9 @@ def register(sub) -> None:
     e.add_argument("--params", metavar="FILE")
     e.add_argument("--max-speed", help="motor (sun) speed limit (default: half the no-load "
                                        "speed of the parameter set's motors)")
+    e.add_argument("--max-motor-torque", help="motor torque limit at the gearhead's output "
+                   "(default: the stall torque at the supply voltage); the design also keeps "
+                   "each motor on its speed-torque line")
     e.add_argument("--max-torque", default="0.1 N m", help="external torque pulses' height")
     e.add_argument("--q", default="0 cm", help="pivot position (default 0 cm)")
     e.add_argument("--candidates", type=int, default=6)

@@ -169,15 +169,29 @@ def plateaus(time: np.ndarray, velocity: np.ndarray) -> list[slice]:
     while start < n:
         ref = velocity[start]
         tol = PLATEAU_TOLERANCE * abs(ref) + 0.005
-        end = start + 1
-        while end < n and abs(velocity[end] - ref) <= tol:
-            end += 1
+        end = _departure(velocity, start + 1, ref, tol)
         if time[end - 1] - time[start] >= PLATEAU_MIN_DURATION and abs(ref) > 1e-9:
             skip = int(math.ceil(TRANSIENT_FRACTION * (end - start)))
             tail = int(math.ceil(TAIL_FRACTION * (end - start)))  # the next ramp's start
             out.append(slice(start + skip, end - tail))
         start = end
     return out
+
+
+def _departure(values: np.ndarray, i: int, ref: float, tol: float) -> int:
+    """The first index from ``i`` on where ``values`` leaves ``ref +- tol`` (the length
+    if none), searched in chunks that double, so that a long plateau costs a few
+    array operations and a short one little more than its length."""
+    n = len(values)
+    chunk = 64
+    while i < n:
+        j = min(n, i + chunk)
+        hit = np.flatnonzero(np.abs(values[i:j] - ref) > tol)
+        if hit.size:
+            return i + int(hit[0])
+        i = j
+        chunk *= 2
+    return n
 
 
 def _ripple(coef, method: str) -> Ripple:
@@ -193,51 +207,65 @@ def _fourier(angle: np.ndarray) -> np.ndarray:
     return np.column_stack(cols)
 
 
+#: The c3 grid of `_profile_c3` [s/rad].
+C3_GRID = np.logspace(-2, 4, 121)
+
+
 def _profile_c3(w, T, extra=None):
     """The best c3 on a log grid, with c1, c2 >= 0 (and any extra linear columns) solved
     exactly for each: the model is linear in everything but c3.
 
     A starting point for the full fit. Only the arctan column changes with c3, so
-    the normal equations are updated per grid point in O(samples). The bounds
-    c1, c2 >= 0: the bounded optimum is the unconstrained minimum on one of the
-    four faces (c1 and c2 each free or zero), so the best feasible face minimum
-    is it.
+    the normal equations of every grid point are built at once (one matrix
+    product) and solved as one stack. The bounds c1, c2 >= 0: the bounded optimum
+    is the unconstrained minimum on one of the four faces (c1 and c2 each free or
+    zero), so the best feasible face minimum is it (ties go to the smaller c3,
+    then to the face with more free constants).
     """
+    w = np.asarray(w, dtype=float)
+    T = np.asarray(T, dtype=float)
     E = np.zeros((len(w), 0)) if extra is None else np.asarray(extra, dtype=float)
     fixed = np.column_stack([w, E])             # the columns that do not depend on c3
     G_fixed = fixed.T @ fixed
     b_fixed = fixed.T @ T
     TT = float(T @ T)
     k = fixed.shape[1] + 1                      # unknowns: c1, c2, then the extra columns
-    best = (math.inf, None, None)
-    for c3 in np.logspace(-2, 4, 121):
-        a = np.arctan(c3 * w)
-        G = np.empty((k, k))
-        b = np.empty(k)
-        # unknown order: c1 (w), c2 (a), extra columns
-        G[0, 0] = G_fixed[0, 0]
-        G[0, 2:] = G[2:, 0] = G_fixed[0, 1:]
-        G[2:, 2:] = G_fixed[1:, 1:]
-        G[1, 1] = a @ a
-        G[0, 1] = G[1, 0] = a @ w
-        G[1, 2:] = G[2:, 1] = a @ E
-        b[0], b[1], b[2:] = b_fixed[0], a @ T, b_fixed[1:]
-        for free in ((0, 1), (1,), (0,), ()):
-            keep = list(free) + list(range(2, k))
-            x = np.zeros(k)
-            if keep:
-                sub = np.ix_(keep, keep)
-                try:
-                    x[keep] = np.linalg.solve(G[sub], b[keep])
-                except np.linalg.LinAlgError:
-                    x[keep] = np.linalg.lstsq(G[sub], b[keep], rcond=None)[0]
-            if x[0] < 0.0 or x[1] < 0.0:
-                continue
-            cost = 0.5 * (TT - 2.0 * b @ x + x @ G @ x)
-            if cost < best[0]:
-                best = (cost, c3, x)
-    _, c3, lin = best
-    return np.concatenate([[lin[0], lin[1], c3], lin[2:]])
+    grid = len(C3_GRID)
+    A = np.arctan(C3_GRID[:, None] * w[None, :])  # the arctan column of every grid point
+    # unknown order: c1 (w), c2 (a), extra columns
+    G = np.empty((grid, k, k))
+    b = np.empty((grid, k))
+    G[:, 0, 0] = G_fixed[0, 0]
+    G[:, 0, 2:] = G[:, 2:, 0] = G_fixed[0, 1:]
+    G[:, 2:, 2:] = G_fixed[1:, 1:]
+    G[:, 1, 1] = np.einsum("gi,gi->g", A, A)
+    G[:, 0, 1] = G[:, 1, 0] = A @ w
+    aE = A @ E
+    G[:, 1, 2:] = aE
+    G[:, 2:, 1] = aE
+    b[:, 0], b[:, 1], b[:, 2:] = b_fixed[0], A @ T, b_fixed[1:]
+    faces = ((0, 1), (1,), (0,), ())
+    costs = np.full((grid, len(faces)), math.inf)
+    solutions = np.zeros((grid, len(faces), k))
+    for f, free in enumerate(faces):
+        keep = list(free) + list(range(2, k))
+        x = np.zeros((grid, k))
+        if keep:
+            Gs = G[:, keep][:, :, keep]
+            bs = b[:, keep]
+            try:
+                x[:, keep] = np.linalg.solve(Gs, bs[:, :, None])[:, :, 0]
+            except np.linalg.LinAlgError:
+                x[:, keep] = np.array([np.linalg.lstsq(g, r, rcond=None)[0]
+                                       for g, r in zip(Gs, bs)])
+        cost = 0.5 * (TT - 2.0 * np.einsum("gi,gi->g", b, x)
+                      + np.einsum("gi,gij,gj->g", x, G, x))
+        feasible = (x[:, 0] >= 0.0) & (x[:, 1] >= 0.0)
+        costs[:, f] = np.where(feasible, cost, math.inf)
+        solutions[:, f] = x
+    g, f = np.unravel_index(int(np.argmin(costs)), costs.shape)
+    lin = solutions[g, f]
+    return np.concatenate([[lin[0], lin[1], C3_GRID[g]], lin[2:]])
 
 
 def fit_curve(m: Measurement) -> FrictionFit:

@@ -1,6 +1,6 @@
 """The planetary module's physical friction parameters from both bench tests.
 
-Report section 4.1.4 and fig 4.7: the fixed-sun and fixed-ring curves are two
+Report section 4.1.3 and fig 4.7: the fixed-sun and fixed-ring curves are two
 views of one gear set. Each curve alone only gives three constants (c1..c3 or
 c4..c6); the physical parameters behind them (bearing viscous and stiction
 coefficients of sun, ring and carrier, the mesh stiction k_1 and its sharpness
@@ -47,6 +47,10 @@ LINEAR = {
     "k_S": ("sun_bearing_stiction", "N m"),
 }
 STICTION = ("k_C", "k_R", "k_S")
+#: The only coefficient whose column depends on the mesh sharpness k_b1: the mesh's
+#: arctan stiction. Viscous columns are b s, and bearing stiction slides at its Coulomb
+#: level whatever the sharpness.
+SHARP = ("k_1",)
 STRUCTURES = ("mesh", "bearing-stiction")
 #: x = N_S/N_R < 1 in any planetary gear (N_R = N_S + 2 N_P); planets narrower than a
 #: twentieth of the ring, or suns smaller than a tenth of it, are not built.
@@ -196,8 +200,20 @@ def fit_structure(sun: FrictionFit, ring: FrictionFit, structure: str, *,
     weight = np.concatenate([np.full(len(w_s), 1 / _noise(sun)),
                              np.full(len(w_r), 1 / _noise(ring))])
 
+    by_x: dict[float, dict[str, np.ndarray]] = {}
+
+    def columns(x, kb):
+        # the columns that do not depend on k_b1 once per tooth ratio: the grid search
+        # below visits 41 sharpnesses at each ratio
+        fixed = by_x.get(float(x))
+        if fixed is None:
+            fixed = by_x[float(x)] = {n: _columns(x, kb, [n], w_s, w_r)[:, 0]
+                                      for n in names if n not in SHARP}
+        return np.column_stack([fixed[n] if n in fixed else
+                                _columns(x, kb, [n], w_s, w_r)[:, 0] for n in names])
+
     def project(x, kb):
-        A = _columns(x, kb, names, w_s, w_r) * weight[:, None]
+        A = columns(x, kb) * weight[:, None]
         scale = np.maximum(np.linalg.norm(A, axis=0), 1e-300)
         coef, rnorm = nnls(A / scale, T * weight)
         return coef / scale, rnorm
@@ -225,7 +241,7 @@ def fit_structure(sun: FrictionFit, ring: FrictionFit, structure: str, *,
     def reduced(z):
         x, kb = unpack(z)
         coef, _ = project(x, kb)
-        return (_columns(x, kb, names, w_s, w_r) @ coef - T) * weight
+        return (columns(x, kb) @ coef - T) * weight
 
     kb_bounds = [math.log(b) for b in SHARPNESS_RANGE]
     outer = least_squares(reduced, z0, x_scale=1.0, diff_step=1e-6,
@@ -241,7 +257,7 @@ def fit_structure(sun: FrictionFit, ring: FrictionFit, structure: str, *,
     def model(th):
         k = len(names)
         xx = th[k] if free_x else tooth_ratio
-        return _columns(xx, th[-1], names, w_s, w_r) @ th[:k]
+        return columns(xx, th[-1]) @ th[:k]
 
     r = (model(theta) - T) * weight
     J = np.empty((len(T), len(theta)))

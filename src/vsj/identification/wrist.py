@@ -11,18 +11,33 @@ signals, weighted by each signal's noise:
    not dominate.
 2. **Starts.** The given start and a space-filling design (a Latin hypercube in
    the logarithms of the bounds) are each fitted with a smooth friction law
-   (arctan) on part of the windows; the command reports how many starts
-   reached the best cost (within `SAME_COST`).
+   on part of the windows; the command reports how many starts
+   reached the best optimum (`SAME_OPTIMUM`: the same cost and the same point, to
+   within the noise).
 3. **Smooth, then true stiction.** The best start is refined on every window
-   with the arctan law, then with true stiction (the time-stepper's exact
-   Coulomb impulses), which is how the wrist behaves.
+   with the smooth law, then with true stiction (the time-stepper's exact
+   Coulomb impulses), which is how the wrist behaves. The smooth law is the
+   arctan law (report eq 3.17) with the parameter set's sharpness. Its optimum
+   lies some way from the stiction one (the arctan law creeps under loads that
+   stiction holds), but its cost is smooth in the parameters, so starts far apart
+   reach the same optimum. The slope law (`vsj.friction`), closer to stiction,
+   was tried and left: its cost is rough at the scale of the steps (starts an
+   order of magnitude apart ended at different points after 30 iterations on a
+   3 s synthetic log).
 
 Least squares: `scipy.optimize.least_squares` (trust region, bounds) in
 parameters scaled by their start; Jacobians by forward differences, every
 perturbed parameter set of one Jacobian run as one batch.
 
-**Uncertainty.** The covariance is the Gauss-Newton one, ``s^2 (J^T J)^-1``
-with ``s^2`` the residual variance per degree of freedom. Identifiability comes
+Each compared signal's delay behind the inputs is fitted with the parameters
+(`vsj.identification.wrist_model`, `DELAY_BOUND`); the delays start at zero
+from every start and are reported apart from the parameters.
+
+**Uncertainty.** The covariance is a sandwich over blocks of `BLOCK` s of
+residuals (see `_statistics`), from a central-difference Jacobian at the
+optimum with steps of about half a standard error (`_central_jacobian`); the
+physical parameters' block of it is reported (the delays' uncertainty is in
+it). Identifiability comes
 from the singular values of the Jacobian in relative parameter changes: a
 direction whose relative standard error exceeds `UNDETERMINED` (the data fix
 that combination of parameters to worse than +-50 %) is not determined; the
@@ -56,19 +71,29 @@ UNDETERMINED = 0.5
 #: A parameter whose share (squared loading) of undetermined directions exceeds this is
 #: reported as not determined.
 BLIND_SHARE = 0.1
-#: Starts whose final cost is within this of the best (absolute, in the weighted cost
-#: 0.5 sum r^2, i.e. a change of about one standard error in one direction; or relative)
-#: reached the best.
-SAME_COST = (1.0, 1e-4)
+#: A start reached the best optimum when both its cost and its end point lie within the
+#: best one's 95 % confidence region (chi-square with one degree of freedom per free
+#: parameter, in units of the best start's residual variance): a start that stopped
+#: elsewhere, or at a point with a cost the noise cannot explain, did not.
+SAME_OPTIMUM = 0.95
 #: Relative forward-difference steps of the Jacobian: the arctan law is smooth; true
 #: stiction makes the outputs piecewise smooth in the parameters (kinks where a
 #: stick phase begins or ends), which a step a hundred times the noise in a
 #: parameter averages over.
 FD_STEP = {"arctan": 1e-4, "stiction": 1e-3}
+#: Step of the covariance's central differences, in standard errors (`_central_jacobian`).
+COVARIANCE_STEP = 0.5
 #: Default bounds: the start divided and multiplied by this.
 BOUND_FACTOR = 5.0
 #: Block length [s] of the covariance's sandwich (see `_statistics`).
 BLOCK = 0.5
+#: Delays of the compared signals (`vsj.identification.wrist_model`): bounds [s] either
+#: way (well inside a window's lead, which leaves room to read the model's signal that
+#: much earlier or later) and the unit [s] they are fitted and judged in.
+DELAY_BOUND, DELAY_UNIT = 0.02, 1e-3
+#: Seconds of the log that each start is fitted to (`_subset`): a start only has to find
+#: its basin; the best one is then refined on every window.
+START_SECONDS = 10.0
 #: Laws of the two stages.
 SMOOTH, FINAL = "arctan", "stiction"
 
@@ -125,6 +150,7 @@ class WristFit:
     wall_time: float
     notes: list[str] = field(default_factory=list)
     traces: dict = field(default_factory=dict, repr=False)
+    delays: list[Estimate] = field(default_factory=list)
 
     @property
     def names(self) -> list[str]:
@@ -138,14 +164,23 @@ class WristFit:
         def matrix(a):
             return [[None if not math.isfinite(v) else float(v) for v in row] for row in a]
 
+        # "names", "parameters" and "covariance" are what a sweep's [covariance] file holds
+        # (`vsj.sweep.spec.read_covariance`): the determined parameters only, whose
+        # covariance is finite; "free" lists every free parameter
+        keep = [i for i, e in enumerate(self.estimates) if e.status == "determined"]
+        cov = self.covariance[np.ix_(keep, keep)]
+        cov = 0.5 * (cov + cov.T)
         return {
             "files": self.files, "validation_files": self.validation_files,
             "synthetic": self.synthetic,
-            "names": self.names, "values": [float(v) for v in self.values],
+            "names": [self.names[i] for i in keep],
+            "covariance": matrix(cov),
+            "correlation": matrix(self.correlation[np.ix_(keep, keep)]),
+            "covariance_note": "SI, over the determined parameters (names), in their order",
+            "free": self.names, "values": [float(v) for v in self.values],
             "units": [e.unit for e in self.estimates],
-            "covariance": matrix(self.covariance), "correlation": matrix(self.correlation),
-            "covariance_note": "SI; null where a parameter is not determined",
             "parameters": {e.name: e.to_json() for e in self.estimates},
+            "delays": {e.name: e.to_json() for e in self.delays},
             "undetermined": self.undetermined, "combinations": self.combinations,
             "starts": self.starts, "starts_reaching_best": self.reached,
             "cost": self.cost, "dof": self.dof, "residual_sd": self.residual_sd,
@@ -239,11 +274,14 @@ def _solve(problem: _Problem, theta0, lo, hi, max_nfev: int):
                          x_scale="jac", max_nfev=max_nfev, ftol=1e-6, xtol=1e-6, gtol=1e-10)
 
 
-def _subset(count: int) -> list[int]:
-    """Windows for the starts: about a quarter of them, at least four, spread evenly."""
-    if count <= 4:
+def _subset(model: WristModel) -> list[int]:
+    """Windows for the starts: about `START_SECONDS` of the log, spread evenly (all of a
+    shorter log)."""
+    count = len(model.windows)
+    length = float(np.mean([w.duration for w in model.windows]))
+    take = max(2, math.ceil(START_SECONDS / max(length, 1e-9)))
+    if count <= take:
         return list(range(count))
-    take = max(4, count // 4)
     return sorted(set(np.linspace(0, count - 1, take).round().astype(int).tolist()))
 
 
@@ -272,10 +310,18 @@ def fit_wrist(logs: Sequence[Measurement], params: Parameters, setup: Setup, *,
         for i, name in enumerate(model.names):
             if name in start:
                 base[i] = float(np.clip(start[name], lo[i], hi[i]))
-    scale = np.where(base != 0, np.abs(base), hi)
+    n_delay = len(model.delay_names)
+    points = np.vstack([base[None], _design(lo, hi, starts - 1, seed)])
+    # the delays start at zero from every start and are not part of the design
+    points = np.hstack([points, np.zeros((len(points), n_delay))])
+    base = np.concatenate([base, np.zeros(n_delay)])
+    lo = np.concatenate([lo, np.full(n_delay, -DELAY_BOUND)])
+    hi = np.concatenate([hi, np.full(n_delay, DELAY_BOUND)])
+    scale = np.concatenate([np.where(base[:n_par] != 0, np.abs(base[:n_par]), hi[:n_par]),
+                            np.full(n_delay, DELAY_UNIT)])
     lo_t, hi_t = lo / scale, hi / scale
-    points = np.vstack([base[None], _design(lo, hi, starts - 1, seed)]) / scale
-    subset = _subset(len(model.windows))
+    points = points / scale
+    subset = _subset(model)
     smooth_subset = _Problem(model, scale, SMOOTH, subset)
     runs = []
     for k, theta0 in enumerate(points):
@@ -284,8 +330,8 @@ def fit_wrist(logs: Sequence[Measurement], params: Parameters, setup: Setup, *,
         say(f"start {k + 1}/{len(points)}: cost {r.cost:.6g}")
     costs = np.array([r.cost for r in runs])
     best = int(np.argmin(costs))
-    tol = max(SAME_COST[0], SAME_COST[1] * costs[best])
-    reached = int(np.sum(costs <= costs[best] + tol))
+    same = _same_optimum(runs, best)
+    reached = int(np.sum(same))
     smooth = _solve(_Problem(model, scale, SMOOTH), runs[best].x, lo_t, hi_t,
                     max(3, max_iterations // 3))
     say(f"smooth law, every window: cost {smooth.cost:.6g}")
@@ -302,21 +348,27 @@ def fit_wrist(logs: Sequence[Measurement], params: Parameters, setup: Setup, *,
         raise SimulationError("the fit diverged: non-finite parameters")
     say(f"true stiction: cost {final.cost:.6g}")
     values = final.x * scale
-    _, ok = model.residuals(values[None], FINAL)
-    if not ok[0]:
+    fit_quality, fit_traces, ok = _quality(model, values)
+    if not ok:
         raise SimulationError("the wrist failed to simulate at the identified parameters")
+    final.jac = _central_jacobian(_Problem(model, scale, FINAL), final)
     result = _statistics(model, final, scale, lo, hi, base)
     result.starts = [{"start": {n: float(v) for n, v in zip(model.names, p * scale)},
-                      "cost": float(r.cost), "reached_best": bool(r.cost <= costs[best] + tol)}
-                     for p, r in zip(points, runs)]
+                      "end": {n: float(v) for n, v in zip(model.names, r.x * scale)},
+                      "cost": float(r.cost), "reached_best": bool(ok)}
+                     for p, r, ok in zip(points, runs, same)]
     result.reached = reached
-    fit_quality, fit_traces = _quality(model, values)
     result.quality = {"fit": fit_quality}
     result.traces = {"fit": fit_traces}
     if validate:
         vmodel = WristModel(validate, params, setup)
         vmodel.set_noise(noise)
-        q, traces = _quality(vmodel, values)
+        # the fitted delays carry over signal by signal (the validation logs may
+        # compare other signals)
+        fitted = dict(zip(model.delay_names, values[n_par:]))
+        vvalues = np.concatenate([values[:n_par],
+                                  [fitted.get(n, 0.0) for n in vmodel.delay_names]])
+        q, traces, _ = _quality(vmodel, vvalues)
         result.quality["validation"] = q
         result.traces["validation"] = traces
         model.runs += vmodel.runs
@@ -333,6 +385,50 @@ def fit_wrist(logs: Sequence[Measurement], params: Parameters, setup: Setup, *,
                      f"compared: {', '.join(o.name for o in model.outputs)}; inputs: "
                      + ", ".join(f"{c} <- {col}" for c, (col, _) in model.channels.items())]
     return result
+
+
+def _central_jacobian(problem: _Problem, result) -> np.ndarray:
+    """The Jacobian the uncertainties come from: central differences at the optimum,
+    each step `COVARIANCE_STEP` of the parameter's standard error (from the solver's
+    forward-difference Jacobian) but at least the solver's own step and at most a
+    tenth of the parameter (a delay: of `DELAY_UNIT`). With true stiction the
+    outputs have kinks where a stick phase begins or ends; a step as small as the
+    solver's makes a column depend on which kinks it happens to cross, and the
+    standard errors with it (by a factor of two between neighbouring optima on
+    synthetic logs); a step of about the standard error sees the slope that the
+    noise-driven scatter of the estimate sees."""
+    theta = result.x
+    J = np.asarray(result.jac, dtype=float)
+    dof = max(len(result.fun) - len(theta), 1)
+    s2 = float(np.sum(result.fun ** 2)) / dof
+    with np.errstate(divide="ignore", invalid="ignore"):
+        se = np.sqrt(s2 * np.clip(np.diag(np.linalg.pinv(J.T @ J)), 0.0, None))
+    magnitude = np.maximum(np.abs(theta), 1.0)
+    smallest = FD_STEP[problem.law] * np.maximum(np.abs(theta), 1e-2)
+    step = np.clip(COVARIANCE_STEP * np.nan_to_num(se, nan=0.0, posinf=0.0), smallest,
+                   0.1 * magnitude)
+    n = len(theta)
+    batch = np.vstack([theta[None] + np.diag(step), theta[None] - np.diag(step)])
+    r, _ = problem.model.residuals(batch * problem.scale[None], problem.law, problem.windows)
+    return ((r[:n] - r[n:]) / (2.0 * step[:, None])).T
+
+
+def _same_optimum(runs, best: int) -> np.ndarray:
+    """Which starts reached the best one's optimum (`SAME_OPTIMUM`): cost rise and
+    distance (in the metric of the best start's Jacobian) both within the chi-square
+    quantile times the residual variance."""
+    ref = runs[best]
+    J = np.asarray(ref.jac, dtype=float)
+    dof = max(len(ref.fun) - len(ref.x), 1)
+    s2 = max(2.0 * ref.cost / dof, 1e-300)
+    limit = stats.chi2.ppf(SAME_OPTIMUM, len(ref.x))
+    out = []
+    for r in runs:
+        step = J @ (r.x - ref.x)
+        distance = float(step @ step) / s2
+        rise = 2.0 * (r.cost - ref.cost) / s2
+        out.append(rise <= limit and distance <= limit)
+    return np.array(out, dtype=bool)
 
 
 def _residual_noise(model: WristModel, weighted: np.ndarray) -> dict[str, float]:
@@ -354,7 +450,8 @@ def _residual_noise(model: WristModel, weighted: np.ndarray) -> dict[str, float]
 
 
 def _statistics(model: WristModel, result, scale, lo, hi, base) -> WristFit:
-    names = model.names
+    n_phys = len(model.names)
+    names = model.names + model.delay_names
     n_par = len(names)
     theta = result.x
     values = theta * scale
@@ -362,13 +459,17 @@ def _statistics(model: WristModel, result, scale, lo, hi, base) -> WristFit:
     m = len(result.fun)
     dof = m - n_par
     s2 = float(np.sum(result.fun ** 2)) / max(dof, 1)
-    Jrel = J * theta[None, :]           # per relative change of each parameter
+    # per relative change of each parameter; per `DELAY_UNIT` of a delay
+    unit = np.concatenate([np.abs(values[:n_phys]), np.full(n_par - n_phys, DELAY_UNIT)])
+    Jrel = J * (unit / scale)[None, :]
     _, sv, Vt = np.linalg.svd(Jrel, full_matrices=False)
     rel_se = np.where(sv > 0, math.sqrt(s2) / np.maximum(sv, 1e-300), math.inf)
     blind = rel_se > UNDETERMINED
     share = np.sum(Vt[blind] ** 2, axis=0) if blind.any() else np.zeros(n_par)
     active = np.asarray(result.active_mask) != 0
-    undetermined = [names[i] for i in range(n_par) if share[i] > BLIND_SHARE and not active[i]]
+    # a parameter the data leave open may drift to a bound: it is reported as not
+    # determined (the reason), not as at a bound
+    undetermined = [names[i] for i in range(n_par) if share[i] > BLIND_SHARE]
     combinations = []
     for k in np.flatnonzero(blind):
         v = Vt[k]
@@ -378,7 +479,8 @@ def _statistics(model: WristModel, result, scale, lo, hi, base) -> WristFit:
                                  f"{_pct(rel_se[k])})")
         else:
             v = v / v[big[np.argmax(np.abs(v[big]))]]
-            terms = " + ".join(f"{v[i]:.2g} ln {names[i]}" for i in big)
+            terms = " + ".join(f"{v[i]:.2g} ln {names[i]}" if i < n_phys else
+                               f"{v[i]:.2g} {names[i]} [ms]" for i in big)
             combinations.append(f"{terms} (relative standard error {_pct(rel_se[k])})")
     keep = ~blind
     # Residuals of a windowed output-error fit are not white: an error in a window's
@@ -393,7 +495,7 @@ def _statistics(model: WristModel, result, scale, lo, hi, base) -> WristFit:
         g = Jrel[rows].T @ result.fun[rows]
         meat += np.outer(g, g)
     cov_rel = inv @ meat @ inv * (m / max(dof, 1))
-    cov = cov_rel * np.outer(values, values)
+    cov = cov_rel * np.outer(unit, unit)
     bad = np.array([names[i] in undetermined or active[i] for i in range(n_par)])
     cov[bad, :] = np.nan
     cov[:, bad] = np.nan
@@ -404,16 +506,20 @@ def _statistics(model: WristModel, result, scale, lo, hi, base) -> WristFit:
     estimates = []
     for i, name in enumerate(names):
         section, key = name.split(".", 1)
-        unit = SCHEMA[section][key].unit
-        status = ("at a bound" if active[i] else "not determined" if name in undetermined
+        status = ("not determined" if name in undetermined else "at a bound" if active[i]
                   else "determined")
         e = float(sd[i]) if status == "determined" else math.inf if \
             status == "not determined" else math.nan
         ci = (float(values[i] - t * e), float(values[i] + t * e)) if status == "determined" \
             else None
-        estimates.append(Estimate(name, float(values[i]), unit, e, ci, status, float(base[i]),
-                                  (float(lo[i]), float(hi[i]))))
-    return WristFit(estimates=estimates, covariance=cov, correlation=corr,
+        estimates.append(Estimate(name, float(values[i]),
+                                  SCHEMA[section][key].unit if i < n_phys else "s", e, ci,
+                                  status, float(base[i]), (float(lo[i]), float(hi[i]))))
+    phys = slice(0, n_phys)
+    # the delays are nuisance parameters: reported apart, the covariance of the physical
+    # parameters is their block of the whole (the delays' uncertainty included)
+    return WristFit(estimates=estimates[phys], delays=estimates[n_phys:],
+                    covariance=cov[phys, phys], correlation=corr[phys, phys],
                     undetermined=undetermined, combinations=combinations, starts=[], reached=0,
                     cost=float(result.cost), dof=dof, residual_sd=math.sqrt(s2), quality={},
                     files=[], validation_files=[], synthetic=False, simulations=0,
@@ -439,22 +545,25 @@ def _pct(x: float) -> str:
 
 
 def _quality(model: WristModel, values: np.ndarray):
-    """Per compared signal: NRMSE and fit % with true stiction; and the traces (time,
-    measured, simulated, per signal) for the figures."""
-    sims, _ = model.simulate(values[None], FINAL)
+    """Per compared signal: NRMSE and fit % with true stiction; and the traces for the
+    figures: per signal, per log, (time of that log, measured, simulated)."""
+    sims, ok = model.simulate(values[None], FINAL)
     out, traces = {}, {}
     for c, o in enumerate(model.outputs):
-        meas, sim, times = [], [], []
+        meas, sim, times, logs = [], [], [], []
         for k, w in enumerate(model.windows):
             meas.append(model.measured(k)[c])
             sim.append(sims[k][0, c])
-            times.append(model.logs[w.log]["time"][w.samples] + 1e6 * w.log)
+            times.append(model.logs[w.log]["time"][w.samples])
+            logs.append(np.full(len(w.samples), w.log))
         y, ys, tt = np.concatenate(meas), np.concatenate(sim), np.concatenate(times)
+        which = np.concatenate(logs)
         err = ys - y
         rng = float(np.ptp(y)) or 1.0
         spread = float(np.linalg.norm(y - np.mean(y))) or 1.0
         out[o.name] = SignalQuality(nrmse=float(np.sqrt(np.mean(err ** 2)) / rng),
                                     fit_percent=float(100 * (1 - np.linalg.norm(err) / spread)),
                                     noise=float(model.noise[o.name]), samples=len(y))
-        traces[o.name] = (tt, y, ys)
-    return out, traces
+        traces[o.name] = {model.logs[i].path: (tt[which == i], y[which == i], ys[which == i])
+                          for i in range(len(model.logs))}
+    return out, traces, bool(ok[0])

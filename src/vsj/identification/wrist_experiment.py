@@ -275,11 +275,121 @@ def from_table(doc: Mapping, origin: str) -> Experiment:
 BAND = (0.1, 6.0)
 
 
-def predicted(experiment: Experiment, params, free, *, threads=None):
+@dataclass(frozen=True)
+class MotorLimits:
+    """What each primary motor can do, at its gearhead's output (SI): the largest
+    speed and torque, and the supply voltage with the motor's constants, which turn
+    a speed and a torque into the voltage they need (``R tau / (G k) + k G omega``,
+    the DC motor's steady state: its speed-torque line)."""
+
+    max_speed: float
+    max_torque: float
+    voltage: float
+    resistance: float
+    torque_constant: float
+    gear_ratio: float
+
+    @classmethod
+    def of(cls, params, max_speed: float | None = None, max_torque: float | None = None):
+        """Limits of the parameter set's motors: by default half the no-load speed and
+        the stall torque at the supply voltage."""
+        mo = params.motor
+        G, k, R, V = mo.gear_ratio, mo.torque_constant, mo.resistance, mo.voltage_limit
+        speed = 0.5 * V / (k * abs(G)) if max_speed is None else max_speed
+        torque = abs(G) * k * V / R if max_torque is None else max_torque
+        for name, value in (("speed", speed), ("torque", torque)):
+            if not (math.isfinite(value) and value > 0):
+                raise InputError(f"motor {name} limit {value!r}: must be > 0")
+        return cls(speed, torque, V, R, k, abs(G))
+
+
+def motor_use(run, experiment: Experiment, limits: MotorLimits) -> dict:
+    """Peak speed, torque and needed voltage of each primary motor in a run
+    (`vsj.synth.wrist_run`), and ``worst``: the largest of their ratios to the limits
+    (at most 1 within every limit)."""
+    out = {}
+    worst = 0.0
+    for m in ("motor_1", "motor_2"):
+        if experiment.motors == "velocity":
+            speed = np.asarray(run[f"source.{m}.speed"])
+            torque = np.asarray(run[f"source.{m}.torque"])
+            volts = (limits.resistance * torque / (limits.gear_ratio * limits.torque_constant)
+                     + limits.torque_constant * limits.gear_ratio * speed)
+        else:
+            speed = np.asarray(run[f"{m}.speed"])
+            torque = (limits.gear_ratio * limits.torque_constant
+                      * np.asarray(run[f"motor.{m}.current"]))
+            volts = experiment.value(f"voltage_{m[-1]}", np.asarray(run.time))
+        peak = {"speed": float(np.max(np.abs(speed))), "torque": float(np.max(np.abs(torque))),
+                "voltage": float(np.max(np.abs(volts)))}
+        ratio = max(peak["speed"] / limits.max_speed, peak["torque"] / limits.max_torque,
+                    peak["voltage"] / limits.voltage)
+        out[m] = peak
+        worst = max(worst, ratio)
+    out["worst"] = worst
+    return out
+
+
+def scaled_motors(experiment: Experiment, factor: float) -> Experiment:
+    """The experiment with every motor command's amplitude times ``factor``."""
+    def scale(key, value):
+        if key != "amplitude":
+            return value
+        return tuple(factor * v for v in value) if isinstance(value, tuple) else factor * value
+
+    signals = {}
+    for ch, comps in experiment.signals.items():
+        if ch.startswith(("motor_", "voltage_")):
+            comps = tuple((kind, {k: scale(k, v) for k, v in spec.items()})
+                          for kind, spec in comps)
+        signals[ch] = comps
+    return replace(experiment, signals=signals)
+
+
+#: A design whose motors exceed a limit is scaled down (motor amplitudes) by bisection on
+#: the scale, at most this many simulations: friction makes a motor's torque fall less
+#: than its amplitude, so a proportional guess alone may not reach the limit.
+LIMIT_TRIES = 8
+#: The bisection stops when the feasible scale is known to this fraction.
+LIMIT_RESOLUTION = 0.05
+
+
+def within_limits(experiment: Experiment, params, limits: MotorLimits):
+    """``(experiment, run, use)`` with the motor amplitudes scaled down as little as
+    needed (to `LIMIT_RESOLUTION`) for every motor to stay within ``limits`` (speed,
+    torque, voltage), or None when no scale found does (the external torques or
+    friction alone load a motor beyond its limit)."""
+    from .. import synth
+
+    def attempt(factor):
+        e = experiment if factor == 1.0 else scaled_motors(experiment, factor)
+        run = synth.wrist_run(e, params)
+        use = motor_use(run, e, limits)
+        return e, run, use
+
+    found = attempt(1.0)
+    if found[2]["worst"] <= 1.0 + 1e-9:
+        return found
+    lo, hi = 0.0, 1.0
+    factor = 0.97 / found[2]["worst"]   # proportional first guess
+    found = None
+    for _ in range(LIMIT_TRIES - 1):
+        trial = attempt(factor)
+        if trial[2]["worst"] <= 1.0 + 1e-9:
+            lo, found = factor, trial
+        else:
+            hi = factor
+        if found is not None and hi - lo <= LIMIT_RESOLUTION * hi:
+            break
+        factor = 0.5 * (lo + hi)
+    return found
+
+
+def predicted(experiment: Experiment, params, free, *, threads=None, run=None):
     """Predicted standard errors [SI] of ``free`` from an experiment, and log det of the
     Fisher information in relative parameter units: the batch Jacobian of a noiseless
     synthetic log (true stiction, windows restarted as the fit restarts them) weighted
-    by the sensors' noise."""
+    by the sensors' noise. ``run``: `vsj.synth.wrist_run` of the experiment, if at hand."""
     from .. import synth
     from ..measurements import Measurement
     from .wrist import FINAL, _Problem
@@ -288,10 +398,11 @@ def predicted(experiment: Experiment, params, free, *, threads=None):
     quiet = replace(experiment.sensors, encoder_counts=2 ** 40, angle_noise=0.0,
                     current_noise=0.0, current_offset=0.0, torque_noise=0.0, q_noise=0.0,
                     time_offset=0.0, jitter=0.0)
-    data = synth.wrist(replace(experiment, sensors=quiet), params, seed=0)
+    data = synth.wrist(replace(experiment, sensors=quiet), params, seed=0, run=run)
     log = Measurement("<design>", {k: v[0] for k, v in data.columns.items()},
                       {k: v[1] for k, v in data.columns.items()}, data.comments)
-    model = WristModel([log], params, Setup(free=tuple(free), threads=threads))
+    # no delays: the design's own log has none
+    model = WristModel([log], params, Setup(free=tuple(free), threads=threads, delays=False))
     s = experiment.sensors
     angle = math.sqrt(s.angle_noise ** 2 + (2 * math.pi / s.encoder_counts) ** 2 / 12)
     model.set_noise({o.name: (s.current_noise if o.kind == "current" else
@@ -353,28 +464,70 @@ def candidate(duration: float, max_speed: float, max_torque: float, rng, *,
                                   "end-effector")
 
 
-def design(params, free, duration: float, *, max_speed: float, max_torque: float,
-           motors="velocity", q=0.0, candidates: int = 6, seed: int = 0, threads=None,
-           elastic="geometric", progress=None):
+@dataclass(frozen=True)
+class Design:
+    """The chosen experiment with its predicted standard errors [SI] and log det of
+    the Fisher information, its motors' peak use (`motor_use`), and the same for the
+    plain sine it is compared with."""
+
+    experiment: Experiment
+    stderr: dict
+    logdet: float
+    use: dict
+    reference: Experiment
+    reference_stderr: dict
+    reference_logdet: float
+    reference_use: dict
+    limits: MotorLimits
+
+
+def design(params, free, duration: float, *, max_speed: float | None = None,
+           max_torque: float, max_motor_torque: float | None = None, motors="velocity",
+           q=0.0, candidates: int = 6, seed: int = 0, threads=None, elastic="geometric",
+           progress=None) -> Design:
     """D-optimal choice among ``candidates`` random designs (`candidate`): the one whose
-    Fisher information has the largest determinant. Returns the experiment, its
-    predicted standard errors, and those of `plain_sine` for comparison."""
+    Fisher information has the largest determinant, among those that keep every
+    motor within its speed and torque limits (`MotorLimits`; a candidate beyond them
+    is first scaled down, `within_limits`). ``max_torque`` is the height of the
+    external torque pulses. The plain sine it is compared with obeys the same
+    limits."""
     say = progress or (lambda text: None)
+    limits = MotorLimits.of(params, max_speed, max_motor_torque)
     rng = np.random.default_rng(seed)
     q_range = None
     if any(n.startswith(("elastic_element.", "pivot.")) for n in free):
         q_range = (params.pivot.q_min, params.pivot.q_max)
     best = None
+    refused = 0
     for k in range(candidates):
-        e = candidate(duration, max_speed, max_torque, rng, motors=motors, q=q,
+        e = candidate(duration, limits.max_speed, max_torque, rng, motors=motors, q=q,
                       q_range=q_range, elastic=elastic)
-        se, logdet = predicted(e, params, free, threads=threads)
-        say(f"candidate {k + 1}/{candidates}: log det {logdet:.4g}")
+        fitted = within_limits(e, params, limits)
+        if fitted is None:
+            refused += 1
+            say(f"candidate {k + 1}/{candidates}: beyond the motors' limits, dropped")
+            continue
+        e, run, use = fitted
+        se, logdet = predicted(e, params, free, threads=threads, run=run)
+        say(f"candidate {k + 1}/{candidates}: log det {logdet:.4g} (motors at "
+            f"{100 * use['worst']:.3g} % of their limits)")
         if best is None or logdet > best[2]:
-            best = (e, se, logdet)
-    e, se, logdet = best
-    ref = plain_sine(duration, max_speed, motors=motors, q=q)
-    ref_se, ref_logdet = predicted(ref, params, free, threads=threads)
-    e = replace(e, description=f"D-optimal among {candidates} candidates (seed {seed}) for "
-                               f"{', '.join(free)}: {e.description}")
-    return e, se, logdet, ref_se, ref_logdet
+            best = (e, se, logdet, use)
+    if best is None:
+        raise InputError(f"every one of the {candidates} candidate excitations needs more than "
+                         f"the motors give (speed {limits.max_speed:.4g} rad/s, torque "
+                         f"{limits.max_torque:.4g} N m, {limits.voltage:.4g} V), even scaled "
+                         f"down: lower the external torque pulses (now {max_torque:.4g} N m) "
+                         "or raise the motor torque limit")
+    e, se, logdet, use = best
+    ref = plain_sine(duration, limits.max_speed, motors=motors, q=q)
+    fitted = within_limits(ref, params, limits)
+    if fitted is None:
+        raise InputError("the plain sine to compare with exceeds the motors' limits even "
+                         "scaled down")
+    ref, ref_run, ref_use = fitted
+    ref_se, ref_logdet = predicted(ref, params, free, threads=threads, run=ref_run)
+    e = replace(e, description=f"D-optimal among {candidates - refused} candidates within the "
+                               f"motors' limits (seed {seed}) for {', '.join(free)}: "
+                               f"{e.description}")
+    return Design(e, se, logdet, use, ref, ref_se, ref_logdet, ref_use, limits)

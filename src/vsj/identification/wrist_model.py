@@ -36,6 +36,16 @@ constants, the elastic element's constants); one that changes the kinematic
 rows (a gear ratio, a tooth count) or the topology (a compliance or damping
 that is zero in the base set) is refused with a message that says so.
 
+**Delays.** A recorder's channels need not be simultaneous: an end-effector
+encoder read a fraction of a millisecond after the motor commands makes its
+signal lead or lag the model's, and a fit that cannot shift it bends the
+damping to explain the phase (on synthetic logs, a 0.2 ms offset moved the
+viscous friction by seven standard errors). With ``Setup.delays`` each compared
+signal therefore gets its own delay behind the inputs, a nuisance parameter of
+the fit: the model's signal is read at ``t - delay`` (linear interpolation on
+the simulation's grid), which needs no extra run, so a Jacobian column of a
+delay costs no simulation.
+
 Outputs compared: angles and speeds of any named signal that moves with the
 generalised coordinates (``theta_x``, ``theta_y``, ``phi_1``, ``motor_1``
 with DC motors, ...), the pivot position ``q`` when it does, and DC motor
@@ -73,6 +83,9 @@ FAILED_RESIDUAL = 1e3
 #: A compared signal's noise is never taken below this fraction of its range: a signal
 #: measured without noise would otherwise get an infinite weight.
 NOISE_FLOOR = 1e-6
+#: Relative tolerance (of the arrays' largest entry) of the affinity check of
+#: `WristModel._affine`: round-off of the network's assembly, far below any step.
+AFFINE_TOLERANCE = 1e-12
 #: Parameters whose change moves the kinematic rows or the topology: not free.
 _KINEMATIC = ("planetary.sun_teeth", "planetary.ring_teeth", "transmission.ratio",
               "motor.gear_ratio", "pivot.ratio", "pivot.amplitude", "pivot.q_min",
@@ -86,7 +99,12 @@ class Setup:
     ``inputs``/``outputs``: log column names (None: every input channel found, and
     every measured signal that the model's states determine). ``window`` and
     ``lead`` [s]: window length and the part of each not compared; ``step`` [s]:
-    the time-stepper's step; ``threads``: engine threads (None: every core).
+    the time-stepper's step with true stiction, ``smooth_step`` [s] with a smooth
+    friction law (the stages that only find the basin: a coarser step costs less,
+    and its discretisation error, which biases estimates by about a standard
+    error at 1 ms against a 0.5 ms truth, does not reach the final fit); ``threads``: engine threads (None: every core);
+    ``delays``: estimate each compared signal's delay behind the inputs (see
+    `WristModel`).
     """
 
     free: tuple[str, ...]
@@ -95,9 +113,11 @@ class Setup:
     outputs: tuple[str, ...] | None = None
     window: float = 5.0
     lead: float = 0.05
-    step: float = 1e-3
+    step: float = 5e-4
+    smooth_step: float = 1e-3
     slope_width: float = 0.01
     threads: int | None = None
+    delays: bool = True
 
 
 def known_columns(structure) -> dict[str, str]:
@@ -180,8 +200,7 @@ class Window:
     start: float                   # s, absolute time of the log
     duration: float
     samples: np.ndarray            # indices into the log of the compared samples
-    interp_index: np.ndarray       # sim grid index left of each compared sample
-    interp_frac: np.ndarray
+    offsets: np.ndarray            # their times from the window's start [s]
     engines: dict = field(default_factory=dict)   # law -> Engine
     sigma0: np.ndarray | None = None
     x0: np.ndarray | None = None
@@ -189,9 +208,8 @@ class Window:
     null: np.ndarray | None = None  # basis of the unmeasured position directions
     later: tuple | None = None      # (dt, x0, sigma) a moment later, for null-space speeds
     currents: np.ndarray | None = None
-    t_out: np.ndarray | None = None
-    source_angles: np.ndarray | None = None  # (samples, sources), relative to sigma0
-    source_speeds: np.ndarray | None = None
+    grids: dict = field(default_factory=dict)  # step -> (t_out, source angles, speeds)
+    quasi_static: dict = field(default_factory=dict)  # spring parameters -> (x0, v0)
 
 
 def with_values(params: Parameters, values: Mapping[str, float]) -> Parameters:
@@ -237,6 +255,11 @@ class WristModel:
         if not logs:
             raise InputError("no log to fit")
         check_free(setup.free, params)
+        coarse, fine = max(setup.step, setup.smooth_step), min(setup.step, setup.smooth_step)
+        if not (fine > 0 and abs(coarse / fine - round(coarse / fine)) < 1e-9):
+            raise InputError(f"steps {setup.step:g} s (true stiction) and {setup.smooth_step:g}"
+                             " s (smooth law): each must be > 0 and the larger a whole "
+                             "multiple of the smaller")
         self.logs = list(logs)
         self.params = params
         self.setup = setup
@@ -265,6 +288,8 @@ class WristModel:
         self.outputs = self._outputs()
         self.names = list(setup.free)
         self.base = np.array([params[n] for n in self.names])
+        self.delay_names = ([f"delay.{o.name}" for o in self.outputs] if setup.delays
+                            else [])
         self.n_state = 2 * self.structure.n + len(self.structure.motors)
         self.windows = [w for i in range(len(self.logs)) for w in self._windows(i)]
         if not self.windows:
@@ -351,7 +376,9 @@ class WristModel:
     def _windows(self, i: int) -> list[Window]:
         log = self.logs[i]
         t = log["time"]
-        W, lead, h = self.setup.window, self.setup.lead, self.setup.step
+        # windows last a whole number of either step
+        W, lead, h = self.setup.window, self.setup.lead, max(self.setup.step,
+                                                              self.setup.smooth_step)
         if not (W > lead + 10 * h):
             raise InputError(f"window {W:g} s must exceed lead {lead:g} s by 10 steps")
         out = []
@@ -365,9 +392,7 @@ class WristModel:
             duration = (n_out - 1) * h
             samples = np.flatnonzero((t >= start + lead) & (t <= start + duration))
             if samples.size:
-                tau = (t[samples] - start) / h
-                idx = np.minimum(np.floor(tau).astype(np.int64), n_out - 2)
-                out.append(Window(i, start, duration, samples, idx, tau - idx))
+                out.append(Window(i, start, duration, samples, t[samples] - start))
             start += duration - lead
         return out
 
@@ -427,12 +452,12 @@ class WristModel:
                                  slope_width=self.setup.slope_width)
         engine = Engine(model)
         w.engines[law] = engine
-        if w.t_out is not None:
+        for h in {self.setup.step, self.setup.smooth_step}:
+            if h not in w.grids:
+                t_out = np.arange(round(w.duration / h) + 1) * h
+                w.grids[h] = (t_out, *engine.source_signals(t_out))
+        if w.sigma0 is not None:
             return
-        h = self.setup.step
-        w.t_out = np.arange(round(w.duration / h) + 1) * h
-        angles, speeds = engine.source_signals(w.t_out)
-        w.source_angles, w.source_speeds = angles, speeds
         w.sigma0, w.x0, w.v0, w.null, w.later = self._measured_state(log, w.start, engine,
                                                                      inputs)
         w.currents = np.array([self._local(log, f"motor.{m.name}.current", w.start)[0]
@@ -527,28 +552,91 @@ class WristModel:
     # -- parameter sets ----------------------------------------------------------------
 
     def _compiled_for(self, values: np.ndarray, law: str):
+        """``(mass, Minv, par)`` of the engine for one parameter set: from the affine
+        map of `_affine` when only parameters that act affinely differ from the
+        start, else by building and compiling the wrist."""
         key = tuple(float(v) for v in values)
         hit = self._compiled.get(key)
         if hit is not None:
             return hit
+        affine = self._affine(law)
+        change = np.asarray(key) - self.base
+        if affine is not None and not np.any(change[~affine[0]]):
+            _, mass0, par0, dmass, dpar = affine
+            mass = mass0 + np.tensordot(change, dmass, axes=1)
+            par = par0 + np.tensordot(change, dpar, axes=1)
+            n = self.structure.n
+            hit = (mass, np.linalg.inv(mass[:n, :n]) if n else np.zeros((0, 0)), par)
+        else:
+            hit = self._compile(key, law)
+        if len(self._compiled) > 512:
+            self._compiled.clear()
+        self._compiled[key] = hit
+        return hit
+
+    def _compile(self, key: tuple, law: str):
         params = with_values(self.params, dict(zip(self.names, key)))
         structure = build_wrist(params, self.wrist).assemble()
         w = self.windows[0]
         if law not in w.engines:
             self._prepare(w, law)
         base = w.engines[law].model
-        model, _ = compile_model(structure, self._inputs(self.logs[w.log], w.start, w.duration),
-                                 w.duration, friction=law, slope_width=self.setup.slope_width)
+        # only the mass matrix and the element parameters are taken from this model: its
+        # inputs are left at zero (each window's engine has the log's own)
+        model, _ = compile_model(structure, {}, 1.0, friction=law,
+                                 slope_width=self.setup.slope_width)
         if model.rows.shape != base.rows.shape or not np.allclose(
                 model.rows, base.rows, rtol=0.0, atol=1e-9 * max(np.max(np.abs(base.rows)), 1.0)):
             changed = [n for n, v, b in zip(self.names, key, self.base) if v != b]
             raise InputError(f"free parameter(s) {', '.join(changed)} change the network's "
                              "kinematic rows; they cannot be identified in one batch")
-        hit = (model.mass, model.Minv, model.par)
-        if len(self._compiled) > 512:
-            self._compiled.clear()
-        self._compiled[key] = hit
-        return hit
+        return model.mass, model.Minv, model.par
+
+    def _affine(self, law: str):
+        """Which free parameters the mass matrix and the element parameters depend on
+        affinely (inertias, friction levels: most of them), with that map:
+        ``(affine, mass0, par0, dmass, dpar)``; None if none is affine.
+
+        Building the wrist for every parameter set of every Jacobian costs more than
+        its runs on a short window; an affine parameter's effect is a sum instead.
+        Affinity is checked, not assumed: two steps of each parameter must change
+        the arrays by the same amount, and all of them together by the sum of their
+        own changes (to `AFFINE_TOLERANCE`); a parameter that fails (a compliance
+        turned into a stiffness) is compiled each time it differs from the start."""
+        cache = self.__dict__.setdefault("_affine_cache", {})
+        if law in cache:
+            return cache[law]
+        base = tuple(float(v) for v in self.base)
+        mass0, _, par0 = self._compile(base, law)
+        size = max(float(np.max(np.abs(mass0))), float(np.max(np.abs(par0))), 1e-300)
+        n_par = len(base)
+        affine = np.zeros(n_par, dtype=bool)
+        dmass = np.zeros((n_par,) + mass0.shape)
+        dpar = np.zeros((n_par,) + par0.shape)
+        steps = np.where(self.base != 0, 0.1 * np.abs(self.base), 1e-3)
+        for i in range(n_par):
+            one, two = list(base), list(base)
+            one[i] += steps[i]
+            two[i] += 2 * steps[i]
+            m1, _, p1 = self._compile(tuple(one), law)
+            m2, _, p2 = self._compile(tuple(two), law)
+            tol = AFFINE_TOLERANCE * size
+            if (np.max(np.abs((m2 - m1) - (m1 - mass0))) <= tol
+                    and np.max(np.abs((p2 - p1) - (p1 - par0))) <= tol):
+                affine[i] = True
+                dmass[i] = (m1 - mass0) / steps[i]
+                dpar[i] = (p1 - par0) / steps[i]
+        result = None
+        if affine.any():
+            together = np.where(affine, self.base + steps, self.base)
+            m, _, p = self._compile(tuple(float(v) for v in together), law)
+            change = together - self.base
+            tol = AFFINE_TOLERANCE * size
+            if (np.max(np.abs(m - mass0 - np.tensordot(change, dmass, axes=1))) <= tol
+                    and np.max(np.abs(p - par0 - np.tensordot(change, dpar, axes=1))) <= tol):
+                result = (affine, mass0, par0, dmass, dpar)
+        cache[law] = result
+        return result
 
     def _initial(self, w: Window, law: str, mass, Minv, par) -> np.ndarray:
         """Initial state of a window for one parameter set (quasi-static in the
@@ -556,12 +644,26 @@ class WristModel:
         n = self.structure.n
         x0, v0 = w.x0.copy(), w.v0.copy()
         if w.null.shape[1]:
+            # the springs' energy depends on the spring and pivot rows of the parameters
+            # only: parameter sets that share them (every column of a Jacobian but the
+            # springs' own) share the quasi-static guess
+            n_fr, n_sp = (int(v) for v in w.engines[law].model.dims[2:4])
+            key = (par[n_fr:n_fr + n_sp].tobytes(), par[-1].tobytes())
+            cached = w.quasi_static.get(key)
+            if cached is not None:
+                x0, v0 = cached
+                y = np.zeros(n * 2 + len(w.currents))
+                y[:n], y[n:2 * n], y[2 * n:] = x0, v0, w.currents
+                return y
             engine = w.engines[law]
             model = engine.model._replace(mass=mass, Minv=Minv, par=par)
             x0 = self._quasi_static(Engine(model._replace(src_pos0=w.sigma0)), x0, w.null)
             dt, x2, s2 = w.later
             x2 = self._quasi_static(Engine(model._replace(src_pos0=s2)), x2, w.null)
             v0 = v0 + w.null @ (w.null.T @ ((x2 - x0) / dt - v0))
+            if len(w.quasi_static) > 256:
+                w.quasi_static.clear()
+            w.quasi_static[key] = (x0, v0)
         y = np.zeros(n * 2 + len(w.currents))
         y[:n], y[n:2 * n], y[2 * n:] = x0, v0, w.currents
         return y
@@ -605,16 +707,24 @@ class WristModel:
     # -- evaluation --------------------------------------------------------------------
 
     def simulate(self, values: np.ndarray, law: str, windows: Sequence[int] | None = None):
-        """Simulated compared signals of every parameter set (rows of ``values``):
-        a list over windows of arrays (sets, outputs, compared samples); and per
-        set whether every window ran."""
+        """Simulated compared signals of every parameter set (rows of ``values``: the
+        free parameters, then, with delays, each compared signal's delay [s]): a list
+        over windows of arrays (sets, outputs, compared samples); and per set whether
+        every window ran. Sets that differ in their delays only share one run."""
         values = np.atleast_2d(np.asarray(values, dtype=float))
+        n_phys = len(self.names)
+        physical, row_of = np.unique(values[:, :n_phys], axis=0, return_inverse=True)
+        row_of = row_of.reshape(-1)
+        delays = np.zeros((len(values), len(self.outputs)))
+        if values.shape[1] > n_phys:
+            delays[:] = values[:, n_phys:]
         chosen = range(len(self.windows)) if windows is None else windows
         for k in chosen:
             if law not in self.windows[k].engines:
                 self._prepare(self.windows[k], law)
-        compiled = [self._compiled_for(v, law) for v in values]
-        runs = len(values)
+        compiled = [self._compiled_for(v, law) for v in physical]
+        h = self.step_of(law)
+        runs = len(physical)
         tasks = []
         threads = max(1, self.setup.threads or core.available_cores())
         chunks = max(1, min(runs, -(-threads * 3 // max(len(chosen), 1))))
@@ -623,7 +733,7 @@ class WristModel:
             for lo in range(0, runs, size):
                 tasks.append((k, lo, min(runs, lo + size)))
         ok = np.ones(runs, dtype=bool)
-        outs = {k: np.empty((runs, len(self.outputs), len(self.windows[k].samples)))
+        outs = {k: np.empty((len(values), len(self.outputs), len(self.windows[k].samples)))
                 for k in chosen}
 
         def work(task):
@@ -639,11 +749,11 @@ class WristModel:
             y0s = np.hstack([y0s, np.zeros((hi - lo, layout.n_acc))])
             src0s = np.repeat(w.sigma0[None], hi - lo, axis=0)
             states, _, status, _, _, _ = core.run_batch(
-                "timestep", engine, masses, Minvs, pars, src0s, y0s, w.duration, w.t_out,
-                h=self.setup.step, max_steps=int(w.duration / self.setup.step) + 10,
-                threads=1)
-            sim = self._observe(w, states)
-            outs[k][lo:hi] = sim
+                "timestep", engine, masses, Minvs, pars, src0s, y0s, w.duration,
+                w.grids[h][0], h=h, max_steps=int(w.duration / h) + 10, threads=1)
+            signals = self._signals(w, states, h)
+            sets = np.flatnonzero((row_of >= lo) & (row_of < hi))
+            outs[k][sets] = self._sample(w, signals[row_of[sets] - lo], delays[sets], h)
             return lo, hi, status
 
         if threads == 1 or len(tasks) == 1:
@@ -655,24 +765,41 @@ class WristModel:
             ok[lo:hi] &= status == core.OK
         self.runs += runs * len(chosen)
         self.simulated += runs * sum(self.windows[k].duration for k in chosen)
-        return [outs[k] for k in chosen], ok
+        return [outs[k] for k in chosen], ok[row_of]
 
-    def _observe(self, w: Window, states: np.ndarray) -> np.ndarray:
-        """Compared signals at the compared samples, from the sampled states."""
+    def step_of(self, law: str) -> float:
+        """The time-stepper's step [s] with ``law``."""
+        return self.setup.step if law == "stiction" else self.setup.smooth_step
+
+    def _signals(self, w: Window, states: np.ndarray, h: float) -> np.ndarray:
+        """Compared signals on the simulation's time grid of step ``h`` (runs, outputs,
+        grid)."""
         n = self.structure.n
-        i, f = w.interp_index, w.interp_frac
-        out = np.empty((states.shape[0], len(self.outputs), len(i)))
-        sigma = w.source_angles + w.sigma0[None, :]
+        out = np.empty((states.shape[0], len(self.outputs), states.shape[1]))
+        _, source_angles, source_speeds = w.grids[h]
+        sigma = source_angles + w.sigma0[None, :]
         for c, o in enumerate(self.outputs):
             if o.kind == "current":
-                s = states[:, :, o.index]
+                out[:, c] = states[:, :, o.index]
             elif o.kind == "speed":
-                s = states[:, :, n:2 * n] @ o.rx + (w.source_speeds @ o.ru)[None]
+                out[:, c] = states[:, :, n:2 * n] @ o.rx + (source_speeds @ o.ru)[None]
             else:
                 s = states[:, :, :n] @ o.rx + (sigma @ o.ru)[None]
-                if o.kind == "q":
-                    s = self.structure.pivot.amplitude * np.sin(s)
-            out[:, c] = s[:, i] * (1 - f) + s[:, i + 1] * f
+                out[:, c] = self.structure.pivot.amplitude * np.sin(s) if o.kind == "q" else s
+        return out
+
+    def _sample(self, w: Window, signals: np.ndarray, delays: np.ndarray, h: float
+                ) -> np.ndarray:
+        """The signals (sets, outputs, grid of step ``h``) at the compared samples,
+        each output ``delays`` [s] (sets, outputs) behind the inputs: linear
+        interpolation on the grid."""
+        grid = signals.shape[2]
+        tau = (w.offsets[None, None, :] - delays[:, :, None]) / h
+        idx = np.clip(np.floor(tau).astype(np.int64), 0, grid - 2)
+        frac = tau - idx
+        left = np.take_along_axis(signals, idx, axis=2)
+        right = np.take_along_axis(signals, idx + 1, axis=2)
+        out = left * (1.0 - frac) + right * frac
         return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
 
     def measured(self, k: int) -> np.ndarray:

@@ -17,25 +17,31 @@ from ..plots import MAX_POINTS, pyplot
 
 def signals_figure(fit, kind: str):
     """Measured against simulated signals, and the residuals, of the fitting (``fit``) or
-    validation (``validation``) logs."""
+    validation (``validation``) logs: one column per log, each on its own time axis."""
     plt = pyplot()
     traces = fit.traces[kind]
-    fig, axes = plt.subplots(2 * len(traces), 1, figsize=(9, 2.6 * len(traces) + 0.8),
-                             squeeze=False)
-    for r, (name, (t, y, ys)) in enumerate(traces.items()):
-        every = max(1, -(-len(t) // MAX_POINTS))
-        ax, ax_r = axes[2 * r, 0], axes[2 * r + 1, 0]
-        ax.plot(t[::every], y[::every], ".", ms=1.5, color="0.5", label="measured")
-        ax.plot(t[::every], ys[::every], "-", lw=1.0, color="C3", label="simulated")
-        q = fit.quality[kind][name]
-        ax.set_title(f"{name}: fit {q.fit_percent:.4g} %, NRMSE {q.nrmse:.3g}", fontsize=9)
-        ax.legend(fontsize=7, loc="upper right")
-        ax.grid(alpha=0.3)
-        ax_r.plot(t[::every], (ys - y)[::every], "-", lw=0.6, color="C0")
-        ax_r.axhline(0, color="0.5", lw=0.8)
-        ax_r.set_ylabel("residual")
-        ax_r.grid(alpha=0.3)
-    axes[-1, 0].set_xlabel("time [s] (logs after the first are shifted by 1e6 s each)")
+    files = list(next(iter(traces.values())))
+    fig, axes = plt.subplots(2 * len(traces), len(files),
+                             figsize=(9 if len(files) == 1 else 5 * len(files),
+                                      2.6 * len(traces) + 0.8),
+                             squeeze=False, sharex="col")
+    for col, path in enumerate(files):
+        for r, (name, per_log) in enumerate(traces.items()):
+            t, y, ys = per_log[path]
+            every = max(1, -(-len(t) // MAX_POINTS))
+            ax, ax_r = axes[2 * r, col], axes[2 * r + 1, col]
+            ax.plot(t[::every], y[::every], ".", ms=1.5, color="0.5", label="measured")
+            ax.plot(t[::every], ys[::every], "-", lw=1.0, color="C3", label="simulated")
+            q = fit.quality[kind][name]
+            title = f"{name}: fit {q.fit_percent:.4g} %, NRMSE {q.nrmse:.3g}"
+            ax.set_title(title if len(files) == 1 else f"{path}\n{title}", fontsize=8)
+            ax.legend(fontsize=7, loc="upper right")
+            ax.grid(alpha=0.3)
+            ax_r.plot(t[::every], (ys - y)[::every], "-", lw=0.6, color="C0")
+            ax_r.axhline(0, color="0.5", lw=0.8)
+            ax_r.set_ylabel("residual")
+            ax_r.grid(alpha=0.3)
+        axes[-1, col].set_xlabel("time of the log [s]")
     title = "identified wrist: " + ("fitting logs" if kind == "fit" else "validation logs")
     fig.suptitle(title + ("  [synthetic data]" if fit.synthetic else ""), fontsize=10)
     fig.tight_layout()
@@ -64,6 +70,9 @@ def html_page(fit, figures: dict[str, bytes]) -> str:
         rows.append((f"<td>{e.ci95[0]:.6g} .. {e.ci95[1]:.6g}</td>" if ok else "<td>-</td>")
                     + f"<td class=l>{esc(e.unit)}</td><td class=l>{esc(e.status)}</td>"
                     f"<td>{e.start:.4g}</td><td>{e.bounds[0]:.3g} .. {e.bounds[1]:.3g}</td></tr>")
+    delays = [f"<tr><td class=l>{esc(e.name)}</td><td>{e.value * 1e3:.4g}</td><td>"
+              + (f"{e.stderr * 1e3:.2g}" if e.status == "determined" else "-")
+              + f"</td><td class=l>{esc(e.status)}</td></tr>" for e in fit.delays]
     corr = ["<tr><th></th>" + "".join(f"<th>{i + 1}</th>" for i in range(len(fit.names)))
             + "</tr>"]
     for i, name in enumerate(fit.names):
@@ -94,10 +103,16 @@ def html_page(fit, figures: dict[str, bytes]) -> str:
              "<h2>Estimates</h2><table><tr><th class=l>parameter</th><th>value</th>"
              "<th>standard error</th><th>95 % interval</th><th class=l>unit (SI)</th>"
              "<th class=l>status</th><th>start</th><th>bounds</th></tr>", *rows, "</table>",
+             *(["<h2>Channel delays</h2><p>Each compared signal's delay behind the inputs "
+                "(a nuisance parameter: the recorder's channels need not be "
+                "simultaneous).</p><table><tr><th class=l>signal</th><th>delay [ms]</th>"
+                "<th>standard error [ms]</th><th class=l>status</th></tr>", *delays,
+                "</table>"] if delays else []),
              "<h2>Identifiability</h2><ul>", *ident, "</ul>",
              "<h2>Correlation</h2><table>", *corr, "</table>",
              f"<h2>Starts</h2><p>{fit.reached} of {len(fit.starts)} starts reached the best "
-             "cost (smooth friction law, part of the windows).</p><table><tr><th>start</th>"
+             "optimum: the same cost and the same end point, to within the noise (smooth "
+             "friction law, part of the windows).</p><table><tr><th>start</th>"
              "<th>cost</th><th class=l>reached best</th></tr>", *starts, "</table>",
              "<h2>Fit quality</h2><table><tr><th class=l>data</th><th class=l>signal</th>"
              "<th>fit %</th><th>NRMSE</th><th>noise (SI)</th><th>samples</th></tr>",
