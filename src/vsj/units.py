@@ -70,6 +70,9 @@ def _check_unit(unit: str) -> str | None:
             if depth > 1:
                 return "parentheses inside parentheses"
         elif kind in ("name", "one"):
+            if kind == "name" and not all(c.isalpha() or c.isdecimal() or c in "_°%"
+                                          for c in token):
+                return f"{token!r} is not a unit name (letters, digits and _ only)"
             operand, powered = True, False
         elif kind == "power":
             if not operand:
