@@ -1,47 +1,16 @@
-"""A datasheet of the wrist as a variable stiffness actuator, from the model.
-
-In the spirit of Grioli et al. 2015, "Variable stiffness actuators: the
-user's point of view" (Int. J. Robotics Research 34(6)): the quantities a user
-needs to choose and control a VSA, computed from a parameter set rather than
-measured. Everything is given at the end-effector about ``theta_x`` (the
-motion that deflects both elastic elements equally, motors held) and, where
-useful, at one elastic element (the ring deflection ``phi``):
-
-* stiffness range and its dependence on the pivot position ``q``;
-* torque-deflection curves and tangent stiffness at several ``q``;
-* maximum deflection (the elastic elements' end stop) and the torque there;
-* elastic energy stored at that deflection;
-* stiffness-change time and electric energy, from the softest to the
-  stiffest setting and back, through the pivot mechanism driven by its DC
-  motor at the supply voltage (`vsj.components.pivot`, `vsj.components.motor`);
-* output inertia with the motors held;
-* natural frequencies and damping against ``q``, Bode plots of the
-  end-effector compliance and of the motor-to-output transfer, and the
-  position bandwidth, from `vsj.linear`.
-
-`compute` returns plain data (the JSON file); `write` adds the figures and
-writes a self-contained HTML page (images embedded as base64 PNG) and the
-JSON next to it. The numbers are the model's: where parameters are estimates
-(the DC motors, the pivot drive, the spring geometry calibrated to the
-report's three measured stiffnesses) the datasheet says so in its notes.
-"""
+"""The datasheet's numbers: plain data in SI units (`compute`)."""
 
 from __future__ import annotations
 
-import html
-import io
-import json
 import math
-from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
-from . import __version__, pages
-from . import linear as linear_models
-from .errors import InputError, SimulationError
+from .. import __version__
+from .. import linear as linear_models
+from ..errors import InputError, SimulationError
 
-#: Points on each torque-deflection curve.
 CURVE_POINTS = 241
 #: Frequency grid of the Bode plots [rad/s].
 BODE_OMEGA = np.logspace(-1, 3.5, 300)
@@ -55,7 +24,7 @@ def _kinematics(params, elastic: str):
     Returns ``(T, M, element)``: ``T`` (2 x 2), the mass matrix of the ring
     angles and one elastic element (both are identical, report section 3.1).
     """
-    from .wrist import WristOptions, build_wrist, elastic_element
+    from ..wrist import WristOptions, build_wrist, elastic_element
 
     structure = build_wrist(params, WristOptions(elastic=elastic, pivot_drive="fixed",
                                                  fixed_q=0.0)).assemble()
@@ -69,7 +38,7 @@ def _kinematics(params, elastic: str):
 
 def _output_curve(element, T, q: float, theta: np.ndarray) -> dict[str, np.ndarray]:
     """Torque, tangent stiffness and stored energy about theta_x at deflections ``theta``."""
-    from .springs import evaluate
+    from ..springs import evaluate
 
     c = np.linalg.solve(T, np.array([1.0, 0.0]))  # ring deflection per unit theta_x
     torque = np.zeros_like(theta)
@@ -93,11 +62,11 @@ def _stiffness_change(params, q_from: float, q_to: float) -> dict:
     does not load it. Returns the time to reach ``q_to``, the electric energy
     drawn until then and the trajectory.
     """
-    from .components import PivotMechanism
-    from .inputs import Constant
-    from .network import Network
-    from .simulate import InitialState, SimulationOptions, simulate
-    from .wrist import motor
+    from ..components import PivotMechanism
+    from ..inputs import Constant
+    from ..network import Network
+    from ..simulate import InitialState, SimulationOptions, simulate
+    from ..wrist import motor
 
     pv, mo = params.pivot, params.motor
     net = Network("pivot-drive")
@@ -160,7 +129,7 @@ def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = Non
     theta_max = end_stop / float(np.max(np.abs(c)))
     output_inertia = Tinv.T @ M @ Tinv
 
-    from .characteristics import pretension_loss, stiffness
+    from ..characteristics import pretension_loss, stiffness
 
     per_q = []
     models = {}
@@ -289,7 +258,7 @@ def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = Non
 
 
 def _options(elastic: str):
-    from .wrist import WristOptions
+    from ..wrist import WristOptions
 
     return WristOptions(elastic=elastic)
 
@@ -324,194 +293,3 @@ def _notes(params, elastic: str, friction: str) -> list[str]:
         "Position bandwidth: -3 dB frequency of theta_x per motor angle with both motors "
         "moving together.",
     ]
-
-
-# -- figures ----------------------------------------------------------------------------
-
-
-def figures(sheet: dict) -> dict[str, tuple[str, bytes]]:
-    """Each figure as ``name: (caption, PNG bytes)``."""
-    from .plots import pyplot
-
-    plt = pyplot()
-    out = {}
-    per_q = sheet["per_q"]
-    q_cm = np.array([r["q"] for r in per_q]) * 100
-    curves = sheet["torque_deflection"]
-    colours = plt.cm.viridis(np.linspace(0.0, 0.9, len(curves)))
-
-    fig, ax = plt.subplots(figsize=(6.4, 3.8))
-    ax.semilogy(q_cm, [r["output_stiffness"] for r in per_q], "o-", label="end-effector (theta_x)")
-    ax.semilogy(q_cm, [r["ring_stiffness"] for r in per_q], "s--", label="one elastic element")
-    ax.set_xlabel("pivot position q [cm]")
-    ax.set_ylabel("stiffness [N m/rad]")
-    ax.invert_xaxis()
-    ax.grid(alpha=0.3, which="both")
-    ax.legend()
-    out["stiffness_vs_q"] = ("Stiffness at zero deflection against the pivot position "
-                             "(stiffer to the right).", _png(fig, plt))
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
-    for colour, curve in zip(colours, curves):
-        label = f"q = {curve['q'] * 100:.3g} cm"
-        axes[0].plot(curve["deflection"], curve["torque"], color=colour, label=label)
-        axes[1].plot(curve["deflection"], curve["stiffness"], color=colour, label=label)
-    axes[0].set_xlabel("deflection theta_x [rad]")
-    axes[0].set_ylabel("torque [N m]")
-    axes[1].set_xlabel("deflection theta_x [rad]")
-    axes[1].set_ylabel("tangent stiffness [N m/rad]")
-    axes[1].set_yscale("symlog", linthresh=0.01)  # negative beyond the torque peak
-    for ax in axes:
-        ax.grid(alpha=0.3, which="both")
-    axes[0].legend(fontsize=8)
-    out["torque_deflection"] = ("Torque-deflection curves and tangent stiffness at several "
-                                "pivot positions (kinks: a spring loses its pretension).",
-                                _png(fig, plt))
-
-    fig, ax = plt.subplots(figsize=(6.4, 3.8))
-    for colour, curve in zip(colours, curves):
-        ax.plot(curve["deflection"], curve["energy"], color=colour,
-                label=f"q = {curve['q'] * 100:.3g} cm")
-    ax.set_xlabel("deflection theta_x [rad]")
-    ax.set_ylabel("stored elastic energy [J]")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    out["energy"] = ("Elastic energy stored against deflection.", _png(fig, plt))
-
-    bode = sheet["frequency_response"]
-    omega = np.array(bode["omega"])
-    for key, ylabel, caption in (
-            ("compliance", "|theta_x / tau_x| [rad/(N m)]",
-             "End-effector compliance theta_x/tau_x, motors held (Bode plot)."),
-            ("motor_to_output", "|theta_x / motor angle| [1]",
-             "Motor-to-output transfer: theta_x per motor angle, both motors together "
-             "(Bode plot).")):
-        fig, (ax_m, ax_p) = plt.subplots(2, 1, figsize=(6.4, 5.2), sharex=True)
-        for colour, resp in zip(colours, bode[key]):
-            ax_m.loglog(omega / (2 * math.pi), resp["magnitude"], color=colour,
-                        label=f"q = {resp['q'] * 100:.3g} cm")
-            ax_p.semilogx(omega / (2 * math.pi), np.degrees(resp["phase"]), color=colour)
-        ax_m.set_ylabel(ylabel)
-        ax_p.set_ylabel("phase [deg]")
-        ax_p.set_xlabel("frequency [Hz]")
-        for ax in (ax_m, ax_p):
-            ax.grid(alpha=0.3, which="both")
-        ax_m.legend(fontsize=8)
-        out[f"bode_{key}"] = (caption, _png(fig, plt))
-
-    fig, (ax_f, ax_z) = plt.subplots(2, 1, figsize=(6.4, 5.2), sharex=True)
-    ax_f.semilogy(q_cm, [r["natural_frequencies"][0] / (2 * math.pi) for r in per_q], "o-",
-                  label="undamped natural frequency")
-    for r, q in zip(per_q, q_cm):
-        for m in r["modes"]:
-            ax_f.semilogy(q, m["frequency"] / (2 * math.pi), "kx", ms=4)
-            ax_z.plot(q, m["damping"], "kx", ms=4)
-        for m in r["modes_viscous"]:
-            ax_f.semilogy(q, m["frequency"] / (2 * math.pi), "o", color="C1", mfc="none", ms=5)
-            ax_z.plot(q, m["damping"], "o", color="C1", mfc="none", ms=5)
-    ax_f.semilogy([], [], "kx", label="modes (|pole|), friction " + sheet["friction"]["treatment"])
-    ax_f.semilogy([], [], "o", color="C1", mfc="none", label="modes, viscous friction only")
-    ax_f.set_ylabel("frequency [Hz]")
-    ax_z.set_ylabel("damping ratio [1]")
-    ax_z.set_xlabel("pivot position q [cm]")
-    ax_z.invert_xaxis()
-    for ax in (ax_f, ax_z):
-        ax.grid(alpha=0.3, which="both")
-    ax_f.legend(fontsize=8)
-    out["modes"] = ("Natural frequencies and damping against the pivot position, with the "
-                    "linearised arctan friction (small motions) and with its viscous part "
-                    "only (large motions see about that much damping). Real poles have "
-                    "damping ratio 1.", _png(fig, plt))
-
-    fig, (ax_q, ax_p) = plt.subplots(2, 1, figsize=(6.4, 5.2), sharex=True)
-    for key, style in (("stiffening", "-"), ("softening", "--")):
-        tr = sheet["stiffness_change"][key]["trajectory"]
-        ax_q.plot(tr["time"], np.array(tr["q"]) * 100, style, label=key)
-        ax_p.plot(tr["time"], tr["power"], style, label=key)
-    ax_q.set_ylabel("pivot position q [cm]")
-    ax_p.set_ylabel("electric power [W]")
-    ax_p.set_xlabel("time [s]")
-    for ax in (ax_q, ax_p):
-        ax.grid(alpha=0.3)
-    ax_q.legend(fontsize=8)
-    out["stiffness_change"] = ("Stiffness change at the supply voltage: pivot position and "
-                               "the stiffness motor's electric power.", _png(fig, plt))
-    return out
-
-
-def _png(fig, plt) -> bytes:
-    buffer = io.BytesIO()
-    fig.tight_layout()
-    fig.savefig(buffer, format="png", dpi=96)
-    plt.close(fig)
-    return buffer.getvalue()
-
-
-# -- the page ---------------------------------------------------------------------------
-
-
-def html_page(sheet: dict, figs: dict[str, tuple[str, bytes]]) -> str:
-    """The datasheet as one self-contained HTML page (`vsj.pages`)."""
-    esc = html.escape
-    rows = []
-    for key, r in sheet["ratings"].items():
-        rows.append(f"<tr><td class=l>{esc(key.replace('_', ' '))}</td><td>{r['value']:.4g}</td>"
-                    f"<td class=l>{esc(r['unit'])}</td><td class=l>{esc(r['note'])}</td></tr>")
-    per_q = []
-    for r in sheet["per_q"]:
-        slow = r["modes"][0] if r["modes"] else {"frequency": math.nan, "damping": math.nan}
-        per_q.append(
-            f"<tr><td>{r['q'] * 100:.3g}</td><td>{r['ring_stiffness']:.4g}</td>"
-            f"<td>{r['output_stiffness']:.4g}</td><td>{r['peak_torque']:.4g}</td>"
-            f"<td>{r['max_energy']:.4g}</td><td>{_finite(r['pretension_loss_deflection'])}</td>"
-            f"<td>{r['natural_frequencies'][0] / (2 * math.pi):.4g}</td>"
-            f"<td>{slow['frequency'] / (2 * math.pi):.4g}</td><td>{slow['damping']:.3g}</td>"
-            f"<td>{r['position_bandwidth'] / (2 * math.pi):.4g}</td></tr>")
-    body = [
-        f"<p>vsj {esc(sheet['vsj_version'])}, parameters {esc(sheet['parameters']['origin'])} "
-        f"(hash {esc(sheet['parameters']['hash'][:12])}), elastic model "
-        f"{esc(sheet['elastic_model'])}. In the spirit of Grioli et al. 2015, \"Variable "
-        "stiffness actuators: the user's point of view\".</p>",
-        "<h2>Ratings</h2><table><tr><th class=l>quantity</th><th>value</th>"
-        "<th class=l>unit</th><th class=l>condition</th></tr>", *rows, "</table>",
-        "<h2>Against the pivot position</h2><table><tr><th>q [cm]</th>"
-        "<th>element stiffness [N m/rad]</th><th>output stiffness [N m/rad]</th>"
-        "<th>peak torque [N m]</th><th>max energy [J]</th><th>pretension lost at [rad]</th>"
-        "<th>natural freq. [Hz]</th><th>slowest pole, |p| [Hz]</th><th>its damping</th>"
-        "<th>position bandwidth [Hz]</th></tr>", *per_q, "</table>",
-        "<h2>Figures</h2>",
-    ]
-    body += [pages.figure(png, caption, anchor=name) for name, (caption, png) in figs.items()]
-    body.append("<h2>Notes</h2><ul>")
-    body += [f"<li>{esc(note)}</li>" for note in sheet["notes"]]
-    body.append("</ul>")
-    return pages.document(sheet["title"], body)
-
-
-def _finite(value: float) -> str:
-    return f"{value:.3g}" if math.isfinite(value) else "none"
-
-
-#: A conservative bound on the bytes `write` puts in its directory (about 1 MB).
-OUTPUT_BYTES = 16 * 2 ** 20
-
-
-def write(sheet: dict, out) -> tuple[Path, Path]:
-    """Write ``datasheet.html`` (with figures) and ``datasheet.json``: into the directory
-    ``out``, replacing a previous datasheet there as a unit, or into ``out``, an open
-    `vsj.output.ResultSet` of kind ``datasheet`` (checked before the sheet was computed).
-    Returns where the two files are (or will be, once the set is committed)."""
-    from .output import ResultSet, _jsonable, atomic_write
-
-    if not isinstance(out, ResultSet):
-        with ResultSet(Path(out), "datasheet", size=OUTPUT_BYTES) as results:
-            return write(sheet, results)
-    page = html_page(sheet, figures(sheet))
-    with atomic_write(out.path("datasheet.html")) as handle:
-        handle.write(page)
-    with atomic_write(out.path("datasheet.json")) as handle:
-        handle.write(json.dumps(_jsonable(sheet), indent=1) + "\n")
-    return out.out / "datasheet.html", out.out / "datasheet.json"
-
-
-__all__ = ["compute", "figures", "html_page", "write", "DEFAULT_FRICTION"]
