@@ -129,3 +129,19 @@ def test_extends_names_the_nearest_key_and_refuses_cycles(tmp_path):
     b.write_text('extends = "a.toml"\n')
     with pytest.raises(InputError, match="cycle"):
         params_module.load(a)
+
+
+def test_components_check_their_arguments_with_the_schemas_bounds():
+    from vsj.components import Bearing, DCMotor, Differential
+
+    with pytest.raises(ValueError, match=r"viscous friction of b must be >= 0 N m s/rad"):
+        Bearing("b", viscous=-1e-3)
+    with pytest.raises(ValueError, match=r"arctan sharpness of b must be > 0 s/rad"):
+        Bearing("b", sharpness=0.0)
+    with pytest.raises(ValueError, match=r"d: inertia_x must be finite"):
+        Differential("d", inertia_x=float("nan"))
+    # a motor takes the file's names, so the file's bound and the argument's are one
+    spec = params_module.SCHEMA["motor"]["resistance"]
+    with pytest.raises(ValueError, match=r"m: resistance must be > 0 ohm"):
+        DCMotor("m", resistance=0.0, inductance=1e-3, torque_constant=0.01, rotor_inertia=1e-6)
+    assert spec.check(0.0) == "must be > 0 ohm"

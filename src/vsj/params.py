@@ -26,6 +26,7 @@ the slope friction law) belong to `vsj.simulate.SimulationOptions`.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import hashlib
 import json
@@ -74,26 +75,57 @@ class Spec:
     def _show(self, value: float) -> str:
         return format_quantity(value, self.display)
 
+    def require(self, name: str, value: float) -> float:
+        """``value`` as a float if this spec allows it, else `ValueError` naming ``name``
+        (what a component checks when it is built without a parameter file)."""
+        value = float(value)
+        why = self.check(value)
+        if why:
+            raise ValueError(f"{name} {why}, got {value!r}")
+        return value
+
+    def of(self, description: str, **changes) -> "Spec":
+        """This kind of quantity as one parameter: its description, and any bound
+        that differs."""
+        return dataclasses.replace(self, description=description, **changes)
+
 
 _I = "kg*m**2"
 _B = "N*m*s"
 _K = "N*m"
+
+# The kinds of quantity the components take, each with its unit and bounds, declared
+# once: the schema's entries are built from them (`Spec.of`) and the components check
+# their arguments with them (`Spec.require`).
+INERTIA = Spec(_I, "kg m^2", "moment of inertia")
+VISCOUS = Spec(_B, "N m s/rad", "viscous friction coefficient")
+STICTION = Spec(_K, "N m", "stiction parameter k (the Coulomb level is k pi/2)")
+SHARPNESS = Spec("s", "s/rad", "arctan sharpness k_b", 0.0, strict=True)
+PEAK = Spec("1", "1", "breakaway peak: static over kinetic friction", 1.0)
+STIFFNESS = Spec("N*m", "N m/rad", "rotational stiffness", 0.0, strict=True)
+COMPLIANCE = Spec("rad/(N*m)", "rad/(N m)", "rotational compliance (0: rigid)")
+RATIO = Spec("1", "1", "transmission ratio", None, nonzero=True)
+RESISTANCE = Spec("ohm", "ohm", "electrical resistance", 0.0, strict=True)
+INDUCTANCE = Spec("H", "mH", "inductance", 0.0, strict=True)
+TORQUE_CONSTANT = Spec("N*m/A", "N m/A", "torque (= back-EMF) constant", 0.0, strict=True)
+VOLTAGE = Spec("V", "V", "voltage", 0.0, strict=True)
+LENGTH = Spec("m", "cm", "length")
+FORCE = Spec("N", "N", "force")
 SCHEMA: dict[str, dict[str, Spec]] = {
     "planetary": {
         "sun_teeth": Spec("1", "1", "teeth of the sun gear, N_S", 0.0, strict=True),
         "ring_teeth": Spec("1", "1", "teeth of the ring gear, N_R", 0.0, strict=True),
-        "sun_inertia": Spec(_I, "kg m^2", "inertia of the sun and what is attached, I_S"),
-        "ring_inertia": Spec(_I, "kg m^2", "inertia of the ring and what is attached, I_R"),
-        "carrier_inertia": Spec(_I, "kg m^2", "inertia of the carrier and what is attached, I_C"),
-        "sun_bearing_viscous": Spec(_B, "N m s/rad", "sun bearing viscous friction, b_S"),
-        "sun_bearing_stiction": Spec(_K, "N m", "sun bearing stiction parameter"),
-        "ring_bearing_viscous": Spec(_B, "N m s/rad", "ring bearing viscous friction, b_R"),
-        "ring_bearing_stiction": Spec(_K, "N m", "ring bearing stiction parameter, k_R"),
-        "carrier_bearing_viscous": Spec(_B, "N m s/rad", "carrier bearing viscous friction, b_C"),
-        "carrier_bearing_stiction": Spec(_K, "N m", "carrier bearing stiction parameter, k_C"),
-        "mesh_stiction": Spec(_K, "N m", "sun-carrier gear mesh stiction parameter, k_1 = k_a1"),
-        "mesh_sharpness": Spec("s", "s/rad", "sun-carrier mesh arctan sharpness, k_b1", 0.0,
-                               strict=True),
+        "sun_inertia": INERTIA.of("inertia of the sun and what is attached, I_S"),
+        "ring_inertia": INERTIA.of("inertia of the ring and what is attached, I_R"),
+        "carrier_inertia": INERTIA.of("inertia of the carrier and what is attached, I_C"),
+        "sun_bearing_viscous": VISCOUS.of("sun bearing viscous friction, b_S"),
+        "sun_bearing_stiction": STICTION.of("sun bearing stiction parameter"),
+        "ring_bearing_viscous": VISCOUS.of("ring bearing viscous friction, b_R"),
+        "ring_bearing_stiction": STICTION.of("ring bearing stiction parameter, k_R"),
+        "carrier_bearing_viscous": VISCOUS.of("carrier bearing viscous friction, b_C"),
+        "carrier_bearing_stiction": STICTION.of("carrier bearing stiction parameter, k_C"),
+        "mesh_stiction": STICTION.of("sun-carrier gear mesh stiction parameter, k_1 = k_a1"),
+        "mesh_sharpness": SHARPNESS.of("sun-carrier mesh arctan sharpness, k_b1"),
     },
     "elastic_element": {
         "ring_radius": Spec("m", "cm", "radius of the lever pin on the ring, R", 0.0, strict=True),
@@ -110,53 +142,47 @@ SCHEMA: dict[str, dict[str, Spec]] = {
         "a1": Spec("N*m", "N m/rad", "simplified model K = a1 exp(a2 q) + a3: a1"),
         "a2": Spec("1/m", "1/cm", "simplified model: a2", None),
         "a3": Spec("N*m", "N m/rad", "simplified model: a3"),
-        "lever_stiction": Spec(_K, "N m", "lever and pivot friction, stiction parameter"),
-        "lever_viscous": Spec(_B, "N m s/rad", "lever and pivot friction, viscous"),
+        "lever_stiction": STICTION.of("lever and pivot friction, stiction parameter"),
+        "lever_viscous": VISCOUS.of("lever and pivot friction, viscous"),
     },
     "pivot": {
-        "amplitude": Spec("m", "cm", "pivot travel: gain times ring radius, q = amplitude "
-                          "sin(phi_C)", 0.0, strict=True),
-        "ratio": Spec("1", "1", "motor turns per pivot carrier turn (belt and planetary)", None,
-                      nonzero=True),
-        "inertia": Spec(_I, "kg m^2", "inertia of the pivot gears, at the carrier"),
-        "viscous": Spec(_B, "N m s/rad", "pivot gear viscous friction, at the carrier"),
-        "stiction": Spec(_K, "N m", "pivot gear stiction parameter, at the carrier"),
-        "q_min": Spec("m", "cm", "lowest (stiffest) pivot position allowed", None),
-        "q_max": Spec("m", "cm", "highest (most compliant) pivot position allowed", None),
+        "amplitude": LENGTH.of("pivot travel: gain times ring radius, q = amplitude "
+                               "sin(phi_C)", strict=True),
+        "ratio": RATIO.of("motor turns per pivot carrier turn (belt and planetary)"),
+        "inertia": INERTIA.of("inertia of the pivot gears, at the carrier"),
+        "viscous": VISCOUS.of("pivot gear viscous friction, at the carrier"),
+        "stiction": STICTION.of("pivot gear stiction parameter, at the carrier"),
+        "q_min": LENGTH.of("lowest (stiffest) pivot position allowed", minimum=None),
+        "q_max": LENGTH.of("highest (most compliant) pivot position allowed", minimum=None),
     },
     "transmission": {
-        "ratio": Spec("1", "1", "carrier speed over differential input speed", None,
-                      nonzero=True),
-        "viscous": Spec(_B, "N m s/rad", "transmission viscous friction, b_T (carrier side)"),
-        "stiction": Spec(_K, "N m", "transmission stiction parameter, k_T (carrier side)"),
-        "series_compliance_1": Spec("rad/(N*m)", "rad/(N m)",
-                                    "parasitic series compliance in DOF 1 (0: rigid)"),
-        "series_compliance_2": Spec("rad/(N*m)", "rad/(N m)",
-                                    "parasitic series compliance in DOF 2 (0: rigid)"),
-        "series_damping": Spec(_B, "N m s/rad", "damping in parallel with a series compliance"),
+        "ratio": RATIO.of("carrier speed over differential input speed"),
+        "viscous": VISCOUS.of("transmission viscous friction, b_T (carrier side)"),
+        "stiction": STICTION.of("transmission stiction parameter, k_T (carrier side)"),
+        "series_compliance_1": COMPLIANCE.of("parasitic series compliance in DOF 1 (0: rigid)"),
+        "series_compliance_2": COMPLIANCE.of("parasitic series compliance in DOF 2 (0: rigid)"),
+        "series_damping": VISCOUS.of("damping in parallel with a series compliance"),
     },
     "differential": {
-        "stiction": Spec(_K, "N m", "differential gear stiction parameter, k_D"),
-        "viscous": Spec(_B, "N m s/rad", "differential gear viscous friction"),
-        "inertia_x": Spec(_I, "kg m^2", "end-effector inertia about theta_x"),
-        "inertia_y": Spec(_I, "kg m^2", "end-effector inertia about theta_y"),
+        "stiction": STICTION.of("differential gear stiction parameter, k_D"),
+        "viscous": VISCOUS.of("differential gear viscous friction"),
+        "inertia_x": INERTIA.of("end-effector inertia about theta_x"),
+        "inertia_y": INERTIA.of("end-effector inertia about theta_y"),
     },
     "motor": {
-        "resistance": Spec("ohm", "ohm", "armature resistance", 0.0, strict=True),
-        "inductance": Spec("H", "mH", "armature inductance", 0.0, strict=True),
-        "torque_constant": Spec("N*m/A", "N m/A", "torque (= back-EMF) constant", 0.0,
-                                strict=True),
-        "rotor_inertia": Spec(_I, "kg m^2", "rotor inertia", 0.0, strict=True),
-        "gear_ratio": Spec("1", "1", "rotor turns per output turn (gearhead)", None,
-                           nonzero=True),
-        "viscous": Spec(_B, "N m s/rad", "rotor viscous friction"),
-        "voltage_limit": Spec("V", "V", "supply voltage (largest command)", 0.0, strict=True),
+        "resistance": RESISTANCE.of("armature resistance"),
+        "inductance": INDUCTANCE.of("armature inductance"),
+        "torque_constant": TORQUE_CONSTANT.of("torque (= back-EMF) constant"),
+        "rotor_inertia": INERTIA.of("rotor inertia", strict=True),
+        "gear_ratio": RATIO.of("rotor turns per output turn (gearhead)"),
+        "viscous": VISCOUS.of("rotor viscous friction"),
+        "voltage_limit": VOLTAGE.of("supply voltage (largest command)"),
     },
     "friction": {
-        "arctan_sharpness": Spec("s", "s/rad", "arctan sharpness k_b of bearings, transmissions, "
-                                 "differential, lever and pivot", 0.0, strict=True),
-        "peak": Spec("1", "1", "breakaway peak of the same elements under true stiction: static "
-                     "over kinetic Coulomb level (MSL's peak; 1: none)", 1.0, default=1.0),
+        "arctan_sharpness": SHARPNESS.of("arctan sharpness k_b of bearings, transmissions, "
+                                         "differential, lever and pivot"),
+        "peak": PEAK.of("breakaway peak of the same elements under true stiction: static "
+                        "over kinetic Coulomb level (MSL's peak; 1: none)", default=1.0),
     },
 }
 

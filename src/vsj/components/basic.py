@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+from ..friction import DEFAULT_SHARPNESS
 from ..network import (
     PRESCRIBED,
     Component,
@@ -19,9 +20,9 @@ from ..network import (
     Source,
     Spring,
 )
-from ..friction import DEFAULT_SHARPNESS
+from ..params import INERTIA, SHARPNESS, STIFFNESS, VISCOUS
 from ..springs import LINEAR, N_PARAMETERS
-from ._values import _peak, _positive, _stiction
+from ._values import _check, _peak, _stiction
 
 
 class Inertia(Component):
@@ -31,7 +32,7 @@ class Inertia(Component):
 
     def __init__(self, name: str, inertia: float):
         super().__init__(name)
-        self.inertia = _positive(f"inertia of {name}", inertia)
+        self.inertia = _check(f"inertia of {name}", INERTIA, inertia)
 
     def parts(self) -> Parts:
         f = self.port("flange")
@@ -119,9 +120,9 @@ class Bearing(Component):
                  sharpness: float = DEFAULT_SHARPNESS, peak: float = 1.0,
                  coulomb: float | None = None):
         super().__init__(name)
-        self.viscous = _positive(f"viscous friction of {name}", viscous)
+        self.viscous = _check(f"viscous friction of {name}", VISCOUS, viscous)
         self.stiction = _stiction(name, stiction, coulomb)
-        self.sharpness = _positive(f"arctan sharpness of {name}", sharpness, allow_zero=False)
+        self.sharpness = _check(f"arctan sharpness of {name}", SHARPNESS, sharpness)
         self.peak = _peak(name, peak)
 
     def parts(self) -> Parts:
@@ -143,9 +144,9 @@ class SlipFriction(Component):
                  sharpness: float = DEFAULT_SHARPNESS, peak: float = 1.0,
                  coulomb: float | None = None):
         super().__init__(name)
-        self.viscous = _positive(f"viscous friction of {name}", viscous)
+        self.viscous = _check(f"viscous friction of {name}", VISCOUS, viscous)
         self.stiction = _stiction(name, stiction, coulomb)
-        self.sharpness = _positive(f"arctan sharpness of {name}", sharpness, allow_zero=False)
+        self.sharpness = _check(f"arctan sharpness of {name}", SHARPNESS, sharpness)
         self.peak = _peak(name, peak)
 
     def parts(self) -> Parts:
@@ -164,8 +165,8 @@ class SpringDamper(Component):
 
     def __init__(self, name: str, *, stiffness: float, damping: float = 0.0):
         super().__init__(name)
-        self.stiffness = _positive(f"stiffness of {name}", stiffness, allow_zero=False)
-        self.damping = _positive(f"damping of {name}", damping)
+        self.stiffness = _check(f"stiffness of {name}", STIFFNESS, stiffness)
+        self.damping = _check(f"damping of {name}", VISCOUS, damping)
 
     def parts(self) -> Parts:
         a, b = self.port("a"), self.port("b")

@@ -24,7 +24,12 @@ from typing import Sequence
 
 from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Friction, Parts
-from ._values import _peak, _positive
+from ..params import FORCE, SHARPNESS, Spec
+from ._values import _check, _peak
+
+#: MSL's geometry constant cgeo: the friction torque per newton of normal force and
+#: unit friction coefficient [m].
+GEOMETRY_CONSTANT = Spec("m", "m", "geometry constant cgeo", 0.0, strict=True)
 
 
 def _mu_table(name: str, mu) -> tuple[tuple[float, float], ...]:
@@ -55,11 +60,11 @@ class _NormalForceFriction(Component):
                  peak: float = 1.0, cgeo: float = 1.0, channel: str | None = None,
                  sharpness: float = DEFAULT_SHARPNESS):
         super().__init__(name)
-        self.fn_max = _positive(f"fn_max of {name}", fn_max)
-        self.cgeo = _positive(f"cgeo of {name}", cgeo, allow_zero=False)
+        self.fn_max = _check(f"fn_max of {name}", FORCE, fn_max)
+        self.cgeo = _check(f"cgeo of {name}", GEOMETRY_CONSTANT, cgeo)
         self.mu = _mu_table(name, mu)
         self.peak = _peak(name, peak)
-        self.sharpness = _positive(f"arctan sharpness of {name}", sharpness, allow_zero=False)
+        self.sharpness = _check(f"arctan sharpness of {name}", SHARPNESS, sharpness)
         self.channel = channel or f"{name}_force"
 
     def _friction(self, speed: dict[str, float]) -> Friction:

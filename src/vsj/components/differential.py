@@ -16,7 +16,8 @@ import numpy as np
 
 from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Constraint, Friction, Parts
-from ._values import _peak, _positive
+from ..params import SHARPNESS
+from ._values import _check, _peak, _section
 
 #: The kinematic map of eq 3.31: (theta_x, theta_y) = MAP @ (psi_1, psi_2).
 MAP = np.array([[0.5, 0.5], [0.5, -0.5]])
@@ -32,11 +33,11 @@ class Differential(Component):
                  peak: float = 1.0):
         super().__init__(name)
         self.peak = _peak(name, peak)
-        self.inertia_x = _positive(f"{name}: inertia_x", inertia_x)
-        self.inertia_y = _positive(f"{name}: inertia_y", inertia_y)
-        self.viscous = _positive(f"{name}: viscous", viscous)
-        self.stiction = _positive(f"{name}: stiction", stiction)
-        self.sharpness = _positive(f"{name}: sharpness", sharpness, allow_zero=False)
+        for key, value in _section(name, "differential", inertia_x=inertia_x,
+                                   inertia_y=inertia_y, viscous=viscous,
+                                   stiction=stiction).items():
+            setattr(self, key, value)
+        self.sharpness = _check(f"{name}: sharpness", SHARPNESS, sharpness)
 
     @staticmethod
     def speeds(input_speeds):

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 
 from ..network import Component, Constraint, Friction, Motor, Parts
-from .basic import _positive
+from ._values import _section
 
 
 class DCMotor(Component):
@@ -26,16 +26,14 @@ class DCMotor(Component):
                  viscous: float = 0.0, channel: str | None = None,
                  voltage_limit: float = math.inf):
         super().__init__(name)
-        self.resistance = _positive(f"{name}: resistance", resistance, allow_zero=False)
-        self.inductance = _positive(f"{name}: inductance", inductance, allow_zero=False)
-        self.torque_constant = _positive(f"{name}: torque_constant", torque_constant,
-                                         allow_zero=False)
-        self.rotor_inertia = _positive(f"{name}: rotor_inertia", rotor_inertia, allow_zero=False)
-        if not (math.isfinite(gear_ratio) and gear_ratio != 0.0):
-            raise ValueError(f"{name}: gear_ratio must be finite and nonzero")
-        self.gear_ratio = float(gear_ratio)
-        self.viscous = _positive(f"{name}: viscous", viscous)
-        self.voltage_limit = _positive(f"{name}: voltage_limit", voltage_limit, allow_zero=False)
+        values = _section(name, "motor", resistance=resistance, inductance=inductance,
+                          torque_constant=torque_constant, rotor_inertia=rotor_inertia,
+                          gear_ratio=gear_ratio, viscous=viscous)
+        if voltage_limit != math.inf:  # no rating: any voltage
+            values.update(_section(name, "motor", voltage_limit=voltage_limit))
+        self.voltage_limit = float(voltage_limit)
+        for key, value in values.items():
+            setattr(self, key, value)
         self.channel = channel or name
 
     def parts(self) -> Parts:

@@ -17,7 +17,8 @@ import math
 
 from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Constraint, Friction, Parts, Pivot
-from ._values import _peak, _positive
+from ..params import SHARPNESS
+from ._values import _check, _peak, _section
 
 
 class PivotMechanism(Component):
@@ -30,14 +31,10 @@ class PivotMechanism(Component):
                  peak: float = 1.0, q_min: float | None = None, q_max: float | None = None):
         super().__init__(name)
         self.peak = _peak(name, peak)
-        if not (math.isfinite(ratio) and ratio != 0.0):
-            raise ValueError(f"{name}: ratio must be finite and nonzero, got {ratio!r}")
-        self.ratio = float(ratio)
-        self.amplitude = _positive(f"{name}: amplitude", amplitude, allow_zero=False)
-        self.inertia = _positive(f"{name}: inertia", inertia)
-        self.viscous = _positive(f"{name}: viscous", viscous)
-        self.stiction = _positive(f"{name}: stiction", stiction)
-        self.sharpness = _positive(f"{name}: sharpness", sharpness, allow_zero=False)
+        for key, value in _section(name, "pivot", ratio=ratio, amplitude=amplitude,
+                                   inertia=inertia, viscous=viscous, stiction=stiction).items():
+            setattr(self, key, value)
+        self.sharpness = _check(f"{name}: sharpness", SHARPNESS, sharpness)
         self.q_min = -self.amplitude if q_min is None else float(q_min)
         self.q_max = self.amplitude if q_max is None else float(q_max)
         if not -self.amplitude <= self.q_min < self.q_max <= self.amplitude:

@@ -17,8 +17,9 @@ import math
 
 from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Constraint, Friction, Parts, Spring
+from ..params import COMPLIANCE, SHARPNESS, STICTION, VISCOUS
 from ..springs import LINEAR, N_PARAMETERS
-from ._values import _peak, _positive
+from ._values import _check, _peak
 
 
 class Transmission(Component):
@@ -34,11 +35,11 @@ class Transmission(Component):
         if not (math.isfinite(ratio) and ratio != 0.0):
             raise ValueError(f"{name}: ratio must be finite and nonzero, got {ratio!r}")
         self.ratio = float(ratio)
-        self.viscous = _positive(f"{name}: viscous", viscous)
-        self.stiction = _positive(f"{name}: stiction", stiction)
-        self.sharpness = _positive(f"{name}: sharpness", sharpness, allow_zero=False)
-        self.compliance = _positive(f"{name}: compliance", compliance)
-        self.damping = _positive(f"{name}: damping", damping)
+        self.viscous = _check(f"{name}: viscous", VISCOUS, viscous)
+        self.stiction = _check(f"{name}: stiction", STICTION, stiction)
+        self.sharpness = _check(f"{name}: sharpness", SHARPNESS, sharpness)
+        self.compliance = _check(f"{name}: compliance", COMPLIANCE, compliance)
+        self.damping = _check(f"{name}: damping", VISCOUS, damping)
 
     def parts(self) -> Parts:
         a, b = self.port("input"), self.port("output")
