@@ -91,6 +91,7 @@ def test_many_steps_agree_with_one_simulation(params):
         assert abs(named[name] - result[name][-1]) < MANY_STEPS_TOL * max(
             1.0, abs(result[name][-1])), name
     assert set(named) <= set(result.signals)
+    assert stepper.signal_units() == {name: result.units[name] for name in named}
 
 
 def _zoh_and_ramps(params, eps):

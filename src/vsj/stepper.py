@@ -274,6 +274,12 @@ class Stepper:
             out["q"] = self.pivot_position(y)
         return out
 
+    def signal_units(self) -> dict[str, str]:
+        """The unit of each of `signals`' names, as a run's `Result.units` gives it."""
+        zero = self.signals(np.zeros(self.n_state), np.zeros(self.n_inputs))
+        return {name: "m" if name == "q" else "rad/s" if name.endswith(".speed") else "rad"
+                for name in zero}
+
     # -- stepping -----------------------------------------------------------------------
     def step(self, state, inputs, out: np.ndarray | None = None) -> np.ndarray:
         """The state one period later, for ``inputs`` held over the period.
