@@ -17,22 +17,34 @@ def _title(fig: Figure, text: str, synthetic: bool) -> None:
     fig.suptitle(text + ("  [synthetic data]" if synthetic else ""), fontsize=10)
 
 
-def friction_axes(ax, fit, label="fit", colour="C3", show_raw=True):
-    """Data and fitted curve of one torque-velocity fit on ``ax``."""
-    if show_raw and fit.raw is not None and fit.form != "points":
-        w, T = fit.raw
+def torque_velocity_axes(ax, *, points, curve, constants, samples=None,
+                         ripple_removed=False, label="fit", colour="C3"):
+    """A torque-velocity fit on ``ax`` from plain arrays: ``samples`` and ``points``
+    (speed, torque), the fitted ``curve`` (speed, torque) and its ``constants``
+    (c1, c2, c3 of eq 4.2)."""
+    if samples is not None:
+        w, T = samples
         step = max(1, len(w) // 4000)
         ax.plot(w[::step], T[::step], ".", ms=1, color="0.75", label="samples")
-    ax.plot(fit.velocity, fit.torque, "o", ms=4, color="C0",
-            label="plateau means (ripple removed)" if fit.ripple is not None
-            and fit.form == "segments" else "data")
-    grid = np.linspace(min(fit.velocity.min(), 0), max(fit.velocity.max(), 0), 400)
-    ax.plot(grid, fit.predict(grid), "-", color=colour,
-            label=f"{label}: {fit.c1.value:.3g} w + {fit.c2.value:.3g} atan({fit.c3.value:.3g} w)")
+    ax.plot(*points, "o", ms=4, color="C0",
+            label="plateau means (ripple removed)" if ripple_removed else "data")
+    c1, c2, c3 = constants
+    ax.plot(*curve, "-", color=colour, label=f"{label}: {c1:.3g} w + {c2:.3g} atan({c3:.3g} w)")
     ax.set_xlabel("carrier speed w [rad/s]")
     ax.set_ylabel("torque T [N m]")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper left")
+
+
+def friction_axes(ax, fit, label="fit", colour="C3", show_raw=True):
+    """Data and fitted curve of one torque-velocity fit on ``ax``."""
+    grid = np.linspace(min(fit.velocity.min(), 0), max(fit.velocity.max(), 0), 400)
+    torque_velocity_axes(
+        ax, points=(fit.velocity, fit.torque), curve=(grid, fit.predict(grid)),
+        constants=(fit.c1.value, fit.c2.value, fit.c3.value),
+        samples=fit.raw if show_raw and fit.raw is not None and fit.form != "points" else None,
+        ripple_removed=fit.ripple is not None and fit.form == "segments", label=label,
+        colour=colour)
 
 
 def friction_figure(fit) -> Figure:
@@ -90,50 +102,72 @@ def planetary_figure(result) -> Figure:
     return fig
 
 
+def loop_axes(ax, deflection, torque, *, q, K, hysteresis, offset, linear_limit, play,
+              play_detected, pretension_loss):
+    """One torque-deflection loop and its linear fit (K, hysteresis, offset, play) on
+    ``ax``, from plain numbers in SI units."""
+    step = max(1, len(deflection) // 3000)
+    ax.plot(deflection[::step], torque[::step], ".", ms=1, color="0.6", label="data")
+    phi = np.linspace(-linear_limit, linear_limit, 50)
+    for sign, ls in ((1, "-"), (-1, "--")):
+        ax.plot(phi + (0.5 * play * np.sign(phi) if play_detected else 0.0),
+                K * phi + sign * hysteresis + offset, ls, color="C3", lw=1.2,
+                label=f"K = {K:.3g} N m/rad, h = {hysteresis * 1e3:.2g} mN m"
+                if sign > 0 else None)
+    if pretension_loss is not None:
+        for s in (-1, 1):
+            ax.axvline(s * pretension_loss, color="C1", lw=0.8, ls=":")
+    ax.set_title(f"q = {q * 100:.3g} cm" + (f", play {play * 1e3:.3g} mrad"
+                                            if play_detected else ""), fontsize=9)
+    ax.set_xlabel("deflection phi [rad]")
+    ax.set_ylabel("torque [N m]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=6, loc="upper left")
+
+
 def loops_axes(axes, curves):
     for ax, c in zip(axes, curves):
-        step = max(1, len(c.deflection) // 3000)
-        ax.plot(c.deflection[::step], c.torque[::step], ".", ms=1, color="0.6", label="data")
-        lim = c.linear_limit
-        phi = np.linspace(-lim, lim, 50)
-        for sign, ls in ((1, "-"), (-1, "--")):
-            ax.plot(phi + (0.5 * c.play.value * np.sign(phi) if c.play_detected else 0.0),
-                    c.K.value * phi + sign * c.hysteresis.value + c.offset.value, ls,
-                    color="C3", lw=1.2,
-                    label=f"K = {c.K.value:.3g} N m/rad, h = {c.hysteresis.value * 1e3:.2g} mN m"
-                    if sign > 0 else None)
-        if c.pretension_loss is not None:
-            for s in (-1, 1):
-                ax.axvline(s * c.pretension_loss, color="C1", lw=0.8, ls=":")
-        ax.set_title(f"q = {c.q * 100:.3g} cm" + (f", play {c.play.value * 1e3:.3g} mrad"
-                                                    if c.play_detected else ""), fontsize=9)
-        ax.set_xlabel("deflection phi [rad]")
-        ax.set_ylabel("torque [N m]")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=6, loc="upper left")
+        loop_axes(ax, c.deflection, c.torque, q=c.q, K=c.K.value,
+                  hysteresis=c.hysteresis.value, offset=c.offset.value,
+                  linear_limit=c.linear_limit, play=c.play.value,
+                  play_detected=c.play_detected, pretension_loss=c.pretension_loss)
 
 
-def stiffness_axes(ax_lin, ax_log, fit, model_K=None):
-    """K(q): measured points, the exponential fit and optionally a model curve (fig 4.13)."""
-    q = np.array([c.q for c in fit.curves])
-    K = np.array([c.K.value for c in fit.curves])
-    err = np.array([c.K.stderr for c in fit.curves])
-    grid = np.linspace(q.min() - 0.002, q.max() + 0.002, 200)
+def stiffness_points_axes(ax_lin, ax_log, *, q, K, K_stderr, grid, exponential=None,
+                          model=None):
+    """K(q) on linear and log axes from plain arrays: the measured points with their 95 %
+    bars, ``exponential`` (K on ``grid`` and its label) and ``model`` (K on ``grid``,
+    the geometric model), each optional."""
     for ax in (ax_lin, ax_log):
-        ax.errorbar(q * 100, K, yerr=1.96 * err, fmt="o", color="C0",
+        ax.errorbar(q * 100, K, yerr=1.96 * K_stderr, fmt="o", color="C0",
                     label="linear stiffness of each curve")
-        if fit.exponential is not None:
-            e = fit.exponential
-            ax.plot(grid * 100, e.predict(grid), "-", color="C3",
-                    label=f"{e.a1.value:.3g} exp({e.a2.value / 100:.3g} q) + {e.a3.value:.3g}")
-        if model_K is not None:
-            ax.plot(grid * 100, [model_K(x) for x in grid], "--", color="C2",
-                    label="geometric model")
+        if exponential is not None:
+            ax.plot(grid * 100, exponential[0], "-", color="C3", label=exponential[1])
+        if model is not None:
+            ax.plot(grid * 100, model, "--", color="C2", label="geometric model")
         ax.set_xlabel("pivot position q [cm]")
         ax.set_ylabel("K [N m/rad]")
         ax.grid(alpha=0.3, which="both")
     ax_log.set_yscale("log")
     ax_lin.legend(fontsize=7)
+
+
+def exponential_label(a1: float, a2: float, a3: float) -> str:
+    """The legend of an eq 4.5 fit (a2 in 1/m, shown per cm)."""
+    return f"{a1:.3g} exp({a2 / 100:.3g} q) + {a3:.3g}"
+
+
+def stiffness_axes(ax_lin, ax_log, fit, model_K=None):
+    """K(q): measured points, the exponential fit and optionally a model curve (fig 4.13)."""
+    q = np.array([c.q for c in fit.curves])
+    grid = np.linspace(q.min() - 0.002, q.max() + 0.002, 200)
+    e = fit.exponential
+    stiffness_points_axes(
+        ax_lin, ax_log, q=q, K=np.array([c.K.value for c in fit.curves]),
+        K_stderr=np.array([c.K.stderr for c in fit.curves]), grid=grid,
+        exponential=None if e is None else (e.predict(grid), exponential_label(
+            e.a1.value, e.a2.value, e.a3.value)),
+        model=None if model_K is None else [model_K(x) for x in grid])
 
 
 def stiffness_figure(fit, model_K=None) -> Figure:

@@ -3,10 +3,10 @@
 One function per figure (fig 4.2-4.5 share `friction_figure`, fig 4.10-4.12
 `loop_figure`) that reads only the figure's ``data`` (SI units, as
 `vsj.reproduce.data_figures` documents it) and returns a
-`matplotlib.figure.Figure` (no pyplot state). The axes are those of
-`vsj.identification.plots`, drawn here from plain arrays instead of fit
-objects; torques of friction residuals and ripple are shown in mN m, pivot
-positions in cm and angles in degrees.
+`matplotlib.figure.Figure` (no pyplot state). The axes are
+`vsj.identification.plots`' own, drawn from plain arrays; torques of friction
+residuals and ripple are shown in mN m, pivot positions in cm and angles in
+degrees.
 """
 
 from __future__ import annotations
@@ -14,24 +14,21 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..identification.plots import (
+    exponential_label,
+    loop_axes,
+    stiffness_points_axes,
+    torque_velocity_axes,
+)
+
 
 def _friction_axes(ax, data) -> None:
-    """Samples, fitted points and curve of one torque-velocity fit (as
-    `vsj.identification.plots.friction_axes`)."""
-    if data["samples"] is not None:
-        w, torque = data["samples"]["speed"], data["samples"]["torque"]
-        step = max(1, len(w) // 4000)
-        ax.plot(w[::step], torque[::step], ".", ms=1, color="0.75", label="samples")
-    points = data["points"]
-    ax.plot(points["speed"], points["torque"], "o", ms=4, color="C0",
-            label="plateau means (ripple removed)" if points["ripple_removed"] else "data")
-    c1, c2, c3 = data["constants"]
-    ax.plot(data["curve"]["speed"], data["curve"]["torque"], "-", color="C3",
-            label=f"fit: {c1:.3g} w + {c2:.3g} atan({c3:.3g} w)")
-    ax.set_xlabel("carrier speed w [rad/s]")
-    ax.set_ylabel("torque T [N m]")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="upper left")
+    """Samples, fitted points and curve of one torque-velocity fit."""
+    samples, points, curve = data["samples"], data["points"], data["curve"]
+    torque_velocity_axes(
+        ax, points=(points["speed"], points["torque"]), curve=(curve["speed"], curve["torque"]),
+        constants=data["constants"], ripple_removed=points["ripple_removed"],
+        samples=None if samples is None else (samples["speed"], samples["torque"]))
 
 
 def friction_figure(data) -> Figure:
@@ -154,28 +151,11 @@ def fig_4_7_refit(data) -> Figure:
 
 
 def _loop_axes(ax, loop, fit) -> None:
-    """One loop with its linear fit (as `vsj.identification.plots.loops_axes`)."""
-    step = max(1, len(loop["deflection"]) // 3000)
-    ax.plot(loop["deflection"][::step], loop["torque"][::step], ".", ms=1, color="0.6",
-            label="data")
-    lim = fit["linear_limit"]
-    phi = np.linspace(-lim, lim, 50)
-    for sign, ls in ((1, "-"), (-1, "--")):
-        ax.plot(phi + (0.5 * fit["play"] * np.sign(phi) if fit["play_detected"] else 0.0),
-                fit["K"] * phi + sign * fit["hysteresis"] + fit["offset"], ls,
-                color="C3", lw=1.2,
-                label=f"K = {fit['K']:.3g} N m/rad, h = {fit['hysteresis'] * 1e3:.2g} mN m"
-                if sign > 0 else None)
-    if fit["pretension_loss"] is not None:
-        for s in (-1, 1):
-            ax.axvline(s * fit["pretension_loss"], color="C1", lw=0.8, ls=":")
-    ax.set_title(f"q = {fit['q'] * 100:.3g} cm" + (f", play {fit['play'] * 1e3:.3g} mrad"
-                                                     if fit["play_detected"] else ""),
-                 fontsize=9)
-    ax.set_xlabel("deflection phi [rad]")
-    ax.set_ylabel("torque [N m]")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=6, loc="upper left")
+    """One loop with its linear fit."""
+    loop_axes(ax, loop["deflection"], loop["torque"], q=fit["q"], K=fit["K"],
+              hysteresis=fit["hysteresis"], offset=fit["offset"],
+              linear_limit=fit["linear_limit"], play=fit["play"],
+              play_detected=fit["play_detected"], pretension_loss=fit["pretension_loss"])
 
 
 def loop_figure(data) -> Figure:
@@ -204,17 +184,9 @@ def fig_4_13(data) -> Figure:
     fig = Figure(figsize=(11, 4.4))
     lin, log = fig.subplots(1, 2)
     grid, e, report = data["grid"], data["exponential"], data["report"]
-    for ax in (lin, log):
-        ax.errorbar(data["q"] * 100, data["K"], yerr=1.96 * data["K_stderr"], fmt="o",
-                    color="C0", label="linear stiffness of each curve")
-        ax.plot(grid * 100, e["K"], "-", color="C3",
-                label=f"{e['a1']:.3g} exp({e['a2'] / 100:.3g} q) + {e['a3']:.3g}")
-        ax.plot(grid * 100, data["geometric_K"], "--", color="C2", label="geometric model")
-        ax.set_xlabel("pivot position q [cm]")
-        ax.set_ylabel("K [N m/rad]")
-        ax.grid(alpha=0.3, which="both")
-    log.set_yscale("log")
-    lin.legend(fontsize=7)
+    stiffness_points_axes(lin, log, q=data["q"], K=data["K"], K_stderr=data["K_stderr"],
+                          grid=grid, model=data["geometric_K"],
+                          exponential=(e["K"], exponential_label(e["a1"], e["a2"], e["a3"])))
     for ax in (lin, log):
         ax.plot(grid * 100, report["K"], "-.", color="k", lw=1.4,
                 label=f"report's eq 4.5: {report['a1']:g} exp({report['a2'] / 100:g} q) + "
