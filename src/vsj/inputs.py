@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
 from .errors import InputError
 
 #: Coefficient rows are (c0, c1, c2, c3) of c0 + c1 tau + c2 tau^2 + c3 tau^3, tau = t - knot.
@@ -221,6 +222,22 @@ class Step(Input):
         return f"step of {self.height:g} at {self.start:g} s from {self.offset:g}"
 
 
+def _check_series(kind: str, times, values, shortest: int) -> None:
+    """`InputError` unless ``times`` and ``values`` are finite lists of one length (at
+    least ``shortest``) with strictly increasing times."""
+    t = np.asarray(times, dtype=float)
+    v = np.asarray(values, dtype=float)
+    if t.ndim != 1 or t.shape != v.shape or t.size < shortest:
+        raise InputError(f"{kind} input: times and values must be two lists of the same "
+                         f"length >= {shortest} (got {t.size} and {v.size})")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))):
+        raise InputError(f"{kind} input: times and values must be finite numbers")
+    if np.any(np.diff(t) <= 0.0):
+        i = int(np.flatnonzero(np.diff(t) <= 0.0)[0])
+        raise InputError(f"{kind} input: times must increase strictly (entry {i + 1}: "
+                         f"{t[i]} then {t[i + 1]})")
+
+
 @dataclass(frozen=True)
 class Table(Input):
     """Values at given times, interpolated linearly or with a cubic spline.
@@ -233,17 +250,7 @@ class Table(Input):
     interpolation: str = "linear"
 
     def __post_init__(self):
-        t = np.asarray(self.times, dtype=float)
-        v = np.asarray(self.values, dtype=float)
-        if t.ndim != 1 or t.shape != v.shape or t.size < 2:
-            raise InputError("table input: times and values must be two lists of the same "
-                             f"length >= 2 (got {t.size} and {v.size})")
-        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))):
-            raise InputError("table input: times and values must be finite numbers")
-        if np.any(np.diff(t) <= 0.0):
-            i = int(np.flatnonzero(np.diff(t) <= 0.0)[0])
-            raise InputError(f"table input: times must increase strictly (entry {i + 1}: "
-                             f"{t[i]} then {t[i + 1]})")
+        _check_series("table", self.times, self.values, 2)
         if self.interpolation not in ("linear", "cubic"):
             raise InputError(f"table input: interpolation must be 'linear' or 'cubic', got "
                              f"{self.interpolation!r}")
@@ -301,17 +308,7 @@ class Hold(Input):
     KNOT_OFFSET = 1e-9
 
     def __post_init__(self):
-        t = np.asarray(self.times, dtype=float)
-        v = np.asarray(self.values, dtype=float)
-        if t.ndim != 1 or t.shape != v.shape or t.size < 1:
-            raise InputError("hold input: times and values must be two lists of the same "
-                             f"length >= 1 (got {t.size} and {v.size})")
-        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))):
-            raise InputError("hold input: times and values must be finite numbers")
-        if np.any(np.diff(t) <= 0.0):
-            i = int(np.flatnonzero(np.diff(t) <= 0.0)[0])
-            raise InputError(f"hold input: times must increase strictly (entry {i + 1}: "
-                             f"{t[i]} then {t[i + 1]})")
+        _check_series("hold", self.times, self.values, 1)
 
     def value(self, t):
         t = np.asarray(t, dtype=float)

@@ -109,51 +109,47 @@ class IdealGear(Component):
                      constraints=[Constraint(f"{self.name} gear", {a: 1.0, b: -self.ratio})])
 
 
-class Bearing(Component):
-    """Friction between a flange and the ground, on the flange's absolute speed:
-    viscous [N m s/rad], and the report's stiction parameter ``k`` [N m] given as
-    ``stiction`` or as the Coulomb level ``coulomb`` (= k pi/2) [N m]."""
+class _FrictionElement(Component):
+    """A friction element on a speed of its flanges (`_speed`): viscous [N m s/rad], the
+    report's stiction parameter ``k`` [N m] given as ``stiction`` or as the Coulomb
+    level ``coulomb`` (= k pi/2) [N m], arctan sharpness [s/rad] and breakaway peak."""
+
+    def __init__(self, name: str, *, viscous: float = 0.0, stiction: float = 0.0,
+                 sharpness: float = DEFAULT_SHARPNESS, peak: float = 1.0,
+                 coulomb: float | None = None):
+        super().__init__(name)
+        self.viscous = _check(f"viscous friction of {name}", VISCOUS, viscous)
+        self.stiction = _stiction(name, stiction, coulomb)
+        self.sharpness = _check(f"arctan sharpness of {name}", SHARPNESS, sharpness)
+        self.peak = _peak(name, peak)
+
+    def _speed(self) -> dict[str, float]:
+        raise NotImplementedError
+
+    def parts(self) -> Parts:
+        speed = self._speed()
+        return Parts(flanges=list(speed), frictions=[Friction(
+            self.name, speed, self.viscous, self.stiction, self.sharpness, peak=self.peak)])
+
+
+class Bearing(_FrictionElement):
+    """Friction between a flange and the ground, on the flange's absolute speed (the
+    arguments of `_FrictionElement`)."""
 
     ports = ("flange",)
 
-    def __init__(self, name: str, *, viscous: float = 0.0, stiction: float = 0.0,
-                 sharpness: float = DEFAULT_SHARPNESS, peak: float = 1.0,
-                 coulomb: float | None = None):
-        super().__init__(name)
-        self.viscous = _check(f"viscous friction of {name}", VISCOUS, viscous)
-        self.stiction = _stiction(name, stiction, coulomb)
-        self.sharpness = _check(f"arctan sharpness of {name}", SHARPNESS, sharpness)
-        self.peak = _peak(name, peak)
-
-    def parts(self) -> Parts:
-        f = self.port("flange")
-        return Parts(flanges=[f], frictions=[Friction(self.name, {f: 1.0}, self.viscous,
-                                                      self.stiction, self.sharpness,
-                                                      peak=self.peak)])
+    def _speed(self) -> dict[str, float]:
+        return {self.port("flange"): 1.0}
 
 
-class SlipFriction(Component):
+class SlipFriction(_FrictionElement):
     """Friction on the slip ``omega_a - omega_b`` between two flanges (a gear mesh, a
-    sliding contact): viscous [N m s/rad], stiction parameter ``k`` [N m] (or the
-    Coulomb level ``coulomb``) and arctan sharpness [s/rad], as `Bearing` has
-    against the ground."""
+    sliding contact), with the arguments of `Bearing`."""
 
     ports = ("a", "b")
 
-    def __init__(self, name: str, *, viscous: float = 0.0, stiction: float = 0.0,
-                 sharpness: float = DEFAULT_SHARPNESS, peak: float = 1.0,
-                 coulomb: float | None = None):
-        super().__init__(name)
-        self.viscous = _check(f"viscous friction of {name}", VISCOUS, viscous)
-        self.stiction = _stiction(name, stiction, coulomb)
-        self.sharpness = _check(f"arctan sharpness of {name}", SHARPNESS, sharpness)
-        self.peak = _peak(name, peak)
-
-    def parts(self) -> Parts:
-        a, b = self.port("a"), self.port("b")
-        return Parts(flanges=[a, b], frictions=[Friction(self.name, {a: 1.0, b: -1.0},
-                                                         self.viscous, self.stiction,
-                                                         self.sharpness, peak=self.peak)])
+    def _speed(self) -> dict[str, float]:
+        return {self.port("a"): 1.0, self.port("b"): -1.0}
 
 
 class SpringDamper(Component):
