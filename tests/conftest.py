@@ -13,6 +13,23 @@ try:
 except ImportError:  # not POSIX: each worker reproduces on its own
     fcntl = None
 
+#: A short wrist scenario (0.3 s, arctan friction, one motor) that the command-line,
+#: bad-input and result-set tests run and edit.
+SHORT_SCENARIO = """name = "short"
+description = "a short wrist run"
+network = "wrist"
+duration = "0.3 s"
+[solver]
+friction = "arctan"
+output_step = "10 ms"
+[initial]
+q = "-0.4 cm"
+[inputs.motor_1]
+kind = "sine"
+amplitude = "2 rad/s"
+frequency = "2 Hz"
+"""
+
 
 @pytest.fixture(scope="session")
 def params():

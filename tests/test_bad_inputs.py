@@ -21,6 +21,8 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from conftest import SHORT_SCENARIO
+
 from vsj import params as params_module
 from vsj import scenario as scenarios
 from vsj.cli import main
@@ -218,19 +220,7 @@ def test_simulate_with_a_bad_parameter_file_writes_nothing(tmp_path, capsys):
 
 # ------------------------------------------------------------------------ scenarios
 
-SHORT = """name = "short"
-network = "wrist"
-duration = "0.3 s"
-[solver]
-friction = "arctan"
-output_step = "10 ms"
-[initial]
-q = "-0.4 cm"
-[inputs.motor_1]
-kind = "sine"
-amplitude = "2 rad/s"
-frequency = "2 Hz"
-"""
+SHORT = SHORT_SCENARIO
 PLANETARY = """network = "planetary-bench"
 duration = "0.2 s"
 [bench]

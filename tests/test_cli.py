@@ -5,24 +5,12 @@ import json
 import numpy as np
 import pytest
 
+from conftest import SHORT_SCENARIO
+
 from vsj.cli import main
 from vsj.output import MANIFEST, read_trajectory, verify
 
-SHORT = """
-name = "short"
-description = "a short wrist run"
-network = "wrist"
-duration = "0.3 s"
-[solver]
-friction = "arctan"
-output_step = "10 ms"
-[initial]
-q = "-0.4 cm"
-[inputs.motor_1]
-kind = "sine"
-amplitude = "2 rad/s"
-frequency = "2 Hz"
-"""
+SHORT = SHORT_SCENARIO
 
 
 def write(tmp_path, text, name="scen.toml"):

@@ -16,25 +16,16 @@ from pathlib import Path
 
 import pytest
 
+from conftest import SHORT_SCENARIO
+
 from vsj.cli import main
 from vsj.output import (MANIFEST, OutputError, ResultSet, clear_staging, read_manifest,
                         signals_bound, trajectory_bytes, verify)
 
-SHORT = """
-name = "short"
-description = "a short wrist run"
-network = "wrist"
-duration = "{duration}"
-[solver]
-friction = "arctan"
-output_step = "10 ms"
-[initial]
-q = "-0.4 cm"
-[inputs.motor_1]
-kind = "sine"
-amplitude = "2 rad/s"
-frequency = "2 Hz"
-"""
+
+def _short(duration: str) -> str:
+    return SHORT_SCENARIO.replace('duration = "0.3 s"', f'duration = "{duration}"')
+
 
 #: How long a killed run's watchdog may take to clear what the run left (it needs a few
 #: tens of milliseconds; the margin is for a loaded machine).
@@ -46,7 +37,7 @@ WRITING_KILLS = 16
 
 def scenario(tmp_path, duration="0.3 s", name="scen.toml"):
     path = tmp_path / name
-    path.write_text(SHORT.format(duration=duration))
+    path.write_text(_short(duration))
     return path
 
 
@@ -271,7 +262,7 @@ def data(tmp_path_factory):
         assert main(["synth", "friction", "--fixed", fixed, "--report", "second", "--form",
                      "points", "--out", str(d / f"{fixed}.csv")]) == 0
     assert main(["synth", "stiffness", "--q", "1.4", "--out", str(d / "k.csv")]) == 0
-    (d / "scen.toml").write_text(SHORT.format(duration="0.3 s"))
+    (d / "scen.toml").write_text(_short("0.3 s"))
     return d
 
 
