@@ -12,11 +12,13 @@ ENGINE := $(wildcard src/vsj/engine/c/*.c src/vsj/engine/c/*.h) src/vsj/engine/_
 install: $(STAMP)
 
 # the engine is C: (re)installing compiles it, so the stamp follows its sources.
-# --no-compile: Python compiles the modules actually used on first import,
-# instead of every module of every dependency now (half the install's time)
+# The bytecode is compiled after the install, on every core (pip compiles one file at a
+# time), so that no command compiles modules as it starts, even where
+# PYTHONDONTWRITEBYTECODE keeps Python from saving what it compiles.
 $(STAMP): pyproject.toml setup.py $(ENGINE)
 	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --no-compile -e '.[test]'
+	$(BIN)/python -m compileall -q -j 0 $(VENV)/lib src
 	touch $(STAMP)
 
 reproduce: $(STAMP)

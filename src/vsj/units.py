@@ -13,8 +13,9 @@ digit (``m^2``, ``s**-1``), a ``1`` only as in ``1/cm``, and at most one level
 of parentheses. Nothing is evaluated: pint is handed the number as a float and
 the unit text alone, which by then is a product of powers of names.
 
-pint is imported on first use only: it costs about 0.3 s, which a process that
-never reads a unit should not pay.
+pint is imported only when a conversion is not yet in the cache of conversion
+factors (see `cache_file`): a process that reads only units met before does not
+import it at all.
 """
 
 from __future__ import annotations
@@ -105,19 +106,10 @@ def to_si(text: str | float | int, unit: str, *, where: str, infinite: bool = Fa
     raise `InputError`; with ``infinite``, a written ``inf`` (such as
     ``"inf N m/rad"``, a rigid stop) is returned as +inf.
     """
-    import pint
-
-    target = _unit(unit)
-    dimensionless = target.dimensionless
     if isinstance(text, bool) or not isinstance(text, (int, float, str)):
         raise InputError(f"{where}: expected {FORM}; got {type(text).__name__} {text!r}")
     if isinstance(text, (int, float)):
-        if not dimensionless:
-            raise InputError(
-                f"{where}: value {text!r} has no unit; write it with a unit "
-                f"convertible to {unit!r}, for example \"{text} {unit}\""
-            )
-        value = float(text)
+        value, unit_text, written = float(text), "", None
     else:
         if len(text) > MAX_LENGTH:
             raise InputError(f"{where}: a quantity of {len(text)} characters; expected {FORM} "
@@ -129,41 +121,176 @@ def to_si(text: str | float | int, unit: str, *, where: str, infinite: bool = Fa
         why = _check_unit(unit_text)
         if why:
             raise InputError(f"{where}: cannot read {text!r}: {why}; expected {FORM}")
-        value = float(number.group(1))
-        if not unit_text and not dimensionless:
-            raise InputError(
-                f"{where}: value {text!r} has no unit; expected a unit convertible to {unit!r}"
-            )
-        try:
-            parsed = _unit(unit_text)
-            converted = float(registry().Quantity(value, parsed).to(target).magnitude)
-        except pint.errors.DimensionalityError:
-            raise InputError(f"{where}: {text!r} has unit {parsed:~}, which cannot be "
+        value, written = float(number.group(1)), number.group(1)
+    try:
+        converted = _convert(value, unit_text, unit)
+    except _NotConvertible as exc:
+        if unit_text:
+            raise InputError(f"{where}: {text!r} has unit {exc.unit}, which cannot be "
                              f"converted to {unit!r}") from None
-        except (pint.errors.PintError, ValueError, TypeError, AttributeError) as exc:
-            raise InputError(f"{where}: cannot read the unit of {text!r} ({exc})") from None
-        if converted == 0.0 and value != 0.0:
-            raise InputError(f"{where}: {text!r} is too small to represent in {unit} (below "
-                             "5e-324)")
-        value = converted
-        if infinite and value == math.inf and number.group(1).lower().lstrip("+") in (
-                "inf", "infinity"):
-            return value
-    if not math.isfinite(value):
+        if written is None:
+            raise InputError(f"{where}: value {text!r} has no unit; write it with a unit "
+                             f"convertible to {unit!r}, for example \"{text} {unit}\"") from None
+        raise InputError(f"{where}: value {text!r} has no unit; expected a unit convertible "
+                         f"to {unit!r}") from None
+    except _Unreadable as exc:
+        raise InputError(f"{where}: cannot read the unit of {text!r} ({exc})") from None
+    if converted == 0.0 and value != 0.0:
+        raise InputError(f"{where}: {text!r} is too small to represent in {unit} (below "
+                         "5e-324)")
+    if (infinite and converted == math.inf and written is not None
+            and written.lower().lstrip("+") in ("inf", "infinity")):
+        return converted
+    if not math.isfinite(converted):
         raise InputError(f"{where}: {text!r} is not a finite number in {unit} (NaN, infinite, "
                          "or beyond the largest floating-point number, 1.8e308)")
-    return value
+    return converted
 
 
 def from_si(value: float, unit: str) -> float:
     """Convert an SI value to ``unit`` (for display and plots)."""
-    ureg = registry()
-    return float(ureg.Quantity(value, _si_of(unit)).to(_unit(unit)).magnitude)
+    factor = _factors().get(f"from|{unit}")
+    if factor is None:
+        ureg = registry()
+        base = ureg.Quantity(1.0, _unit(unit)).to_base_units().units
+        factor = _remember(f"from|{unit}", lambda x: ureg.Quantity(x, base).to(_unit(unit)))
+        if factor is None:  # not a multiplicative unit
+            return float(ureg.Quantity(value, base).to(_unit(unit)).magnitude)
+    return value * factor
 
 
-@functools.lru_cache(maxsize=256)
-def _si_of(unit: str):
-    return registry().Quantity(1.0, _unit(unit)).to_base_units().units
+class _NotConvertible(Exception):
+    def __init__(self, unit: str):
+        super().__init__(unit)
+        self.unit = unit
+
+
+class _Unreadable(Exception):
+    pass
+
+
+def _convert(value: float, unit_text: str, unit: str) -> float:
+    """``value`` in ``unit_text`` converted to ``unit``, exactly as pint converts it."""
+    factor = _factors().get(f"to|{unit_text}|{unit}")
+    if factor is not None:
+        return value * factor
+    import pint
+
+    try:
+        parsed, target = _unit(unit_text), _unit(unit)
+        quantity = registry().Quantity
+        factor = _remember(f"to|{unit_text}|{unit}", lambda x: quantity(x, parsed).to(target))
+        if factor is None:  # not a multiplicative unit
+            return float(quantity(value, parsed).to(target).magnitude)
+    except pint.errors.DimensionalityError:
+        raise _NotConvertible(f"{parsed:~}") from None
+    except (pint.errors.PintError, ValueError, TypeError, AttributeError) as exc:
+        raise _Unreadable(str(exc)) from None
+    return value * factor
+
+
+# -------------------------------------------------------------- conversion factors on disk
+#
+# Importing pint and building its registry costs more than a whole simulation of the
+# wrist (benchmarks/simulate_cli.py times the command). A conversion between multiplicative units is ``value * factor``, pint's own
+# arithmetic, so the factor pint computed once is kept in a small JSON file in the user's
+# cache directory (``$VSJ_CACHE_DIR``, else ``$XDG_CACHE_HOME/vsj`` or ``~/.cache/vsj``),
+# one per pint version. A process that finds every unit it reads there never imports pint,
+# and gets the same floats bit for bit. The file is only a cache: one that is missing,
+# unreadable or malformed is ignored, and a directory that cannot be written is left alone.
+
+#: Most factors kept on disk (a parameter set uses a few dozen).
+CACHE_ENTRIES = 2000
+
+
+def cache_file():
+    """The file of conversion factors, or None if the home directory is unknown."""
+    import os
+    from importlib import metadata
+    from pathlib import Path
+
+    folder = os.environ.get("VSJ_CACHE_DIR")
+    if not folder:
+        base = os.environ.get("XDG_CACHE_HOME")
+        try:
+            folder = Path(base) if base else Path.home() / ".cache"
+        except RuntimeError:
+            return None
+        folder = Path(folder) / "vsj"
+    try:
+        version = metadata.version("pint")
+    except metadata.PackageNotFoundError:
+        version = "unknown"
+    return Path(folder) / f"units-pint-{version}.json"
+
+
+@functools.lru_cache(maxsize=1)
+def _factors() -> dict[str, float]:
+    """The factors read from `cache_file` (empty if there is none usable)."""
+    import json
+
+    path = cache_file()
+    try:
+        data = json.loads(path.read_text(encoding="utf-8")) if path else {}
+    except (OSError, ValueError):
+        return {}
+    if not (isinstance(data, dict) and all(
+            isinstance(k, str) and type(v) is float and math.isfinite(v) and v != 0.0
+            for k, v in data.items())):
+        return {}
+    return data
+
+
+_new: dict[str, float] = {}
+
+
+def _remember(key: str, convert) -> float | None:
+    """pint's factor for ``key`` (``convert(x)`` is x converted), kept for this process and
+    written to the cache at exit; None if the conversion is not a multiplication."""
+    factor = float(convert(1.0).magnitude)
+    if not (math.isfinite(factor) and factor != 0.0
+            and float(convert(0.0).magnitude) == 0.0
+            and float(convert(3.0).magnitude) == 3.0 * factor):
+        return None
+    factors = _factors()
+    if len(factors) < CACHE_ENTRIES:
+        factors[key] = factor
+        if not _new:
+            import atexit
+
+            atexit.register(_save)
+        _new[key] = factor
+    return factor
+
+
+def _save() -> None:
+    """Merge this process's new factors into the cache file (atomically replaced)."""
+    import json
+    import os
+    import tempfile
+
+    path = cache_file()
+    if path is None or not _new:
+        return
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            old = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            old = {}
+        merged = {**(old if isinstance(old, dict) else {}), **_new}
+        if len(merged) > CACHE_ENTRIES:
+            return
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".units-", suffix=".json")
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as f:
+                json.dump(merged, f, sort_keys=True, indent=0)
+            os.replace(tmp, path)
+        except BaseException:
+            os.unlink(tmp)
+            raise
+    except OSError:
+        pass  # a read-only or full disk: the cache is only an optimisation
 
 
 def format_quantity(value: float, unit: str, digits: int = 6) -> str:
