@@ -28,7 +28,7 @@ from .errors import InputError
 #: Coefficient rows are (c0, c1, c2, c3) of c0 + c1 tau + c2 tau^2 + c3 tau^3, tau = t - knot.
 Pieces = tuple[np.ndarray, np.ndarray]
 #: Most knots a sampled signal may have, and the memory one knot takes while its spline is
-#: built (measured peak of scipy's CubicSpline and the coefficient table): 0.3 GB at most.
+#: built (measured peak of `spline_pieces`, inputs included): 0.3 GB at most.
 MAX_KNOTS = 2_000_000
 BYTES_PER_KNOT = 150
 
@@ -55,10 +55,57 @@ class Input:
         return repr(self)
 
 
-def _spline_pieces(spline) -> Pieces:
-    knots = np.asarray(spline.x, dtype=float)
-    c = np.asarray(spline.c, dtype=float)  # descending powers, shape (4, K)
-    return knots, np.ascontiguousarray(c[::-1].T)
+def spline_pieces(t, y) -> Pieces:
+    """The not-a-knot cubic spline through ``(t, y)`` (``t`` strictly increasing, two
+    points or more), as the engine's pieces: the curve `scipy.interpolate.CubicSpline`
+    draws with its default ends, to rounding.
+
+    It is built here from its slopes, with SciPy's banded solver, because importing
+    ``scipy.interpolate`` would cost a short run more than the whole simulation. The
+    slopes ``m`` make the first and second derivatives continuous at inner knots; at
+    each end the third derivative is continuous across the first inner knot. Three
+    points give one parabola and two a line.
+    """
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    h = np.diff(t)
+    secant = np.diff(y) / h
+    if len(t) == 2:
+        m = np.array([secant[0], secant[0]])
+    elif len(t) == 3:
+        middle = (h[1] * secant[0] + h[0] * secant[1]) / (h[0] + h[1])
+        m = np.array([2.0 * secant[0] - middle, middle, 2.0 * secant[1] - middle])
+    else:
+        from scipy.linalg import solve_banded
+
+        n = len(t)
+        bands = np.zeros((3, n))  # rows: above, on and below the diagonal
+        rhs = np.empty(n)
+        bands[1, 1:-1] = 2.0 * (h[:-1] + h[1:])
+        bands[0, 2:] = h[:-1]
+        bands[2, :-2] = h[1:]
+        rhs[1:-1] = 3.0 * (h[1:] * secant[:-1] + h[:-1] * secant[1:])
+        first, last = h[0] + h[1], h[-1] + h[-2]
+        bands[1, 0], bands[0, 1] = h[1], first
+        rhs[0] = ((h[0] + 2.0 * first) * h[1] * secant[0] + h[0] ** 2 * secant[1]) / first
+        bands[1, -1], bands[2, -2] = h[-2], last
+        rhs[-1] = (h[-1] ** 2 * secant[-2] + (2.0 * last + h[-1]) * h[-2] * secant[-1]) / last
+        m = solve_banded((1, 1), bands, rhs, overwrite_ab=True, overwrite_b=True,
+                         check_finite=False)
+    curvature = (m[:-1] + m[1:] - 2.0 * secant) / h
+    coef = np.column_stack([y[:-1], m[:-1], (secant - m[:-1]) / h - curvature, curvature / h])
+    return t, coef
+
+
+def evaluate(pieces: Pieces, t):
+    """The piecewise cubic ``pieces`` at times ``t`` (each piece extended past its
+    interval at the ends)."""
+    knots, coef = pieces
+    t = np.asarray(t, dtype=float)
+    i = np.clip(np.searchsorted(knots, t, side="right") - 1, 0, len(coef) - 1)
+    tau = t - knots[i]
+    c = coef[i]
+    return c[..., 0] + tau * (c[..., 1] + tau * (c[..., 2] + tau * c[..., 3]))
 
 
 def _intervals(t_end: float, step: float) -> int:
@@ -75,9 +122,7 @@ def _intervals(t_end: float, step: float) -> int:
 def _sampled(fun, t_end: float, step: float) -> Pieces:
     n = _intervals(t_end, step)
     t = np.linspace(0.0, max(t_end, 1e-9), n + 1)
-    from scipy.interpolate import CubicSpline  # imported where needed: a slow import
-
-    return _spline_pieces(CubicSpline(t, fun(t), bc_type="not-a-knot"))
+    return spline_pieces(t, fun(t))
 
 
 @dataclass(frozen=True)
@@ -259,17 +304,13 @@ class Table(Input):
         if self.interpolation == "linear":
             return np.interp(t, self.times, self.values)
         t = np.clip(np.asarray(t, dtype=float), self.times[0], self.times[-1])
-        from scipy.interpolate import CubicSpline
-
-        return CubicSpline(self.times, self.values)(t)
+        return evaluate(spline_pieces(self.times, self.values), t)
 
     def pieces(self, t_end: float) -> Pieces:
         t = np.asarray(self.times, dtype=float)
         v = np.asarray(self.values, dtype=float)
         if self.interpolation == "cubic":
-            from scipy.interpolate import CubicSpline
-
-            knots, coef = _spline_pieces(CubicSpline(t, v))
+            knots, coef = spline_pieces(t, v)
         else:
             slope = np.diff(v) / np.diff(t)
             coef = np.column_stack([v[:-1], slope, np.zeros_like(slope), np.zeros_like(slope)])

@@ -192,9 +192,10 @@ def _convert(value: float, unit_text: str, unit: str) -> float:
 # -------------------------------------------------------------- conversion factors on disk
 #
 # Importing pint and building its registry costs more than a whole simulation of the
-# wrist (benchmarks/simulate_cli.py times the command). A conversion between multiplicative units is ``value * factor``, pint's own
-# arithmetic, so the factor pint computed once is kept in a small JSON file in the user's
-# cache directory (``$VSJ_CACHE_DIR``, else ``$XDG_CACHE_HOME/vsj`` or ``~/.cache/vsj``),
+# wrist (benchmarks/simulate_cli.py times the command). A conversion between
+# multiplicative units is ``value * factor``, pint's own arithmetic, so the factor pint
+# computed once is kept in a small JSON file in the user's cache directory
+# (``$VSJ_CACHE_DIR``, else ``$XDG_CACHE_HOME/vsj`` or ``~/.cache/vsj``),
 # one per pint version. A process that finds every unit it reads there never imports pint,
 # and gets the same floats bit for bit. The file is only a cache: one that is missing,
 # unreadable or malformed is ignored, and a directory that cannot be written is left alone.

@@ -5,7 +5,7 @@ already imported and the unit registry already built (together more than a secon
 per process otherwise). Importing this module has that effect and no other.
 """
 
-import scipy.interpolate  # noqa: F401  (input splines)
+import scipy.linalg  # noqa: F401  (input splines: vsj.inputs.spline_pieces)
 import scipy.stats  # noqa: F401  (probe values of sampled parameters)
 
 from .. import scenario, units  # noqa: F401
