@@ -10,12 +10,8 @@ port-based model: sub-models in `vsj.components`, assembled by
     result = vsj.simulate(wrist, {"motor_1": vsj.inputs.Sine(3.0, 0.5)}, 5.0)
 """
 
-from importlib import metadata as _metadata
-
-try:
-    __version__ = _metadata.version("vsj")
-except _metadata.PackageNotFoundError:  # run from a source tree without installing
-    __version__ = "unknown"
+#: The package's version (pyproject.toml reads it from here).
+__version__ = "0.2.0"
 
 from . import inputs, params  # noqa: E402
 from .network import Network  # noqa: E402

@@ -207,7 +207,6 @@ CACHE_ENTRIES = 2000
 def cache_file():
     """The file of conversion factors, or None if the home directory is unknown."""
     import os
-    from importlib import metadata
     from pathlib import Path
 
     folder = os.environ.get("VSJ_CACHE_DIR")
@@ -218,11 +217,24 @@ def cache_file():
         except RuntimeError:
             return None
         folder = Path(folder) / "vsj"
-    try:
-        version = metadata.version("pint")
-    except metadata.PackageNotFoundError:
-        version = "unknown"
-    return Path(folder) / f"units-pint-{version}.json"
+    return Path(folder) / f"units-pint-{_pint_version()}.json"
+
+
+def _pint_version() -> str:
+    """The installed pint's version, from its ``dist-info`` folder: found without
+    importing pint (or importlib.metadata, which costs a short run a tenth of its time);
+    where there is no such folder, the time its package was last changed."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.find_spec("pint")
+    if spec is None or not spec.submodule_search_locations:
+        return "none"
+    package = Path(next(iter(spec.submodule_search_locations)))
+    found = list(package.parent.glob("pint-*.dist-info"))
+    if len(found) == 1:
+        return found[0].name[len("pint-"):-len(".dist-info")]
+    return f"changed-{(package / '__init__.py').stat().st_mtime_ns}"
 
 
 @functools.lru_cache(maxsize=1)
