@@ -149,14 +149,12 @@ def to_si(text: str | float | int, unit: str, *, where: str, infinite: bool = Fa
 
 def from_si(value: float, unit: str) -> float:
     """Convert an SI value to ``unit`` (for display and plots)."""
-    factor = _factors().get(f"from|{unit}")
-    if factor is None:
-        ureg = registry()
-        base = ureg.Quantity(1.0, _unit(unit)).to_base_units().units
-        factor = _remember(f"from|{unit}", lambda x: ureg.Quantity(x, base).to(_unit(unit)))
-        if factor is None:  # not a multiplicative unit
-            return float(ureg.Quantity(value, base).to(_unit(unit)).magnitude)
-    return value * factor
+    def convert(x):
+        target = _unit(unit)
+        base = registry().Quantity(1.0, target).to_base_units().units
+        return registry().Quantity(x, base).to(target)
+
+    return _scaled(value, f"from|{unit}", convert)
 
 
 class _NotConvertible(Exception):
@@ -170,22 +168,30 @@ class _Unreadable(Exception):
 
 
 def _convert(value: float, unit_text: str, unit: str) -> float:
-    """``value`` in ``unit_text`` converted to ``unit``, exactly as pint converts it."""
-    factor = _factors().get(f"to|{unit_text}|{unit}")
-    if factor is not None:
-        return value * factor
-    import pint
-
+    """``value`` in ``unit_text`` converted to ``unit``, exactly as pint converts it;
+    `_NotConvertible` or `_Unreadable` with pint's reason if it cannot be."""
     try:
-        parsed, target = _unit(unit_text), _unit(unit)
-        quantity = registry().Quantity
-        factor = _remember(f"to|{unit_text}|{unit}", lambda x: quantity(x, parsed).to(target))
-        if factor is None:  # not a multiplicative unit
-            return float(quantity(value, parsed).to(target).magnitude)
-    except pint.errors.DimensionalityError:
-        raise _NotConvertible(f"{parsed:~}") from None
-    except (pint.errors.PintError, ValueError, TypeError, AttributeError) as exc:
-        raise _Unreadable(str(exc)) from None
+        return _scaled(value, f"to|{unit_text}|{unit}",
+                       lambda x: registry().Quantity(x, _unit(unit_text)).to(_unit(unit)))
+    except Exception as exc:
+        import pint
+
+        if isinstance(exc, pint.errors.DimensionalityError):
+            raise _NotConvertible(f"{_unit(unit_text):~}") from None
+        if isinstance(exc, (pint.errors.PintError, ValueError, TypeError, AttributeError)):
+            raise _Unreadable(str(exc)) from None
+        raise
+
+
+def _scaled(value: float, key: str, convert) -> float:
+    """``value`` times the cached factor ``key``; on a miss, pint's conversion
+    ``convert(x)`` (a pint quantity) gives the factor, remembered when the conversion is
+    a multiplication, and converts ``value`` itself when it is not."""
+    factor = _factors().get(key)
+    if factor is None:
+        factor = _remember(key, convert)
+        if factor is None:  # an offset or logarithmic unit
+            return float(convert(value).magnitude)
     return value * factor
 
 
