@@ -55,6 +55,9 @@ typedef struct ts_work {
     unsigned char *active, *driven, *linear;
     /* springs, sources, loads, motors, channels */
     double *sp_c, *sp_kap, *u0, *sg0, *u1, *sg1, *um, *srcF, *ldm, *vm, *cur, *i1;
+    /* motors: the armature circuit's exact step (rl_*, for steps of length rl_h), the
+     * rotor speed at the step's start, and over the step the charge and Joule heat */
+    double rl_h, *rl_e, *rl_decay, *rl_gain, *rl_half, *om0, *charge, *heat;
     int64_t *mid_ch, *mid_src, *end_ch;
     unsigned char *wanted;
 } ts_work;

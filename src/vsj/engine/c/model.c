@@ -348,6 +348,13 @@ static void layout(vsj_work *w, carver *cv) {
     t->vm = DOUBLES(nm);
     t->cur = DOUBLES(nm);
     t->i1 = DOUBLES(nm);
+    t->rl_e = DOUBLES(nm);
+    t->rl_decay = DOUBLES(nm);
+    t->rl_gain = DOUBLES(nm);
+    t->rl_half = DOUBLES(nm);
+    t->om0 = DOUBLES(nm);
+    t->charge = DOUBLES(nm);
+    t->heat = DOUBLES(nm);
     t->mid_ch = INTS(nch);
     t->mid_src = INTS(s);
     t->end_ch = INTS(nch);

@@ -10,7 +10,10 @@
  *     that stays stable however stiff); dampers (elements flagged
  *     VSJ_F_TRAPEZOIDAL, such as a spring-damper's) the trapezoidal rule, so
  *     that an oscillator's spring and damper are second order together;
- *   - DC motor armatures: implicit Euler;
+ *   - DC motor armatures: exactly, as a linear RL circuit driven by the
+ *     step's mid-step voltage and back-EMF (the rotor moves with the mid-step
+ *     speed, as every force is booked), so an electrical time constant far
+ *     below the step is neither a stability nor an energy problem;
  *   - Coulomb parts of stiction elements: impulses p_e with |p_e| <= h c_e
  *     (c_e = k_e pi/2), decided together for all elements by
  *
@@ -496,6 +499,43 @@ int vsj_solve_impulses(int64_t n, int64_t m, const double *YT, int64_t count, co
     return VSJ_OK;
 }
 
+/* ---- the armature circuit over one step -------------------------------------- */
+
+/* L di/dt = V - R i - k w with V and w held over a step of length h has the exact
+ * solution i(t) = i_inf + (i0 - i_inf) exp(-t/tau), tau = L/R, i_inf = (V - k w)/R.
+ * Per motor: e = exp(-h/tau); decay = tau (1 - e) [s], so that the charge is
+ * Q = i_inf (h - decay) + i0 decay; gain = (h - decay)/R; half = tau (1 - e^2)/2, the
+ * integral of exp(-2t/tau), for the Joule heat. h - decay = tau g(h/tau) with
+ * g(x) = x - 1 + exp(-x), taken from its series where the closed form cancels. The
+ * values are kept while the step keeps its length (rl_h); every use within a step
+ * takes rl_h with them, so the circuit's energy balance holds exactly. */
+static void armature_steps(const vsj_model *m, ts_work *t, double h, double h_nominal) {
+    int64_t mo, r_mot = m->n_frictions + m->n_springs + m->n_loads;
+    if (fabs(h - t->rl_h) <= STEP_SAME * h_nominal) /* the same step, to round-off */
+        return;
+    for (mo = 0; mo < m->n_motors; mo++) {
+        const double *p = vsj__row(m, r_mot + mo);
+        double R = p[0], L = p[1], tau, x, g;
+        if (!(L > 0.0)) { /* no inductance: the current follows at once */
+            t->rl_e[mo] = 0.0;
+            t->rl_decay[mo] = 0.0;
+            t->rl_gain[mo] = h / R;
+            t->rl_half[mo] = 0.0;
+            continue;
+        }
+        tau = L / R;
+        x = h / tau;
+        g = x < 1e-2 ? 0.5 * x * x
+                           * (1.0 - x / 3.0 * (1.0 - x / 4.0 * (1.0 - x / 5.0 * (1.0 - x / 6.0))))
+                     : x + expm1(-x);
+        t->rl_e[mo] = exp(-x);
+        t->rl_decay[mo] = -tau * expm1(-x);
+        t->rl_gain[mo] = tau * g / R;
+        t->rl_half[mo] = -0.5 * tau * expm1(-2.0 * x);
+    }
+    t->rl_h = h;
+}
+
 /* ---- the stepper's set-up ---------------------------------------------------- */
 
 /* The impulse problem over the friction unknowns and, with `full`, the end
@@ -759,6 +799,7 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
         t->transitions[e] = 0;
     }
     t->hs_prev = NAN;
+    t->rl_h = NAN; /* the armature steps follow the parameters */
     t->factored = 0;
     t->prepared = 1;
     t->for_par = m->par;
@@ -1031,19 +1072,21 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
         }
         for (ld = 0; ld < nl; ld++)
             vsj__xadd(m, r_load + ld, t->r, hs * t->ldm[ld]);
+        /* the motors' torque impulse k Q, with Q the step's charge (armature_steps) at
+         * the mid-step rotor speed (om0 + om1)/2, om1 = d.v1 + (source part at u1):
+         * linear in v1, so it joins the step matrix as a damping k^2 gain / 2 */
+        armature_steps(m, t, hs, h);
         for (mo = 0; mo < nm; mo++) {
-            const double *p;
-            double R, Lm, kt, g, cnst, damp;
+            double kt, gain, om0, cnst;
             rr = r_mot + mo;
-            p = vsj__row(m, rr);
-            R = p[0];
-            Lm = p[1];
-            kt = p[2];
-            g = 1.0 / (1.0 + hs * R / Lm);
-            cnst = kt * g * (t->cur[mo] + hs / Lm * (t->vm[mo] - kt * vsj__udotv(m, rr, t->u1)));
-            damp = kt * kt * g * hs / Lm;
-            vsj__xadd(m, rr, t->r, hs * cnst);
-            outer(m, rr, t->H, hs * damp);
+            kt = vsj__row(m, rr)[2];
+            gain = t->rl_gain[mo];
+            om0 = vsj__xdot(m, rr, t->v) + vsj__udotv(m, rr, t->u0);
+            t->om0[mo] = om0;
+            cnst = kt * (gain * (t->vm[mo] - 0.5 * kt * (om0 + vsj__udotv(m, rr, t->u1)))
+                         + t->cur[mo] * t->rl_decay[mo]);
+            vsj__xadd(m, rr, t->r, cnst);
+            outer(m, rr, t->H, 0.5 * kt * kt * gain);
         }
         /* H changes only with non-linear springs, smooth friction slopes or a
          * moving pivot; while it stays within round-off of the matrix last
@@ -1178,15 +1221,19 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
             t->x1[i] = t->x[i] + 0.5 * hs * (t->v[i] + t->v1[i]);
         for (mo = 0; mo < nm; mo++) {
             const double *p;
-            double R, Lm, kt, g, omega1;
+            double R, kt, emf, i_inf, c;
             rr = r_mot + mo;
             p = vsj__row(m, rr);
             R = p[0];
-            Lm = p[1];
             kt = p[2];
-            g = 1.0 / (1.0 + hs * R / Lm);
-            omega1 = vsj__xdot(m, rr, t->v1) + vsj__udotv(m, rr, t->u1);
-            t->i1[mo] = g * (t->cur[mo] + hs / Lm * (t->vm[mo] - kt * omega1));
+            emf = t->vm[mo] - 0.5 * kt * (t->om0[mo] + vsj__xdot(m, rr, t->v1)
+                                           + vsj__udotv(m, rr, t->u1));
+            i_inf = emf / R;
+            c = t->cur[mo] - i_inf;
+            t->i1[mo] = i_inf + c * t->rl_e[mo];
+            t->charge[mo] = t->rl_gain[mo] * emf + t->cur[mo] * t->rl_decay[mo];
+            t->heat[mo] = R * (i_inf * i_inf * t->rl_h + 2.0 * i_inf * c * t->rl_decay[mo]
+                               + c * c * t->rl_half[mo]);
         }
 
         /* energy bookkeeping against mid-step speeds */
@@ -1280,12 +1327,11 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                 y[a_load + ld] += hs * t->ldm[ld] * omega;
                 vsj__uaddv(m, rr, t->srcF, t->ldm[ld]);
             }
-            for (mo = 0; mo < nm; mo++) {
-                double imid = 0.5 * (t->cur[mo] + t->i1[mo]);
+            for (mo = 0; mo < nm; mo++) { /* exact over the step: supply V Q, heat R int i^2 */
                 rr = r_mot + mo;
-                y[a_elec + mo] += hs * t->vm[mo] * imid;
-                y[a_res + mo] += hs * vsj__row(m, rr)[0] * t->i1[mo] * imid;
-                vsj__uaddv(m, rr, t->srcF, vsj__row(m, rr)[2] * t->i1[mo]);
+                y[a_elec + mo] += t->vm[mo] * t->charge[mo];
+                y[a_res + mo] += t->heat[mo];
+                vsj__uaddv(m, rr, t->srcF, vsj__row(m, rr)[2] * t->charge[mo] / hs);
             }
             for (j = 0; j < s_n; j++) {
                 double impulse = -hs * t->srcF[j];
