@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 ENGINE := $(wildcard src/vsj/engine/c/*.c src/vsj/engine/c/*.h) src/vsj/engine/_core.c
 
-.PHONY: install reproduce test bench sanitize clean
+.PHONY: install reproduce test bench sanitize portable clean
 
 install: $(STAMP)
 
@@ -31,6 +31,11 @@ test: $(STAMP)
 # the engine under AddressSanitizer and UndefinedBehaviorSanitizer (also run by make test)
 sanitize: $(STAMP)
 	$(BIN)/python tests/sanitize.py build/sanitize
+
+# the suite under other floating-point configurations: -O0 without contraction, fused
+# multiply-add, -O3 -march=native, clang, OpenBLAS's oldest x86-64 kernel (tools/portable.py)
+portable: $(STAMP)
+	$(BIN)/python tools/portable.py
 
 # the sweep benchmark's Monte Carlo is 100 000 runs (issue 22); make bench runs 3000 of
 # them so that it finishes in minutes: VSJ_SWEEP_RUNS=100000 make bench for the full study

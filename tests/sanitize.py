@@ -29,7 +29,9 @@ FLAGS = ["-fsanitize=address,undefined", "-fno-sanitize-recover=undefined",
 
 
 def compiler() -> str:
-    for cc in ("gcc", "cc", "clang"):
+    for cc in (os.environ.get("CC"), "gcc", "cc", "clang"):
+        if not cc:
+            continue
         if shutil.which(cc):
             return cc
     raise SystemExit("sanitize: no C compiler")

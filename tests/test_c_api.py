@@ -8,6 +8,7 @@ same engine: equal to round-off in the printed outputs) and with
 """
 
 import json
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -32,10 +33,16 @@ SAME_TOL = 1e-13
 
 
 def compiler() -> str:
-    for cc in ("cc", "gcc", "clang"):
-        if shutil.which(cc):
+    """$CC if set (as `make portable` sets it), else the system's compiler."""
+    for cc in (os.environ.get("CC"), "cc", "gcc", "clang"):
+        if cc and shutil.which(cc):
             return cc
     raise RuntimeError("no C compiler found (vsj's install needs one, see the README)")
+
+
+#: Extra flags of the configuration under test (`make portable`'s optimisation and
+#: contraction settings), after the example's own.
+EXTRA_FLAGS = os.environ.get("VSJ_TEST_CFLAGS", "").split()
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +50,7 @@ def step_wrist(tmp_path_factory) -> Path:
     exe = tmp_path_factory.mktemp("c") / "step_wrist"
     sources = sorted(str(p) for p in ENGINE.glob("*.c"))
     subprocess.run([compiler(), "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic",
-                    "-I", str(ENGINE), "-o", str(exe), str(EXAMPLE), *sources, "-lm"],
+                    *EXTRA_FLAGS, "-I", str(ENGINE), "-o", str(exe), str(EXAMPLE), *sources, "-lm"],
                    check=True, capture_output=True, text=True)
     return exe
 

@@ -8,8 +8,9 @@ Each reference is a scenario of `vsj.scenario` (built-in), possibly with a
 changed friction law or elastic model, simulated case by case with
 `vsj.simulate.simulate` exactly as `vsj simulate` runs it. The file
 ``<name>.npz`` holds, per case, the sample times (every `DECIMATE`-th output
-sample), the signals named by `kept`, the stick/slip transition count and the
-ledger's relative residual. `tests/test_regression.py` compares the current
+sample), the signals named by `kept`, the stick/slip transition count, the
+ledger's relative residual and where the stick/slip pattern changes
+(`pattern_changes`). `tests/test_regression.py` compares the current
 engine with them inside tubes in the manner of the Modelica Standard Library's
 regression tests.
 
@@ -77,12 +78,13 @@ def kept(name: str) -> bool:
     return not name.endswith((".power", ".energy", ".stiffness"))
 
 
-def load(name: str):
-    """The scenario of reference ``name``, with its overrides applied."""
+def load(name: str, solver: dict | None = None):
+    """The scenario of reference ``name``, with its overrides applied (and ``solver``
+    merged into its [solver] table, if given)."""
     base, over = REFERENCES[name]
     scen = scenarios.load(base)
     table = dict(scen.table)
-    for key, value in over.items():
+    for key, value in list(over.items()) + [("solver", solver or {})]:
         if key in MERGED:
             merged = dict(table.get(key, {}))
             merged.update(value)
@@ -94,12 +96,30 @@ def load(name: str):
     return scenarios.loads(tomli_w.dumps(table), f"reference {name}")
 
 
-def run(name: str) -> dict[str, np.ndarray]:
-    """Simulate every case of reference ``name``; arrays keyed ``case/what``."""
-    scen = load(name)
-    params = parameters.default()
+def pattern_changes(result) -> np.ndarray:
+    """Per output sample, whether any friction element's stick/slip state differs at
+    the sample before or after it: there a held force is decided at a threshold and
+    may take any value of its Coulomb set (see tests/test_regression.py)."""
+    stuck = [result[s] for s in result.columns() if s.endswith(".stuck")]
+    change = np.zeros(len(result.time), dtype=bool)
+    if stuck:
+        flips = np.any(np.diff(np.array(stuck), axis=1) != 0.0, axis=0)
+        change[1:] |= flips
+        change[:-1] |= flips
+    return change
+
+
+def run(name: str, solver: dict | None = None, params=None,
+        labels=None) -> dict[str, np.ndarray]:
+    """Simulate every case of reference ``name`` (or those in ``labels``); arrays keyed
+    ``case/what``. ``solver`` amends the scenario's [solver] table (a tighter rtol, a
+    shorter step); ``params`` replaces the bundled parameter set."""
+    scen = load(name, solver)
+    params = parameters.default() if params is None else params
     out = {}
     for case in scen.cases:
+        if labels is not None and case.label not in labels:
+            continue
         result = scenarios.prepare_case(scen, case, params).run(ports=False)
         if not result.success:
             raise RuntimeError(f"{name} [{case.label}]: {result.message}")
@@ -109,12 +129,54 @@ def run(name: str) -> dict[str, np.ndarray]:
                 out[f"{case.label}/{signal}"] = result[signal][::DECIMATE]
         out[f"{case.label}/transitions"] = np.array(sum(result.transitions.values()))
         out[f"{case.label}/relative_residual"] = np.array(result.ledger["relative_residual"])
+        out[f"{case.label}/pattern_change"] = pattern_changes(result)[::DECIMATE]
+    return out
+
+
+#: A smooth run's global error is measured against a rerun at this fraction of its
+#: rtol: the error of an error-per-step controller follows its tolerance, so the
+#: rerun's own error is about this fraction of the run's.
+REFINE = 0.01
+#: Suffix of the keys that hold each signal's measured global error.
+ERROR = "@error"
+
+
+def smooth_cases(name: str) -> dict[str, float]:
+    """The cases of reference ``name`` that dopri integrates, with their rtol."""
+    from vsj.simulate import choose_solver
+
+    scen = load(name)
+    out = {}
+    for case in scen.cases:
+        structure = scenarios.prepare_case(scen, case, parameters.default()).structure
+        if choose_solver(structure, case.options) == "dopri":
+            out[case.label] = case.options.rtol
+    return out
+
+
+def global_errors(name: str, current: dict, params=None, labels=None) -> dict[str, np.ndarray]:
+    """Each kept signal's global error in the smooth cases of ``current`` (a `run` of
+    ``name``): its largest distance from a rerun at `REFINE` times the rtol, divided
+    by 1 - REFINE for the rerun's own error. Keyed ``case/signal@error``."""
+    cases = {c: rtol for c, rtol in smooth_cases(name).items()
+             if (labels is None or c in labels) and f"{c}/time" in current}
+    if not cases:
+        return {}
+    assert len(set(cases.values())) == 1, "one rtol per reference"
+    refined = run(name, {"rtol": REFINE * next(iter(cases.values()))}, params, set(cases))
+    out = {}
+    for key, values in refined.items():
+        case, what = key.split("/", 1)
+        if case in cases and what not in ("time", "transitions", "relative_residual",
+                                           "pattern_change"):
+            out[key + ERROR] = np.array(np.max(np.abs(current[key] - values)) / (1 - REFINE))
     return out
 
 
 def main(names: list[str]) -> None:
     for name in names or list(REFERENCES):
         arrays = run(name)
+        arrays.update(global_errors(name, arrays))
         np.savez_compressed(HERE / f"{name}.npz", **arrays)
         cases = sorted({key.split("/")[0] for key in arrays})
         print(json.dumps({"reference": name, "cases": cases,
