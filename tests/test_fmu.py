@@ -238,6 +238,45 @@ def test_get_set_and_serialized_state_repeat_a_step_bit_for_bit(wrist_fmu, unzip
     assert first[3] > 0.0  # friction dissipates while the motors drive
 
 
+def test_a_state_taken_while_stuck_repeats_the_breakaway_bit_for_bit(wrist_fmu, unzipped):
+    """The state round trip across a stick-to-slip transition: saved while true
+    stiction holds the wrist, restored after it broke away; the steps that follow
+    repeat, with every element's stick/slip decision, to the last bit."""
+    path, _ = wrist_fmu
+    s = Slave(path, unzipped)
+    names = ("theta_x", "theta_y", "deflection_1", "deflection_2", "power_dissipated")
+
+    def stuck():
+        return s.fmu.getInteger([s.vr["n_stuck"]])[0]
+
+    s.step({"tau_x": 0.02}, 300)  # below breakaway: the wrist holds
+    held = stuck()
+    assert held > 0
+    saved = s.fmu.getFMUstate()
+    blob = s.fmu.serializeFMUstate(saved)
+    t_saved = s.t
+
+    def breakaway():
+        rows = []
+        for k in range(200):  # a torque that breaks it loose, then a reversal
+            s.step({"tau_x": 0.6 if k < 100 else -0.6})
+            rows.append([*s.get(*names), stuck()])
+        return np.array(rows)
+
+    first = breakaway()
+    assert first[:, -1].min() < held  # elements slipped free after the save
+    assert np.ptp(first[:, 0]) > 1e-3  # and the wrist moved
+    s.fmu.setFMUstate(saved)
+    s.t = t_saved
+    again = breakaway()
+    s.fmu.setFMUstate(s.fmu.deSerializeFMUstate(blob))
+    s.t = t_saved
+    thawed = breakaway()
+    s.fmu.freeFMUstate(saved)
+    s.close()
+    assert np.array_equal(first, again) and np.array_equal(first, thawed)
+
+
 def test_bad_calls_are_errors_with_a_logged_reason(wrist_fmu, unzipped):
     path, _ = wrist_fmu
     messages = []

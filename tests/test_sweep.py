@@ -315,3 +315,31 @@ def test_the_trajectory_file_reads_back_as_the_cases_dataset(tmp_path, params):
         xr.testing.assert_identical(ds.load(), cases_dataset(runs))
         assert np.isnan(ds["theta_y"].values[1]).all()
         assert np.isnan(ds["theta_x"].values[1, 7:]).all()
+
+
+def test_a_constant_expression_is_a_constant_signal(tmp_path):
+    """A [signals] expression without a signal or ``t`` is documented as a constant
+    signal: kept, it holds its value at every sample, and metrics use it as a signal."""
+    spec = tmp_path / "constant.toml"
+    spec.write_text("""
+[sweep]
+scenario = "fig-4.15"
+duration = "0.2 s"
+[vary]
+q = { values = ["-1 cm"] }
+[signals]
+level = "1 + 2"
+[metrics]
+offset = { kind = "tracking_peak", signal = "level", reference = "theta_x" }
+[output]
+keep = ["level", "theta_x"]
+every = "20 ms"
+""")
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec), "--out", str(out), "--workers", "1", "--no-plot"]) == 0
+    ds = store.open_dataset(out / store.ZARR)
+    kept = ds["signals"].sel(signal="level").values
+    assert kept.shape[-1] == 11 and np.all(kept == 3.0)
+    theta = ds["signals"].sel(signal="theta_x").values
+    assert ds["metrics"].sel(metric="offset").values[0] == pytest.approx(
+        np.max(np.abs(3.0 - theta)), rel=1e-12)

@@ -24,6 +24,7 @@ A sweep file is TOML; every value carries its unit, as in scenarios::
 
     [signals]                    # derived signals: expressions over the run's signals
     error_x = "theta_x - 0.5 * planetary.sun_teeth / (planetary.sun_teeth + planetary.ring_teeth) / transmission.ratio * (motor_1 + motor_2)"
+    target = "0.25 * pi"         # no signal and no t: a constant signal, that value at every sample
 
     [metrics]
     deflection = { kind = "peak", signal = "phi_1", start = "4 s" }
