@@ -331,9 +331,9 @@ def test_directory_outputs_are_checked_before_the_work(command, data, tmp_path, 
     foreign = tmp_path / "foreign"  # a directory holding files vsj did not write
     foreign.mkdir()
     (foreign / "notes.txt").write_text("mine\n")
-    (foreign / "meta.json").write_text("{}\n")  # a name vsj writes is no claim to the rest
+    (foreign / "meta.json").write_text("{}\n")  # a name vsj writes does not make it vsj's
     err = run_refused(argv, data, foreign, "--out", capsys)
-    assert "files that vsj did not write (notes.txt)" in err
+    assert "files that vsj did not write (meta.json, notes.txt" in err
     assert (foreign / "notes.txt").read_text() == "mine\n" and a_file.read_text() == "mine\n"
     assert sorted(os.listdir(tmp_path)) == ["a-file", "foreign"]
 
@@ -461,16 +461,19 @@ def test_sets_of_several_commands_share_a_directory(tmp_path, capsys):
     assert verify(out) == []
 
 
-def test_results_of_an_earlier_vsj_without_a_manifest_are_taken_over(tmp_path):
+def test_files_in_a_directory_without_a_manifest_are_never_taken(tmp_path, capsys):
+    """Without a manifest nothing in a directory is vsj's, whatever its name (an earlier
+    vsj that kept none, or a user's own trajectory.nc): the directory is refused and
+    every file stays as it was."""
     out = tmp_path / "out"
     out.mkdir()
     for name in ("trajectory.nc", "trajectory.csv", "meta.json", "datasheet.html"):
-        (out / name).write_text("written by an earlier vsj\n")
-    assert main(["simulate", str(scenario(tmp_path)), "--out", str(out), "--no-plot"]) == 0
-    assert sorted(os.listdir(out)) == sorted(["datasheet.html", "meta.json", MANIFEST,
-                                              "trajectory.nc"])
-    assert (out / "datasheet.html").read_text() == "written by an earlier vsj\n"
-    assert verify(out) == []
+        (out / name).write_text("written by someone else\n")
+    assert main(["simulate", str(scenario(tmp_path)), "--out", str(out), "--no-plot"]) == 2
+    assert "did not write (datasheet.html, meta.json, trajectory.csv, trajectory.nc" in \
+        capsys.readouterr().err
+    for name in ("trajectory.nc", "trajectory.csv", "meta.json", "datasheet.html"):
+        assert (out / name).read_text() == "written by someone else\n"
 
 
 def test_what_a_killed_run_left_is_cleared_by_the_next(tmp_path, capsys):
@@ -488,7 +491,7 @@ def test_what_a_killed_run_left_is_cleared_by_the_next(tmp_path, capsys):
     (in_place / "trajectory.nc").write_text("partial")
     (out / ".meta.json.vsj-tmp-1234abcd").write_text("partial")
     assert main(["simulate", str(scenario(tmp_path)), "--out", str(out), "--no-plot"]) == 2
-    assert "files that vsj did not write (notes.txt)" in capsys.readouterr().err
+    assert "files that vsj did not write (notes.txt" in capsys.readouterr().err
     assert hidden(tmp_path) == [] and hidden(out) == []
     assert (out / "notes.txt").read_text() == "a user's file that ended up here\n"
     (out / "notes.txt").unlink()

@@ -14,7 +14,8 @@ them as one `ResultSet`, which
 1. checks the directory before any work is done (`OutputError`, exit code 2,
    naming the option and the path): not an existing file, creatable, writable,
    enough free space for a conservative estimate of the results, and holding
-   nothing but files vsj wrote (vsj never removes a file it did not write);
+   nothing but files vsj wrote, as its manifest records them (vsj never replaces
+   or removes a file it did not write, whatever its name);
 2. takes an exclusive lock on the directory (``flock``) and refuses a second
    writer; the kernel drops the lock when its holder dies, so none goes stale;
 3. has the new files written into a hidden staging directory beside the
@@ -80,8 +81,8 @@ from .simulate import Result
 MANIFEST = "vsj-manifest.json"
 
 #: The files each kind of result set may hold (regular expressions of file names).
-#: A file matching one of them is taken for vsj's own in a directory without a
-#: manifest (one written before vsj kept manifests); vsj never removes any other.
+#: A file is vsj's only if a directory's manifest records it: whatever its name, vsj
+#: never replaces or removes any other.
 OUTPUTS = {
     "simulate": r"trajectory\.(?:nc|csv|png)|meta\.json",
     "reproduce": r"fig-\d+\.\d+(?:-[a-z]+)?\.(?:png|svg)|results\.json|report\.html",
@@ -231,9 +232,48 @@ def _reason(exc: OSError) -> str:
     return exc.strerror or str(exc)
 
 
-def check_output_file(path: str | Path, option: str, *, size: int = 0) -> Path:
+#: How much of an existing file `written_by_vsj` reads to recognise it.
+_SNIFF_BYTES = 64 * 1024
+
+
+def written_by_vsj(path: str | Path) -> bool:
+    """Whether the existing file ``path`` carries vsj's mark: an FMU whose
+    modelDescription.xml names vsj as its generation tool, a JSON document with a
+    ``vsj`` or ``vsj_version`` key (or a ``format`` that starts with ``vsj``), or a text
+    file (TOML, CSV) whose comment lines at the top name vsj. Unreadable or other files
+    are not vsj's."""
+    import zipfile
+
+    path = Path(path)
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(_SNIFF_BYTES)
+            if head.startswith(b"PK"):
+                handle.seek(0)
+                with zipfile.ZipFile(handle) as archive:
+                    if "modelDescription.xml" in archive.namelist():
+                        xml = archive.read("modelDescription.xml")[:_SNIFF_BYTES]
+                        return re.search(rb'generationTool="vsj[ "]', xml) is not None
+                    return "vsj_version.npy" in archive.namelist()
+            if head.lstrip().startswith(b"{"):
+                handle.seek(0)
+                document = json.loads(handle.read(SMALL_OUTPUT_BYTES).decode("utf-8"))
+                return isinstance(document, dict) and (
+                    "vsj" in document or "vsj_version" in document
+                    or str(document.get("format", "")).startswith("vsj"))
+    except (OSError, ValueError, zipfile.BadZipFile, UnicodeDecodeError):
+        return False
+    for line in head.decode("utf-8", errors="replace").splitlines()[:20]:
+        if line.startswith("#") and re.search(r"\bvsj\b", line):
+            return True
+    return False
+
+
+def check_output_file(path: str | Path, option: str, *, size: int = 0,
+                      force: bool = False) -> Path:
     """`OutputError` unless a file can be written at ``path`` (checked before the work that
-    produces it): not a directory, its directory creatable and writable (tried with a
+    produces it): not a directory, not an existing file that vsj did not write (unless
+    ``force``: `written_by_vsj`), its directory creatable and writable (tried with a
     temporary file that leaves nothing behind), and ``size`` bytes free. Writes nothing."""
     path = Path(path)
     shown = f"{option} {path}"
@@ -241,6 +281,14 @@ def check_output_file(path: str | Path, option: str, *, size: int = 0) -> Path:
         raise OutputError(f"{shown}: is a directory; give the name of a file")
     if path.name in ("", ".", ".."):
         raise OutputError(f"{shown}: give the name of a file")
+    if not force and (path.exists() or path.is_symlink()):
+        if not path.is_file():
+            raise OutputError(f"{shown}: exists and is not a regular file; vsj replaces only "
+                              "files it wrote")
+        if not written_by_vsj(path):
+            raise OutputError(f"{shown}: exists and vsj did not write it; vsj never replaces "
+                              "a file it did not write: choose another name, or give --force "
+                              "to replace it")
     existing = _nearest_existing(path.parent)
     if not existing.is_dir():
         raise OutputError(f"{shown}: cannot create a file there: {existing} is not a directory")
@@ -614,7 +662,6 @@ class ResultSet:
         mine = self._sets.get(self.name, {}).get("files", {})
         others = {f for name, entry in self._sets.items() if name != self.name
                   for f in entry.get("files", {})}
-        any_output = re.compile(_ANY_OUTPUT)
         foreign = []
         for entry in os.scandir(self.dir):
             name = entry.name
@@ -622,18 +669,18 @@ class ResultSet:
                 continue
             if not entry.is_file(follow_symlinks=False):
                 foreign.append(name + ("/" if entry.is_dir(follow_symlinks=False) else ""))
-            elif name in mine or (name not in others and self._own.fullmatch(name)):
+            elif name in mine:
                 self._old.add(name)
-            elif name not in others and not any_output.fullmatch(name):
+            elif name not in others:  # not in the manifest, whatever its name
                 foreign.append(name)
         if foreign:
             foreign.sort()
             listed = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more"
                                                if len(foreign) > 5 else "")
-            raise OutputError(f"{self._shown}: holds files that vsj did not write ({listed}); "
-                              "vsj replaces the results in a directory as a whole and never "
-                              "removes other files: move them away or choose another "
-                              "directory")
+            raise OutputError(f"{self._shown}: holds files that vsj did not write ({listed}: "
+                              f"not recorded in a {MANIFEST}); vsj replaces the results in a "
+                              "directory as a whole and never removes other files: move them "
+                              "away or choose another directory")
 
     # the work writes through `path`
 

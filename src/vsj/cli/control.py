@@ -139,7 +139,7 @@ def cmd_export_model(args) -> int:
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
     from ..simulate import InitialState, SimulationOptions
 
-    check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES)
+    check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES, force=args.force)
     params = _params(args.params)
     method = args.method or ("timestep" if args.friction == "stiction" else "dopri")
     options = SimulationOptions(friction=args.friction,
@@ -170,7 +170,7 @@ def cmd_fmu(args) -> int:
     if args.out is not None:
         if Path(args.out).suffix != ".fmu":
             raise InputError(f"--out {args.out}: an FMU is written to a .fmu file")
-        check_output_file(args.out, "--out", size=8 * 2 ** 20)
+        check_output_file(args.out, "--out", size=8 * 2 ** 20, force=args.force)
     if args.cross_check is not None and Path(args.cross_check).exists() \
             and not Path(args.cross_check).is_dir():
         raise InputError(f"--cross-check {args.cross_check}: not a directory")
@@ -264,6 +264,8 @@ def register(sub) -> None:
                     "that the C library reads (vsj_load_model) and steps one control period "
                     "at a time (examples/c/step_wrist.c).")
     p.add_argument("--out", metavar="FILE", required=True, help="model file to write (JSON)")
+    p.add_argument("--force", action="store_true",
+                   help="replace --out even if vsj did not write it")
     p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
     _add_wrist_arguments(p, ELASTIC_MODELS, DRIVES, pivot_drive=True)
     p.add_argument("--friction", default="arctan", choices=list(LAWS),
@@ -290,6 +292,8 @@ def register(sub) -> None:
                     "mingw-w64 where installed), its sources with buildDescription.xml, and "
                     "the model in resources/. See the README, 'The wrist as an FMU'.")
     p.add_argument("--out", metavar="FILE", help="FMU to write (.fmu)")
+    p.add_argument("--force", action="store_true",
+                   help="replace --out even if vsj did not write it")
     p.add_argument("--cross-check", metavar="DIR",
                    help="also (or instead) write an FMI cross-check folder under DIR "
                         "(fmus/2.0/cs/<platform>/vsj/<version>/vsj_wrist: the FMU, "
