@@ -662,9 +662,9 @@ def test_linearize_options(tmp_path, capsys, option, value, message):
 
 
 def test_linearize_leaves_an_existing_model_file_alone(tmp_path, capsys):
-    out = write(tmp_path / "lin.json", '{"earlier": true}')
+    out = write(tmp_path / "lin.json", '{"format": "vsj-linear-model", "earlier": true}')
     fails(["linearize", "--q=2*3 cm", "--out", out], capsys, "--q")
-    assert out.read_text() == '{"earlier": true}'
+    assert out.read_text() == '{"format": "vsj-linear-model", "earlier": true}'
 
 
 @pytest.mark.parametrize("argv,expected", [

@@ -80,3 +80,32 @@ def test_vsjs_mark(tmp_path, text, ours):
     path = tmp_path / "f"
     path.write_text(text)
     assert written_by_vsj(path) is ours
+
+
+# ---- the Python API checks its arguments (issue 31, item 12) -------------------------
+
+def test_simulate_says_what_an_input_must_be(params):
+    import numpy as np
+
+    import vsj
+    from vsj.errors import InputError
+    from vsj.inputs import Constant
+
+    wrist = vsj.build_wrist(params).assemble()
+    with pytest.raises(InputError, match=r"input 'motor_1' must be a vsj.inputs signal .* got "
+                                         r"ndarray \(samples: Table\(times, values\)"):
+        vsj.simulate(wrist, {"motor_1": np.array([0.0, 1.0])}, 0.1)
+    with pytest.raises(InputError, match="unknown input channel 'motor_9'"):
+        vsj.simulate(wrist, {"motor_9": Constant(1.0)}, 0.1)
+    with pytest.raises(InputError, match="inputs must be a mapping"):
+        vsj.simulate(wrist, [Constant(1.0)], 0.1)
+    with pytest.raises(InputError, match="assembled network"):
+        vsj.simulate(vsj.build_wrist(params), {}, 0.1)
+    with pytest.raises(InputError, match="duration must be a number"):
+        vsj.simulate(wrist, {}, "1 s")
+    with pytest.raises(InputError, match="options must be a SimulationOptions"):
+        vsj.simulate(wrist, {}, 0.1, options={"friction": "arctan"})
+    # a number is a constant input
+    a = vsj.simulate(wrist, {"motor_1": 1.5}, 0.05, ports=False)
+    b = vsj.simulate(wrist, {"motor_1": Constant(1.5)}, 0.05, ports=False)
+    assert a.success and np.array_equal(a["theta_x"], b["theta_x"])

@@ -19,6 +19,7 @@ counts the knots a duration needs, and more than `MAX_KNOTS` raise `InputError`
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,6 +54,35 @@ class Input:
 
     def describe(self) -> str:
         return repr(self)
+
+
+def as_inputs(inputs, channels) -> dict[str, Input]:
+    """``inputs`` checked as a run's inputs: a mapping from channel names (of
+    ``channels``) to `Input` signals, where a plain number stands for a `Constant`.
+    Anything else (an array of samples, a function) is refused with what to write
+    instead."""
+    if not isinstance(inputs, Mapping):
+        raise InputError(f"inputs must be a mapping of channel names to signals, got "
+                         f"{type(inputs).__name__}")
+    out = {}
+    for name, signal in inputs.items():
+        if not isinstance(name, str):
+            raise InputError(f"input channel names are strings, got {name!r}")
+        if name not in channels:
+            raise InputError(f"unknown input channel {name!r}; the network has "
+                             f"{', '.join(channels) or 'none'}")
+        if isinstance(signal, Input):
+            out[name] = signal
+        elif isinstance(signal, (int, float, np.integer, np.floating)) \
+                and not isinstance(signal, bool):
+            out[name] = Constant(float(signal))
+        else:
+            hint = (" (samples: Table(times, values), or Hold(times, values) to hold each)"
+                    if isinstance(signal, (np.ndarray, list, tuple)) else "")
+            raise InputError(f"input {name!r} must be a vsj.inputs signal (Constant, Sine, "
+                             f"Step, Table, Hold, Position, ...) or a number, got "
+                             f"{type(signal).__name__}{hint}")
+    return out
 
 
 def spline_pieces(t, y) -> Pieces:

@@ -78,7 +78,7 @@ def cmd_linearize(args) -> int:
     if args.out is not None and Path(args.out).suffix not in (".json", ".npz"):
         raise InputError(f"--out {args.out}: a linear model is written to a .json or .npz file")
     if args.out is not None:
-        check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES)
+        check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES, force=args.force)
     params = _params(args.params)
     model = linear.linearize(
         params, _quantity(args.q, "m", "--q"),
@@ -235,6 +235,8 @@ def register(sub) -> None:
     p.add_argument("--outputs", metavar="NAMES", help="comma-separated outputs to keep")
     p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
     p.add_argument("--out", metavar="FILE", help="write the model to FILE (.json or .npz)")
+    p.add_argument("--force", action="store_true",
+                   help="replace --out even if vsj did not write it")
     p.add_argument("--json", action="store_true", help="print the model as JSON")
     p.set_defaults(func=cmd_linearize)
 

@@ -8,6 +8,7 @@ from typing import Mapping
 
 import numpy as np
 
+from .. import __version__
 from ..errors import InputError
 from .data import FRICTION_TREATMENTS, LinearData
 
@@ -88,7 +89,8 @@ def save(model: LinearData, path: Path) -> None:
                      outputs=np.array(model.output_labels),
                      state_units=np.array(model.state_units),
                      input_units=np.array(model.input_units),
-                     output_units=np.array(model.output_units), meta=np.array(json.dumps(meta)))
+                     output_units=np.array(model.output_units), meta=np.array(json.dumps(meta)),
+                     vsj_version=np.array(__version__))
     else:
         raise InputError(f"{path}: write a linear model to a .json or .npz file")
 

@@ -12,7 +12,7 @@ from ..engine import STATUS_TEXT, Engine, compile_model, core
 from ..errors import InputError
 from ..inputs import Input
 from ..network import Structure
-from .driver import _initial, choose_solver, prepare
+from .driver import _initial, check_arguments, choose_solver, prepare
 from .options import InitialState, SimulationOptions
 from .result import BatchResult
 from .signals import state_names
@@ -51,9 +51,9 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
     `BatchResult.angle` and `speed`. ``threads`` (default: every core) share
     the runs; the results do not depend on their number.
     """
-    options = options or SimulationOptions()
-    if not initials:
-        raise InputError("simulate_batch needs at least one initial state")
+    inputs, options, _ = check_arguments(structure, inputs, duration, options, None)
+    if not initials or not all(isinstance(i, InitialState) for i in initials):
+        raise InputError("simulate_batch needs a list of at least one InitialState")
     if structures is not None and len(structures) != len(initials):
         raise InputError(f"simulate_batch: {len(structures)} structures for {len(initials)} runs")
     solver = choose_solver(structure, options)

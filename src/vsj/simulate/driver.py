@@ -12,7 +12,7 @@ import numpy as np
 from ..engine import STATUS_TEXT, Engine, compile_model, core
 from ..engine.model import friction_laws_for
 from ..errors import InputError
-from ..inputs import Input
+from ..inputs import Input, as_inputs
 from ..network import Structure
 from ..springs import end_stop
 from .checks import judge, warnings_of
@@ -44,6 +44,29 @@ def _initial(structure: Structure, inputs: Mapping[str, Input], initial: Initial
         raise InputError(f"initial current given for unknown motor(s) {', '.join(unknown)}")
     currents = np.array([initial.currents.get(name, 0.0) for name in motor_names])
     return x0, v0, sigma0, currents
+
+
+def check_arguments(structure, inputs, duration, options, initial):
+    """The arguments of a run, checked before anything is compiled: ``(inputs, options,
+    initial)`` with numbers as constant inputs and the defaults filled in. Raises
+    `InputError` naming the argument and what it must be."""
+    if not isinstance(structure, Structure):
+        raise InputError(f"simulate: the model must be an assembled network (a Structure: "
+                         f"Network.assemble(), or vsj.build_wrist(params).assemble()), got "
+                         f"{type(structure).__name__}")
+    if isinstance(duration, bool) or not isinstance(duration, (int, float, np.integer,
+                                                                np.floating)):
+        raise InputError(f"simulate: duration must be a number of seconds, got "
+                         f"{type(duration).__name__}")
+    options = SimulationOptions() if options is None else options
+    if not isinstance(options, SimulationOptions):
+        raise InputError(f"simulate: options must be a SimulationOptions, got "
+                         f"{type(options).__name__}")
+    initial = InitialState() if initial is None else initial
+    if not isinstance(initial, InitialState):
+        raise InputError(f"simulate: initial must be an InitialState, got "
+                         f"{type(initial).__name__}")
+    return as_inputs(inputs, structure.channels()), options, initial
 
 
 def rigid_stops(structure: Structure) -> list[str]:
@@ -97,8 +120,7 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
     A failed run returns ``success=False`` with the time and state of the
     failure in ``message``; its samples up to the failure are kept.
     """
-    options = options or SimulationOptions()
-    initial = initial or InitialState()
+    inputs, options, initial = check_arguments(structure, inputs, duration, options, initial)
     solver = choose_solver(structure, options)
     check_run_size(structure, duration, options, solver)
     model, layout, y0 = prepare(structure, inputs, duration, options, initial)
