@@ -91,12 +91,12 @@ def test_eight_parameters_come_back_within_their_standard_errors(fits, truth):
 
 def test_the_channels_delay_is_found(fits):
     """`vsj synth wrist` records the end-effector encoders 0.2 ms late (the value at
-    t + 0.2 ms is logged at t): each compared signal's delay comes back as -0.2 ms."""
+    t - 0.2 ms is logged at t): each compared signal's delay comes back as +0.2 ms."""
     for f in fits:
         assert [d.name for d in f.delays] == ["delay.theta_x", "delay.theta_y"]
         for d in f.delays:
             assert d.status == "determined"
-            assert abs(d.value + WE.Sensors().time_offset) <= Z_LIMIT * d.stderr
+            assert abs(d.value - WE.Sensors().time_offset) <= Z_LIMIT * d.stderr
 
 
 def test_standard_errors_agree_with_the_spread(fits, truth):

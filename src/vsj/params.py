@@ -264,7 +264,9 @@ class Parameters:
         return rows
 
     def to_toml(self) -> str:
-        """The set as a parameter file (values in their display units)."""
+        """The set as a parameter file (values in their display units, each with the
+        fewest digits, 10 at least, that read back as the same number: a file written
+        from an identified set gives the set itself)."""
         import tomli_w
 
         doc: dict = {"meta": dict(self.meta)} if self.meta else {}
@@ -272,10 +274,19 @@ class Parameters:
             doc[section] = {}
             for name, spec in specs.items():
                 key = f"{section}.{name}"
-                doc[section][name] = {"value": format_quantity(self.values[key], spec.display,
-                                                               digits=10),
+                doc[section][name] = {"value": _exact_text(self.values[key], spec, key),
                                       "source": self.sources[key]}
         return tomli_w.dumps(doc)
+
+
+def _exact_text(value: float, spec: Spec, key: str) -> str:
+    """``value`` [SI] in ``spec``'s display unit with the fewest significant digits from 10
+    up that `to_si` reads back exactly (17 always do, unless the unit's conversion rounds)."""
+    for digits in range(10, 18):
+        text = format_quantity(value, spec.display, digits=digits)
+        if to_si(text, spec.unit, where=key, infinite=spec.infinite) == value:
+            break
+    return text
 
 
 class _Section:

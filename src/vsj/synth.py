@@ -256,17 +256,26 @@ def stiffness(*, q: float, params: Parameters, noise: float = 0.01, play: float 
                       "pivot": (np.full(len(torque), q), "cm")}, comments)
 
 
+def run_end(experiment) -> float:
+    """How long [s] the run behind a log of ``experiment`` lasts: the experiment, and
+    as long again as its end-effector channels lead the motor channels (a negative
+    ``time_offset``), since they record the wrist that much later in its motion."""
+    return experiment.duration + max(0.0, -experiment.sensors.time_offset)
+
+
 def wrist_run(experiment, params: Parameters):
     """The noiseless run of ``experiment`` with ``params`` (true stiction, at the
-    experiment's step): the `vsj.simulate` result every synthetic wrist log samples."""
+    experiment's step) up to `run_end`: the `vsj.simulate` result every synthetic wrist
+    log samples. The inputs follow the experiment's signals past its duration."""
     from .simulate import SimulationOptions, simulate
     from .wrist import WristOptions, build_wrist
 
     e = experiment
+    end = run_end(e)
     options = WristOptions(motors=e.motors, elastic=e.elastic)
     structure = build_wrist(params, options).assemble()
     lo, hi = params.pivot.q_min, params.pivot.q_max
-    grid = np.arange(int(math.ceil(e.duration / e.step)) + 2) * e.step
+    grid = np.arange(int(math.ceil(end / e.step)) + 2) * e.step
     q_path = e.value("q", grid)
     if not (np.all(q_path >= lo - 1e-12) and np.all(q_path <= hi + 1e-12)):
         raise InputError(f"{e.origin}: the pivot position leaves the range [{lo * 100:g}, "
@@ -277,7 +286,7 @@ def wrist_run(experiment, params: Parameters):
     ru = structure.rows(structure.pivot.flange)[1][j]
     motor_s = np.arcsin(q_path / structure.pivot.amplitude) / ru
     inputs["motor_s"] = Position(Table(tuple(grid), tuple(motor_s)))
-    result = simulate(structure, inputs, e.duration, ports=False,
+    result = simulate(structure, inputs, end, ports=False,
                       options=SimulationOptions(friction="stiction", step=e.step,
                                                 output_step=e.step))
     if not result.success:
@@ -291,27 +300,35 @@ def wrist(experiment, params: Parameters, *, seed: int = 1, run=None) -> SynthFi
 
     The wrist is simulated with true stiction at the experiment's step; the log then
     gets the artefacts of real sensors (`Sensors`): sample times with jitter, the
-    end-effector channels delayed behind the motor channels, encoder quantisation of
-    every angle after white noise, a current sensor with an offset and noise, a torque
-    sensor with noise on the applied external torques, and a noisy pivot sensor. The
-    commands (motor speeds or voltages) are logged as sent. ``run``: the result of
-    `wrist_run` for this experiment and parameter set, if already at hand.
+    end-effector channels ``time_offset`` behind the motor channels (the angle they log
+    at time t is the one at t - time_offset: a lag, or a lead when negative; before the
+    start the wrist is at rest where it starts), encoder quantisation of every angle
+    after white noise, a current sensor with an offset and noise, a torque sensor with
+    noise on the applied external torques, and a noisy pivot sensor. The commands
+    (motor speeds or voltages) are logged as sent. ``run``: the result of `wrist_run`
+    for this experiment and parameter set, if already at hand.
     """
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise InputError(f"seed = {seed!r}: must be a whole number >= 0")
     e = experiment
     result = wrist_run(e, params) if run is None else run
+    if result.time[-1] < run_end(e) - 0.5 * e.step:
+        raise InputError(f"{e.origin}: the run given ends at {result.time[-1]:g} s; a log "
+                         f"of this experiment needs it to {run_end(e):g} s (vsj.synth.run_end)")
     s = e.sensors
     rng = np.random.default_rng(seed)
     n = int(math.floor(e.duration / e.sample_period + 1e-9))
     nominal = np.arange(n) * e.sample_period
-    t = np.clip(nominal + rng.normal(0.0, s.jitter, n), 0.0, e.duration - s.time_offset)
+    # the jitter is below a tenth of a period (`Sensors`), so the sample times keep their
+    # order; the clip keeps the first and the last inside the experiment
+    t = np.clip(nominal + rng.normal(0.0, s.jitter, n), 0.0, e.duration)
     t = np.maximum.accumulate(t)
     t = t + np.arange(n) * 1e-12 * e.sample_period  # strictly increasing, whatever the jitter
     resolution = 2 * math.pi / s.encoder_counts
 
     def at(name, delay=0.0):
-        return np.interp(t + delay, result.time, result[name])
+        # a channel ``delay`` behind logs at t what the wrist did at t - delay
+        return np.interp(t - delay, result.time, result[name])
 
     def encoder(values):
         return np.round((values + rng.normal(0.0, s.angle_noise, n)) / resolution) * resolution

@@ -182,38 +182,99 @@ def cmd_fit_planetary(args) -> int:
         if results is not None:
             write_meta(results.path("planetary.json"), result.to_json())
             save(planetary_figure(result), results.path("planetary.png"))
-    _print_json(args, result.to_json())
+    record = result.to_json()
     lines = [result.verdict]
     for name, s in result.fits.items():
-        lines.append(f"{name} model: {'explains both curves' if s.explains else 'rejected'} "
+        verdict = ("rejected" if not s.explains else "passes, but the test does not "
+                   "discriminate" if s.too_small else "explains both curves")
+        lines.append(f"{name} model: {verdict} "
                      f"(chi2 {s.chi2:.3g} on {s.dof} dof, p = {s.p_value:.2g}; rms deviation "
                      + ", ".join(f"{k} {v * 1e3:.3g} mN m" for k, v in s.misfit.items()) + ")")
+        if s.explains:
+            lines += [f"  {what}: {text}" for what, text in
+                      (("caution", s.caution()), ("noise", s.noise_note())) if text]
     chosen = result.chosen
     if chosen is not None:
-        lines.append(f"parameters ({chosen.structure} model):")
-        for e in chosen.parameters:
-            err = (f"+- {e.stderr:.2g}" if math.isfinite(e.stderr)
-                   else "(at a bound)" if e.name in chosen.at_bound else "(not determined)")
-            lines.append(f"  {e.name:<5} = {e.value:.5g} {err} {e.unit}")
-        if chosen.undetermined:
-            lines.append("  not determined by these data: " + ", ".join(chosen.undetermined))
-        for c in chosen.combinations:
-            lines.append(f"  determined: {c}")
-        if chosen.at_bound:
-            lines.append("  at a bound: " + ", ".join(chosen.at_bound))
+        lines += _planetary_parameters(chosen)
     if out is not None:
         lines.append(f"wrote {out / 'planetary.png'}, {out / 'planetary.json'}")
+    failed = None
     if args.write_params and chosen is not None:
-        files = f"{args.fixed_sun} and {args.fixed_ring}"
-        _write_params(args.write_params, result.parameter_overrides(files), args.params)
-        lines.append(f"wrote {args.write_params}")
+        deviation = _write_planetary_params(args, result)
+        record["written"] = {"file": args.write_params, "round_trip_deviation": deviation}
+        lines.append(f"wrote {args.write_params}: the bench run forward with it gives the "
+                     f"fitted curves to {deviation:.2g} of their largest torque")
+        if not deviation <= PLANETARY_ROUND_TRIP:
+            failed = (f"{args.write_params} does not reproduce the fitted curves (relative "
+                      f"deviation {deviation:.3g}, allowed {PLANETARY_ROUND_TRIP:g})")
+    _print_json(args, record)
     _say(args, "\n".join(lines))
     if chosen is None:
         print("vsj: no parameter set explains both curves"
               + (f"; {args.write_params} not written" if args.write_params else ""),
               file=sys.stderr)
         return 1
+    if failed:
+        print(f"vsj: {failed}", file=sys.stderr)
+        return 1
     return 0
+
+
+#: A parameter file written by ``fit planetary --write-params`` reproduces the fitted
+#: curves to this fraction of their largest torque: the values are written in full
+#: precision, and the bench and the fit add the same seven friction torques in another
+#: order (rounding, about 1e-16).
+PLANETARY_ROUND_TRIP = 1e-9
+
+
+def _planetary_parameters(chosen) -> list[str]:
+    """The chosen structure's parameters, with what the data leave open."""
+    lines = [f"parameters ({chosen.structure} model):"]
+    for e in chosen.parameters:
+        err = (f"+- {e.stderr:.2g}" if math.isfinite(e.stderr)
+               else "(one of many)" if e.name in chosen.same_curves
+               else "(at a bound)" if e.name in chosen.at_bound else "(not determined)")
+        lines.append(f"  {e.name:<5} = {e.value:.5g} {err} {e.unit}")
+    alone = [n for n in chosen.undetermined if n not in chosen.same_curves]
+    if alone:
+        lines.append("  not determined by these data: " + ", ".join(alone))
+    for c in chosen.combinations:
+        lines.append(f"  determined: {c}")
+    bound = [n for n in chosen.at_bound if n not in chosen.same_curves]
+    if bound:
+        lines.append("  at a bound: " + ", ".join(bound))
+    if chosen.over_parameterised:
+        units = {e.name: e.unit for e in chosen.parameters}
+        lines.append("  over-parameterised: this set is one of many that give the very same "
+                     "curves:")
+        for name, (lo, hi) in chosen.same_curves.items():
+            lines.append(f"    {name} anywhere from {lo:.4g} to {hi:.4g} {units[name]} "
+                         "(the others adjusted)")
+    if chosen.ratio_one_of_many:
+        lo, hi = chosen.tooth_ratio_accepted
+        lines.append(f"  tooth ratio one of many: the test accepts every x from {lo:.3g} to "
+                     f"{hi:.3g} (refitted on a grid of step 0.05); give --tooth-ratio "
+                     "N_S/N_R if the gear's teeth are known")
+    return lines
+
+
+def _write_planetary_params(args, result) -> float:
+    """Write the set with the fit's planetary parameters; run the bench forward with the
+    file as written and return its largest deviation from the fitted curves, relative to
+    their largest torque."""
+    import numpy as np
+
+    from ..identification.planetary import bench_curves
+
+    base = _params(args.params)
+    files = f"{args.fixed_sun} and {args.fixed_ring}"
+    teeth = (base.planetary.sun_teeth, base.planetary.ring_teeth)
+    _write_params(args.write_params, result.parameter_overrides(files, teeth), args.params)
+    predicted = result.chosen.predicted
+    forward = bench_curves(_params(args.write_params),
+                           {k: v for k, (v, _) in predicted.items()})
+    return max(float(np.max(np.abs(forward[k] - t)) / np.max(np.abs(t)))
+               for k, (_, t) in predicted.items())
 
 
 def cmd_fit_stiffness(args) -> int:

@@ -88,7 +88,8 @@ def planetary_figure(result) -> Figure:
             w, T = structure.predicted[key]
             order = np.argsort(w)
             colour, ls = styles[name]
-            verdict = "explains" if structure.explains else "rejected"
+            verdict = ("rejected" if not structure.explains else
+                       "passes, chi2 too small" if structure.too_small else "explains")
             ax.plot(w[order], T[order], ls, color=colour,
                     label=f"{name} model ({verdict}, p = {structure.p_value:.2g})")
         ax.set_title(key.replace("_", " "), fontsize=9)

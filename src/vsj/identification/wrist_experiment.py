@@ -21,6 +21,7 @@ wrist``) says which signals drive the wrist and what sensors record it::
     [sensors]                    # the artefacts of `vsj.synth.wrist`
     encoder_counts = 16384
     angle_noise = "0.2 mrad"
+    time_offset = "0.2 ms"       # end-effector channels behind the motor channels
     ...
 
 Inside a component, numbers are SI (rad/s, V, N m, m, s) and frequencies Hz.
@@ -55,7 +56,14 @@ COMPONENTS = {"multisine": ("frequency", "amplitude", "phase"),
 class Sensors:
     """Artefacts of the recording (SI): encoder counts per turn, white noise of angles,
     currents, torques and q, a current sensor offset, the end-effector channels' delay
-    behind the motor channels, and the sample clock's jitter (sd)."""
+    behind the motor channels, and the sample clock's jitter (sd).
+
+    ``time_offset`` [s]: the end-effector angles logged at time t are the wrist's at
+    t - time_offset, so a positive offset puts them behind the motor channels (a lag,
+    which ``vsj fit wrist`` reports as a positive delay) and a negative one ahead. Its
+    size is below the experiment's duration. ``jitter`` stays below a tenth of the
+    sample period, so that the sample times keep their order.
+    """
 
     encoder_counts: int = 16384
     angle_noise: float = 2e-4
@@ -70,8 +78,9 @@ class Sensors:
         return (f"encoder quantisation ({self.encoder_counts} counts per turn), white noise "
                 f"(angles {self.angle_noise:g} rad, currents {self.current_noise:g} A, torques "
                 f"{self.torque_noise:g} N m, q {self.q_noise:g} m), current sensor offset "
-                f"{self.current_offset:g} A, end-effector channels {self.time_offset:g} s behind "
-                f"the motor channels, sample-time jitter sd {self.jitter:g} s")
+                f"{self.current_offset:g} A, end-effector channels {abs(self.time_offset):g} s "
+                f"{'ahead of' if self.time_offset < 0 else 'behind'} the motor channels, "
+                f"sample-time jitter sd {self.jitter:g} s")
 
 
 _SENSOR_UNITS = {"angle_noise": "rad", "current_noise": "A", "current_offset": "A",
@@ -256,8 +265,18 @@ def from_table(doc: Mapping, origin: str) -> Experiment:
             values[k] = v
         elif k in _SENSOR_UNITS:
             values[k] = quantity(sensor_table, k, _SENSOR_UNITS[k], "sensors")
-            if values[k] < 0:
+            if k == "time_offset":
+                if not abs(values[k]) < duration:
+                    raise InputError(f"{origin}: sensors.time_offset = {v!r}: its size must be "
+                                     f"below the duration ({duration:g} s); positive: the "
+                                     "end-effector channels lag the motor channels, negative: "
+                                     "they lead")
+            elif values[k] < 0:
                 raise InputError(f"{origin}: sensors.{k}: must be >= 0")
+            if k == "jitter" and not values[k] < 0.1 * period:
+                raise InputError(f"{origin}: sensors.jitter = {v!r}: must be below a tenth of "
+                                 f"the sample period ({0.1 * period:g} s), so that sample "
+                                 "times keep their order")
         else:
             raise InputError(f"{origin}: sensors.{k}: unknown key; allowed: encoder_counts, "
                              f"{', '.join(_SENSOR_UNITS)}")
