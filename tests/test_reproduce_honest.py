@@ -460,7 +460,7 @@ def test_the_summary_says_what_each_uncounted_category_shows(record):
 
     result, page = record
     summary = page[page.index("<h2>Summary</h2>"):page.index("<h2 id='fig-3.5'>")]
-    items = {re.sub("<[^>]+>", "", item).split(" (")[0]: item
+    items = {re.sub("<[^>]+>", "", item).split(" (")[0].lower(): item
              for item in re.findall(r"<li>(.*?)</li>", summary)}
     counts = result["headline"]["not_predictions"]
     assert counts[CALIBRATION]["differ"] > 0

@@ -352,7 +352,7 @@ def _apart_text(result: Reproduction) -> str:
     parts.append(f"{COUNTED_AS[INPUT]} ({inputs['rows']}): listed last, "
                  + ("all agree" if inputs["agree"] == inputs["rows"] else
                     f"{inputs['agree']} agree, {inputs['differ']} differ (the rows say why)"))
-    return "<ul>" + "".join(f"<li>{p}.</li>" for p in parts) + "</ul>"
+    return "<ul>" + "".join(f"<li>{p[0].upper()}{p[1:]}.</li>" for p in parts) + "</ul>"
 
 
 def _statements_html(result: Reproduction) -> str:
