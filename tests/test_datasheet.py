@@ -3,6 +3,7 @@ against hand-derived relations and the linear models."""
 
 import argparse
 import base64
+import html
 import json
 import math
 import re
@@ -12,7 +13,8 @@ import pytest
 from test_twin import hand_matrices
 
 from vsj import datasheet
-from vsj.characteristics import stiffness
+from vsj.characteristics import pretension_loss, stiffness
+from vsj.datasheet.compute import END_STOP, PEAK_GEOMETRY, PEAK_SLACK, deflection_limit
 from vsj.cli import control as cli_control
 from vsj.errors import InputError
 from vsj.wrist import elastic_element
@@ -63,7 +65,8 @@ def test_deflection_torque_and_energy(params, written):
     pg, tr = params.planetary, params.transmission
     r_rc = pg.ring_teeth / (pg.ring_teeth + pg.sun_teeth)
     theta_max = params.elastic_element.end_stop * r_rc / tr.ratio
-    assert sheet["ratings"]["max_deflection"]["value"] == pytest.approx(theta_max, rel=1e-12)
+    assert sheet["ratings"]["max_deflection_max"]["value"] == pytest.approx(theta_max,
+                                                                            rel=1e-12)
     by_q = {r["q"]: r for r in sheet["per_q"]}
     for curve in sheet["torque_deflection"]:
         theta = np.array(curve["deflection"])
@@ -164,3 +167,62 @@ def test_bad_arguments(params):
         datasheet.compute(params, q_points=1)
     with pytest.raises(InputError, match="outside the pivot range"):
         datasheet.compute(params, q_points=2, curve_qs=[0.05])
+
+
+def test_maximum_deflection_is_held_and_names_its_limit(params, written):
+    """Issue 30: the maximum deflection lay past the torque peak. At each setting it is
+    the end stop or the torque peak, whichever comes first, and says which."""
+    sheet, page = written
+    pg, tr = params.planetary, params.transmission
+    r_rc = pg.ring_teeth / (pg.ring_teeth + pg.sun_teeth)
+    at_stop = params.elastic_element.end_stop * r_rc / tr.ratio
+    per_q = sheet["per_q"]
+    for r in per_q:
+        held, limit = r["max_deflection"], r["max_deflection_limit"]
+        assert limit in (END_STOP, PEAK_SLACK, PEAK_GEOMETRY)
+        assert held == r["peak_torque_deflection"]  # the torque rises all the way to it
+        if limit == END_STOP:
+            assert held == pytest.approx(at_stop, rel=1e-12)
+        else:
+            assert held < at_stop
+        assert f"<td class=l>{html.escape(limit)}</td>" in page
+    # the soft end reaches the stop; the stiff end peaks first (fig 3.5: the lever's swing)
+    assert per_q[0]["max_deflection_limit"] == END_STOP
+    assert per_q[-1]["max_deflection_limit"] != END_STOP
+    ratings = sheet["ratings"]
+    for key, pick in (("max_deflection_max", max), ("max_deflection_min", min)):
+        chosen = pick(per_q, key=lambda r: r["max_deflection"])
+        assert ratings[key]["value"] == chosen["max_deflection"]
+        assert chosen["max_deflection_limit"].split(":")[0] in ratings[key]["note"]
+    strongest = max(per_q, key=lambda r: r["peak_torque"])
+    assert ratings["peak_torque"]["value"] == strongest["peak_torque"]
+    assert f"{strongest['max_deflection']:.3g} rad" in ratings["peak_torque"]["note"]
+    # on the drawn curves: the largest torque up to the maximum deflection is at it, and
+    # past a torque peak the torque falls
+    for curve in sheet["torque_deflection"]:
+        theta, torque = np.array(curve["deflection"]), np.array(curve["torque"])
+        k = int(np.searchsorted(theta, curve["max_deflection"]))
+        assert theta[k] == curve["max_deflection"]
+        assert np.argmax(torque[:k + 1]) == k
+        if curve["max_deflection_limit"] != END_STOP:
+            assert torque[k + 1] < torque[k]
+
+
+def test_a_torque_peak_at_a_spring_going_slack_is_named_so(params):
+    """The limit's cause from the springs' state at the peak: a peak where a spring goes
+    slack (or taut again) is named so, one elsewhere is the lever's geometry, a torque
+    still rising at the stop is the end stop. The peaks are placed by hand on the real
+    geometry at q = -0.4 cm, where spring b goes slack and taut again within the stop."""
+    element = elastic_element("vsm", params, "geometric")
+    q = -0.004
+    theta = np.linspace(0.0, params.elastic_element.end_stop, 701)
+    slack = pretension_loss(element.parameters, q)
+    assert 0.0 < slack < theta[-1]
+    one = np.array([1.0])  # theta is the ring deflection
+    for peak_at, expected in ((slack, PEAK_SLACK), (1.0, PEAK_GEOMETRY)):
+        index, limit = deflection_limit(element, one, q, theta,
+                                                -(theta - peak_at) ** 2)
+        assert limit == expected
+        assert abs(theta[index] - peak_at) <= theta[1] - theta[0]
+    index, limit = deflection_limit(element, one, q, theta, theta.copy())
+    assert (index, limit) == (len(theta) - 1, END_STOP)

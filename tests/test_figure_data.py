@@ -106,15 +106,41 @@ def test_fig_4_15_softer_settings_lag_more(computed):
         assert len(q) == 5 and np.all(np.diff(q) > 0)
         assert np.all(lag > 0) and np.all(np.diff(lag) > 0), law["law"]
         assert np.allclose(lag, 0.5 * (_array(law["lag_x"]) + _array(law["lag_y"])))
-    # the traces drawn are the true-stiction runs at the same settings
-    assert [t["q"] for t in data["traces"]] == laws[0]["q"]
-    for trace in data["traces"]:
-        deflection = max(np.max(np.abs(_array(trace[k]))) for k in ("phi_1", "phi_2"))
-        assert 0 < deflection < 1.4  # within the end stop
+        # the traces drawn are the runs at the same settings, under this law
+        assert [t["q"] for t in law["traces"]] == law["q"]
+        for trace in law["traces"]:
+            deflection = max(np.max(np.abs(_array(trace[k]))) for k in ("phi_1", "phi_2"))
+            assert 0 < deflection < 1.4  # within the end stop
     # the rigid-spring path is what the motors command: the same circle as the end-effector
     rigid = data["rigid"]
     assert np.max(np.abs(_array(rigid["theta_x"]))) == pytest.approx(
-        np.max(np.abs(_array(data["traces"][0]["theta_x"]))), rel=0.2)
+        np.max(np.abs(_array(laws[0]["traces"][0]["theta_x"]))), rel=0.2)
+
+
+def test_fig_4_15_shows_the_run_the_command_line_makes(computed, params):
+    """Issue 30: `vsj simulate fig-4.15` runs the built-in scenario's arctan law; the page
+    shows that run, named as such, beside true stiction."""
+    from vsj import scenario as scenarios
+
+    data = computed["data"]["fig-4.15"]
+    scen = scenarios.load("fig-4.15")
+    law = scen.table["solver"]["friction"]
+    assert data["scenario_law"] == law
+    shown = {entry["law"]: entry for entry in data["laws"]}
+    assert set(shown) == {"stiction", law}
+    for name, entry in shown.items():
+        assert entry["label"].startswith(name)
+        assert ("`vsj simulate fig-4.15`" in entry["label"]) == (name == law)
+    # the stiffest setting, run as the command line runs it, over the page's duration
+    trace = shown[law]["traces"][0]
+    t = _array(trace["time"])
+    result = scenarios.prepare_case(scen, scen.cases[0], params).run(duration=t[-1],
+                                                                      ports=False)
+    assert result.success and np.array_equal(result.time, t)
+    # the same run in another process: identical up to the adaptive solver's tolerance
+    # (rtol 1e-8) on a 0.5 rad signal
+    for key in ("theta_x", "theta_y", "phi_1", "phi_2"):
+        assert np.max(np.abs(result[key] - _array(trace[key]))) < 1e-6, key
 
 
 def test_fig_4_14_torque_loop_is_round_without_compliance(computed):

@@ -107,9 +107,32 @@ def test_circle_without_and_ellipse_with_parasitic_compliance(figures):
 
 
 def test_stiffer_settings_follow_faster(figures):
-    assert _row(figures, "fig-4.15", "stiffer settings").vsj == "yes"
+    following = [r for r in figures["fig-4.15"].rows if r.quantity.startswith("stiffer")]
+    assert [r.quantity.rsplit(", ", 1)[1] for r in following] == ["stiction", "arctan"]
+    assert all(r.vsj == "yes" for r in following)
     for law in ("stiction", "arctan"):  # true stiction drawn, the arctan law beside it
         lags = [r.vsj for r in figures["fig-4.15"].rows
                 if r.quantity.startswith("lag of") and r.quantity.endswith(law)]
         assert len(lags) == 5 and all(lag > 0 for lag in lags), law
         assert all(b > a for a, b in zip(lags, lags[1:])), law
+
+
+def test_fig_4_15_names_the_law_of_every_curve_and_row(figures):
+    """Issue 30: both friction laws are shown, and each panel of traces and each row
+    says which law it is (the built-in scenario's, what `vsj simulate` runs, included)."""
+    fig = figures["fig-4.15"]
+    laws = [entry["law"] for entry in fig.data["laws"]]
+    assert laws == ["stiction", "arctan"]
+    traces = [ax for ax in fig.figure.axes if ax.get_xlabel() == "time [s]"]
+    assert len(traces) == 3 * len(laws)
+    for ax in traces:
+        named = [law for law in laws if f"friction: {law} (" in ax.get_title()]
+        assert len(named) == 1, ax.get_title()
+    for ax in fig.figure.axes:
+        if ax.get_xlabel().startswith("pivot position"):
+            labels = [line.get_label() for line in ax.lines]
+            assert [label.split(" ")[0] for label in labels] == laws
+    assert "`vsj simulate fig-4.15`" in fig.caption
+    for row in fig.rows:
+        if row.quantity.startswith(("stiffer", "lag of", "largest elastic")):
+            assert row.quantity.rsplit(", ", 1)[1] in laws, row.quantity

@@ -9,7 +9,9 @@ useful, at one elastic element (the ring deflection ``phi``):
 
 * stiffness range and its dependence on the pivot position ``q``;
 * torque-deflection curves and tangent stiffness at several ``q``;
-* maximum deflection (the elastic elements' end stop) and the torque there;
+* maximum deflection at each setting, with the limit that decides it (a ring's
+  end stop, or the peak of the restoring torque, past which no load is held),
+  and the torque there;
 * elastic energy stored at that deflection;
 * stiffness-change time and electric energy, from the softest to the
   stiffest setting and back, through the pivot mechanism driven by its DC

@@ -54,6 +54,42 @@ def _output_curve(element, T, q: float, theta: np.ndarray) -> dict[str, np.ndarr
             "ring_per_output": c}
 
 
+#: What limits the deflection at a stiffness setting (`deflection_limit`).
+END_STOP = "end stop"
+PEAK_SLACK = "torque peak: a spring goes slack"
+PEAK_GEOMETRY = "torque peak: the lever's geometry"
+
+
+def deflection_limit(element, ring_per_output, q: float, theta: np.ndarray,
+                     torque: np.ndarray) -> tuple[int, str]:
+    """Index into ``theta`` of the largest deflection the output holds at ``q`` [m],
+    and the limit that decides it (`END_STOP`, `PEAK_SLACK` or `PEAK_GEOMETRY`).
+
+    ``theta`` [rad] runs from 0 to the deflection where a ring reaches its end
+    stop, ``torque`` [N m] is the restoring torque there and ``ring_per_output``
+    the ring deflections per unit ``theta`` (one per elastic ``element``).
+    Past a peak of the restoring ``torque`` the tangent stiffness is negative: a
+    load above the peak drives the output onto the stop, so no deflection beyond
+    the peak is held. The peak is caused by a spring going slack when one of
+    them changes between taut and slack within a grid step of it; otherwise by the
+    lever's geometry (the springs' lever arm shrinks faster than their force grows).
+    """
+    peak = int(np.argmax(torque))
+    if peak == len(theta) - 1:
+        return peak, END_STOP
+    from ..characteristics import spring_extensions
+    from ..springs import GEOMETRIC, GEOMETRIC_REPORT
+
+    if element.law in (GEOMETRIC, GEOMETRIC_REPORT):
+        lo, hi = theta[max(peak - 1, 0)], theta[peak + 1]
+        for ci in np.abs(ring_per_output):
+            before, after = (np.sign(spring_extensions(element.parameters, q, ci * t))
+                             for t in (lo, hi))
+            if np.any(before != after):
+                return peak, PEAK_SLACK
+    return peak, PEAK_GEOMETRY
+
+
 def _stiffness_change(params, q_from: float, q_to: float) -> dict:
     """Drive the pivot from ``q_from`` to ``q_to`` at the supply voltage (DC motor model).
 
@@ -136,7 +172,7 @@ def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = Non
     dense = np.linspace(0.0, theta_max, CURVE_POINTS)
     for q in qs:
         curve = _output_curve(element, T, q, dense)
-        peak = int(np.argmax(curve["torque"]))
+        peak, limit = deflection_limit(element, c, q, dense, curve["torque"])
         lin = linear_models.linearize(params, float(q), friction=friction,
                                       wrist_options=_options(elastic))
         models[float(q)] = lin
@@ -151,7 +187,9 @@ def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = Non
                 linear_models.output_stiffness(lin)[0, 0]),
             "peak_torque": float(curve["torque"][peak]),
             "peak_torque_deflection": float(dense[peak]),
-            "max_energy": float(np.max(curve["energy"])),
+            "max_deflection": float(dense[peak]),
+            "max_deflection_limit": limit,
+            "max_energy": float(np.max(curve["energy"][:peak + 1])),
             "pretension_loss_deflection": float(slack / np.max(np.abs(c))),
             "natural_frequencies": linear_models.natural_frequencies(lin).tolist(),
             "modes": [{"frequency": m["frequency"], "damping": m["damping"]} for m in modes],
@@ -167,7 +205,9 @@ def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = Non
     theta = np.linspace(0.0, theta_max, CURVE_POINTS)
     for q in curve_qs:
         curve = _output_curve(element, T, float(q), theta)
-        curves.append({"q": float(q), "deflection": theta.tolist(),
+        held, limit = deflection_limit(element, c, float(q), theta, curve["torque"])
+        curves.append({"q": float(q), "max_deflection": float(theta[held]),
+                       "max_deflection_limit": limit, "deflection": theta.tolist(),
                        "torque": curve["torque"].tolist(),
                        "stiffness": curve["stiffness"].tolist(),
                        "energy": curve["energy"].tolist()})
@@ -192,6 +232,8 @@ def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = Non
     k_out = [row["output_stiffness"] for row in per_q]
     strongest = max(per_q, key=lambda r: r["peak_torque"])
     richest = max(per_q, key=lambda r: r["max_energy"])
+    widest = max(per_q, key=lambda r: r["max_deflection"])
+    narrowest = min(per_q, key=lambda r: r["max_deflection"])
     ratings = {
         "output_stiffness_min": _rating(min(k_out), "N m/rad", f"theta_x at q = "
                                         f"{q_max * 100:.3g} cm, zero deflection"),
@@ -202,12 +244,15 @@ def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = Non
                                       "one elastic element, at the ring"),
         "ring_stiffness_max": _rating(max(r["ring_stiffness"] for r in per_q), "N m/rad",
                                       "one elastic element, at the ring"),
-        "max_deflection": _rating(theta_max, "rad", f"theta_x where a ring reaches the end "
-                                  f"stop ({end_stop:g} rad)"),
+        "max_deflection_max": _rating(widest["max_deflection"], "rad",
+                                      _deflection_note(widest, end_stop)),
+        "max_deflection_min": _rating(narrowest["max_deflection"], "rad",
+                                      _deflection_note(narrowest, end_stop)),
         "peak_torque": _rating(strongest["peak_torque"], "N m",
-                               f"largest elastic torque about theta_x (q = "
-                               f"{strongest['q'] * 100:.3g} cm, at "
-                               f"{strongest['peak_torque_deflection']:.3g} rad)"),
+                               f"largest elastic torque about theta_x, at the maximum "
+                               f"deflection (q = {strongest['q'] * 100:.3g} cm, at "
+                               f"{strongest['peak_torque_deflection']:.3g} rad, "
+                               f"{strongest['max_deflection_limit']})"),
         "max_energy": _rating(richest["max_energy"], "J",
                               f"largest elastic energy up to the maximum deflection (q = "
                               f"{richest['q'] * 100:.3g} cm)"),
@@ -246,7 +291,7 @@ def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = Non
         "elastic_model": elastic,
         "friction": {"treatment": friction,
                      "description": linear_models.FRICTION_TREATMENTS[friction]},
-        "notes": _notes(params, elastic, friction),
+        "notes": _notes(params, elastic, friction, per_q, end_stop),
         "ratings": ratings,
         "per_q": per_q,
         "torque_deflection": curves,
@@ -263,6 +308,12 @@ def _options(elastic: str):
     return WristOptions(elastic=elastic)
 
 
+def _deflection_note(row: dict, end_stop: float) -> str:
+    limit = row["max_deflection_limit"]
+    return (f"theta_x at q = {row['q'] * 100:.3g} cm, decided by the "
+            + (f"end stop ({end_stop:g} rad at a ring)" if limit == END_STOP else limit))
+
+
 def _rating(value: float, unit: str, note: str) -> dict:
     return {"value": float(value), "unit": unit, "note": note}
 
@@ -273,7 +324,13 @@ def _plain(change: dict) -> dict:
     return out
 
 
-def _notes(params, elastic: str, friction: str) -> list[str]:
+def _notes(params, elastic: str, friction: str, per_q: list[dict],
+           end_stop: float) -> list[str]:
+    by_limit: dict[str, list[float]] = {}
+    for row in per_q:
+        by_limit.setdefault(row["max_deflection_limit"], []).append(row["q"] * 100)
+    decided = "; ".join(f"{limit} at q = " + ", ".join(f"{q:.3g}" for q in qs) + " cm"
+                        for limit, qs in by_limit.items())
     return [
         "Computed from the model, not measured. Parameter set: "
         f"{params.meta.get('name', params.origin)} (hash {params.hash()[:12]}).",
@@ -281,9 +338,12 @@ def _notes(params, elastic: str, friction: str) -> list[str]:
         "calibrated to the report's three measured stiffnesses (fig 4.10-4.12).",
         "Output quantities are about theta_x with both primary motors held (ideal "
         "position control): both elastic elements deflect equally.",
-        "Maximum deflection is where a ring reaches its end stop. Peak torque and maximum "
-        "energy are the largest values up to it (the hard stop excluded); at stiff settings "
-        "the geometric torque falls again at large deflections, so the peak lies inside.",
+        "Maximum deflection, at each setting, is the smaller of two limits: where a ring "
+        f"reaches its end stop ({end_stop:g} rad), and where the restoring torque peaks "
+        "(past the peak the tangent stiffness is negative: a larger load drives the output "
+        "onto the stop, so no deflection beyond it is held). Here it is decided by the "
+        f"{decided}. Peak torque and maximum energy are the values at it (the hard stop "
+        "excluded).",
         "Stiffness-change time and energy: the pivot mechanism driven by the DC motor model "
         "at the supply voltage, from rest; the motor and pivot-drive parameters are "
         "estimates (the report leaves them uncharacterised).",

@@ -37,6 +37,9 @@ def figures(sheet: dict) -> dict[str, tuple[str, bytes]]:
         label = f"q = {curve['q'] * 100:.3g} cm"
         axes[0].plot(curve["deflection"], curve["torque"], color=colour, label=label)
         axes[1].plot(curve["deflection"], curve["stiffness"], color=colour, label=label)
+        held = curve["max_deflection"]
+        axes[0].plot(held, np.interp(held, curve["deflection"], curve["torque"]), "o",
+                     color=colour, mfc="none")
     axes[0].set_xlabel("deflection theta_x [rad]")
     axes[0].set_ylabel("torque [N m]")
     axes[1].set_xlabel("deflection theta_x [rad]")
@@ -44,9 +47,12 @@ def figures(sheet: dict) -> dict[str, tuple[str, bytes]]:
     axes[1].set_yscale("symlog", linthresh=0.01)  # negative beyond the torque peak
     for ax in axes:
         ax.grid(alpha=0.3, which="both")
+    axes[0].plot([], [], "ko", mfc="none", label="maximum deflection")
     axes[0].legend(fontsize=8)
     out["torque_deflection"] = ("Torque-deflection curves and tangent stiffness at several "
-                                "pivot positions (kinks: a spring loses its pretension).",
+                                "pivot positions (kinks: a spring loses its pretension); "
+                                "circles: the maximum deflection, the end stop or the "
+                                "torque peak, whichever comes first.",
                                 _png(fig, plt))
 
     fig, ax = plt.subplots(figsize=(6.4, 3.8))

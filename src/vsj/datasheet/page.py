@@ -26,7 +26,8 @@ def html_page(sheet: dict, figs: dict[str, tuple[str, bytes]]) -> str:
         slow = r["modes"][0] if r["modes"] else {"frequency": math.nan, "damping": math.nan}
         per_q.append(
             f"<tr><td>{r['q'] * 100:.3g}</td><td>{r['ring_stiffness']:.4g}</td>"
-            f"<td>{r['output_stiffness']:.4g}</td><td>{r['peak_torque']:.4g}</td>"
+            f"<td>{r['output_stiffness']:.4g}</td><td>{r['max_deflection']:.4g}</td>"
+            f"<td class=l>{esc(r['max_deflection_limit'])}</td><td>{r['peak_torque']:.4g}</td>"
             f"<td>{r['max_energy']:.4g}</td><td>{_finite(r['pretension_loss_deflection'])}</td>"
             f"<td>{r['natural_frequencies'][0] / (2 * math.pi):.4g}</td>"
             f"<td>{slow['frequency'] / (2 * math.pi):.4g}</td><td>{slow['damping']:.3g}</td>"
@@ -40,7 +41,7 @@ def html_page(sheet: dict, figs: dict[str, tuple[str, bytes]]) -> str:
         "<th class=l>unit</th><th class=l>condition</th></tr>", *rows, "</table>",
         "<h2>Against the pivot position</h2><table><tr><th>q [cm]</th>"
         "<th>element stiffness [N m/rad]</th><th>output stiffness [N m/rad]</th>"
-        "<th>peak torque [N m]</th><th>max energy [J]</th><th>pretension lost at [rad]</th>"
+        "<th>max deflection [rad]</th><th class=l>decided by</th><th>peak torque [N m]</th><th>max energy [J]</th><th>pretension lost at [rad]</th>"
         "<th>natural freq. [Hz]</th><th>slowest pole, |p| [Hz]</th><th>its damping</th>"
         "<th>position bandwidth [Hz]</th></tr>", *per_q, "</table>",
         "<h2>Figures</h2>",

@@ -3,8 +3,9 @@
 `run` calls each figure function (`model_figures`, `data_figures`: numbers,
 rows and caption, no Matplotlib), draws it (`draw_model`, `draw_data`), writes
 ``fig-X.Y.png`` and ``.svg``, then ``results.json`` (every row with its
-category and verdict, machine readable) and ``report.html`` (one self-contained
-page: a summary whose headline counts predictions only, then each figure,
+category, statement and verdict, and the statements the predictions test,
+machine readable) and ``report.html`` (one self-contained page: a summary whose
+headline counts predictions only, one per report statement, then each figure,
 embedded as base64 PNG, with its rows by category, and the inputs used as given
 last). A figure that fails is reported
 with its error and the others are still made; `run` then says so and the
@@ -26,14 +27,19 @@ from .. import pages
 from ..params import Parameters
 from .base import (
     AGREEMENT,
+    BY_CONSTRUCTION,
     CALIBRATION,
     CATEGORIES,
+    CONSISTENCY,
     INPUT,
+    LIMIT,
     PREDICTION,
     ROUND_TRIP,
+    VARIANT,
     Context,
     Figure,
     Row,
+    statement_verdict,
 )
 
 #: The report's table 4.1 (section 4.3): parameter key -> (symbol, value, unit).
@@ -124,24 +130,60 @@ class Reproduction:
                 out += [(o.name, r) for r in o.figure.rows]
         return out
 
+    def statements(self) -> list[dict]:
+        """The report statements the predictions test, in page order: each with its
+        ``statement`` (name), the ``figures`` showing it, the number of prediction rows
+        (``cases``) and one ``verdict`` (`vsj.reproduce.base.statement_verdict`)."""
+        groups: dict = {}
+        for where, r in self.rows():
+            if r.category != PREDICTION:
+                continue
+            key = r.statement if r.statement is not None else (where, r.quantity)
+            group = groups.setdefault(key, {"statement": r.statement or r.quantity,
+                                            "figures": [], "verdicts": []})
+            if where not in group["figures"]:
+                group["figures"].append(where)
+            group["verdicts"].append(r.verdict())
+        return [{"statement": g["statement"], "figures": g["figures"],
+                 "cases": len(g["verdicts"]), "verdict": statement_verdict(g["verdicts"])}
+                for g in groups.values()]
+
     def headline(self) -> dict:
-        """Counts of the predictions only: compared (agree, differ) and shown where the
-        report gives no value; the other categories are counted apart."""
-        verdicts = [r.verdict() for _, r in self.rows() if r.category == PREDICTION]
-        return {"predictions": len(verdicts),
+        """Counts of the report statements the predictions test (compared: agree, differ;
+        and shown where the report gives no value), and of the rows of every other
+        category with their verdicts, counted apart."""
+        verdicts = [s["verdict"] for s in self.statements()]
+        rows = self.rows()
+        return {"statements": len(verdicts),
                 "agree": verdicts.count("agrees"), "differ": verdicts.count("differs"),
                 "not_stated": verdicts.count("not compared"),
-                "not_predictions": {c: sum(r.category == c for _, r in self.rows())
+                "prediction_rows": sum(r.category == PREDICTION for _, r in rows),
+                "not_predictions": {c: _counts([r for _, r in rows if r.category == c])
                                     for c in CATEGORIES if c != PREDICTION}}
 
     def headline_text(self) -> str:
         h = self.headline()
         others = h["not_predictions"]
-        return (f"{h['agree'] + h['differ']} predictions compared with the report: "
-                f"{h['agree']} agree, {h['differ']} differ; {h['not_stated']} more shown where "
-                f"the report gives no value. Not counted: {others[ROUND_TRIP]} round trips of "
-                f"synthetic data, {others[CALIBRATION]} calibration targets, {others[INPUT]} "
-                "inputs used as given.")
+        apart = ", ".join(f"{others[c]['rows']} {COUNTED_AS[c]}" for c in CATEGORIES
+                          if c != PREDICTION and others[c]["rows"])
+        return (f"{h['agree'] + h['differ']} report statements compared with vsj's "
+                f"predictions: {h['agree']} agree, {h['differ']} differ; {h['not_stated']} "
+                f"more shown where the report gives no value ({h['prediction_rows']} "
+                f"prediction rows in all, each statement counted once). Not counted: "
+                f"{apart}.")
+
+
+def _counts(rows: list[Row]) -> dict:
+    verdicts = [r.verdict() for r in rows]
+    return {"rows": len(rows), "agree": verdicts.count("agrees"),
+            "differ": verdicts.count("differs"), "not_stated": verdicts.count("not compared")}
+
+
+#: How the headline counts the rows of each category it leaves out.
+COUNTED_AS = {CONSISTENCY: "report-consistency checks", VARIANT: "variants of the default model",
+              LIMIT: "values decided by a limit", BY_CONSTRUCTION: "rows that hold by construction",
+              CALIBRATION: "calibration targets", ROUND_TRIP: "round trips of synthetic data",
+              INPUT: "inputs used as given"}
 
 
 def _value(v):
@@ -152,7 +194,7 @@ def _value(v):
 
 def _row_json(where: str, row: Row) -> dict:
     return {"figure": where, "quantity": row.quantity, "category": row.category,
-            "report": _value(row.report), "vsj": _value(row.vsj), "unit": row.unit,
+            "statement": row.statement or row.quantity, "report": _value(row.report), "vsj": _value(row.vsj), "unit": row.unit,
             "source": row.source, "relative_difference": row.difference(),
             "verdict": row.verdict(), "note": row.note}
 
@@ -205,6 +247,7 @@ def run(out: Path, params: Parameters, *, reduced: bool = False, only=None,
                                  "caption": o.figure.caption if o.figure else None}
                         for o in outcomes},
             "headline": result.headline(),
+            "statements": result.statements(),
             "rows": [_row_json(w, r) for w, r in result.rows()],
             "success": not result.failed,
         }
@@ -222,27 +265,41 @@ def _fmt(v) -> str:
 
 
 #: Section titles of the row tables, by category.
-TITLES = {PREDICTION: "Predictions", CALIBRATION: "Calibration targets (agree by tuning)",
+TITLES = {PREDICTION: "Predictions",
+          CONSISTENCY: "Report consistency (the report's numbers against each other, "
+                       "not vsj's)",
+          VARIANT: "Variants (options that are not vsj's default model; not counted)",
+          LIMIT: "Decided by a limit (the value is the limit, not a prediction)",
+          BY_CONSTRUCTION: "By construction (agreement built into the set-up)",
+          CALIBRATION: "Calibration targets (vsj's estimates were tuned to these)",
           ROUND_TRIP: "Round trips of synthetic data (check vsj's toolchain, not the report)",
           INPUT: "Inputs used as given"}
 
 
+def _cell(value) -> str:
+    """A table cell: numbers right-aligned (the page style's default), text left."""
+    text = html.escape(_fmt(value))
+    return f"<td>{text}</td>" if isinstance(value, (int, float)) else f"<td class=l>{text}</td>"
+
+
 def _table_html(rows: list[tuple[str, Row]], with_figure: bool) -> str:
-    head = ("<tr>" + ("<th>figure</th>" if with_figure else "") +
-            "<th>quantity</th><th>category</th><th>report</th><th>vsj</th><th>unit</th>"
-            "<th>difference</th><th>verdict</th><th>source</th><th>explanation</th></tr>")
+    head = ("<tr>" + ("<th class=l>figure</th>" if with_figure else "") +
+            "<th class=l>quantity</th><th class=l>category</th><th>report</th><th>vsj</th>"
+            "<th class=l>unit</th><th>difference</th><th class=l>verdict</th>"
+            "<th class=l>source</th><th class=l>explanation</th></tr>")
     body = []
     for where, r in rows:
         d = r.difference()
         diff = "" if d is None else f"{d * 100:+.1f} %"
         verdict = r.verdict()
         body.append(f"<tr class='{verdict.replace(' ', '-')}'>"
-                    + (f"<td><a href='#{html.escape(where)}'>{html.escape(where)}</a></td>"
-                       if with_figure else "")
-                    + f"<td>{html.escape(r.quantity)}</td><td>{html.escape(r.category)}</td>"
-                    f"<td>{html.escape(_fmt(r.report))}</td><td>{html.escape(_fmt(r.vsj))}</td>"
-                    f"<td>{html.escape(r.unit)}</td><td>{diff}</td><td>{verdict}</td>"
-                    f"<td>{html.escape(r.source)}</td><td>{html.escape(r.note)}</td></tr>")
+                    + (f"<td class=l><a href='#{html.escape(where)}'>{html.escape(where)}</a>"
+                       "</td>" if with_figure else "")
+                    + f"<td class=l>{html.escape(r.quantity)}</td>"
+                    f"<td class=l>{html.escape(r.category)}</td>{_cell(r.report)}"
+                    f"{_cell(r.vsj)}<td class=l>{html.escape(r.unit)}</td><td>{diff}</td>"
+                    f"<td class=l>{verdict}</td><td class=l>{html.escape(r.source)}</td>"
+                    f"<td class=l>{html.escape(r.note)}</td></tr>")
     return f"<table>{head}{''.join(body)}</table>"
 
 
@@ -267,37 +324,70 @@ WHY = (
     "(fig 4.13). Statements about curves of the old prototype's unpublished geometry "
     "(fig 3.5-3.7) are not met by a geometry calibrated to the second prototype's "
     "stiffness. Eq 3.27 is kept as printed (planetary module) and offered corrected as an "
-    "option; its effect is a row of fig 4.7.")
+    "option; its effect is a variant row of fig 4.7.")
+
+
+def _link(where: str) -> str:
+    return f"<a href='#{html.escape(where)}'>{html.escape(where)}</a>"
+
+
+def _apart_text(result: Reproduction) -> str:
+    """What the rows outside the headline show, category by category, counted from
+    the rows: how many agree, differ or have no report value, and which differ."""
+    parts = []
+    rows = result.rows()
+    counts = result.headline()["not_predictions"]
+    for category in CATEGORIES:
+        if category in (PREDICTION, INPUT) or not counts[category]["rows"]:
+            continue
+        n = counts[category]
+        said = [f"{n[key]} {word}" for key, word in
+                (("agree", "agree"), ("differ", "differ"),
+                 ("not_stated", "have no report value to compare")) if n[key]]
+        differing = [f"{html.escape(r.quantity)} ({_link(w)})" for w, r in rows
+                     if r.category == category and r.verdict() == "differs"]
+        parts.append(f"{COUNTED_AS[category]} ({n['rows']}): " + ", ".join(said)
+                     + (" &mdash; differing: " + "; ".join(differing) if differing else ""))
+    inputs = counts[INPUT]
+    parts.append(f"{COUNTED_AS[INPUT]} ({inputs['rows']}): listed last, "
+                 + ("all agree" if inputs["agree"] == inputs["rows"] else
+                    f"{inputs['agree']} agree, {inputs['differ']} differ (the rows say why)"))
+    return "<ul>" + "".join(f"<li>{p[0].upper()}{p[1:]}.</li>" for p in parts) + "</ul>"
+
+
+def _statements_html(result: Reproduction) -> str:
+    body = "".join(
+        f"<tr class='{s['verdict'].replace(' ', '-')}'><td class=l>{html.escape(s['statement'])}"
+        f"</td><td class=l>{', '.join(_link(w) for w in s['figures'])}</td><td>{s['cases']}"
+        f"</td><td class=l>{s['verdict']}</td></tr>" for s in result.statements())
+    return ("<table><tr><th class=l>report statement</th><th class=l>figures</th>"
+            "<th>prediction rows</th><th class=l>verdict</th></tr>" + body + "</table>")
 
 
 def _summary(result: Reproduction) -> str:
     rows = result.rows()
-    differ: dict[str, list[Row]] = {}
-    agree: dict[str, int] = {}
+    differ: set[str] = set()
+    agree: list[str] = []
     for where, r in rows:
         if r.category != PREDICTION:
             continue
         if r.verdict() == "differs":
-            differ.setdefault(where, []).append(r)
-        elif r.verdict() == "agrees":
-            agree[where] = agree.get(where, 0) + 1
+            differ.add(where)
+        elif r.verdict() == "agrees" and where not in agree:
+            agree.append(where)
     reproduced = [w for w in agree if w not in differ]
-    items = ", ".join(
-        f"<a href='#{html.escape(w)}'>{html.escape(w)}</a> ({len(rs)} of "
-        f"{len(rs) + agree.get(w, 0)})" for w, rs in differ.items())
     return ("<h2>Summary</h2>"
             f"<p class='headline'>{html.escape(result.headline_text())}</p>"
-            "<p>Only predictions are counted: values vsj computes from its inputs that the "
-            "report states independently. A number agrees within "
-            f"{AGREEMENT:.0%} unless its row says otherwise (the report states no "
-            "uncertainties). Inputs, round trips of synthetic data and calibration targets "
-            "agree by construction and are listed apart under each figure.</p>"
+            "<p>Only predictions are counted: values vsj computes from its inputs with its "
+            "default model that the report states independently, one entry per report "
+            "statement however many cases (models, pivot positions, speeds, friction laws) "
+            "show it; a statement differs when any of its cases differs. A number agrees "
+            f"within {AGREEMENT:.0%} unless its row says otherwise (the report states no "
+            "uncertainties).</p>" + _statements_html(result)
+            + "<p>Listed apart under each figure, and not counted:</p>" + _apart_text(result)
             + ("<p>Reproduced without a differing prediction: "
-               + ", ".join(f"<a href='#{html.escape(w)}'>{html.escape(w)}</a>"
-                           for w in reproduced) + ".</p>" if reproduced else "")
-            + f"<p>Why vsj differs: {html.escape(WHY)}</p>"
-            + (f"<p>Predictions that differ, by figure (of those compared; the reason is "
-               f"in each row): {items}.</p>" if items else ""))
+               + ", ".join(_link(w) for w in reproduced) + ".</p>" if reproduced else "")
+            + f"<p>Why vsj differs: {html.escape(WHY)}</p>")
 
 
 def render_html(result: Reproduction, params: Parameters) -> str:
@@ -320,7 +410,7 @@ def render_html(result: Reproduction, params: Parameters) -> str:
             continue
         parts.append(pages.figure(o.png, o.figure.caption, synthetic=o.figure.synthetic))
         parts.append(_by_category([(o.name, r) for r in o.figure.rows],
-                                  (PREDICTION, CALIBRATION, ROUND_TRIP)))
+                                  [c for c in CATEGORIES if c != INPUT]))
     inputs = [(w, r) for w, r in result.rows() if r.category == INPUT]
     parts.append("<h2 id='inputs'>Inputs used as given</h2><p>The report's numbers vsj "
                  "takes as they are (table 4.1 and the settings of the figures): they agree "

@@ -13,19 +13,41 @@ Each row says what kind of comparison it is (`CATEGORIES`), because only some
 of them test anything:
 
 ``prediction``
-    vsj computes the value from its inputs and the report states it
-    independently: agreement is evidence, a difference needs a reason.
-``input``
-    a number of the report used as given (table 4.1, the end stop, the
-    settings of a scenario): it agrees by construction.
+    vsj computes the value from its inputs with its default model and the
+    report states it independently: agreement is evidence, a difference needs
+    a reason.
+``report consistency``
+    the report's own numbers set against each other (its eq 4.5 with table
+    4.1's constants against the stiffness it measured): a check of the report,
+    not of vsj.
+``variant``
+    computed with an option that is not vsj's default model (the eq 3.27
+    equal-force relation): shown beside the default's prediction, not counted.
+``at a limit``
+    vsj's value is an input or a limit that the computation ran into (the
+    1.40 rad end stop where the element cannot hold the load): the limit
+    decides the value, the model does not predict it.
+``by construction``
+    the value follows from how vsj set the comparison up (an option added to
+    show the effect the report describes, a fit to data generated from a
+    geometry calibrated to the same numbers): agreement is built in, and a
+    difference measures how far the set-up reaches, not the model.
+``calibration target``
+    a statement vsj's estimated parameters were tuned to meet (the geometry
+    of the elastic element): agreement is the calibration's, not a test, and
+    where the tuning fell short the row says so.
 ``round trip``
     synthetic data generated from known values and analysed again: it checks
     vsj's toolchain, not the report.
-``calibration target``
-    a statement vsj's estimated parameters were tuned to meet (the geometry
-    of the elastic element): agreement is the calibration's, not a test.
+``input``
+    a number of the report used as given (table 4.1, the end stop, the
+    settings of a scenario): it agrees by construction.
 
-The page's headline counts predictions only.
+The page's headline counts predictions only, and counts them by report
+statement (`Row.statement`): one statement is one entry, however many cases
+(elastic models, pivot positions, speeds, friction laws) show it. A statement
+agrees when none of its predictions differs and at least one agrees
+(`statement_verdict`).
 """
 
 from __future__ import annotations
@@ -38,10 +60,15 @@ from typing import Any
 from ..params import Parameters
 
 PREDICTION = "prediction"
-INPUT = "input"
-ROUND_TRIP = "round trip"
+CONSISTENCY = "report consistency"
+VARIANT = "variant"
+LIMIT = "at a limit"
+BY_CONSTRUCTION = "by construction"
 CALIBRATION = "calibration target"
-CATEGORIES = (PREDICTION, ROUND_TRIP, CALIBRATION, INPUT)
+ROUND_TRIP = "round trip"
+INPUT = "input"
+CATEGORIES = (PREDICTION, CONSISTENCY, VARIANT, LIMIT, BY_CONSTRUCTION, CALIBRATION,
+              ROUND_TRIP, INPUT)
 
 #: Relative difference within which a number counts as reproduced when the row gives
 #: no tolerance of its own. The report states no uncertainties; its fitted constants
@@ -79,6 +106,9 @@ class Row:
     report's number is zero it is an absolute tolerance in ``unit``.
     ``agrees`` decides agreement where the report's value is a text that is
     not yes/no (a range, "ellipse"); None leaves it to `verdict`.
+    ``statement`` names the report statement the row is a case of; rows that
+    share it (within or across figures) are one entry of the headline. None
+    makes the row a statement of its own.
     """
 
     quantity: str
@@ -90,6 +120,7 @@ class Row:
     category: str = PREDICTION
     tolerance: float | None = None
     agrees: bool | None = None
+    statement: str | None = None
 
     def __post_init__(self):
         if self.category not in CATEGORIES:
@@ -117,6 +148,16 @@ class Row:
             if found is not None:
                 return "agrees" if found == said else "differs"
         return "not compared"
+
+
+def statement_verdict(verdicts) -> str:
+    """One verdict for a statement from its predictions' verdicts: ``"differs"`` when
+    any case differs, ``"agrees"`` when the others agree, ``"not compared"`` when the
+    report states no value for any case."""
+    verdicts = list(verdicts)
+    if "differs" in verdicts:
+        return "differs"
+    return "agrees" if "agrees" in verdicts else "not compared"
 
 
 def _number(v) -> bool:

@@ -40,9 +40,12 @@ from ..identification.stiffness import fit_curve as fit_loop
 from ..measurements import Measurement
 from ..wrist import elastic_element, planetary
 from .base import (
+    BY_CONSTRUCTION,
     CALIBRATION,
+    CONSISTENCY,
     NOT_STATED,
     ROUND_TRIP,
+    VARIANT,
     Context,
     Drawing,
     Figure,
@@ -61,6 +64,14 @@ K_Q_REDUCED = (0.014, 0.002, -0.004, -0.010, -0.022)
 #: the middle one fig 4.13 is fitted on. At 0.8 rad amplitude the fast one peaks near
 #: 2.5 rad/s, the slow one near 0.13 rad/s.
 LOOP_PERIODS = {"low velocity": 40.0, "middle": 10.0, "high velocity": 2.0}
+#: The report's fitted forms (section 4.1.1): eq 4.2 with c1..c3 for the fixed-sun curve,
+#: eq 4.4 with c4..c6 for the fixed-ring curve.
+FITTED_FORM = {"sun": ("eq 4.2", "c1..c3", ("c1", "c2", "c3")),
+               "ring": ("eq 4.4", "c4..c6", ("c4", "c5", "c6"))}
+#: The report statement fig 4.7 and its re-identification test (section 4.1.3): counted
+#: once in the headline, however many constants and speeds show it.
+BOTH_CURVES = ("with bearing stiction, one set of parameters (table 4.1) predicts both "
+               "torque-velocity curves (section 4.1.3, fig 4.7)")
 
 
 def _measurement(data: synth.SynthFile, name: str) -> Measurement:
@@ -105,10 +116,11 @@ def _friction_figure(ctx: Context, name: str, proto: str, fixed: str,
     rows = [Row(label, t, e.value, e.unit, name.replace("-", " "), NOTE_SYNTH +
                 f" (95 % interval {e.ci95[0]:.3g} .. {e.ci95[1]:.3g})", category=ROUND_TRIP)
             for label, t, e in zip(names, true, (fit.c1, fit.c2, fit.c3))]
+    equation, constants, (a, b, c) = FITTED_FORM[fixed]
     caption = (f"Torque against carrier speed, {fixed} fixed, {proto} prototype: synthetic "
                f"plateaus at 10 speeds each way generated from the report's constants "
-               f"c = {true} with 2 % noise and 15 % angle ripple (seed {ctx.seed}), fitted "
-               f"with T = c1 w + c2 atan(c3 w) (eq 4.2) by `vsj fit friction`.")
+               f"{constants} = {true} with 2 % noise and 15 % angle ripple (seed {ctx.seed}), "
+               f"fitted with T = {a} w + {b} atan({c} w) ({equation}) by `vsj fit friction`.")
     return Figure(name, data, caption, rows, synthetic=True,
                   draw=Drawing("draw_data", "friction_figure"))
 
@@ -182,7 +194,7 @@ def _module(params, relation: str = "printed"):
 
 
 def _forward_constants(module, fixed: str) -> tuple[float, float, float]:
-    """c1..c3 (or c4..c6) of eq 4.2 fitted to the module's arctan curve over the
+    """c1..c3 of eq 4.2 (or c4..c6 of eq 4.4) fitted to the module's arctan curve over the
     measured speeds: what table 4.1 predicts the report should have fitted."""
     w = np.concatenate([MEASURED_SPEEDS, -MEASURED_SPEEDS])
     torque = module.closed_form_torque(fixed, w, "arctan")
@@ -209,7 +221,9 @@ def fig_4_7(ctx):
     w = np.geomspace(0.02, 6.5, 300)
     data = {"speed": w, "measured_speeds": (MEASURED_SPEEDS[0], MEASURED_SPEEDS[-1]),
             "configurations": [
-                {"fixed": fixed, "constants": report[fixed], "report": _eq_4_2(w, *report[fixed]),
+                {"fixed": fixed, "equation": FITTED_FORM[fixed][0],
+                 "constant_names": FITTED_FORM[fixed][1],
+                 "constants": report[fixed], "report": _eq_4_2(w, *report[fixed]),
                  "model": [{"law": law, "label": text,
                             "torque": module.closed_form_torque(fixed, w, law)}
                            for law, text in FORWARD_LAWS],
@@ -230,32 +244,35 @@ def fig_4_7(ctx):
     rows = [
         Row("c1 predicted from table 4.1", report["sun"][0], c_sun[0], "N m s/rad", source,
             f"b_C + b_R (1 + x)^2 with x = N_S/N_R = {x:.3g}, which vsj estimated so that "
-            f"this meets c1 (x = {x_c1:.3f} would meet it exactly)", category=CALIBRATION),
+            f"this meets c1 (x = {x_c1:.3f} would meet it exactly)", category=CALIBRATION,
+            statement=BOTH_CURVES),
         Row("c2 predicted from table 4.1", report["sun"][1], c_sun[1], "N m", source,
             "the stiction terms' saturation level: mesh k_1 (1 + x^2) = "
             f"{c2_parts[0]:.3g}, ring bearing k_R (1 + x) = {c2_parts[1]:.3g}, carrier bearing "
             f"k_C = {c2_parts[2]:.3g}, sum {sum(c2_parts):.3g} N m. Table 4.1's stiction "
             "constants do not add up to the report's c2 at the tooth ratio its viscous "
-            "constants imply; the report states neither its x nor how it split c2"),
+            "constants imply; the report states neither its x nor how it split c2",
+            statement=BOTH_CURVES),
         Row("c3 predicted from table 4.1", report["sun"][2], c_sun[2], "s/rad", source,
             f"table 4.1 gives no k_b1; vsj takes k_b1 = c3 = {kb1:g} s/rad, so the mesh term "
-            "has c3 by construction; the bearing terms (sharpness "
-            f"{params.friction.arctan_sharpness:g} s/rad at the ring speed (1 + x) w) blend in",
-            category=CALIBRATION),
+            "alone would have c3 by construction, but the ring and carrier bearings' stiction "
+            f"(sharpness {params.friction.arctan_sharpness:g} s/rad, the ring's at (1 + x) w) "
+            "carries part of the saturation level, and the sum's fitted sharpness is the "
+            "model's prediction", statement=BOTH_CURVES),
         Row("c4 predicted from table 4.1", report["ring"][0], c_ring[0], "N m s/rad",
             "fig 4.5, eq 4.4", "b_C + b_S (1 + 1/x)^2 with b_S = 0, set from this constant "
             "(the report: sun bearing friction negligible); table 4.1's b_C is c4",
-            category=CALIBRATION),
+            category=CALIBRATION, statement=BOTH_CURVES),
         Row("c5 predicted from table 4.1", report["ring"][1], c_ring[1], "N m", "fig 4.5, eq 4.4",
             f"mesh k_1 (x + 1/x) = {c5_parts[0]:.3g} plus carrier bearing k_C = "
-            f"{c5_parts[1]:.3g}, sum {sum(c5_parts):.3g} N m"),
+            f"{c5_parts[1]:.3g}, sum {sum(c5_parts):.3g} N m", statement=BOTH_CURVES),
         Row("c6 predicted from table 4.1", report["ring"][2], c_ring[2], "s/rad",
             "fig 4.5, eq 4.4",
             f"eq 3.29 puts the mesh term's sharpness at k_b1 / x = {kb1 / x:.3g} s/rad, and "
             f"c6 = {report['ring'][2]:g} would need x = k_b1 / c6 = "
             f"{kb1 / report['ring'][2]:.2f}, while c1 needs x = {x_c1:.2f}: no tooth ratio "
             "meets both of the report's curves with table 4.1 (the re-identification, "
-            "fig-4.7-refit, finds the same)"),
+            "fig-4.7-refit, finds the same)", statement=BOTH_CURVES),
     ]
     for fixed, name in (("sun", "fixed-sun"), ("ring", "fixed-ring")):
         for speed in CHECK_SPEEDS:
@@ -263,13 +280,13 @@ def fig_4_7(ctx):
             rows.append(Row(
                 f"{name} torque at {speed:g} rad/s, table 4.1 model",
                 round(_eq_4_2(speed, *report[fixed]), 6), at(fixed, speed), "N m",
-                "fig 4.4, eq 4.2" if fixed == "sun" else "fig 4.5, eq 4.4",
+                f"fig {'4.4' if fixed == 'sun' else '4.5'}, {FITTED_FORM[fixed][0]}",
                 "report: its fitted curve at this speed"
                 + ("" if inside else " (below the measured plateaus: the report swept low "
                    "speeds slowly, section 4.1.3)")
                 + f"; vsj: table 4.1 with arctan friction. With true stiction's Coulomb level "
                   f"the model gives {float(module.closed_form_torque(fixed, speed, 'sign')):.3g}"
-                  " N m"))
+                  " N m", statement=BOTH_CURVES))
     k1_sun = (report["sun"][1] - c2_parts[1] - c2_parts[2]) / 2.0
     k1_ring = x * (report["ring"][1] - c5_parts[1]) / 2.0
     for fixed, index, label, k1 in (("sun", 1, "c2", k1_sun), ("ring", 1, "c5", k1_ring)):
@@ -283,7 +300,9 @@ def fig_4_7(ctx):
             + f" (see the planetary docstring), with table 4.1's k_1, which the report derived "
               f"under the printed relation: {value / report[fixed][index] - 1:+.0%} from the "
               f"report's {label}. Re-derived under the option, this curve alone would want "
-              f"k_1 = {k1:.3g} N m (table 4.1: {pg.mesh_stiction:g})"))
+              f"k_1 = {k1:.3g} N m (table 4.1: {pg.mesh_stiction:g}). A variant: the "
+              "default model keeps eq 3.27 as printed", category=VARIANT,
+            statement=BOTH_CURVES))
     caption = (
         "Report fig 4.7: the planetary module with table 4.1's parameters (bearing stiction "
         f"included, eq 3.27 as printed, tooth ratio x = N_S/N_R = {x:.3g} estimated by vsj) run "
@@ -344,23 +363,27 @@ def fig_4_7_refit(ctx):
     rows = [
         Row("second prototype: mesh friction without bearing stiction fits both curves", "no",
             "yes" if free.fits["mesh"].explains else "no", "", "section 4.1.3",
-            f"chi-square test p = {free.fits['mesh'].p_value:.2g} with x free"),
+            f"chi-square test p = {free.fits['mesh'].p_value:.2g} with x free",
+            statement="the second prototype's curves need stiction in the bearings "
+                      "(section 4.1.3)"),
         Row("second prototype: with bearing stiction one parameter set fits both", "yes",
             "yes" if best.explains else "no", "", "section 4.1.3, fig 4.7",
             f"p = {best.p_value:.2g}, guaranteed: {over}; the fit puts x at "
             f"{best.value('x'):.2f}" + (" (the search bound)" if "x" in best.at_bound else ""),
-            category=ROUND_TRIP),
+            category=ROUND_TRIP, statement=BOTH_CURVES),
         Row(f"second prototype: with bearing stiction and x = {x_vsj:.2f} (the tooth ratio table "
             "4.1's viscous constants imply) one parameter set fits both", "yes (fig 4.7)",
             "yes" if pinned.fits["bearing-stiction"].explains else "no", "",
             "section 4.1.3, fig 4.7",
             f"p = {pinned.fits['bearing-stiction'].p_value:.2g}: at this x the fixed-ring "
             "curve's sharpness c6 cannot be met (see c6 under fig 4.7). The report states "
-            "no x, so its claim cannot be checked at its own x"),
+            "no x, so its claim cannot be checked at its own x", statement=BOTH_CURVES),
         Row("old prototype: some parameter set fits both curves", "no",
             "yes" if old.chosen is not None else "no", "", "section 4.1.3",
             "neither structure passes the chi-square test" if old.chosen is None else
-            f"{old.chosen.structure} passes"),
+            f"{old.chosen.structure} passes",
+            statement="no parameter set reproduces both of the old prototype's curves "
+                      "(section 4.1.3)"),
     ]
     for estimate in best.parameters:
         if estimate.name in ("x", "k_b1"):
@@ -523,7 +546,8 @@ def fig_4_13(ctx):
                         measured, round(value, 5), "N m/rad", "eq 4.5, fig 4.10-4.13",
                         "the report's own simplified model against the report's own "
                         "measurement; eq 4.5 was fitted to all eight tested positions, whose "
-                        "other five values are not published"))
+                        "other five values are not published. A check of the report's "
+                        "consistency, not of vsj", category=CONSISTENCY))
     for q, measured in MEASURED_K.items():
         rows.append(Row(f"K at q = {q * 100:g} cm by the geometric model", measured,
                         round(geometric_K(q), 5), "N m/rad", "fig 4.10-4.13",
@@ -547,13 +571,14 @@ def fig_4_13(ctx):
     note = ("eq 4.5 refitted to vsj's synthetic loops, which come from the geometric model "
             "calibrated to the three published K values; between those points the geometry, "
             "not a measurement, decides the curve (the report's five other positions, which "
-            "pinned its fit there, are unpublished)")
+            "pinned its fit there, are unpublished). By construction: the loops come from a "
+            "geometry calibrated to the K values eq 4.5 was fitted to")
     rows += [Row("a1 refitted to the synthetic loops", a1, e.a1.value, "N m/rad",
-                 "eq 4.5, section 4.2.2", note),
+                 "eq 4.5, section 4.2.2", note, category=BY_CONSTRUCTION),
              Row("a2 refitted to the synthetic loops", a2 / 100, e.a2.value / 100, "1/cm",
-                 "eq 4.5, section 4.2.2", note),
+                 "eq 4.5, section 4.2.2", note, category=BY_CONSTRUCTION),
              Row("a3 refitted to the synthetic loops", a3, e.a3.value, "N m/rad",
-                 "eq 4.5, section 4.2.2", note)]
+                 "eq 4.5, section 4.2.2", note, category=BY_CONSTRUCTION)]
     caption = (f"Linear stiffness of synthetic loops at q = "
                f"{', '.join(f'{q * 100:g}' for q in qs)} cm with their 95 % intervals and the "
                "exponential K = a1 exp(a2 q) + a3 fitted to them; the report's own eq 4.5 with "

@@ -83,11 +83,10 @@ def fig_4_7(data) -> Figure:
     for col, config in enumerate(data["configurations"]):
         fixed = config["fixed"]
         top, bottom = axes[0, col], axes[1, col]
-        first = "c1..c3" if fixed == "sun" else "c4..c6"
         reference = config["report"]
         top.plot(w, reference, "k-", lw=2.2, alpha=0.45,
-                 label=f"report: eq 4.2 with {first} = " + ", ".join(f"{c:g}" for c in
-                                                                    config["constants"]))
+                 label=f"report: {config['equation']} with {config['constant_names']} = "
+                       + ", ".join(f"{c:g}" for c in config["constants"]))
         for model in config["model"]:
             style, torque = FORWARD_STYLES[model["law"]], model["torque"]
             top.plot(w, torque, style, color="C0", lw=1.4,

@@ -112,34 +112,47 @@ def fig_4_14(data) -> Figure:
 
 
 def fig_4_15(data) -> Figure:
-    traces, rigid = data["traces"], data["rigid"]
-    fig = Figure(figsize=(15, 7), layout="constrained")
-    axes = fig.subplot_mosaic([["theta_x", "theta_y", "lag"], ["phi_1", "phi_2", "deflection"]])
-    panels = (("theta_x", "end-effector θx [rad]"), ("theta_y", "end-effector θy [rad]"),
-              ("phi_1", "elastic deflection φ1 [rad]"), ("phi_2", "elastic deflection φ2 [rad]"))
-    alphas = np.linspace(0.3, 1.0, len(traces))  # as the report: stiff light, soft solid
-    for i, (trace, alpha) in enumerate(zip(traces, alphas)):
-        for signal, _ in panels:
-            axes[signal].plot(trace["time"], trace[signal], color=f"C{i}", alpha=alpha, lw=1.4,
-                              label=f"q = {trace['q'] * 100:+.1f} cm")
+    """One row per friction law (its name in every panel title): the end-effector angles
+    with the rigid-spring path and the elastic deflections over time; right, the lag and
+    the deflection against q under both laws."""
+    laws, rigid = data["laws"], data["rigid"]
+    fig = Figure(figsize=(18, 8), layout="constrained")
+    rows = [[f"{key}/{i}" for key in ("theta_x", "theta_y", "phi")] + [side]
+            for i, side in enumerate(("lag", "deflection"))]
+    axes = fig.subplot_mosaic(rows)
     t = rigid["time"]
-    for key in ("theta_x", "theta_y"):
-        axes[key].plot(t, rigid[key], "k--", lw=0.9, label="rigid springs (motor command)")
-    for signal, label in panels:
-        axes[signal].set(xlabel="time [s]", ylabel=label, xlim=(t[0], t[-1]))
-        axes[signal].grid(alpha=0.3)
-    for law, style in zip(data["laws"], ("o-", "s--")):
+    for i, law in enumerate(laws):
+        traces = law["traces"]
+        alphas = np.linspace(0.3, 1.0, len(traces))  # as the report: stiff light, soft solid
+        for k, (trace, alpha) in enumerate(zip(traces, alphas)):
+            style = dict(color=f"C{k}", alpha=alpha, lw=1.4)
+            for key in ("theta_x", "theta_y"):
+                axes[f"{key}/{i}"].plot(trace["time"], trace[key], **style,
+                                        label=f"q = {trace['q'] * 100:+.1f} cm")
+            axes[f"phi/{i}"].plot(trace["time"], trace["phi_1"], **style)
+            axes[f"phi/{i}"].plot(trace["time"], trace["phi_2"], "--", **style)
+        for key, name in (("theta_x", "end-effector θx [rad]"),
+                          ("theta_y", "end-effector θy [rad]"),
+                          ("phi", "elastic deflection φ1 (solid), φ2 (dashed) [rad]")):
+            ax = axes[f"{key}/{i}"]
+            if key != "phi":
+                ax.plot(t, rigid[key], "k--", lw=0.9, label="rigid springs (motor command)")
+            ax.set(xlabel="time [s]", ylabel=name, xlim=(t[0], t[-1]))
+            ax.set_title(f"friction: {law['label']}", fontsize=8)
+            ax.grid(alpha=0.3)
+    for law, style in zip(laws, ("o-", "s--")):
+        short = law["label"].split(";")[0]  # the law and its source; the titles say more
         axes["lag"].plot(law["q"] * 100, law["lag"] * 1e3, style, color="k", mfc="none",
-                         label=law["label"])
+                         label=short)
         axes["deflection"].plot(law["q"] * 100, law["deflection"], style, color="k",
-                                mfc="none", label=law["label"])
+                                mfc="none", label=short)
     axes["lag"].set(xlabel="pivot position q [cm]", ylabel="lag behind the motors [ms]",
                     title="phase lag at the drive frequency")
     axes["deflection"].set(xlabel="pivot position q [cm]", ylabel="largest |φ1|, |φ2| [rad]",
                            title="elastic deflection after the transient")
     for key in ("lag", "deflection"):
         axes[key].grid(alpha=0.3)
-        axes[key].legend(fontsize=8)
-    fig.legend(*axes["theta_x"].get_legend_handles_labels(), loc="outside lower center",
-               ncol=len(traces) + 1, fontsize=8)
+        axes[key].legend(fontsize=7)
+    fig.legend(*axes["theta_x/0"].get_legend_handles_labels(), loc="outside lower center",
+               ncol=len(laws[0]["traces"]) + 1, fontsize=8)
     return fig

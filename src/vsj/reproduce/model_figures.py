@@ -14,12 +14,17 @@ The elastic element is shown in three forms (`vsj.springs`):
 the physical potential model (``geometric``), eq 3.8 as printed
 (``geometric-report``) and the simplified linear spring of eq 4.5
 (``exponential``). Fig 3.7 adds the coil-pretension option of the potential
-model (static only), and fig 4.15 runs the wrist with true stiction, the closest
-vsj has to the report's final stiction model, with the arctan law beside it.
-Each row carries its category (`vsj.reproduce.base.CATEGORIES`): the pretension
-statements the geometry was calibrated to are calibration targets, the report's
-settings and end stop inputs. Deflections are in rad, torques in N m, and pivot
-positions in cm, as the report plots them.
+model (static only), and fig 4.15 runs the wrist under two friction laws, each
+named wherever it is shown: true stiction, the closest vsj has to the report's
+final stiction model, and the arctan law of the built-in scenario, the run
+``vsj simulate fig-4.15`` makes. Each row carries its category
+(`vsj.reproduce.base.CATEGORIES`): the pretension statements the geometry was
+calibrated to are calibration targets, the report's settings and end stop
+inputs, a deflection pushed onto the end stop is decided by that limit, the
+report's eq 4.5 against its own statement a consistency check, and the
+coil-pretension jump holds by construction. Rows that show one report statement
+share its name (`Row.statement`). Deflections are in rad, torques in N m, and
+pivot positions in cm, as the report plots them.
 
 None of these figures contains synthetic measurement data.
 """
@@ -47,7 +52,19 @@ from ..identification.geometry import TESTED_Q, ReportTargets
 from ..params import Parameters
 from ..units import to_si
 from ..wrist import exponential, geometry
-from .base import CALIBRATION, INPUT, NOT_STATED, Context, Drawing, Figure, Row
+from .base import (
+    BY_CONSTRUCTION,
+    CALIBRATION,
+    CONSISTENCY,
+    INPUT,
+    LIMIT,
+    NOT_STATED,
+    PREDICTION,
+    Context,
+    Drawing,
+    Figure,
+    Row,
+)
 
 #: Largest axis ratio of fig 4.14's loop still read as an ellipse, not a circle: the
 #: rigid case's ratio differs from 1 by well under 2 % (the differential's stiction).
@@ -83,6 +100,20 @@ MODELS = (
 )
 SHORT = {GEOMETRIC: "potential model", GEOMETRIC_REPORT: "eq 3.8 model",
          EXPONENTIAL: "eq 4.5 model"}
+
+#: The report statements these figures test, each shown by several rows (elastic
+#: models, pivot positions, friction laws) and counted once in the headline.
+HOLDS_LOAD = "1 N m is held before the end stop up to q = 0 (section 3.2.2, fig 3.5)"
+DEFLECTION_CURVE = "deflection under 1 N m against q (fig 3.5, curve only)"
+NONLINEARITY_PEAK = ("highest non-linearity between q = 0.3 and -0.6 cm "
+                     "(section 4.2.2 on fig 3.6)")
+SLACK_CURVE = ("a spring losing its pretension makes the curve non-linear and even "
+               "non-continuous (section 3.2, 4.2.2)")
+ELLIPSE_STATEMENT = ("a parasitic compliance in one DOF turns the circle into an ellipse "
+                     "(section 4.3, fig 4.14)")
+FOLLOWING = "stiffer settings follow the motors faster (section 4.3, fig 4.15)"
+LAG_CURVES = "lag of the end-effector behind the motors (fig 4.15, curves only)"
+DEFLECTION_CURVES = "elastic deflection while following (fig 4.15, curves only)"
 
 
 def _parameter_set(params: Parameters) -> str:
@@ -197,16 +228,23 @@ def fig_3_5(ctx: Context) -> Figure:
                         round(q_max * 100, 2) if math.isfinite(q_max) else "none", "cm",
                         "section 3.2.2, fig 3.5",
                         "the report does not display q > 0 because the element reaches its "
-                        "physical limit there. " + note, tolerance=Q_TOLERANCE))
+                        "physical limit there. " + note, tolerance=Q_TOLERANCE,
+                        # eq 4.5 with table 4.1's constants is the report's own model: the
+                        # row checks the report's statement against its own measurement
+                        category=CONSISTENCY if law == EXPONENTIAL else PREDICTION,
+                        statement=HOLDS_LOAD))
     par = _law_row(params, GEOMETRIC)
     for q in sorted(q for q in TESTED_Q if q <= 0.0):
         phi = ch.deflection_under(GEOMETRIC, par, q, LOAD, limit=stop)
         at_stop = phi >= stop
         rows.append(Row(f"deflection under 1 N m at q = {_cm(q)} (potential model)",
                         NOT_STATED + " (curve only)", round(phi, 4), "rad", "fig 3.5",
-                        (f"at the end stop: the largest torque before it is "
-                         f"{largest[GEOMETRIC][q]:.2f} N m" if at_stop else
-                         "held before the end stop")))
+                        (f"the end stop, an input: the largest torque before it is "
+                         f"{largest[GEOMETRIC][q]:.2f} N m, so the load pushes the element "
+                         "onto the stop and the stop, not the model, gives the value"
+                         if at_stop else "held before the end stop"),
+                        category=LIMIT if at_stop else PREDICTION,
+                        statement=DEFLECTION_CURVE))
     caption = (f"Report fig 3.5: static deflection of one VSM elastic element under a {LOAD:g} N m "
                f"load, for pivot positions q = {q_lo * 100:.1f} ... 0 cm (step "
                f"{(qs[1] - qs[0]) * 100:.2f} cm), end stop at {stop:.2f} rad; left the "
@@ -273,7 +311,7 @@ def fig_3_6(ctx: Context) -> Figure:
                 f"up to q = {jumps[law] * 100:.2f} cm (fig 3.5), and there φ_max jumps from "
                 "the deflection under 1 N m to 1.40 rad, past the torque maximum. "
                 if at_jump else "")
-               + "See the tested-range row."), agrees=inside))
+               + "See the tested-range row."), agrees=inside, statement=NONLINEARITY_PEAK))
     for law in (GEOMETRIC, GEOMETRIC_REPORT):
         q_peak, value = tested[law]
         inside = report_lo <= q_peak <= report_hi
@@ -289,7 +327,7 @@ def fig_3_6(ctx: Context) -> Figure:
                f"pretension loss the report blames lies at q = {slack} in vsj (fig 3.7) but "
                "is outweighed; the calibration (vsj.identification.geometry) could not move "
                "the peak into the report's range while keeping the measured K."),
-            agrees=inside))
+            agrees=inside, statement=NONLINEARITY_PEAK))
     caption = (f"Report fig 3.6: non-linearity of one VSM elastic element for q = "
                f"{q_lo * 100:.1f} ... {q_hi * 100:.1f} cm (step {(qs[1] - qs[0]) * 100:.2f} cm): "
                "RMS difference between the static torque-deflection curve and its tangent at "
@@ -440,7 +478,7 @@ def fig_3_7(ctx: Context) -> Figure:
                        "there, so the kink is mild, milder than the 'very sudden deviation' of "
                        "fig 4.11" if abs(k_after / k_before - 1.0) < 0.2 else "")
                     + ". A kink cannot be 'non-continuous'; coil pretension can (next row).",
-                    agrees=False))
+                    agrees=False, statement=SLACK_CURVE))
     coil_slack = ch.pretension_loss(coil, q_kink, limit=stop)
     before, after = _coil_curve(coil, tension, q_kink, [coil_slack - 1e-6, coil_slack + 1e-6])
     rows.append(Row(f"curve where a spring goes slack, with coil pretension (q = {_cm(q_kink)})",
@@ -454,7 +492,9 @@ def fig_3_7(ctx: Context) -> Figure:
                     "by F_i |dl/dφ|, and earlier than without it (the free length is longer). "
                     "Any F_i > 0 gives a jump; this fits the report's 'very sudden deviation' "
                     "and 'non-continuous' better than a kink. Static only: the engine has no "
-                    "such term", agrees=True))
+                    "such term. By construction: the option was added to show this effect, "
+                    "and any F_i > 0 shows it", agrees=True, category=BY_CONSTRUCTION,
+                    statement=SLACK_CURVE))
     tau_low = {q: float(ch.torque_curve(GEOMETRIC, low, q, [COMPARE_AT])[0]) for q in shown}
     tau_cal = {q: float(ch.torque_curve(GEOMETRIC, par, q, [COMPARE_AT])[0]) for q in shown}
     spread_low = max(tau_low.values()) / min(tau_low.values())
@@ -469,7 +509,9 @@ def fig_3_7(ctx: Context) -> Figure:
                     "smaller deflections but does not make the settings alike. The report fitted "
                     "its model to the old prototype's measurements [2] with unpublished "
                     "dimensions; vsj's geometry must span the measured factor of about 100 in "
-                    "K(q), which keeps the curves apart.", agrees=spread_low <= ALIKE))
+                    "K(q), which keeps the curves apart.", agrees=spread_low <= ALIKE,
+                    statement="with poorly pretensioned springs the curves of different q "
+                              "are roughly the same (section 3.2.2, fig 3.7)"))
     s = GEOMETRY_FIELDS.index("rest_length")
     caption = ("Report fig 3.7 (left part, simulated) and section 4.2.2: static torque-deflection "
                "curves of one VSM elastic element (potential form of the geometric model, no "
@@ -596,7 +638,9 @@ def fig_4_14(ctx: Context) -> Figure:
                 ratio, "", "section 4.3, fig 4.14",
                 f"the report says 'a circular shape', axis ratio 1. vsj: {axes_text}, their "
                 "small difference from the differential's stiction (k_D), which acts on θy "
-                "alone; the steps along the circle are stick-slip of the friction elements."))
+                "alone; the steps along the circle are stick-slip of the friction elements.",
+                statement="without parasitic compliance the 2D stiffness characteristic is "
+                          "a circle (section 4.3, fig 4.14)"))
         else:
             rows.append(Row(
                 f"axis ratio with a parasitic compliance of {loop.compliance:g} rad/(N m) in "
@@ -604,7 +648,8 @@ def fig_4_14(ctx: Context) -> Figure:
                 f"{axes_text}, major axis at {loop.angle:.0f} deg in the (τx, τy) plane: the "
                 "compliance softens DOF 1 only (differential input 1, the θx + θy direction). "
                 "The report states neither its compliance values nor the axis ratio of the data "
-                "of [2] it matched ('slightly scaled').", agrees=ratio <= ELLIPSE))
+                "of [2] it matched ('slightly scaled').", agrees=ratio <= ELLIPSE,
+                statement=ELLIPSE_STATEMENT))
     case0 = runs[0][0]
     caption = (f"Report fig 4.14 (left part): primary motors held (suns fixed), end-effector "
                f"driven along a circle of {radius:g} rad (spiralling out over {fade:g} s, then "
@@ -645,11 +690,18 @@ def _phase_lag(signal: np.ndarray, reference: np.ndarray, t: np.ndarray,
                  / (2.0 * math.pi * frequency))
 
 
-#: Friction laws of fig 4.15: true stiction first (drawn), then eq 3.17 for comparison.
-#: The report found the arctan law unable to stick and replaced it in its final model by
-#: a stiction element (section 4.1.3, fig 4.8, conclusion); true stiction is the closest
-#: vsj has to that final model.
+#: Friction laws of fig 4.15: true stiction first, then eq 3.17, the law of the built-in
+#: scenario (what ``vsj simulate fig-4.15`` runs). The report found the arctan law
+#: unable to stick and replaced it in its final model by a stiction element (section
+#: 4.1.3, fig 4.8, conclusion); true stiction is the closest vsj has to that final model.
 FIG_4_15_LAWS = ("stiction", "arctan")
+
+
+def _law_label(law: str, scenario_law: str) -> str:
+    """How fig 4.15 names the runs of one friction law (legends, titles, rows)."""
+    notes = (["closest to the report's final stiction model, fig 4.8"] if law == "stiction"
+             else []) + (["as `vsj simulate fig-4.15` runs it"] if law == scenario_law else [])
+    return f"{law} ({FRICTION_TEXT[law]})" + "".join(f"; {note}" for note in notes)
 
 
 def _with_friction(scen: scenarios.Scenario, law: str) -> scenarios.Scenario:
@@ -680,19 +732,21 @@ def _following(runs, gain: float, frequency: float, settle: float) -> list[_Foll
 
 def fig_4_15(ctx: Context) -> Figure:
     """Circular motion driven by the primary motors at five stiffness settings (fig 4.15),
-    with true stiction, and the lags under the arctan law beside it.
+    under true stiction and under the arctan law of the built-in scenario.
 
-    Data: ``traces``, one per stiffness setting under true stiction, with ``q``
-    [m] and over ``time`` [s] the end-effector angles ``theta_x``, ``theta_y``
-    and the elastic deflections ``phi_1``, ``phi_2`` [rad]; ``rigid``, the path
-    rigid springs would give (``time`` [s], ``theta_x``, ``theta_y`` [rad]);
-    ``laws``, one per friction law (true stiction first) with its ``label`` and,
-    per setting, ``q`` [m], the phase ``lag`` behind the motors [s] (mean of
-    ``lag_x`` and ``lag_y``) and the largest elastic ``deflection`` after the
-    transient [rad].
+    Data: ``scenario_law``, the friction law of the built-in scenario; ``rigid``,
+    the path rigid springs would give (``time`` [s], ``theta_x``, ``theta_y``
+    [rad]); ``laws``, one per friction law (true stiction first) with its
+    ``law``, its ``label`` (which names the built-in scenario's run), its
+    ``traces``, one per stiffness setting with ``q`` [m] and over ``time`` [s]
+    the end-effector angles ``theta_x``, ``theta_y`` and the elastic deflections
+    ``phi_1``, ``phi_2`` [rad], and per setting ``q`` [m], the phase ``lag``
+    behind the motors [s] (mean of ``lag_x`` and ``lag_y``) and the largest
+    elastic ``deflection`` after the transient [rad].
     """
     params = ctx.params
     base = scenarios.load("fig-4.15")
+    scenario_law = base.table.get("solver", {}).get("friction", "arctan")
     drive = base.table["inputs"]["motor_1"]["signal"]
     where = f"{base.origin}: inputs.motor_1.signal"
     frequency = _quantity(drive, "frequency", "Hz", where)
@@ -700,74 +754,89 @@ def fig_4_15(ctx: Context) -> Figure:
     settle = fade + 1.0 / frequency  # the fade-in and one period for the transient
     # reduced: two periods after the transient instead of the scenario's three
     duration = settle + 2.0 / frequency if ctx.reduced else None
-    scens = {law: _with_friction(base, law) for law in FIG_4_15_LAWS}
+    # the scenario's own law runs the scenario as it is, as the command line does
+    scens = {law: base if law == scenario_law else _with_friction(base, law)
+             for law in FIG_4_15_LAWS}
     runs = {law: _run(scen, params, duration) for law, scen in scens.items()}
     pg = params.planetary
     # rigid springs (ring fixed): carrier = r_SC sun (eq 3.9), differential input =
     # carrier / ratio, theta_x, theta_y = (psi_1 +- psi_2) / 2 (eq 3.30-3.31)
     gain = pg.sun_teeth / (pg.sun_teeth + pg.ring_teeth) / params.transmission.ratio
     following = {law: _following(r, gain, frequency, settle) for law, r in runs.items()}
-    shown = FIG_4_15_LAWS[0]
-    cases = following[shown]
-    traces = [{"q": c.q, "time": result.time,
-               **{signal: result[signal] for signal in ("theta_x", "theta_y", "phi_1", "phi_2")}}
-              for c, (_, _, result) in zip(cases, runs[shown])]
-    result = runs[shown][-1][2]  # the rigid path is drawn along the last setting's run
+    labels = {law: _law_label(law, scenario_law) for law in FIG_4_15_LAWS}
+    result = runs[FIG_4_15_LAWS[0]][-1][2]  # the motors are position inputs: one path
     t = result.time
     sun_1, sun_2 = result["motor_1"], result["motor_2"]
-    data = {"traces": traces,
+    data = {"scenario_law": scenario_law,
             "rigid": {"time": t, "theta_x": gain * (sun_1 + sun_2) / 2.0,
                       "theta_y": gain * (sun_1 - sun_2) / 2.0},
-            "laws": [{"law": law, "label": f"{law} ({FRICTION_TEXT[law]})",
+            "laws": [{"law": law, "label": labels[law],
+                      "traces": [{"q": c.q, "time": res.time,
+                                  **{k: res[k] for k in ("theta_x", "theta_y", "phi_1",
+                                                         "phi_2")}}
+                                 for c, (_, _, res) in zip(following[law], runs[law])],
                       **{key: np.array([getattr(c, key) for c in following[law]])
                          for key in ("q", "lag", "lag_x", "lag_y", "deflection")}}
                      for law in FIG_4_15_LAWS]}
 
+    cases = following[FIG_4_15_LAWS[0]]
     first, last = cases[0], cases[-1]
-    ordered = all(b.lag > a.lag for a, b in zip(cases, cases[1:]))
-    other = following[FIG_4_15_LAWS[1]]
-    more = [c.lag / o.lag - 1.0 for c, o in zip(cases, other)]
+    stiction, arctan = (following[law] for law in FIG_4_15_LAWS)
+    more = [c.lag / o.lag - 1.0 for c, o in zip(stiction, arctan)]
     rows = [Row("stiffness settings shown", "q = -1.5 to 0.5 cm",
                 f"q = {first.q * 100:.1f} to {last.q * 100:.1f} cm ({len(cases)} settings)", "",
-                "fig 4.15", "the scenario's settings", category=INPUT, agrees=True),
-            Row("stiffer settings follow the motors faster, softer ones lag more", "yes",
-                "yes" if ordered else "no", "", "section 4.3, fig 4.15",
-                f"with true stiction, lag from {first.lag * 1e3:.1f} ms at q = "
-                f"{first.q * 100:+.1f} cm to {last.lag * 1e3:.1f} ms at q = "
-                f"{last.q * 100:+.1f} cm. The lag is mostly the springs' deflection under the "
-                "friction downstream of them (transmissions b_T, k_T; differential k_D), so it "
-                "grows roughly as 1/K(q)."),
-            Row("lag under true stiction against the arctan law", NOT_STATED,
-                f"{min(more):+.0%} to {max(more):+.0%}", "", "section 4.1.3, fig 4.8",
-                "relative difference of the lags, q by q. The laws differ at low slip: true "
-                "stiction holds the chain until its breakaway level, the arctan law (eq 3.17) "
-                "lets it creep; which of them lags more depends on the inertia behind the "
-                "springs (with larger end-effector inertias true stiction lags more), so the "
-                "law matters for the lag by tens of percent, its sign is not robust")]
+                "fig 4.15", "the scenario's settings", category=INPUT, agrees=True)]
+    for law in FIG_4_15_LAWS:
+        lags = following[law]
+        ordered = all(b.lag > a.lag for a, b in zip(lags, lags[1:]))
+        rows.append(Row(
+            f"stiffer settings follow the motors faster, softer ones lag more, {law}", "yes",
+            "yes" if ordered else "no", "", "section 4.3, fig 4.15",
+            f"friction law {labels[law]}: lag from {lags[0].lag * 1e3:.1f} ms at q = "
+            f"{lags[0].q * 100:+.1f} cm to {lags[-1].lag * 1e3:.1f} ms at q = "
+            f"{lags[-1].q * 100:+.1f} cm. The lag is mostly the springs' deflection under the "
+            "friction downstream of them (transmissions b_T, k_T; differential k_D), so it "
+            "grows roughly as 1/K(q).", statement=FOLLOWING))
+    rows.append(Row("lag under true stiction against the arctan law", NOT_STATED,
+                    f"{min(more):+.0%} to {max(more):+.0%}", "", "section 4.1.3, fig 4.8",
+                    "relative difference of the lags, q by q. The laws differ at low slip: "
+                    "true stiction holds the chain until its breakaway level, the arctan law "
+                    "(eq 3.17) lets it creep; which of them lags more depends on the inertia "
+                    "behind the springs (with larger end-effector inertias true stiction lags "
+                    "more), so the law matters for the lag by tens of percent, its sign is not "
+                    "robust"))
     for law in FIG_4_15_LAWS:
         for c in following[law]:
             rows.append(Row(
                 f"lag of the end-effector behind the motors, q = {c.q * 100:+.1f} cm, {law}",
                 NOT_STATED + " (curves only)", round(c.lag * 1e3, 2), "ms", "fig 4.15",
-                f"phase lag at {frequency:g} Hz behind the rigid-spring path, mean of θx "
-                f"({c.lag_x * 1e3:.2f} ms) and θy ({c.lag_y * 1e3:.2f} ms)"
+                f"friction law {labels[law]}; phase lag at {frequency:g} Hz behind the "
+                f"rigid-spring path, mean of θx ({c.lag_x * 1e3:.2f} ms) and θy "
+                f"({c.lag_y * 1e3:.2f} ms)"
                 + ("; θy lags more: the differential's stiction (k_D) acts on it alone."
-                   if c.lag_y > c.lag_x else ".")))
-    for c in cases:
-        rows.append(Row(f"largest elastic deflection |φ1|, |φ2|, q = {c.q * 100:+.1f} cm",
-                        NOT_STATED + " (curves only)", round(c.deflection, 4), "rad",
-                        "fig 4.15", "after the transient, true stiction"))
+                   if c.lag_y > c.lag_x else "."), statement=LAG_CURVES))
+    for law in FIG_4_15_LAWS:
+        for c in following[law]:
+            rows.append(Row(
+                f"largest elastic deflection |φ1|, |φ2|, q = {c.q * 100:+.1f} cm, {law}",
+                NOT_STATED + " (curves only)", round(c.deflection, 4), "rad", "fig 4.15",
+                f"after the transient, friction law {labels[law]}",
+                statement=DEFLECTION_CURVES))
     caption = (f"Report fig 4.15: the primary motors (velocity sources at the suns) drive the "
                f"end-effector around a circle at {frequency:g} Hz (faded in over {fade:g} s), "
                f"{t[-1]:.0f} s simulated, at q = "
                + ", ".join(f"{c.q * 100:+.1f}" for c in cases) + " cm (light: stiff, solid: "
-               "soft); left the end-effector angles with the path rigid springs would give "
-               "(dashed) and the elastic deflections, right the lag and deflection against q "
-               "under both friction laws. Lags are phase lags at the drive frequency from "
-               f"{settle:g} s on. Traces: {_model_text(scens[shown], runs[shown][0][0])}; "
-               "true stiction, the closest vsj has to the report's final stiction model "
-               "(fig 4.8), since the report found the arctan law cannot stick (section "
-               f"4.1.3). {_parameter_set(params)}.")
+               "soft), under two friction laws, one row each. Top row: "
+               f"{labels[FIG_4_15_LAWS[0]]}. Bottom row: {labels[FIG_4_15_LAWS[1]]}. Left the "
+               "end-effector angles with the path rigid springs would give (dashed) and the "
+               "elastic deflections (φ1 solid, φ2 dashed); right the lag and deflection "
+               "against q under both laws. Lags are phase lags at the drive frequency from "
+               f"{settle:g} s on. The report found the arctan law cannot stick (section "
+               "4.1.3) and used a stiction element in its final model; the built-in scenario "
+               f"keeps the {scenario_law} law. "
+               + " ".join(f"{law}: {_model_text(scens[law], runs[law][0][0])}."
+                          for law in FIG_4_15_LAWS)
+               + f" {_parameter_set(params)}.")
     return Figure("fig-4.15", data, caption, rows, draw=Drawing("draw_model", "fig_4_15"))
 
 
