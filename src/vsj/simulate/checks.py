@@ -27,11 +27,28 @@ def _stop_angles(structure: Structure) -> dict[str, float]:
     return angles
 
 
+def finer_setting(solver: str, residual: float, options: SimulationOptions) -> str:
+    """What to run instead when the ledger's residual exceeds its tolerance: for the
+    time-stepper a step that divides the output step and, at the residual's second
+    order in the step (its springs, integrated by the trapezoidal rule), brings it to
+    a quarter of the tolerance; for dopri an rtol that, at the residual's first order
+    in rtol, brings it to a tenth."""
+    excess = residual / options.ledger_tolerance
+    if solver == "timestep":
+        need = 2.0 * math.sqrt(excess)  # h/k: excess / k^2 <= 1/4
+        # the smallest divisor of the form (1, 2, 4, 5, 8) 10^j: the step stays a short
+        # decimal that divides the output step
+        k = min(m * 10 ** j for j in range(12) for m in (1, 2, 4, 5, 8) if m * 10 ** j >= need)
+        return f"step = \"{options.step / k:.6g} s\" (1/{k} of the step)"
+    return f"rtol = {options.rtol / (10.0 * excess):.2g}"
+
+
 def judge(structure: Structure, time: np.ndarray, signals: Mapping[str, np.ndarray],
-          ledger: Mapping, options: SimulationOptions) -> tuple[float, str] | None:
+          ledger: Mapping, options: SimulationOptions,
+          solver: str = "dopri") -> tuple[float, str] | None:
     """Why a run that ended cannot be trusted, with the time it shows: an energy
-    ledger that does not close, or a spring `DIVERGED` past its end stop; None if
-    neither."""
+    ledger that does not close (the message names a finer setting, `finer_setting`),
+    or a spring `DIVERGED` past its end stop; None if neither."""
     for name, stop in _stop_angles(structure).items():
         past = np.abs(signals[f"spring.{name}.deflection"]) - stop
         over = np.flatnonzero(past > DIVERGED)
@@ -44,8 +61,9 @@ def judge(structure: Structure, time: np.ndarray, signals: Mapping[str, np.ndarr
     if not residual <= options.ledger_tolerance:
         return float(time[-1]), (
             f"the energy ledger does not close: its residual is {residual:.3g} of the energy "
-            f"in play, above the ledger tolerance {options.ledger_tolerance:g} (the numerical "
-            f"settings are too coarse for this run: tighten rtol, or shorten the step)")
+            f"in play, above the ledger tolerance {options.ledger_tolerance:g}: the numerical "
+            f"settings are too coarse for this run; try "
+            f"{finer_setting(solver, residual, options)}")
     return None
 
 

@@ -161,7 +161,7 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
     balance: dict = {}
     if status == core.OK:
         balance = ledger(structure, engine, layout, y0, y_end, duration)
-        problem = judge(structure, t_out, signals, balance, options)
+        problem = judge(structure, t_out, signals, balance, options, solver)
         if problem is None:
             success, message = True, f"simulated {duration:g} s"
         else:  # the run ended, but its result cannot be trusted
