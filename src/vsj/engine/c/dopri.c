@@ -47,141 +47,204 @@ static double norm(const double *e, const double *y, const double *y2, double rt
 static double dmin(double a, double b) { return a < b ? a : b; }
 static double dmax(double a, double b) { return a > b ? a : b; }
 
-static vsj_report done(int status, double t, int64_t steps, int64_t rejected) {
+static vsj_report report_of(const dopri_state *d) {
     vsj_report r;
-    r.status = status;
-    r.t = t;
-    r.steps = steps;
-    r.rejected = rejected;
+    r.status = d->status;
+    r.t = d->t;
+    r.steps = d->steps;
+    r.rejected = d->rejected;
     return r;
+}
+
+/* The samples of t_out[*i_out ..] that the last accepted step covers (its start yo,
+ * end y and Hairer's dense coefficients r3..r5), up to `last` samples. */
+static void sample_step(const vsj_work *w, const dopri_state *d, const double *t_out,
+                        int64_t n_out, int64_t *i_out, double *out, int64_t out_cols) {
+    int64_t i, n_keep = d->ny < out_cols ? d->ny : out_cols;
+    const double *yo = w->yo, *y = w->y, *r3 = w->r3, *r4 = w->r4, *r5 = w->r5;
+    while (*i_out < n_out && t_out[*i_out] <= d->t) {
+        double th = (t_out[*i_out] - d->t_prev) / d->h_prev, th1 = 1.0 - th;
+        double *row = out + out_cols * *i_out;
+        for (i = 0; i < n_keep; i++)
+            row[i] = yo[i] + th * ((y[i] - yo[i]) + th1 * (r3[i] + th * (r4[i] + th1 * r5[i])));
+        (*i_out)++;
+    }
+}
+
+int vsj_dopri_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t ny, double t0,
+                    double t_end, double rtol, double atol, double h_max, int64_t max_steps,
+                    int64_t n_err) {
+    dopri_state *d = &w->dopri;
+    double *K = w->K, *y = w->y, *yt = w->yt, *err = w->err, d0, d1, d2, h, big, h1;
+    int64_t i;
+    memset(d, 0, sizeof *d);
+    d->status = VSJ_BAD_ARGUMENT;
+    if (!vsj__fits(m, w) || ny > w->ny_max || ny < 0 || n_err > ny || n_err < 0
+        || vsj__rigid_stop(m) || !(t_end >= t0) || !(rtol > 0.0) || !(atol > 0.0)
+        || !(h_max > 0.0) || max_steps < 1)
+        return d->status;
+    d->ny = ny;
+    d->n_err = n_err;
+    d->rtol = rtol;
+    d->atol = atol;
+    d->h_max = h_max;
+    d->max_steps = max_steps;
+    d->t = d->t_prev = t0;
+    d->t_end = t_end;
+    d->err_old = 1e-4;
+    memcpy(y, y0, (size_t)ny * sizeof(double));
+    memcpy(w->yo, y0, (size_t)ny * sizeof(double));
+    w->status = VSJ_OK;
+    vsj__eval_derivatives(m, w, t0, y, ny, K);
+    d->status = w->status;
+    if (d->status != VSJ_OK || !(t_end > t0))
+        return d->status;
+    /* initial step (Hairer's estimate) */
+    d0 = norm(y, y, y, rtol, atol, n_err);
+    d1 = norm(K, y, y, rtol, atol, n_err);
+    h = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
+    h = dmin(dmin(h, h_max), t_end - t0);
+    for (i = 0; i < ny; i++)
+        yt[i] = y[i] + h * K[i];
+    vsj__eval_derivatives(m, w, t0 + h, yt, ny, K + ny);
+    for (i = 0; i < ny; i++)
+        err[i] = K[ny + i] - K[i];
+    d2 = norm(err, y, y, rtol, atol, n_err) / h;
+    big = dmax(d1, d2);
+    h1 = big <= 1e-15 ? dmax(1e-6, h * 1e-3) : pow(0.01 / big, 0.2);
+    d->h = dmin(dmin(dmin(100.0 * h, h1), h_max), t_end - t0);
+    w->status = VSJ_OK;
+    return d->status;
+}
+
+/* One attempted step from (t, y) with h: returns 1 if accepted (y, t advanced, the
+ * dense coefficients of the step kept), 0 if rejected (h reduced), -1 on a failure
+ * (d->status says which). */
+static int attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
+    double *K = w->K, *yt = w->yt, *y1 = w->y1, *err = w->err, *y = w->y;
+    int64_t ny = d->ny, i, j, st;
+    int last = 0, stage_bad = 0;
+    double h = d->h, e, fac11;
+    if (d->t + h >= d->t_end) {
+        h = d->t_end - d->t;
+        last = 1;
+    }
+    for (st = 1; st < 7; st++) {
+        for (i = 0; i < ny; i++) {
+            double total = 0.0;
+            for (j = 0; j < st; j++)
+                total += A[st][j] * K[ny * j + i];
+            yt[i] = y[i] + h * total;
+        }
+        if (st == 6) {
+            memcpy(y1, yt, (size_t)ny * sizeof(double));
+            if (w->status == VSJ_NOT_FINITE)
+                stage_bad = 1;
+            w->status = VSJ_OK; /* only the end point's physical limits count */
+        }
+        vsj__eval_derivatives(m, w, d->t + C[st] * h, yt, ny, K + ny * st);
+    }
+    for (i = 0; i < ny; i++) {
+        double total = 0.0;
+        for (j = 0; j < 7; j++)
+            total += E[j] * K[ny * j + i];
+        err[i] = h * total;
+    }
+    e = norm(err, y, y1, d->rtol, d->atol, d->n_err);
+    d->steps++;
+    if (!isfinite(e) || stage_bad || w->status == VSJ_NOT_FINITE) {
+        w->status = VSJ_OK;
+        d->h = h * 0.1;
+        d->rejected++;
+        d->rejected_last = 1;
+        return 0;
+    }
+    fac11 = pow(e, 0.17);
+    if (e > 1.0) {
+        w->status = VSJ_OK;
+        d->h = h / dmin(5.0, fac11 / 0.9);
+        d->rejected++;
+        d->rejected_last = 1;
+        return 0;
+    }
+    if (w->status != VSJ_OK) { /* a physical limit was crossed at the new point */
+        memcpy(y, y1, (size_t)ny * sizeof(double));
+        d->t += h;
+        d->status = w->status;
+        return -1;
+    }
+    for (i = 0; i < ny; i++) {
+        double d_i = y1[i] - y[i], total = 0.0;
+        w->r3[i] = h * K[i] - d_i;
+        w->r4[i] = d_i - h * K[ny * 6 + i] - w->r3[i];
+        for (j = 0; j < 7; j++)
+            total += D[j] * K[ny * j + i];
+        w->r5[i] = h * total;
+    }
+    memcpy(w->yo, y, (size_t)ny * sizeof(double));
+    memcpy(y, y1, (size_t)ny * sizeof(double));
+    memcpy(K, K + ny * 6, (size_t)ny * sizeof(double));
+    d->t_prev = d->t;
+    d->h_prev = h;
+    d->t = last ? d->t_end : d->t + h;
+    {
+        double fac = dmax(0.1, dmin(5.0, fac11 / pow(d->err_old, 0.04) / 0.9));
+        double h_new = h / fac;
+        if (d->rejected_last)
+            h_new = dmin(h_new, h);
+        d->err_old = dmax(e, 1e-4);
+        d->rejected_last = 0;
+        d->h = dmin(h_new, d->h_max);
+    }
+    return 1;
+}
+
+vsj_report vsj_dopri_advance(const vsj_model *m, vsj_work *w, const double *t_out,
+                             int64_t n_out, double *out, int64_t out_cols, int finish,
+                             double *y_now) {
+    dopri_state *d = &w->dopri;
+    int64_t i_out = 0, i, n_keep = d->ny < out_cols ? d->ny : out_cols;
+    if (!vsj__fits(m, w) || (n_out > 0 && t_out[n_out - 1] > d->t_end)) {
+        d->status = d->status != VSJ_OK ? d->status : VSJ_BAD_ARGUMENT;
+        return report_of(d);
+    }
+    if (d->status == VSJ_OK && d->steps == 0) /* samples at the start */
+        while (i_out < n_out && t_out[i_out] <= d->t) {
+            for (i = 0; i < n_keep; i++)
+                out[out_cols * i_out + i] = w->y[i];
+            i_out++;
+        }
+    if (d->status == VSJ_OK && d->steps > 0)
+        sample_step(w, d, t_out, n_out, &i_out, out, out_cols);
+    while (d->status == VSJ_OK && d->t < d->t_end && (i_out < n_out || finish)) {
+        int accepted;
+        if (d->steps >= d->max_steps) {
+            d->status = VSJ_TOO_MANY_STEPS;
+            break;
+        }
+        if (d->h < 1e-14 * dmax(1.0, fabs(d->t))) {
+            d->status = VSJ_STEP_TOO_SMALL;
+            break;
+        }
+        accepted = attempt(m, w, d);
+        if (accepted > 0)
+            sample_step(w, d, t_out, n_out, &i_out, out, out_cols);
+    }
+    if (y_now)
+        memcpy(y_now, w->y, (size_t)d->ny * sizeof(double));
+    return report_of(d);
 }
 
 vsj_report vsj_dopri(const vsj_model *m, vsj_work *w, double *y0, int64_t ny, double t0,
                      double t_end, const double *t_out, int64_t n_out, double rtol, double atol,
                      double h_max, int64_t max_steps, int64_t n_err, double *out,
                      int64_t out_cols) {
-    double *K = w->K, *yt = w->yt, *y1 = w->y1, *err = w->err, *r3 = w->r3, *r4 = w->r4;
-    double *r5 = w->r5, *y = w->y;
-    int64_t n_keep = ny < out_cols ? ny : out_cols;
-    int64_t i_out = 0, i, j, st, n_steps = 0, n_rejected = 0;
-    double t = t0, d0, d1, d2, h, big, h1, err_old = 1e-4;
-    int rejected_last = 0;
-    if (ny > w->ny_max || n_err > ny || n_err < 0 || vsj__rigid_stop(m))
-        return done(VSJ_BAD_ARGUMENT, t0, 0, 0);
-    memcpy(y, y0, (size_t)ny * sizeof(double));
-    while (i_out < n_out && t_out[i_out] <= t0) {
-        for (i = 0; i < n_keep; i++)
-            out[out_cols * i_out + i] = y[i];
-        i_out++;
+    if (vsj_dopri_begin(m, w, y0, ny, t0, t_end, rtol, atol, h_max, max_steps, n_err)
+        != VSJ_OK) {
+        vsj_report r = report_of(&w->dopri);
+        if (r.status != VSJ_BAD_ARGUMENT)
+            memcpy(y0, w->y, (size_t)ny * sizeof(double));
+        return r;
     }
-    w->status = VSJ_OK;
-    vsj__eval_derivatives(m, w, t, y, ny, K);
-    if (w->status != VSJ_OK)
-        return done(w->status, t, 0, 0);
-    /* initial step (Hairer's estimate) */
-    d0 = norm(y, y, y, rtol, atol, n_err);
-    d1 = norm(K, y, y, rtol, atol, n_err);
-    h = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
-    h = dmin(dmin(h, h_max), t_end - t);
-    for (i = 0; i < ny; i++)
-        yt[i] = y[i] + h * K[i];
-    vsj__eval_derivatives(m, w, t + h, yt, ny, K + ny);
-    for (i = 0; i < ny; i++)
-        err[i] = K[ny + i] - K[i];
-    d2 = norm(err, y, y, rtol, atol, n_err) / h;
-    big = dmax(d1, d2);
-    h1 = big <= 1e-15 ? dmax(1e-6, h * 1e-3) : pow(0.01 / big, 0.2);
-    h = dmin(dmin(dmin(100.0 * h, h1), h_max), t_end - t);
-    w->status = VSJ_OK;
-
-    while (t < t_end) {
-        int last = 0, stage_bad = 0;
-        double e, fac11;
-        if (n_steps >= max_steps) {
-            memcpy(y0, y, (size_t)ny * sizeof(double));
-            return done(VSJ_TOO_MANY_STEPS, t, n_steps, n_rejected);
-        }
-        if (h < 1e-14 * dmax(1.0, fabs(t))) {
-            memcpy(y0, y, (size_t)ny * sizeof(double));
-            return done(VSJ_STEP_TOO_SMALL, t, n_steps, n_rejected);
-        }
-        if (t + h >= t_end) {
-            h = t_end - t;
-            last = 1;
-        }
-        for (st = 1; st < 7; st++) {
-            for (i = 0; i < ny; i++) {
-                double total = 0.0;
-                for (j = 0; j < st; j++)
-                    total += A[st][j] * K[ny * j + i];
-                yt[i] = y[i] + h * total;
-            }
-            if (st == 6) {
-                memcpy(y1, yt, (size_t)ny * sizeof(double));
-                if (w->status == VSJ_NOT_FINITE)
-                    stage_bad = 1;
-                w->status = VSJ_OK; /* only the end point's physical limits count */
-            }
-            vsj__eval_derivatives(m, w, t + C[st] * h, yt, ny, K + ny * st);
-        }
-        for (i = 0; i < ny; i++) {
-            double total = 0.0;
-            for (j = 0; j < 7; j++)
-                total += E[j] * K[ny * j + i];
-            err[i] = h * total;
-        }
-        e = norm(err, y, y1, rtol, atol, n_err);
-        n_steps++;
-        if (!isfinite(e) || stage_bad || w->status == VSJ_NOT_FINITE) {
-            w->status = VSJ_OK;
-            h *= 0.1;
-            n_rejected++;
-            rejected_last = 1;
-            continue;
-        }
-        fac11 = pow(e, 0.17);
-        if (e <= 1.0) {
-            double t_new, fac, h_new;
-            if (w->status != VSJ_OK) { /* a physical limit was crossed at the new point */
-                memcpy(y0, y1, (size_t)ny * sizeof(double));
-                return done(w->status, t + h, n_steps, n_rejected);
-            }
-            for (i = 0; i < ny; i++) {
-                double d_i = y1[i] - y[i], total = 0.0;
-                r3[i] = h * K[i] - d_i;
-                r4[i] = d_i - h * K[ny * 6 + i] - r3[i];
-                for (j = 0; j < 7; j++)
-                    total += D[j] * K[ny * j + i];
-                r5[i] = h * total;
-            }
-            t_new = t + h;
-            while (i_out < n_out && t_out[i_out] <= t_new) {
-                double th = (t_out[i_out] - t) / h, th1 = 1.0 - th;
-                double *row = out + out_cols * i_out;
-                for (i = 0; i < n_keep; i++)
-                    row[i] = y[i] + th * ((y1[i] - y[i])
-                                          + th1 * (r3[i] + th * (r4[i] + th1 * r5[i])));
-                i_out++;
-            }
-            memcpy(y, y1, (size_t)ny * sizeof(double));
-            memcpy(K, K + ny * 6, (size_t)ny * sizeof(double));
-            t = t_new;
-            fac = dmax(0.1, dmin(5.0, fac11 / pow(err_old, 0.04) / 0.9));
-            h_new = h / fac;
-            if (rejected_last)
-                h_new = dmin(h_new, h);
-            err_old = dmax(e, 1e-4);
-            rejected_last = 0;
-            if (last)
-                break;
-            h = dmin(h_new, h_max);
-        } else {
-            w->status = VSJ_OK;
-            h = h / dmin(5.0, fac11 / 0.9);
-            n_rejected++;
-            rejected_last = 1;
-        }
-    }
-    memcpy(y0, y, (size_t)ny * sizeof(double));
-    return done(VSJ_OK, t, n_steps, n_rejected);
+    return vsj_dopri_advance(m, w, t_out, n_out, out, out_cols, 1, y0);
 }

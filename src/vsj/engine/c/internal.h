@@ -24,6 +24,8 @@ typedef struct ts_work {
     int64_t n_nonlinear, n_watched, n_mid_ch, n_mid_src, n_end_ch;
     int factored;          /* H_last and its factor are valid */
     double t;              /* time reached */
+    double origin;         /* steps end at origin + k h (vsj_ts_advance) */
+    int64_t k;
     double q_prev;         /* pivot position at t */
     double angle_prev;     /* pivot mechanism's angle at t */
     double angle_mid, q_mid;
@@ -62,6 +64,17 @@ typedef struct ts_work {
     unsigned char *wanted;
 } ts_work;
 
+/* The state of a resumable Dormand-Prince integration (dopri.c). */
+typedef struct dopri_state {
+    int status;
+    int64_t ny, n_err, max_steps, steps, rejected;
+    double rtol, atol, h_max;
+    double t, t_end, h;    /* where the integration stands, its end, the next step */
+    double t_prev, h_prev; /* the last accepted step (for the samples it covers) */
+    double err_old;        /* the step controller's memory */
+    int rejected_last;
+} dopri_state;
+
 struct vsj_work {
     /* sizes the work was made for */
     int64_t n, s, f, k, nl, nm, nch, rows;
@@ -80,9 +93,11 @@ struct vsj_work {
     int status;
     const double *held;    /* NULL: inputs from the splines; else held values (stepper) */
     double *pos0;          /* s: source angles at t = 0 with held inputs */
-    /* dopri scratch, ny_max each (K: 7 ny_max) */
+    /* dopri scratch, ny_max each (K: 7 ny_max); y the current state, yo the start of
+     * the last accepted step, r3..r5 its dense-output coefficients */
     int64_t ny_max;
-    double *K, *yt, *y1, *err, *r3, *r4, *r5, *y, *dy;
+    double *K, *yt, *y1, *err, *r3, *r4, *r5, *y, *yo, *dy;
+    dopri_state dopri;
     /* stepper scratch */
     double *sy, *sk, *sacc;
     ts_work ts;

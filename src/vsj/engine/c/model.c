@@ -268,6 +268,7 @@ static void layout(vsj_work *w, carver *cv) {
     w->r4 = DOUBLES(w->ny_max);
     w->r5 = DOUBLES(w->ny_max);
     w->y = DOUBLES(w->ny_max);
+    w->yo = DOUBLES(w->ny_max);
     w->dy = DOUBLES(w->ny_max);
     w->sy = DOUBLES(w->ny_max);
     w->sk = DOUBLES(w->ny_max);

@@ -886,6 +886,8 @@ int vsj_ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
     t->angle_mid = NAN;
     t->q_mid = t->q_prev;
     t->t = t0;
+    t->origin = t0;
+    t->k = 0;
     t->factored = 0;
     t->memo_full = -1;
     element_slips(t->DxT, t->DuT, m->n_frictions + m->n_springs, m->n_frictions, t->v, n, t->u0,
@@ -914,6 +916,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
     impulses im;
     int64_t n, s_n, nf, nk, nl, nm, na, cols, r_load, r_mot, n_state, a_src, a_load, a_elec;
     int64_t a_fric, a_res, a_spr, a_piv, a_stop, n_out, n_col, i_out = 0, steps_total, step, i;
+    int64_t whole;
     int64_t j, c, e, k, mo, ld, rr, a, mt, iterations;
     int moving_pivot, status = VSJ_OK;
     double t0 = t->t, tnow = t0;
@@ -958,9 +961,16 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
         rep.status = VSJ_TOO_MANY_STEPS;
         return rep;
     }
-    steps_total = (int64_t)ceil((t_end - t0) / h - 1e-9);
-    if (steps_total < 1 && t_end > t0)
-        steps_total = 1;
+    /* steps end on the grid origin + k h (the first time plus whole steps), so that a
+     * run advanced in several calls takes the very steps of one advanced at once; a
+     * call whose end lies off the grid ends with one shortened step */
+    {
+        double k_end = floor((t_end - t->origin) / h + 1e-9);
+        whole = (int64_t)k_end - t->k;
+        if (whole < 0)
+            whole = 0;
+        steps_total = whole + (t_end - (t->origin + k_end * h) > 1e-9 * h ? 1 : 0);
+    }
     if (w->status != VSJ_OK) {
         status = w->status;
         steps_total = 0;
@@ -973,7 +983,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
         i_out++;
     }
     for (step = 0; step < steps_total; step++) {
-        double t1 = step < steps_total - 1 ? t0 + (double)(step + 1) * h : t_end;
+        double t1 = step < whole ? t->origin + (double)(t->k + 1) * h : t_end;
         double hs = t1 - tnow, angle, scale_h, q_end;
         int same, finite_, sample_now;
         /* mid-step inputs (loads, voltages) and pivot position; held inputs
@@ -1351,6 +1361,12 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
         memcpy(t->sg0, t->sg1, (size_t)s_n * sizeof(double));
         tnow = t1;
         t->t = t1;
+        if (step < whole) {
+            t->k++;
+        } else { /* off the grid: the next call's grid starts here */
+            t->origin = t1;
+            t->k = 0;
+        }
         t->q_prev = q_end;
         for (i = 0; i < t->n_watched; i++) {
             e = t->watched[i];
@@ -1453,6 +1469,8 @@ static int64_t history_spans(const vsj_model *m, const vsj_work *w, span *out) {
     SPAN(t->u0, (size_t)s * d);
     SPAN(t->sg0, (size_t)s * d);
     SPAN(&t->t, d);
+    SPAN(&t->origin, d);
+    SPAN(&t->k, l);
     SPAN(&t->q_prev, d);
     SPAN(&t->angle_prev, d);
     SPAN(&t->angle_mid, d);

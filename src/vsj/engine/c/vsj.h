@@ -240,6 +240,20 @@ vsj_report vsj_dopri(const vsj_model *m, vsj_work *w, double *y, int64_t ny, dou
                      double h_max, int64_t max_steps, int64_t n_err, double *out,
                      int64_t out_cols);
 
+/* The same integration, resumable: vsj_dopri_begin sets the initial state (ny values)
+ * at t0 and the settings; each vsj_dopri_advance writes the samples at the times of
+ * t_out (increasing, after those of earlier calls, not beyond t_end), stepping as far
+ * as they need and, with `finish`, on to t_end. The steps taken do not depend on how
+ * the samples are split between calls, so a run sampled in blocks equals one sampled
+ * at once, bit for bit. y_now (ny values, may be NULL) receives the state where the
+ * integration stands; the report counts the steps since vsj_dopri_begin. */
+int vsj_dopri_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t ny, double t0,
+                    double t_end, double rtol, double atol, double h_max, int64_t max_steps,
+                    int64_t n_err);
+vsj_report vsj_dopri_advance(const vsj_model *m, vsj_work *w, const double *t_out,
+                             int64_t n_out, double *out, int64_t out_cols, int finish,
+                             double *y_now);
+
 /* Sampling of the time-stepper: state rows (out_cols leading components) and,
  * if `coulomb` is not NULL, the Coulomb torque of each friction element and
  * whether it held (rows of n_frictions). */
