@@ -571,25 +571,28 @@ def name_problem(text: str, modules: list[object]) -> str | None:
 
 
 def name_problems(text: str, origin: str = "README.md") -> list[str]:
-    """Python names, C functions, repository paths and source files that the document
-    names exist."""
+    """Python names, C functions, repository paths (``src/...``, ``vsj/...`` and
+    ``engine/c/...`` under ``src``) and source files that the document names exist."""
     blocks, spans = read_markdown(text)
     tracked = tracked_files()
     tops = {f.split("/")[0] for f in tracked if "/" in f}
+    # paths inside the package, as the architecture notes write them (engine/c/laws.c)
+    inner = {f.split("/")[2] for f in tracked if f.startswith("src/vsj/") and f.count("/") > 2}
     basenames = {Path(f).name for f in tracked}
     c_sources = "\n".join((ROOT / f).read_text() for f in tracked
                           if f.endswith((".c", ".h")) and f.startswith("src/"))
     modules = vsj_modules()
     words = [(s.text, s.line) for s in spans]
-    words += [(w, line) for b in blocks if b.lang in SHELL
+    words += [(w.strip("(),;:'\""), line) for b in blocks if b.lang in SHELL
               for line_text, line in command_lines(b) for w in line_text.split()]
     problems = []
     for word, line in words:
         where = f"{origin}:{line} `{word}`"
         path = word.rstrip("/")
         first = path.split("/")[0]
-        if "/" in path and " " not in path and first in tops | {"vsj"}:
-            full = ROOT / ("src/" + path if first == "vsj" else path)
+        if "/" in path and " " not in path and first in tops | inner | {"vsj"}:
+            full = ROOT / path if first in tops else ROOT / "src" / (
+                path if first == "vsj" else "vsj/" + path)
             if not glob.glob(str(full)):
                 problems.append(f"{where}: no such file or directory in the repository")
         elif re.fullmatch(r"[\w-]+\.(py|c|h)", word):

@@ -27,8 +27,8 @@ tests/readme_checks.py; no list of the README's commands is kept).
   parameter file).
 * **Names**: ``vsj.module.attr`` spans, and ``Class.attr`` / ``Class(..., keyword=...)``
   spans of a class that vsj defines, resolve; ``vsj_*`` C names are in the C sources;
-  paths into the repository (``src/...``, ``tests/...``; ``vsj/...`` under ``src/``) and
-  bare source file names (``planetary.py``) exist.
+  paths into the repository (``src/...``, ``tests/...``; ``vsj/...`` and
+  ``engine/c/...`` inside ``src/``) and bare source file names (``planetary.py``) exist.
 * **Figures**: each image the README shows exists, and ``make figures`` (the target that
   regenerates them from ``vsj`` output) writes it, so that none is made by hand.
 """
@@ -99,8 +99,9 @@ ring_inertia = { value = "6.47e-5 kg", source = "an inertia in kg" }
 ```
 
 `vsj.no_such_module`, `Result.no_such_method()`, `ElasticElement(..., no_such_keyword=1)`,
-`src/vsj/no_such_file.py`, `no_such_file.py`, `vsj_no_such_function`; but
-`Result.to_xarray()`, `vsj.wrist.build_wrist` and `vsj_step_timestep` exist.
+`src/vsj/no_such_file.py`, `engine/c/no_such_file.c`, `no_such_file.py`,
+`vsj_no_such_function`; but `Result.to_xarray()`, `vsj.wrist.build_wrist`,
+`engine/c/laws.c` and `vsj_step_timestep` exist.
 
 ![a figure](docs/no-such-figure.png)
 """
@@ -137,6 +138,7 @@ def test_the_checks_find_each_kind_of_mistake(tmp_path, monkeypatch):
                 "`Result.no_such_method()`: Result has no 'no_such_method'",
                 "takes no keyword no_such_keyword",
                 "`src/vsj/no_such_file.py`: no such file",
+                "`engine/c/no_such_file.c`: no such file",
                 "`no_such_file.py`: no such source file",
                 "`vsj_no_such_function`: not in the C sources"]
     assert len(problems) == len(expected), "\n".join(problems)
