@@ -121,3 +121,23 @@ def test_docstring_example_works(example, tmp_path, monkeypatch):
     namespace = {**vars(module), **names(tmp_path)}
     exec(compile(example.text, example.where, "exec"), namespace)
     check(namespace, tmp_path)
+
+
+def test_linear_bandwidth_is_where_the_response_falls_3_db(params):
+    """`vsj.linear.bandwidth` (README, For control design): the lowest frequency at which
+    motor position to end-effector position falls 3 dB below its low-frequency value."""
+    from vsj import linear
+
+    model = linear.linearize(params, -0.004)
+    drive = {"motor_1": 1.0, "motor_2": 1.0}
+
+    def gain(omega):
+        return np.abs(linear.transfer(model, "theta_x", drive, omega, input_angle=True))
+
+    omega = linear.bandwidth(model, "theta_x", drive, input_angle=True)
+    low = gain([1e-6])[0]
+    # the root search stops within 1e-10 in log10(omega), and the gain changes by less
+    # than itself per decade there: the ratio is right to 1e-10, 1e-8 leaves room
+    assert gain([omega])[0] / low == pytest.approx(10 ** (-3 / 20), rel=1e-8)
+    below = np.logspace(-3, np.log10(omega), 400)[:-1]
+    assert np.all(gain(below) / low > 10 ** (-3 / 20))
