@@ -113,6 +113,6 @@ def docstring_examples() -> list[Example]:
                 lines = [line for line in textwrap.dedent(m.group(1)).splitlines()
                          if line.strip() != "..."]
                 text = "\n".join(lines).strip("\n") + "\n"
-                found.append(Example(f"{owner} (docstring, line {doc[:m.start()].count(chr(10)) + 1})",
-                                     text, _kind(text)))
+                line = doc.count("\n", 0, m.start()) + 1
+                found.append(Example(f"{owner} (docstring, line {line})", text, _kind(text)))
     return found
