@@ -289,17 +289,16 @@ def make_targets() -> set[str]:
             for target in m.group(1).split()}
 
 
-def command_paths(parser=None, path=()) -> list[list[str]]:
+def command_paths(parser, path=()) -> list[list[str]]:
     """Every (sub)command of the parser, as a path of names."""
-    parser = parser or build_parser()
     subs = _subcommands(parser)
     if not subs:
         return [list(path)]
     return [p for name, sub in subs.items() for p in command_paths(sub, (*path, name))]
 
 
-def parser_at(path: list[str]):
-    parser = build_parser()
+def parser_at(parser, path: list[str]):
+    """The (sub)parser of ``path`` under ``parser``."""
     for name in path:
         parser = _subcommands(parser)[name]
     return parser
@@ -414,9 +413,9 @@ def code_block_problems(text: str, cwd: Path, origin: str = "README.md"
 
 # -- the prose ---------------------------------------------------------------------------------
 
-def section_commands(blocks: list[Block], spans: list[Span]) -> dict[str, list[list[str]]]:
+def section_commands(parser, blocks: list[Block], spans: list[Span]
+                     ) -> dict[str, list[list[str]]]:
     """Per section, the (sub)command paths its code blocks and spans name."""
-    parser = build_parser()
     named: dict[str, list[list[str]]] = {}
     texts = [(t, line, b.section) for b in blocks if b.lang in SHELL
              for t, line in command_lines(b)]
@@ -437,8 +436,8 @@ def prose_problems(text: str, origin: str = "README.md") -> list[str]:
     where the section shows none), with a value it accepts."""
     blocks, spans = read_markdown(text)
     parser = build_parser()
-    named = section_commands(blocks, spans)
-    everything = command_paths()
+    named = section_commands(parser, blocks, spans)
+    everything = command_paths(parser)
     targets = make_targets()
     problems = []
     for span in spans:
@@ -459,7 +458,7 @@ def prose_problems(text: str, origin: str = "README.md") -> list[str]:
             candidates = named.get(span.section) or everything
             verdicts = []
             for path in candidates:
-                found = options_of(parser_at(path), words)
+                found = options_of(parser_at(parser, path), words)
                 if found and found[0][1] is not None:
                     verdicts.append(value_problems(*found[0]))
             if not verdicts:
