@@ -77,13 +77,13 @@ def read_markdown(text: str) -> tuple[list[Block], list[Span]]:
     prose: list[str] = []
     sections: list[str] = []
     section, fence, start, body, blank_before = "", None, 0, [], True
-    indented: list[str] = []
+    indented: list[str] = []  # an indented block being read; it began at line `start`
 
-    def close_indented(last: int) -> None:
+    def close_indented() -> None:
         while indented and not indented[-1].strip():
             indented.pop()
         if indented:
-            blocks.append(Block("", "\n".join(indented), last - len(indented) + 1, section))
+            blocks.append(Block("", "\n".join(indented), start, section))
             indented.clear()
 
     for number, line in enumerate(lines, 1):
@@ -98,11 +98,12 @@ def read_markdown(text: str) -> tuple[list[Block], list[Span]]:
             continue
         opening = re.match(r"\s{0,3}(```+|~~~+)\s*([\w+-]*)", line)
         if opening:
-            close_indented(number - 1)
+            close_indented()
             fence, start, body = (opening.group(1), opening.group(2).lower()), number + 1, []
             prose.append("")
             continue
         if line.startswith("    ") and line.strip() and (indented or blank_before):
+            start = start if indented else number
             indented.append(line[4:])
             prose.append("")
             continue
@@ -110,13 +111,13 @@ def read_markdown(text: str) -> tuple[list[Block], list[Span]]:
             indented.append("")
             prose.append("")
             continue
-        close_indented(number - 1)
+        close_indented()
         heading = re.match(r"(#{1,6})\s+(.*)", line)
         if heading and len(heading.group(1)) <= 2:
             section = heading.group(2).strip()
         blank_before = not line.strip()
         prose.append("" if heading else line)
-    close_indented(len(lines))
+    close_indented()
     joined = "\n".join(prose)
     spans = []
     # a span: matching runs of backticks within one paragraph
