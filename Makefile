@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 ENGINE := $(wildcard src/vsj/engine/c/*.c src/vsj/engine/c/*.h) src/vsj/engine/_core.c
 
-.PHONY: install reproduce test bench sanitize portable clean
+.PHONY: install reproduce figures test bench sanitize portable clean
 
 install: $(STAMP)
 
@@ -23,6 +23,16 @@ $(STAMP): pyproject.toml setup.py $(ENGINE)
 
 reproduce: $(STAMP)
 	$(BIN)/vsj reproduce --out reproduction
+
+# the figures README.md shows, each copied from what a vsj command writes, so that none is
+# drawn by hand (tests/test_readme.py checks that this recipe writes every one of them)
+figures: $(STAMP)
+	rm -rf build/figures
+	$(BIN)/vsj reproduce --only fig-4.13 fig-4.15 --out build/figures/reproduction
+	$(BIN)/vsj msl friction --out build/figures/msl
+	cp build/figures/reproduction/fig-4.13.png docs/fig-4.13.png
+	cp build/figures/reproduction/fig-4.15.png docs/fig-4.15.png
+	cp build/figures/msl/msl-friction.png docs/msl-friction.png
 
 # one worker per core, a test file to a worker
 test: $(STAMP)

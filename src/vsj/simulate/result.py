@@ -41,7 +41,7 @@ class Result:
         and solver as attributes."""
         import xarray as xr
 
-        from . import __version__
+        from .. import __version__
 
         data = {name: ("time", values, {"units": self.units[name]})
                 for name, values in self.signals.items()}

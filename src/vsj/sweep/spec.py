@@ -10,7 +10,7 @@ A sweep file is TOML; every value carries its unit, as in scenarios::
     seed = 1
     samples = 256                # draws of the sampled parameters
     design = "lhs"               # random | lhs | sobol (space filling, scipy.stats.qmc)
-    method = "sobol"             # optional sensitivity analysis: sobol | morris
+    # method = "sobol"           # sensitivity analysis (sobol | morris): distributions only
 
     [vary]                       # q is the initial pivot position; others are parameter keys
     q = { from = "-2 cm", to = "1 cm", count = 7 }             # a grid
@@ -23,7 +23,7 @@ A sweep file is TOML; every value carries its unit, as in scenarios::
     file = "fit.json"            # {"names": [...], "parameters": {...}, "covariance": [[...]]}
 
     [signals]                    # derived signals: expressions over the run's signals
-    error_x = "theta_x - 0.5 * planetary.sun_teeth / (planetary.sun_teeth + planetary.ring_teeth) / transmission.ratio * (motor_1 + motor_2)"
+    reference_x = "0.5 * planetary.sun_teeth / (planetary.sun_teeth + planetary.ring_teeth) / transmission.ratio * (motor_1 + motor_2)"
     target = "0.25 * pi"         # no signal and no t: a constant signal, that value at every sample
 
     [metrics]
