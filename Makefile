@@ -57,6 +57,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/identify_wrist.py
 	$(BIN)/python benchmarks/sweep.py $${VSJ_SWEEP_RUNS:-3000}
 	$(BIN)/python benchmarks/simulate_cli.py
+	$(BIN)/python benchmarks/long_run.py
 	$(BIN)/python benchmarks/fmu.py
 
 clean:

@@ -66,7 +66,7 @@ import stat
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Self
 
@@ -168,10 +168,11 @@ def _anonymous_files_work(directory: Path) -> bool:
 
 
 def _temporary_file(directory: Path, name: str) -> tuple[int, Path | None]:
-    """An open temporary file in ``directory`` for the file ``name``: unnamed where the
-    file system allows (then ``None``), else a hidden file with its path."""
+    """An open temporary file in ``directory`` for the file ``name`` (for reading and
+    writing): unnamed where the file system allows (then ``None``), else a hidden file
+    with its path."""
     if _anonymous_files_work(directory):
-        return os.open(directory, os.O_TMPFILE | os.O_WRONLY | os.O_CLOEXEC, 0o666), None
+        return os.open(directory, os.O_TMPFILE | os.O_RDWR | os.O_CLOEXEC, 0o666), None
     fd, temp = tempfile.mkstemp(prefix=f".{name}.vsj-tmp-", dir=directory)
     umask = os.umask(0)
     os.umask(umask)
@@ -182,7 +183,8 @@ def _temporary_file(directory: Path, name: str) -> tuple[int, Path | None]:
 @contextlib.contextmanager
 def atomic_write(path: Path, mode: str = "w"):
     """Write ``path`` through a temporary file that replaces it on success (see the
-    module docstring); the data is on disk (``fsync``) before the rename."""
+    module docstring); the data is on disk (``fsync``) before the rename. ``mode`` is
+    ``"w"``, ``"wb"``, or ``"w+b"`` to read back what was written."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, named = _temporary_file(path.parent, path.name)
@@ -1033,6 +1035,122 @@ def write_cases(path: Path, runs: Sequence[tuple[str, Result]]) -> None:
         v = f.createVariable("success", "i", ("case",))
         v[:] = np.array([int(r.success) for _, r in runs], dtype=np.int32)
         f.flush()  # not close(): that would close the handle, which atomic_write syncs
+
+
+class TrajectoryFile:
+    """``trajectory.nc`` of `vsj simulate` written while its cases run: the layout of
+    `write_cases` (a variable per signal over ``case`` and ``time`` with its unit and
+    description, ``case`` labels, ``success``), its header first and each block of
+    samples put where it belongs as the engine produces it (`vsj.netcdf`), so that
+    memory stays flat whatever the duration. `case` gives the sink of one case for
+    `vsj.simulate.simulate`; samples a run did not reach, and signals a case does not
+    have, read as NaN. Used as a context manager on an open binary handle."""
+
+    def __init__(self, handle, labels: Sequence[str], time: np.ndarray, tables):
+        from .netcdf import ClassicFile, Variable
+
+        self.labels = list(labels)
+        self.time = np.asarray(time, dtype=float)
+        self.specs: dict[str, tuple[str, str]] = {}
+        for table in tables:  # the union of the cases' signals, in first-seen order
+            for spec in table:
+                self.specs.setdefault(spec.name, (spec.unit, spec.description))
+        raw = [label.encode("utf-8") for label in self.labels]
+        width = max(1, max(len(r) for r in raw))
+        variables = [Variable("time", ("time",), "d", {"units": "s", "_FillValue": math.nan}),
+                     Variable("case", ("case", f"string{width}"), "c", {"_Encoding": "utf-8"})]
+        variables += [Variable(name, ("case", "time"), "d",
+                               {"units": unit, "long_name": text, "_FillValue": math.nan})
+                      for name, (unit, text) in self.specs.items()]
+        variables.append(Variable("success", ("case",), "i", {}))
+        self.file = ClassicFile(handle, {"case": len(raw), "time": len(self.time),
+                                         f"string{width}": width},
+                                {"vsj_version": __version__, "description": "vsj simulate: "
+                                 "signals [SI units] of each case over time"}, variables)
+        self.file.write("time", self.time)
+        chars = np.zeros((len(raw), width), dtype="S1")
+        for k, label in enumerate(raw):
+            chars[k, :len(label)] = np.frombuffer(label, dtype="S1")
+        self.file.write("case", chars)
+        self.tables = [[spec.name for spec in table] for table in tables]
+        self.reached = [0] * len(raw)
+        self.success = [0] * len(raw)
+
+    def case(self, k: int) -> "_CaseSink":
+        """The sink of case ``k`` (`vsj.simulate.MemorySink`'s protocol)."""
+        return _CaseSink(self, k)
+
+    def read(self, name: str, k: int, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """Samples ``start:stop`` of signal ``name`` in case ``k`` (from the file)."""
+        stop = len(self.time) if stop is None else stop
+        count = max(0, stop - start)
+        offset = self.file.begin[name] + 8 * (k * len(self.time) + start)
+        data = os.pread(self.file.fd, 8 * count, offset)
+        return np.frombuffer(data, dtype=">f8").astype(float)
+
+    def names(self, k: int) -> list[str]:
+        """The signals of case ``k``, in its own order."""
+        return self.tables[k]
+
+    def close(self) -> None:
+        self.file.write("success", np.array(self.success, dtype=np.int32))
+
+
+def write_trajectory_csv(path: Path, trajectory: TrajectoryFile, *,
+                         rows_per_block: int = 4096) -> None:
+    """The CSV of `write_trajectory` made from a `TrajectoryFile`, a block of rows at a
+    time (the file's samples are never all in memory)."""
+    labels = trajectory.labels
+    single = len(labels) == 1
+    header = ["time [s]"]
+    columns = []
+    for k, label in enumerate(labels):
+        for name in trajectory.names(k):
+            unit = trajectory.specs[name][0]
+            header.append(column_name(name, unit, None if single else label))
+            columns.append((name, k))
+    total = len(trajectory.time)
+    with atomic_write(path) as handle:
+        writer = csv.writer(handle, lineterminator="\n")
+        writer.writerow(header)
+        for start in range(0, total, rows_per_block):
+            stop = min(total, start + rows_per_block)
+            block = np.column_stack([trajectory.time[start:stop]]
+                                    + [trajectory.read(name, k, start, stop)
+                                       for name, k in columns])
+            writer.writerows(["" if math.isnan(v) else repr(float(v)) for v in row]
+                             for row in block)
+
+
+class _CaseSink:
+    """One case of a `TrajectoryFile`: writes each block into the case's rows."""
+
+    keeps_samples = False
+
+    def __init__(self, trajectory: TrajectoryFile, k: int):
+        self.trajectory, self.k = trajectory, k
+
+    def begin(self, table, time: np.ndarray) -> None:
+        if len(time) != len(self.trajectory.time):
+            raise ValueError("every case of a trajectory file has the file's sample times")
+        self.names = [spec.name for spec in table]
+        self.units = {spec.name: spec.unit for spec in table}
+
+    def write(self, start: int, signals: Mapping[str, np.ndarray]) -> None:
+        for name, values in signals.items():
+            self.trajectory.file.write(name, values, (self.k, start))
+
+    def end(self, samples: int) -> tuple[np.ndarray, dict, dict]:
+        t = self.trajectory
+        total = len(t.time)
+        own = set(self.names)
+        for name in t.specs:  # NaN where the run did not reach, or has no such signal
+            first = samples if name in own else 0
+            for start in range(first, total, 2 ** 20):
+                stop = min(total, start + 2 ** 20)
+                t.file.write(name, np.full(stop - start, np.nan), (self.k, start))
+        t.reached[self.k] = samples
+        return t.time[:samples], {}, self.units
 
 
 def write_dataset(path: Path, ds) -> None:

@@ -85,6 +85,33 @@ def trajectory_figure(runs: Sequence[tuple[str, Result]], network: str, path: Pa
     if len(runs) > 1:
         axes[0, 0].legend(fontsize=8, ncol=min(len(runs), 5))
     if title:
-        fig.suptitle(title)
+        import textwrap
+
+        fig.suptitle("\n".join(textwrap.wrap(title, 90)), fontsize=10)
     fig.tight_layout()
     save(fig, path, tight=False)
+
+
+def trajectory_file_figure(trajectory, network: str, path: Path, *, title: str = "") -> None:
+    """`trajectory_figure` of a streamed `vsj.output.TrajectoryFile`: each plotted signal
+    read from the file at most `MAX_POINTS` samples per line."""
+    from .simulate import Result
+
+    runs = []
+    for k, label in enumerate(trajectory.labels):
+        reached = trajectory.reached[k]
+        every = max(1, -(-reached // MAX_POINTS))
+        names = trajectory.names(k)
+        wanted = [s[0] for s in MAIN_SIGNALS.get(network, []) if s[0] in names] or names[:4]
+        signals = {}
+        for name in wanted:
+            picked = []
+            for start in range(0, reached, every * 4096):
+                stop = min(reached, start + every * 4096)
+                picked.append(trajectory.read(name, k, start, stop)[::every])
+            signals[name] = np.concatenate(picked) if picked else np.zeros(0)
+        units = {name: trajectory.specs[name][0] for name in wanted}
+        runs.append((label, Result(time=trajectory.time[:reached:every], signals=signals,
+                                   units=units, ledger={}, success=True, message="",
+                                   solver={})))
+    trajectory_figure(runs, network, path, title=title)

@@ -491,16 +491,21 @@ class Prepared:
     structure: Structure
     inputs: Mapping[str, Input]
 
-    def run(self, *, duration: float | None = None, ports: bool = True) -> Result:
-        """Simulate the case (for ``duration`` instead of its own, if given)."""
+    def run(self, *, duration: float | None = None, ports: bool = True, sink=None) -> Result:
+        """Simulate the case (for ``duration`` instead of its own, if given; its samples
+        to ``sink``, see `vsj.simulate.simulate`)."""
         return simulate(self.structure, self.inputs, duration or self.case.duration,
-                        options=self.case.options, initial=self.case.initial, ports=ports)
+                        options=self.case.options, initial=self.case.initial, ports=ports,
+                        sink=sink)
 
 
-def prepare_case(scenario: Scenario, case: Case, params: Parameters) -> Prepared:
+def prepare_case(scenario: Scenario, case: Case, params: Parameters, *,
+                 in_memory: bool = True) -> Prepared:
     """Everything a run of ``case`` needs, checked as far as it can be without
     running: what a run would refuse in its inputs is raised here, before
-    anything is written, with the file and key."""
+    anything is written, with the file and key. ``in_memory`` False: the run's
+    samples go to a file (`vsj.output.TrajectoryFile`), so only a block of them
+    has to fit in memory."""
     where = case.where
     resolved = scenario.resolved_params(case, params)
     with _context(where):
@@ -514,7 +519,8 @@ def prepare_case(scenario: Scenario, case: Case, params: Parameters) -> Prepared
                          f"{pivot.q_max * 100:g}] cm")
     options = case.options
     with _context(where.key("solver")):
-        check_run_size(structure, case.duration, options, choose_solver(structure, options))
+        check_run_size(structure, case.duration, options, choose_solver(structure, options),
+                       in_memory=in_memory)
     with _context(where):  # the initial state against the network, and the compiled inputs
         prepare(structure, inputs, case.duration, options, case.initial)
     return Prepared(case=case, params=resolved, network=net, structure=structure,

@@ -35,42 +35,50 @@ def cmd_params(args) -> int:
 
 def cmd_simulate(args) -> int:
     from .. import scenario as scenarios
-    from ..output import (ResultSet, parameters_record, signals_bound, trajectory_bytes,
-                          write_cases, write_meta, write_trajectory)
+    from ..output import (ResultSet, TrajectoryFile, atomic_write, parameters_record,
+                          trajectory_bytes, write_meta, write_trajectory_csv)
     from ..progress import progress
+    from ..simulate import catalogue, sample_times
 
     params = _params(args.params)
     scen = scenarios.load(args.scenario)
-    prepared = [scenarios.prepare_case(scen, case, params) for case in scen.cases]
+    prepared = [scenarios.prepare_case(scen, case, params, in_memory=False)
+                for case in scen.cases]
     grids = {(c.duration, c.options.output_step) for c in scen.cases}
     if len(grids) > 1:
         raise InputError(f"{scen.origin}: all cases must share duration and output_step so "
                          "that they fit one trajectory file")
     (duration, output_step), = grids
-    size = trajectory_bytes(int(duration / output_step + 1e-9) + 1,
-                            max(signals_bound(p.structure) for p in prepared),
+    time = sample_times(duration, output_step)
+    tables = [catalogue(p.structure, ports=True) for p in prepared]
+    size = trajectory_bytes(len(time), len({s.name for t in tables for s in t}),
                             len(scen.cases), csv=args.csv, plot=args.plot)
     out = Path(args.out)
     runs, records = [], []
     with ResultSet(out, "simulate", size=size) as results:
-        for case in progress(prepared, desc=f"simulate {scen.name}", unit="case"):
-            result = case.run()
-            runs.append((case.case.label, result))
-            records.append({"label": case.case.label, "success": result.success,
-                            "message": result.message, "solver": result.solver,
-                            "ledger": result.ledger,
-                            "stick_slip_transitions": result.transitions,
-                            "warnings": list(result.warnings),
-                            "parameters_hash": case.params.hash(),
-                            "parameter_overrides": dict(case.case.params)})
-        write_cases(results.path("trajectory.nc"), runs)
-        if args.csv:
-            write_trajectory(results.path("trajectory.csv"), runs)
-        if args.plot:
-            from ..plots import trajectory_figure
+        with atomic_write(results.path("trajectory.nc"), "w+b") as handle:
+            trajectory = TrajectoryFile(handle, [c.label for c in scen.cases], time, tables)
+            for k, case in enumerate(progress(prepared, desc=f"simulate {scen.name}",
+                                              unit="case")):
+                result = case.run(sink=trajectory.case(k))
+                trajectory.success[k] = int(result.success)
+                runs.append((case.case.label, result))
+                records.append({"label": case.case.label, "success": result.success,
+                                "message": result.message, "solver": result.solver,
+                                "ledger": result.ledger,
+                                "stick_slip_transitions": result.transitions,
+                                "warnings": list(result.warnings),
+                                "parameters_hash": case.params.hash(),
+                                "parameter_overrides": dict(case.case.params)})
+            trajectory.close()
+            if args.csv:
+                write_trajectory_csv(results.path("trajectory.csv"), trajectory)
+            if args.plot:
+                from ..plots import trajectory_file_figure
 
-            trajectory_figure(runs, scen.cases[0].network, results.path("trajectory.png"),
-                              title=f"{scen.name}: {scen.description}")
+                trajectory_file_figure(trajectory, scen.cases[0].network,
+                                       results.path("trajectory.png"),
+                                       title=f"{scen.name}: {scen.description}")
         ok = all(r.success for _, r in runs)
         write_meta(results.path("meta.json"), {
             "scenario": {"name": scen.name, "description": scen.description,

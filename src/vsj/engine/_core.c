@@ -473,7 +473,7 @@ static int ts_samples(ts_args *a, const vsj_model *m, PyObject *ot, PyObject *oo
     t = (const double *)a->t_out.view.buf;
     if (increasing(t, n_out, "t_out") < 0)
         return -1;
-    if (multiples(t, n_out, h) < 0)
+    if (h > 0.0 && multiples(t, n_out, h) < 0)
         return -1;
     if (get(oout, &a->out, DOUBLES, 1, -1, "out") < 0)
         return -1;
@@ -556,6 +556,158 @@ static PyObject *py_timestep(PyObject *mod, PyObject *args) {
     release(&y);
     release(&tr);
     return report_tuple(r);
+}
+
+/* begin(kind, model, work, y, t0, t_end, rtol, atol, h_max, max_steps, n_err) -> status:
+ * a run that `advance` continues in blocks of samples. kind 0: Dormand-Prince
+ * (vsj_dopri_begin); 1: the time-stepper (vsj_ts_prepare, vsj_ts_begin; y is the
+ * state, the tolerances are not used). */
+static PyObject *py_begin(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    PyObject *oy;
+    int kind, status;
+    double t0, t_end, rtol, atol, h_max;
+    long long max_steps, n_err;
+    arg y;
+    Py_ssize_t ny, state = 0, full = 0;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "iO!O!OdddddLL:begin", &kind, &ModelType, &model, &WorkType,
+                          &work, &oy, &t0, &t_end, &rtol, &atol, &h_max, &max_steps, &n_err))
+        return NULL;
+    if (kind != 0 && kind != 1) {
+        PyErr_SetString(PyExc_ValueError, "begin: kind is 0 (dopri) or 1 (time-stepper)");
+        return NULL;
+    }
+    if (finite_scalar(t0, "t0") < 0 || finite_scalar(t_end, "t_end") < 0)
+        return NULL;
+    if (!(t_end >= t0) || !(rtol > 0.0) || !(atol > 0.0) || !(h_max > 0.0) || max_steps < 1) {
+        PyErr_SetString(PyExc_ValueError,
+                        "begin: needs t_end >= t0, rtol > 0, atol > 0, h_max > 0, max_steps >= 1");
+        return NULL;
+    }
+    if (get(oy, &y, DOUBLES, 0, -1, "y") < 0)
+        return NULL;
+    ny = items(&y);
+    state = (Py_ssize_t)vsj_n_state(&model->m);
+    full = state + (Py_ssize_t)vsj_n_acc(&model->m);
+    if (ny != state && ny != full) {
+        PyErr_Format(PyExc_ValueError, "y: expected %zd or %zd values, got %zd", state, full,
+                     ny);
+        release(&y);
+        return NULL;
+    }
+    if (n_err < 0 || n_err > ny) {
+        PyErr_SetString(PyExc_ValueError, "n_err: outside 0..len(y)");
+        release(&y);
+        return NULL;
+    }
+    if (take(work, &model->m) < 0) {
+        release(&y);
+        return NULL;
+    }
+    if (kind == 0) {
+        status = vsj_dopri_begin(&model->m, work->w, (const double *)y.view.buf, ny, t0, t_end,
+                                 rtol, atol, h_max, max_steps, n_err);
+    } else {
+        status = vsj_ts_prepare(&model->m, work->w);
+        if (status == VSJ_OK)
+            status = vsj_ts_begin(&model->m, work->w, (const double *)y.view.buf, t0);
+        if (status == VSJ_PIVOT_RANGE) /* reported by the advance, at its time */
+            status = VSJ_OK;
+    }
+    give_back(work);
+    release(&y);
+    return PyLong_FromLong(status);
+}
+
+/* advance(kind, model, work, y, t_end, t_out, out, coulomb, stuck, finish, h, max_steps,
+ *         ledger) -> report: the samples at t_out of a run that `begin` started. dopri:
+ * to t_end only with `finish`; the time-stepper: to t_end (the last sample), with the
+ * Coulomb torques and stick states of its friction elements if `coulomb` is not None,
+ * and the energy accumulators in y with `ledger`. y receives the state reached. */
+static PyObject *py_advance(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    PyObject *oy, *ot, *oout, *oc, *os;
+    int kind, finish, ledger;
+    double t_end, h;
+    long long max_steps;
+    arg y;
+    ts_args a;
+    Py_ssize_t ny, want;
+    vsj_report r;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "iO!O!OdOOOOpdLp:advance", &kind, &ModelType, &model, &WorkType,
+                          &work, &oy, &t_end, &ot, &oout, &oc, &os, &finish, &h, &max_steps,
+                          &ledger))
+        return NULL;
+    if (kind != 0 && kind != 1) {
+        PyErr_SetString(PyExc_ValueError, "advance: kind is 0 (dopri) or 1 (time-stepper)");
+        return NULL;
+    }
+    if (!(isfinite(t_end) && isfinite(h) && h > 0.0) || max_steps < 1) {
+        PyErr_SetString(PyExc_ValueError, "advance: needs a finite t_end, h > 0, max_steps >= 1");
+        return NULL;
+    }
+    if (get(oy, &y, DOUBLES, 1, -1, "y") < 0)
+        return NULL;
+    ny = items(&y);
+    want = (Py_ssize_t)(vsj_n_state(&model->m) + (ledger ? vsj_n_acc(&model->m) : 0));
+    if (ny < want) {
+        PyErr_Format(PyExc_ValueError, "y: expected at least %zd values, got %zd", want, ny);
+        release(&y);
+        return NULL;
+    }
+    if (ts_samples(&a, &model->m, ot, oout, oc, os, kind == 1 ? h : 0.0) < 0) {
+        ts_release(&a);
+        release(&y);
+        return NULL;
+    }
+    if (a.samples.n > 0 && a.samples.t[a.samples.n - 1] > t_end) {
+        PyErr_SetString(PyExc_ValueError, "advance: t_out beyond t_end");
+        ts_release(&a);
+        release(&y);
+        return NULL;
+    }
+    if (take(work, &model->m) < 0) {
+        ts_release(&a);
+        release(&y);
+        return NULL;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    if (kind == 0)
+        r = vsj_dopri_advance(&model->m, work->w, a.samples.t, a.samples.n, a.samples.out,
+                              a.samples.out_cols, finish, (double *)y.view.buf);
+    else
+        r = vsj_ts_advance(&model->m, work->w, (double *)y.view.buf, t_end, h, max_steps,
+                           ledger, &a.samples);
+    Py_END_ALLOW_THREADS
+    give_back(work);
+    ts_release(&a);
+    release(&y);
+    return report_tuple(r);
+}
+
+/* transitions(model, work, out): the time-stepper's stick-phase counts since begin */
+static PyObject *py_transitions(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    PyObject *oo;
+    arg o;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "O!O!O:transitions", &ModelType, &model, &WorkType, &work, &oo))
+        return NULL;
+    if (get(oo, &o, INTS, 1, (Py_ssize_t)model->m.n_frictions, "out") < 0)
+        return NULL;
+    if (take(work, &model->m) < 0) {
+        release(&o);
+        return NULL;
+    }
+    vsj_ts_transitions(work->w, (int64_t *)o.view.buf);
+    give_back(work);
+    release(&o);
+    Py_RETURN_NONE;
 }
 
 /* observe(model, work, t_out, out, coulomb or None, raw) */
@@ -1197,6 +1349,9 @@ static PyObject *py_observation_width(PyObject *mod, PyObject *arg_) {
 static PyMethodDef methods[] = {
     {"dopri", py_dopri, METH_VARARGS, "Adaptive Dormand-Prince 5(4) (vsj_dopri)."},
     {"timestep", py_timestep, METH_VARARGS, "The time-stepper with true stiction (vsj_timestep)."},
+    {"begin", py_begin, METH_VARARGS, "Start a run that advance continues in blocks."},
+    {"advance", py_advance, METH_VARARGS, "The next block of samples of a run."},
+    {"transitions", py_transitions, METH_VARARGS, "The time-stepper's stick-phase counts."},
     {"observe", py_observe, METH_VARARGS, "Every internal signal at samples (vsj_observe)."},
     {"derivatives", py_derivatives, METH_VARARGS, "dy/dt (vsj_derivatives)."},
     {"source_signals", py_source_signals, METH_VARARGS, "Source angles and speeds."},

@@ -91,6 +91,12 @@ class Engine:
                                              max_steps, ledger, out, coulomb, stuck, transitions)
         return status, t, steps, transitions
 
+    def start(self, solver: str, y0: np.ndarray, duration: float, options) -> Run:
+        """A run from ``y0`` (state and ledger accumulators) at t = 0 to ``duration``
+        with ``solver`` (``"dopri"`` or ``"timestep"``) and the numerical settings of
+        ``options`` (`vsj.simulate.SimulationOptions`), sampled by `Run.advance`."""
+        return Run(self, solver, y0, duration, options)
+
     def observe(self, t_out: np.ndarray, out: np.ndarray, coulomb=None) -> np.ndarray:
         """Every internal signal at the samples (`vsj.engine.observation_layout` names
         the columns); ``out`` holds a state row per sample, ``coulomb`` the
@@ -127,6 +133,62 @@ class Engine:
         y = np.ascontiguousarray(y, dtype=float)
         dy = np.empty_like(y)
         return _core.derivatives(self.c, self.work, t, y, dy), dy
+
+
+class Run:
+    """A run of an `Engine` sampled block by block (`Engine.start`): each `advance`
+    samples the next times; the engine's steps do not depend on how the samples are
+    split into blocks. ``y`` is the state (and the ledger's accumulators) where the
+    run stands, ``status`` its engine status, ``t`` the time reached."""
+
+    def __init__(self, engine: "Engine", solver: str, y0: np.ndarray, duration: float,
+                 options):
+        self.engine, self.solver, self.duration = engine, solver, float(duration)
+        self.kind = {"dopri": 0, "timestep": 1}[solver]
+        self.options = options
+        self.y = np.array(y0, dtype=float)
+        self.t, self.steps, self.rejected = 0.0, 0, 0
+        n_state = engine.n_state
+        self.n_err = n_state if n_state else len(self.y)
+        self.status = _core.begin(self.kind, engine.c, engine.work, self.y, 0.0, self.duration,
+                                  options.rtol, options.atol, options.max_step,
+                                  options.max_steps, self.n_err)
+
+    def advance(self, times: np.ndarray, *, finish: bool):
+        """The samples at ``times`` (after those of earlier calls): ``(states, coulomb,
+        stuck)``, the state rows (NaN where the run did not reach), and for the
+        time-stepper each friction element's Coulomb torque and whether it held.
+        With ``finish`` the run continues to its duration (the ledger's end)."""
+        times = _floats(times)
+        f = self.engine.n_frictions
+        out = np.full((len(times), len(self.y)), np.nan)
+        coulomb = np.zeros((len(times), f))
+        stuck = np.zeros((len(times), f), dtype=bool)
+        if self.status != OK:
+            return out, coulomb, stuck
+        o = self.options
+        if self.kind == 0:
+            end = self.duration if finish or not len(times) else float(times[-1])
+            report = _core.advance(0, self.engine.c, self.engine.work, self.y, end, times, out,
+                                   None, None, finish, 1.0, 1, False)
+        else:
+            end = self.duration if finish or not len(times) else float(times[-1])
+            report = _core.advance(1, self.engine.c, self.engine.work, self.y, end, times, out,
+                                   coulomb, stuck, finish, o.step,
+                                   max(1, o.max_steps - self.steps), True)
+        self.status, self.t = int(report[0]), float(report[1])
+        if self.kind == 0:
+            self.steps, self.rejected = int(report[2]), int(report[3])
+        else:
+            self.steps += int(report[2])
+        return out, coulomb, stuck
+
+    def transitions(self) -> np.ndarray:
+        """Starts and ends of stick phases per friction element (0 for dopri)."""
+        counts = np.zeros(self.engine.n_frictions, dtype=np.int64)
+        if self.kind == 1:
+            _core.transitions(self.engine.c, self.engine.work, counts)
+        return counts
 
 
 def pivot_position(model: EngineModel, x: np.ndarray, sigma: np.ndarray) -> float:

@@ -43,50 +43,95 @@ def finer_setting(solver: str, residual: float, options: SimulationOptions) -> s
     return f"rtol = {options.rtol / (10.0 * excess):.2g}"
 
 
+class Watch:
+    """What `judge` and `warnings_of` look for, gathered block by block as a run is
+    sampled (so that a run streamed to disk is judged without holding its samples):
+    the first time a spring is `DIVERGED` past its end stop, and the farthest each
+    spring went into its stop and each DC motor past its voltage limit."""
+
+    def __init__(self, structure: Structure):
+        self.stops = _stop_angles(structure)
+        self.limits = {mo.name: mo.voltage_limit for mo in structure.motors
+                       if math.isfinite(mo.voltage_limit)}
+        self.diverged: tuple[float, str] | None = None
+        #: the state row at the sample where a spring diverged (if `see` had states)
+        self.state: np.ndarray | None = None
+        self.deepest: dict[str, tuple[float, float]] = {}  # spring: (deflection, time)
+        self.highest: dict[str, tuple[float, float]] = {}  # motor: (voltage, time)
+
+    def see(self, time: np.ndarray, signals: Mapping[str, np.ndarray],
+            states: np.ndarray | None = None) -> None:
+        """Take in a block of samples (and the state rows they come from)."""
+        if not len(time):
+            return
+        for name, stop in self.stops.items():
+            deflection = signals.get(f"spring.{name}.deflection")
+            if deflection is None:
+                continue
+            past = np.abs(deflection) - stop
+            over = np.flatnonzero(past > DIVERGED)
+            if over.size and self.diverged is None:
+                k = int(over[0])
+                self.diverged = (float(time[k]), (
+                    f"spring {name} deflected {past[k] + stop:.4g} rad, ten turns past its "
+                    f"{stop:.4g} rad end stop: the run diverged"))
+                self.state = None if states is None else np.array(states[k])
+            k = int(np.argmax(np.abs(deflection)))
+            if name not in self.deepest or abs(deflection[k]) > abs(self.deepest[name][0]):
+                self.deepest[name] = (float(deflection[k]), float(time[k]))
+        for name in self.limits:
+            voltage = signals.get(f"motor.{name}.voltage")
+            if voltage is None:
+                continue
+            k = int(np.argmax(np.abs(voltage)))
+            if name not in self.highest or abs(voltage[k]) > abs(self.highest[name][0]):
+                self.highest[name] = (float(voltage[k]), float(time[k]))
+
+    def judge(self, ledger: Mapping, options: SimulationOptions, solver: str,
+              end: float) -> tuple[float, str] | None:
+        """Why the run cannot be trusted, with the time it shows: a spring `DIVERGED`
+        past its end stop, or an energy ledger that does not close (the message names a
+        finer setting, `finer_setting`); None if neither."""
+        if self.diverged is not None:
+            return self.diverged
+        residual = ledger.get("relative_residual", 0.0)
+        if not residual <= options.ledger_tolerance:
+            return end, (
+                f"the energy ledger does not close: its residual is {residual:.3g} of the "
+                f"energy in play, above the ledger tolerance {options.ledger_tolerance:g}: the "
+                f"numerical settings are too coarse for this run; try "
+                f"{finer_setting(solver, residual, options)}")
+        return None
+
+    def warnings(self) -> list[str]:
+        """Where the run left what the parameter set describes: a spring pressed more
+        than `INTO_STOP` into its end stop, a DC motor above its voltage limit."""
+        out = []
+        for name, (deflection, when) in self.deepest.items():
+            stop = self.stops[name]
+            if abs(deflection) - stop > INTO_STOP:
+                out.append(f"spring {name} was driven to {deflection:.4g} rad at t = {when:.4g} "
+                           f"s, {abs(deflection) - stop:.3g} rad past its {stop:.4g} rad end "
+                           f"stop: the loads exceed what the mechanism takes")
+        for name, (voltage, when) in self.highest.items():
+            if abs(voltage) > self.limits[name]:
+                out.append(f"motor {name} was driven at {voltage:.4g} V at t = {when:.4g} s, "
+                           f"beyond its {self.limits[name]:g} V limit")
+        return out
+
+
 def judge(structure: Structure, time: np.ndarray, signals: Mapping[str, np.ndarray],
           ledger: Mapping, options: SimulationOptions,
           solver: str = "dopri") -> tuple[float, str] | None:
-    """Why a run that ended cannot be trusted, with the time it shows: an energy
-    ledger that does not close (the message names a finer setting, `finer_setting`),
-    or a spring `DIVERGED` past its end stop; None if neither."""
-    for name, stop in _stop_angles(structure).items():
-        past = np.abs(signals[f"spring.{name}.deflection"]) - stop
-        over = np.flatnonzero(past > DIVERGED)
-        if over.size:
-            k = int(over[0])
-            return float(time[k]), (
-                f"spring {name} deflected {past[k] + stop:.4g} rad, ten turns past its "
-                f"{stop:.4g} rad end stop: the run diverged")
-    residual = ledger.get("relative_residual", 0.0)
-    if not residual <= options.ledger_tolerance:
-        return float(time[-1]), (
-            f"the energy ledger does not close: its residual is {residual:.3g} of the energy "
-            f"in play, above the ledger tolerance {options.ledger_tolerance:g}: the numerical "
-            f"settings are too coarse for this run; try "
-            f"{finer_setting(solver, residual, options)}")
-    return None
+    """`Watch.judge` of a run whose samples are all at hand."""
+    watch = Watch(structure)
+    watch.see(time, signals)
+    return watch.judge(ledger, options, solver, float(time[-1]) if len(time) else 0.0)
 
 
 def warnings_of(structure: Structure, time: np.ndarray,
                 signals: Mapping[str, np.ndarray]) -> list[str]:
-    """Where a run left what the parameter set describes: a spring pressed more than
-    `INTO_STOP` into its end stop, a DC motor above its voltage limit."""
-    out = []
-    for name, stop in _stop_angles(structure).items():
-        deflection = signals.get(f"spring.{name}.deflection")
-        if deflection is None or not len(deflection):
-            continue
-        k = int(np.argmax(np.abs(deflection)))
-        if abs(deflection[k]) - stop > INTO_STOP:
-            out.append(f"spring {name} was driven to {deflection[k]:.4g} rad at t = "
-                       f"{time[k]:.4g} s, {abs(deflection[k]) - stop:.3g} rad past its "
-                       f"{stop:.4g} rad end stop: the loads exceed what the mechanism takes")
-    for mo in structure.motors:
-        voltage = signals.get(f"motor.{mo.name}.voltage")
-        if voltage is None or not len(voltage) or not math.isfinite(mo.voltage_limit):
-            continue
-        k = int(np.argmax(np.abs(voltage)))
-        if abs(voltage[k]) > mo.voltage_limit:
-            out.append(f"motor {mo.name} was driven at {voltage[k]:.4g} V at t = "
-                       f"{time[k]:.4g} s, beyond its {mo.voltage_limit:g} V limit")
-    return out
+    """`Watch.warnings` of a run whose samples are all at hand."""
+    watch = Watch(structure)
+    watch.see(time, signals)
+    return watch.warnings()

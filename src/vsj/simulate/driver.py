@@ -15,11 +15,11 @@ from ..errors import InputError
 from ..inputs import Input, as_inputs
 from ..network import Structure
 from ..springs import end_stop
-from .checks import judge, warnings_of
+from .checks import Watch
 from .ledger import ledger
 from .options import InitialState, SimulationOptions
 from .result import Result
-from .signals import collect, state_names
+from .signals import catalogue, collect, state_names
 
 
 def _initial(structure: Structure, inputs: Mapping[str, Input], initial: InitialState,
@@ -109,47 +109,105 @@ def prepare(structure: Structure, inputs: Mapping[str, Input], duration: float,
     return model, layout, y0
 
 
+#: Memory the samples of one block may take while they are observed and named [bytes]:
+#: a run is sampled block by block, so that a long one streamed to a file needs no more.
+BLOCK_BYTES = 32 * 2 ** 20
+
+
+def sample_times(duration: float, output_step: float) -> np.ndarray:
+    """The sample grid of a run: every ``output_step`` from 0 to ``duration``."""
+    n_out = int(math.floor(duration / output_step + 1e-9)) + 1
+    return np.arange(n_out) * output_step
+
+
+class MemorySink:
+    """Where `simulate` puts a run's samples by default: arrays in memory, returned in
+    its `Result`. A sink takes the signal table and the sample times (`begin`), each
+    block of named samples as it comes (`write`), and the number of samples the run
+    reached (`end`); `vsj.output.TrajectoryFile` gives sinks that write to a file."""
+
+    keeps_samples = True
+
+    def begin(self, table, time: np.ndarray) -> None:
+        self.time = time
+        self.signals = {s.name: np.full(len(time), np.nan) for s in table}
+        self.units = {s.name: s.unit for s in table}
+
+    def write(self, start: int, signals: Mapping[str, np.ndarray]) -> None:
+        for name, values in signals.items():
+            self.signals[name][start:start + len(values)] = values
+
+    def end(self, samples: int) -> tuple[np.ndarray, dict, dict]:
+        """The samples reached: ``(time, signals, units)``."""
+        return (self.time[:samples], {k: v[:samples] for k, v in self.signals.items()},
+                self.units)
+
+
+def block_samples(structure: Structure, layout, ports: bool) -> int:
+    """Samples per block: as many as fit `BLOCK_BYTES` with the state rows, the
+    engine's observation and the named signals of each sample."""
+    from ..output import signals_bound
+
+    width = 2 * layout.n_state + layout.n_acc + 4 * (layout.n + layout.n_sources) \
+        + 8 * (layout.n_frictions + layout.n_springs + layout.n_motors) + 4 \
+        + signals_bound(structure) * (1 if ports else 1)
+    return max(1, BLOCK_BYTES // (8 * width))
+
+
 def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float, *,
              options: SimulationOptions | None = None, initial: InitialState | None = None,
-             ports: bool = True) -> Result:
+             ports: bool = True, sink=None) -> Result:
     """Simulate ``structure`` for ``duration`` seconds.
 
     ``inputs`` maps channel names to `vsj.inputs.Input` (missing channels are
-    zero). A run fails if the pivot leaves the range its mechanism allows
-    (`vsj.network.Pivot`). ``ports`` adds the torque and power of every connection.
-    A failed run returns ``success=False`` with the time and state of the
-    failure in ``message``; its samples up to the failure are kept.
+    zero; a number is a constant). A run fails if the pivot leaves the range its
+    mechanism allows (`vsj.network.Pivot`). ``ports`` adds the torque and power of
+    every connection. A failed run returns ``success=False`` with the time and state
+    of the failure in ``message``; its samples up to the failure are kept.
+
+    The run is sampled in blocks of samples (`BLOCK_BYTES`), which go to ``sink``:
+    by default a `MemorySink`, whose samples the `Result` holds; a sink that writes
+    them to a file (`vsj.output.TrajectoryFile`) keeps memory flat however long the
+    run, and its `Result` holds no samples. The blocks do not change the result: the
+    engine's steps do not depend on them.
     """
     inputs, options, initial = check_arguments(structure, inputs, duration, options, initial)
     solver = choose_solver(structure, options)
-    check_run_size(structure, duration, options, solver)
+    sink = MemorySink() if sink is None else sink
+    check_run_size(structure, duration, options, solver,
+                   in_memory=getattr(sink, "keeps_samples", True), ports=ports)
     model, layout, y0 = prepare(structure, inputs, duration, options, initial)
-    n_out = int(math.floor(duration / options.output_step + 1e-9)) + 1
-    t_out = np.arange(n_out) * options.output_step
+    t_out = sample_times(duration, options.output_step)
+    n_out = len(t_out)
+    table = catalogue(structure, ports=ports)
+    sink.begin(table, t_out)
+    watch = Watch(structure)
     started = _time.perf_counter()
     engine = Engine(model)
-    out = np.full((n_out, y0.shape[0]), np.nan)
-    coulomb = np.zeros((n_out, layout.n_frictions))
-    stuck = np.zeros((n_out, layout.n_frictions), dtype=bool)
-    y_end = y0.copy()
-    if solver == "dopri":
-        n_err = layout.n_state if layout.n_state else y0.shape[0]
-        status, t_stop, steps, rejected = engine.dopri(
-            y_end, 0.0, duration, t_out, options.rtol, options.atol, options.max_step,
-            options.max_steps, n_err, out)
-        flips = np.zeros(layout.n_frictions, dtype=np.int64)
-        report = {"name": "dopri", "steps": int(steps), "rejected": int(rejected)}
-    else:
-        status, t_stop, steps, flips = engine.timestep(
-            y_end, duration, options.step, t_out, options.max_steps, True, out, coulomb, stuck)
-        report = {"name": "timestep", "steps": int(steps), "step": options.step}
+    run = engine.start(solver, y0, duration, options)
+    per_block = block_samples(structure, layout, ports)
+    reached, status = 0, core.OK
+    for start in range(0, n_out, per_block):
+        times = t_out[start:start + per_block]
+        out, coulomb, stuck = run.advance(times, finish=start + per_block >= n_out)
+        valid = len(times) if run.status == core.OK else \
+            int(np.count_nonzero(~np.isnan(out[:, 0]))) if out.shape[1] else 0
+        times, out, coulomb, stuck = times[:valid], out[:valid], coulomb[:valid], stuck[:valid]
+        signals, _ = collect(structure, engine, layout, times, out, coulomb, stuck,
+                             ports=ports, table=table)
+        sink.write(start, signals)
+        watch.see(times, signals, out)
+        reached = start + valid
+        status = run.status
+        if status != core.OK:
+            break
+    y_end = run.y
     wall = _time.perf_counter() - started
+    report = {"name": solver, "steps": int(run.steps)}
+    report.update({"rejected": int(run.rejected)} if solver == "dopri" else
+                  {"step": options.step})
     report.update(wall_time=wall, options={k: v for k, v in asdict(options).items()})
-    valid = ~np.isnan(out[:, 0]) if out.shape[1] else np.ones(n_out, bool)
-    if status != core.OK:
-        last = int(np.flatnonzero(valid)[-1]) + 1 if valid.any() else 0
-        t_out, out, coulomb, stuck = t_out[:last], out[:last], coulomb[:last], stuck[:last]
-    signals, units = collect(structure, engine, layout, t_out, out, coulomb, stuck, ports=ports)
+    flips = run.transitions()
     transitions = {fr.name: int(flips[e]) for e, fr in enumerate(structure.frictions)
                    if flips[e]}
     n_state = 2 * layout.n + layout.n_motors
@@ -161,37 +219,74 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
     balance: dict = {}
     if status == core.OK:
         balance = ledger(structure, engine, layout, y0, y_end, duration)
-        problem = judge(structure, t_out, signals, balance, options, solver)
+        problem = watch.judge(balance, options, solver, float(t_out[-1]))
         if problem is None:
             success, message = True, f"simulated {duration:g} s"
         else:  # the run ended, but its result cannot be trusted
             when, reason = problem
-            k = min(int(np.searchsorted(t_out, when)), len(out) - 1)
-            success, message = False, f"{reason} at t = {when:.6g} s; state: {state_at(out[k])}"
+            state = watch.state if watch.state is not None else y_end
+            success, message = False, f"{reason} at t = {when:.6g} s; state: {state_at(state)}"
     else:
         success = False
-        message = f"{STATUS_TEXT[status]} at t = {t_stop:.6g} s; state: {state_at(y_end)}"
-    return Result(time=t_out, signals=signals, units=units, ledger=balance, success=success,
+        message = f"{STATUS_TEXT[status]} at t = {run.t:.6g} s; state: {state_at(y_end)}"
+    time, signals, units = sink.end(reached)
+    return Result(time=time, signals=signals, units=units, ledger=balance, success=success,
                   message=message, solver=report, transitions=transitions,
-                  warnings=warnings_of(structure, t_out, signals))
+                  warnings=watch.warnings())
 
 
-def _available_memory() -> float:
-    """Bytes this machine can still give a process (MemAvailable on Linux)."""
+def _read_number(path: str) -> float | None:
+    try:
+        with open(path, encoding="ascii") as handle:
+            text = handle.read().strip()
+    except OSError:
+        return None
+    return None if text in ("", "max") else float(text)
+
+
+def available_memory() -> tuple[float, str]:
+    """Bytes this process can still take, and what limits it: the least of the
+    machine's available memory (MemAvailable), the address-space limit (RLIMIT_AS,
+    less what the process maps already) and its control group's limit (less its use)."""
+    limits = []
     try:
         with open("/proc/meminfo", encoding="ascii") as handle:
             for line in handle:
                 if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024.0
+                    limits.append((float(line.split()[1]) * 1024.0, "the machine's memory"))
     except OSError:
         pass
-    return 8.0 * 2 ** 30
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+        if soft != resource.RLIM_INFINITY:
+            mapped = 0.0
+            with open("/proc/self/status", encoding="ascii") as handle:
+                for line in handle:
+                    if line.startswith("VmSize:"):
+                        mapped = float(line.split()[1]) * 1024.0
+            limits.append((soft - mapped, "the address-space limit (ulimit -v)"))
+    except (ImportError, OSError, ValueError):
+        pass
+    for limit, usage in (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+                         ("/sys/fs/cgroup/memory/memory.limit_in_bytes",
+                          "/sys/fs/cgroup/memory/memory.usage_in_bytes")):
+        top, used = _read_number(limit), _read_number(usage)
+        if top is not None and used is not None and top < 2 ** 60:
+            limits.append((top - used, "the control group's memory limit"))
+            break
+    if not limits:
+        return 8.0 * 2 ** 30, "an assumed 8 GiB"
+    return min(limits)
 
 
 def check_run_size(structure: Structure, duration: float, options: SimulationOptions,
-                   solver: str) -> None:
-    """`InputError` before anything is allocated when a run's samples would not fit
-    in memory, or its steps exceed ``max_steps`` or do not land on the samples."""
+                   solver: str, *, in_memory: bool = True, ports: bool = True) -> None:
+    """`InputError` before anything is allocated when a run's steps exceed
+    ``max_steps`` or do not land on the samples, or its samples would not fit in the
+    memory this process may take (`available_memory`): all of them for a run kept in
+    memory, one block (`BLOCK_BYTES`) for a run streamed to a file."""
     if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0.0):
         raise InputError(f"duration must be a finite time > 0 s, got {duration!r}")
     options.validate()
@@ -207,17 +302,19 @@ def check_run_size(structure: Structure, duration: float, options: SimulationOpt
             raise InputError(f"{duration:g} s in steps of {options.step:g} s are "
                              f"{duration / options.step:.3g} steps, more than max_steps "
                              f"({options.max_steps})")
+    from ..output import signals_bound
+
     samples = math.floor(duration / options.output_step + 1e-9) + 1
-    n, s = structure.n, len(structure.sources)
-    f, k = len(structure.frictions), len(structure.springs)
-    # state and ledger rows, every internal signal, the named signals (about as many)
-    # and the friction samples, in float64
-    width = 2 * (4 * n + 4 * s + 4 * f + 8 * k + 8 * len(structure.motors) + 4) + f
-    need = samples * width * 8.0
-    available = _available_memory()
-    if need > 0.5 * available:
-        raise InputError(
-            f"{duration:g} s sampled every {options.output_step:g} s are {samples:.3g} "
-            f"samples of about {width} values: {need / 2 ** 30:.3g} GiB, more than half the "
-            f"memory available ({available / 2 ** 30:.3g} GiB); raise output_step or shorten "
-            f"the duration")
+    width = signals_bound(structure)
+    need = 3.0 * BLOCK_BYTES + (samples * width * 8.0 if in_memory else 0.0)
+    available, limit = available_memory()
+    if need > 0.8 * available:
+        if in_memory:
+            raise InputError(
+                f"{duration:g} s sampled every {options.output_step:g} s are {samples:.3g} "
+                f"samples of up to {width} signals: {need / 2 ** 30:.3g} GiB in memory, more "
+                f"than {limit} leaves this process ({available / 2 ** 30:.3g} GiB); raise "
+                f"output_step, shorten the duration, or stream the run to a file (vsj "
+                f"simulate --out does)")
+        raise InputError(f"a block of samples needs {need / 2 ** 20:.3g} MiB, more than "
+                         f"{limit} leaves this process ({available / 2 ** 20:.3g} MiB)")

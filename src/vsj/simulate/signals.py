@@ -1,7 +1,16 @@
-"""Naming a run's samples: every flange, source, load, motor, friction element,
-spring and connection as a signal with its unit."""
+"""Naming a run's samples: the signal table of a network.
+
+`catalogue` lists, once, every signal a run of a network gives: its name, its unit,
+what it is, and how it is computed from the engine's observation of a block of
+samples (`vsj.engine.Engine.observe`). Results, the trajectory files (netCDF
+attributes, CSV headers) and the streamed writer all read it, so a signal is
+declared in one place. `collect` evaluates the table on one block.
+"""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -14,66 +23,119 @@ def state_names(structure: Structure) -> list[str]:
     return names + [f"{m.name}.current" for m in structure.motors]
 
 
-def collect(structure: Structure, engine: Engine, layout: Layout, t_out, out, coulomb, stuck,
-            *, ports: bool) -> tuple[dict[str, np.ndarray], dict[str, str]]:
-    """Evaluate every signal at the samples (one compiled pass), then name them:
-    ``(signals, units)`` keyed by signal name."""
-    raw = engine.observe(t_out, out, coulomb)
-    cols = observation_layout(layout)
-    sig: dict[str, np.ndarray] = {}
-    units: dict[str, str] = {}
+@dataclass(frozen=True)
+class Block:
+    """One block of samples as the engine observed it: ``raw`` (rows of
+    `vsj.engine.observation_layout` columns) and each friction element's stick state."""
 
-    def put(name, values, unit):
-        sig[name] = np.ascontiguousarray(values)
-        units[name] = unit
+    raw: np.ndarray
+    stuck: np.ndarray
+    columns: dict
+    cache: dict
 
-    x, v = raw[:, cols["x"]], raw[:, cols["v"]]
-    sigma, u = raw[:, cols["sigma"]], raw[:, cols["u"]]
+    def col(self, name: str) -> np.ndarray:
+        return self.raw[:, self.columns[name]]
+
+
+@dataclass(frozen=True)
+class SignalSpec:
+    """A signal of a run: ``name``, SI ``unit``, ``description``, and ``values``, its
+    samples in a `Block`."""
+
+    name: str
+    unit: str
+    description: str
+    values: Callable[[Block], np.ndarray]
+
+
+def catalogue(structure: Structure, *, ports: bool) -> list[SignalSpec]:
+    """Every signal a run of ``structure`` gives, in the order results list them."""
+    table: list[SignalSpec] = []
+
+    def add(name, unit, description, values):
+        table.append(SignalSpec(name, unit, description, values))
+
     named = {s.flange for s in structure.signals}
     probes = list(structure.signals) + [Signal(f, f) for f in structure.free if f not in named]
     for s in probes:
         rx, ru = structure.rows(s.flange)
-        put(s.name, x @ rx + sigma @ ru, "rad")
-        put(f"{s.name}.speed", v @ rx + u @ ru, "rad/s")
+        add(s.name, "rad", f"angle of flange {s.flange}",
+            lambda b, rx=rx, ru=ru: b.col("x") @ rx + b.col("sigma") @ ru)
+        add(f"{s.name}.speed", "rad/s", f"speed of flange {s.flange}",
+            lambda b, rx=rx, ru=ru: b.col("v") @ rx + b.col("u") @ ru)
     if structure.pivot.flange is not None or structure.springs:
-        put("q", raw[:, cols["q"]][:, 0], "m")
-        put("q.rate", raw[:, cols["qdot"]][:, 0], "m/s")
+        add("q", "m", "pivot position of the elastic elements", lambda b: b.col("q")[:, 0])
+        add("q.rate", "m/s", "rate of the pivot position", lambda b: b.col("qdot")[:, 0])
     for j, src in enumerate(structure.sources):
-        put(f"source.{src.name}.speed", u[:, j], "rad/s")
-        put(f"source.{src.name}.torque", raw[:, cols["src_tau"]][:, j], "N m")
-        put(f"source.{src.name}.power", u[:, j] * raw[:, cols["src_tau"]][:, j], "W")
+        add(f"source.{src.name}.speed", "rad/s", f"prescribed speed of source {src.name}",
+            lambda b, j=j: b.col("u")[:, j])
+        add(f"source.{src.name}.torque", "N m", f"torque source {src.name} supplies",
+            lambda b, j=j: b.col("src_tau")[:, j])
+        add(f"source.{src.name}.power", "W", f"power source {src.name} supplies",
+            lambda b, j=j: b.col("u")[:, j] * b.col("src_tau")[:, j])
     for j, ld in enumerate(structure.loads):
-        tau, speed = raw[:, cols["ld_tau"]][:, j], raw[:, cols["ld_w"]][:, j]
-        put(f"load.{ld.name}.torque", tau, "N m")
-        put(f"load.{ld.name}.power", tau * speed, "W")
+        add(f"load.{ld.name}.torque", "N m", f"external torque {ld.name}",
+            lambda b, j=j: b.col("ld_tau")[:, j])
+        add(f"load.{ld.name}.power", "W", f"power of external torque {ld.name}",
+            lambda b, j=j: b.col("ld_tau")[:, j] * b.col("ld_w")[:, j])
     for j, mo in enumerate(structure.motors):
-        cur, volt = raw[:, cols["current"]][:, j], raw[:, cols["mo_V"]][:, j]
-        put(f"motor.{mo.name}.current", cur, "A")
-        put(f"motor.{mo.name}.voltage", volt, "V")
-        put(f"motor.{mo.name}.speed", raw[:, cols["mo_w"]][:, j], "rad/s")
-        put(f"motor.{mo.name}.power", volt * cur, "W")
-    slip, torque = raw[:, cols["fr_s"]], raw[:, cols["fr_f"]]
+        add(f"motor.{mo.name}.current", "A", f"armature current of motor {mo.name}",
+            lambda b, j=j: b.col("current")[:, j])
+        add(f"motor.{mo.name}.voltage", "V", f"armature voltage of motor {mo.name}",
+            lambda b, j=j: b.col("mo_V")[:, j])
+        add(f"motor.{mo.name}.speed", "rad/s", f"rotor speed of motor {mo.name}",
+            lambda b, j=j: b.col("mo_w")[:, j])
+        add(f"motor.{mo.name}.power", "W", f"electric power into motor {mo.name}",
+            lambda b, j=j: b.col("mo_V")[:, j] * b.col("current")[:, j])
     for e, fr in enumerate(structure.frictions):
-        put(f"friction.{fr.name}.slip", slip[:, e], "rad/s")
+        add(f"friction.{fr.name}.slip", "rad/s", f"slip speed of friction element {fr.name}",
+            lambda b, e=e: b.col("fr_s")[:, e])
         # the resistive torque: the one exception to the port convention (vsj.ports)
-        put(f"friction.{fr.name}.torque", torque[:, e], "N m")
-        put(f"friction.{fr.name}.power", -torque[:, e] * slip[:, e], "W")
-        put(f"friction.{fr.name}.stuck", stuck[:, e].astype(float), "1")
+        add(f"friction.{fr.name}.torque", "N m",
+            f"resistive torque of friction element {fr.name}", lambda b, e=e: b.col("fr_f")[:, e])
+        add(f"friction.{fr.name}.power", "W", f"power friction element {fr.name} delivers "
+            "(never positive)", lambda b, e=e: -b.col("fr_f")[:, e] * b.col("fr_s")[:, e])
+        add(f"friction.{fr.name}.stuck", "1", f"1 while friction element {fr.name} holds",
+            lambda b, e=e: b.stuck[:, e].astype(float))
     for k, sp in enumerate(structure.springs):
-        put(f"spring.{sp.name}.deflection", raw[:, cols["sp_d"]][:, k], "rad")
-        put(f"spring.{sp.name}.torque", raw[:, cols["sp_tau"]][:, k], "N m")
-        put(f"spring.{sp.name}.stiffness", raw[:, cols["sp_k"]][:, k], "N m/rad")
-        put(f"spring.{sp.name}.energy", raw[:, cols["sp_V"]][:, k], "J")
-        put(f"spring.{sp.name}.power", raw[:, cols["sp_tau"]][:, k] * raw[:, cols["sp_dd"]][:, k],
-            "W")
-    if ports and len(t_out):
-        for name, torque_c, power_c in port_flows(structure, raw, cols):
-            put(f"port.{name}.torque", torque_c, "N m")
-            put(f"port.{name}.power", power_c, "W")
-    return sig, units
+        add(f"spring.{sp.name}.deflection", "rad", f"deflection of spring {sp.name}",
+            lambda b, k=k: b.col("sp_d")[:, k])
+        add(f"spring.{sp.name}.torque", "N m", f"torque of spring {sp.name}",
+            lambda b, k=k: b.col("sp_tau")[:, k])
+        add(f"spring.{sp.name}.stiffness", "N m/rad", f"local stiffness of spring {sp.name}",
+            lambda b, k=k: b.col("sp_k")[:, k])
+        add(f"spring.{sp.name}.energy", "J", f"energy stored in spring {sp.name}",
+            lambda b, k=k: b.col("sp_V")[:, k])
+        add(f"spring.{sp.name}.power", "W", f"power spring {sp.name} delivers",
+            lambda b, k=k: b.col("sp_tau")[:, k] * b.col("sp_dd")[:, k])
+    if ports:
+        flows = PortFlows(structure)
+        for r, name, a in flows.connections:
+            add(f"port.{name}.torque", "N m", f"torque through connection {name}",
+                lambda b, r=r: flows.torque(b)[:, r])
+            add(f"port.{name}.power", "W", f"power through connection {name}",
+                lambda b, r=r, a=a: flows.torque(b)[:, r] * flows.speed(b)[:, a])
+    return table
 
 
-def port_flows(structure: Structure, raw, cols):
+def collect(structure: Structure, engine: Engine, layout: Layout, t_out, out, coulomb, stuck,
+            *, ports: bool, table: list[SignalSpec] | None = None
+            ) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+    """Evaluate every signal at the samples (one compiled pass over the block), then name
+    them: ``(signals, units)`` keyed by signal name."""
+    table = catalogue(structure, ports=ports) if table is None else table
+    if ports is False:
+        table = [s for s in table if not s.name.startswith("port.")]
+    block = Block(raw=engine.observe(t_out, out, coulomb), stuck=stuck,
+                  columns=observation_layout(layout), cache={})
+    if not len(t_out):
+        return ({s.name: np.zeros(0) for s in table if not s.name.startswith("port.")},
+                {s.name: s.unit for s in table if not s.name.startswith("port.")})
+    return ({s.name: np.ascontiguousarray(s.values(block)) for s in table},
+            {s.name: s.unit for s in table})
+
+
+class PortFlows:
     """Torque and power through every connection, from Newton's law per flange.
 
     With all element torques known, the constraint forces follow from
@@ -81,23 +143,40 @@ def port_flows(structure: Structure, raw, cols):
     row). A connection ``a -- b`` transmits ``nu`` into flange ``a``; its
     power is ``nu * omega_a``.
     """
-    A, B, I = structure.A, structure.B, structure.inertia
-    accel = raw[:, cols["a"]] @ A.T + raw[:, cols["ud"]] @ B.T
-    speed = raw[:, cols["v"]] @ A.T + raw[:, cols["u"]] @ B.T
-    applied = -raw[:, cols["fr_f"]] @ structure.friction_rows
-    applied += raw[:, cols["sp_tau"]] @ structure.spring_rows
-    for j, ld in enumerate(structure.loads):
-        applied[:, structure.index(ld.flange)] += raw[:, cols["ld_tau"]][:, j]
-    for j, mo in enumerate(structure.motors):
-        applied[:, structure.index(mo.flange)] += mo.torque_constant * raw[:, cols["current"]][:, j]
-    residual = accel * I - applied
-    E = structure.constraint_rows
-    nu = residual @ np.linalg.pinv(E.T).T
-    flows = []
-    for r, name in enumerate(structure.constraint_names):
-        if not name.startswith("connection "):
-            continue
-        a, b = name[len("connection "):].split(" -- ")
-        torque = nu[:, r]
-        flows.append((f"{a}--{b}", torque, torque * speed[:, structure.index(a)]))
-    return flows
+
+    def __init__(self, structure: Structure):
+        self.structure = structure
+        self.solve = np.linalg.pinv(structure.constraint_rows.T).T
+        self.connections = []
+        for r, name in enumerate(structure.constraint_names):
+            if name.startswith("connection "):
+                a, b = name[len("connection "):].split(" -- ")
+                self.connections.append((r, f"{a}--{b}", structure.index(a)))
+
+    def speed(self, block: Block) -> np.ndarray:
+        if "speed" not in block.cache:
+            s = self.structure
+            block.cache["speed"] = block.col("v") @ s.A.T + block.col("u") @ s.B.T
+        return block.cache["speed"]
+
+    def torque(self, block: Block) -> np.ndarray:
+        if "nu" not in block.cache:
+            s = self.structure
+            accel = block.col("a") @ s.A.T + block.col("ud") @ s.B.T
+            applied = -block.col("fr_f") @ s.friction_rows
+            applied += block.col("sp_tau") @ s.spring_rows
+            for j, ld in enumerate(s.loads):
+                applied[:, s.index(ld.flange)] += block.col("ld_tau")[:, j]
+            for j, mo in enumerate(s.motors):
+                applied[:, s.index(mo.flange)] += mo.torque_constant * block.col("current")[:, j]
+            block.cache["nu"] = (accel * s.inertia - applied) @ self.solve
+        return block.cache["nu"]
+
+
+def port_flows(structure: Structure, raw, cols):
+    """``(name, torque, power)`` through every connection, from a block's raw
+    observation (see `PortFlows`)."""
+    flows = PortFlows(structure)
+    block = Block(raw=raw, stuck=np.zeros((len(raw), 0), dtype=bool), columns=cols, cache={})
+    nu, speed = flows.torque(block), flows.speed(block)
+    return [(name, nu[:, r], nu[:, r] * speed[:, a]) for r, name, a in flows.connections]
