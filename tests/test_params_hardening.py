@@ -271,6 +271,17 @@ def test_a_measurement_file_that_is_a_device_is_refused():
                            "not a regular file\n")
 
 
+def test_a_linear_model_file_that_is_a_fifo_is_refused(tmp_path):
+    fifo = tmp_path / "model.json"
+    os.mkfifo(fifo)
+    done = _child("import sys\nfrom vsj import linear\nfrom vsj.errors import InputError\n"
+                  "try:\n    linear.load(sys.argv[1])\n"
+                  "except InputError as exc:\n    print(exc)\n    sys.exit(2)\n", str(fifo))
+    assert done.returncode == 2, done.stderr
+    assert done.stdout == (f"{fifo}: cannot read linear model file: a FIFO (named pipe), not "
+                           "a regular file\n")
+
+
 def test_each_kind_of_file_has_its_limit(tmp_path):
     """A scenario may hold far more than a parameter file (a table input), a signal log
     far more than a scenario."""

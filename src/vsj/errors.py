@@ -29,9 +29,10 @@ class SimulationError(RuntimeError):
     """A simulation or fit failed; never reported as success."""
 
 
-#: Largest scenario, sweep, experiment, fit set-up or covariance file read [bytes]. Most
-#: are a few kB; the largest hold lists of numbers (a scenario's table input, a sweep's
-#: list of values): 64 MiB is a table of a million samples written to full precision.
+#: Largest scenario, sweep, experiment, fit set-up, covariance or linear model file read
+#: [bytes]. Most are a few kB; the largest hold lists of numbers (a scenario's table
+#: input, a sweep's list of values, a model's matrices): 64 MiB is a table of a million
+#: samples written to full precision.
 TEXT_BYTES = 64 << 20
 
 _KINDS = {stat.S_IFIFO: "a FIFO (named pipe)", stat.S_IFCHR: "a character device",
