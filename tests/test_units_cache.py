@@ -122,12 +122,26 @@ def test_factors_are_the_nearest_floats_to_the_exact_ones():
     assert units.to_si("1 rpm", "rad/s", where="t") == float(pi / 30)
 
 
-def test_a_dimension_mismatch_names_the_unit_as_written():
+def test_errors_and_infinities_from_the_definitions():
     with pytest.raises(InputError, match=r"f.toml: '1 N m s' has unit N m s, which cannot "
                                          r"be converted to 'N\*m'"):
         units.to_si("1 N m s", "N*m", where="f.toml")
     with pytest.raises(InputError, match="value 2.0 has no unit"):
         units.to_si(2.0, "m", where="f.toml")
+    assert units.to_si("inf N m/rad", "N*m", where="t", infinite=True) == float("inf")
+    with pytest.raises(InputError, match="not a finite number"):
+        units.to_si("inf N m/rad", "N*m", where="t")
+    with pytest.raises(InputError, match="too small to represent"):
+        units.to_si("5e-324 mm", "m", where="t")  # the smallest float, times 1e-3
+
+
+def test_display_conversions_are_the_inverse_factors():
+    for unit in {spec.display for specs in params.SCHEMA.values() for spec in specs.values()}:
+        expected, _ = _pint_si(unit)
+        assert units.from_si(expected, unit) == pytest.approx(1.0, rel=PINT_ROUNDING)
+    assert units.format_quantity(0.01234, "cm") == "1.234 cm"
+    assert units.format_quantity(units.to_si("-1.45 1/cm", "1/m", where="t"), "1/cm") == \
+        "-1.45 1/cm"
 
 
 def test_units_outside_the_definitions_are_converted_by_pint():
