@@ -5,9 +5,8 @@
   xarray (`write_dataset(cases_dataset(...))`), in alternate rounds; the five runs
   simulated once beforehand, xarray imported beforehand (its import is not counted);
 * a warm `vsj simulate fig-4.15` in a fresh process: the command as a user runs it
-  again, with the bytecode `make install` compiled, the page cache and the unit
-  conversion factors (`vsj.units`) filled by a first run; without the PNG (the
-  default) and with ``--plot``, in alternate rounds.
+  again, with the bytecode `make install` compiled and the page cache filled by a
+  first run; without the PNG (the default) and with ``--plot``, in alternate rounds.
 
 Targets: writing <= 0.3 s, the warm command <= 1.5 s. This VM is shared and its
 speed drifts; the best of the rounds is the figure to compare with the targets, the

@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-import atexit
 import os
-import shutil
-import tempfile
 
 import pytest
 
@@ -15,12 +12,6 @@ try:
     import fcntl
 except ImportError:  # not POSIX: each worker reproduces on its own
     fcntl = None
-
-# Unit conversion factors are cached on disk (vsj.units): the tests keep theirs in a
-# directory of their own, not in the user's cache.
-if "VSJ_CACHE_DIR" not in os.environ:
-    os.environ["VSJ_CACHE_DIR"] = tempfile.mkdtemp(prefix="vsj-test-units-")
-    atexit.register(shutil.rmtree, os.environ["VSJ_CACHE_DIR"], ignore_errors=True)
 
 #: A short wrist scenario (0.3 s, arctan friction, one motor) that the command-line,
 #: bad-input and result-set tests run and edit.

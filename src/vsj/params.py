@@ -18,7 +18,11 @@ A file may start from another set and give only what changes::
     [transmission]
     stiction = { value = "0.004 N m", source = "my bench, 2026-11" }
 
-Paths in ``extends`` are relative to the file that names them.
+Paths in ``extends`` are relative to the file that names them. A chain of
+files that extend one another is followed for at most `MAX_EXTENDS` files and
+must not loop; each is a regular file of at most `MAX_BYTES`. A problem is
+reported against the file that holds the bad value: a parent's own key against
+the parent, and a parent that cannot be read against the file that names it.
 
 Physical parameters live here; numerical knobs (tolerances, the slope width of
 the slope friction law) belong to `vsj.simulate.SimulationOptions`.
@@ -31,6 +35,7 @@ import difflib
 import hashlib
 import json
 import math
+import os
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
@@ -307,8 +312,15 @@ def _nearest(name: str, choices) -> str:
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 
-def _from_table(table: Mapping, origin: str) -> Parameters:
+def _from_table(table: Mapping, origin: str,
+                where: Mapping[str, str] | None = None) -> Parameters:
+    """Validate a merged table; ``where`` names the file each section and key came from
+    (`_table`), ``origin`` the set itself (and anything ``where`` does not name)."""
+    def at(*keys: str) -> str:
+        return _files(where, origin, keys)
+
     problems: list[str] = []
+    bad: set[str] = set()  # keys with a problem of their own, not also reported missing
     values: dict[str, float] = {}
     sources: dict[str, str] = {}
     texts: dict[str, str] = {}
@@ -316,55 +328,60 @@ def _from_table(table: Mapping, origin: str) -> Parameters:
     for section, body in table.items():
         if section == "meta":
             if not isinstance(body, Mapping):
-                problems.append(f"{origin}: [meta] must be a table")
+                problems.append(f"{at(section)}: [meta] must be a table")
                 continue
             for key, text in body.items():
                 if key not in META_KEYS:
-                    problems.append(f"{origin}: meta.{key}: unknown key; allowed: "
+                    problems.append(f"{at(f'meta.{key}')}: meta.{key}: unknown key; allowed: "
                                     f"{', '.join(META_KEYS)}")
                 elif not isinstance(text, str):
-                    problems.append(f"{origin}: meta.{key}: expected text in quotes, got "
-                                    f"{text!r}")
+                    problems.append(f"{at(f'meta.{key}')}: meta.{key}: expected text in "
+                                    f"quotes, got {text!r}")
                 else:
                     meta[key] = str(text)
             continue
         if section not in SCHEMA:
-            problems.append(f"{origin}: unknown section [{section}]{_nearest(section, SCHEMA)}; "
-                            f"sections: {', '.join(SCHEMA)}")
+            problems.append(f"{at(section)}: unknown section [{section}]"
+                            f"{_nearest(section, SCHEMA)}; sections: {', '.join(SCHEMA)}")
             continue
         if not isinstance(body, Mapping):
-            problems.append(f"{origin}: [{section}] must be a table")
+            problems.append(f"{at(section)}: [{section}] must be a table")
+            bad.update(f"{section}.{name}" for name in SCHEMA[section])
             continue
         for name, entry in body.items():
             key = f"{section}.{name}"
+            file = at(key)
             spec = SCHEMA[section].get(name)
             if spec is None:
-                problems.append(f"{origin}: {key}: unknown key{_nearest(name, SCHEMA[section])}; "
+                problems.append(f"{file}: {key}: unknown key{_nearest(name, SCHEMA[section])}; "
                                 f"[{section}] has {', '.join(SCHEMA[section])}")
                 continue
             if not isinstance(entry, Mapping) or "value" not in entry:
-                problems.append(f"{origin}: {key}: write it as {{ value = \"<number> <unit>\", "
+                problems.append(f"{file}: {key}: write it as {{ value = \"<number> <unit>\", "
                                 f"source = \"<where it comes from>\" }}")
+                bad.add(key)
                 continue
             extra = set(entry) - {"value", "source"}
             if extra:
-                problems.append(f"{origin}: {key}: unknown field(s) {', '.join(sorted(extra))}; "
+                problems.append(f"{file}: {key}: unknown field(s) {', '.join(sorted(extra))}; "
                                 "allowed: value, source")
             source = entry.get("source")
             if not isinstance(source, str) or not source.strip():
-                problems.append(f"{origin}: {key}: missing source (say where the value comes "
+                problems.append(f"{file}: {key}: missing source (say where the value comes "
                                 "from, e.g. \"report table 4.1\" or \"estimated: <how>\")")
                 source = ""
             try:
-                value = to_si(entry["value"], spec.unit, where=f"{origin}: {key}",
+                value = to_si(entry["value"], spec.unit, where=f"{file}: {key}",
                               infinite=spec.infinite)
             except InputError as exc:
                 problems.append(str(exc))
+                bad.add(key)
                 continue
             why = spec.check(value)
             if why:
-                problems.append(f"{origin}: {key} = {entry['value']!r}: {why} "
+                problems.append(f"{file}: {key} = {entry['value']!r}: {why} "
                                 f"({spec.description})")
+                bad.add(key)
                 continue
             values[key] = value
             sources[key] = source
@@ -372,40 +389,64 @@ def _from_table(table: Mapping, origin: str) -> Parameters:
     for section, specs in SCHEMA.items():
         for name in specs:
             key = f"{section}.{name}"
-            if key not in values and specs[name].default is not None and not any(
-                    p.startswith(f"{origin}: {key}") for p in problems):
+            if key in values or key in bad:
+                continue
+            if specs[name].default is not None:
                 values[key] = specs[name].default
                 sources[key] = "default (not in the file)"
                 texts[key] = format_quantity(specs[name].default, specs[name].display)
-            elif key not in values and not any(p.startswith(f"{origin}: {key}")
-                                               for p in problems):
+            else:
                 problems.append(f"{origin}: {key}: missing ({specs[name].description}, "
                                 f"unit {specs[name].display})")
     if not problems:
-        problems += _relations(values, origin)
+        problems += _relations(values, origin, where)
     if problems:
         raise InputError("\n".join(problems))
     return Parameters(values=values, sources=sources, texts=texts, origin=origin, meta=meta)
 
 
-def _relations(v: Mapping[str, float], origin: str) -> list[str]:
-    """Checks that involve several keys."""
+def _files(where: Mapping[str, str] | None, origin: str, keys) -> str:
+    """The file (or files, joined by "and") that ``keys`` came from."""
+    files = dict.fromkeys((where or {}).get(key, origin) for key in keys)
+    return " and ".join(files) or origin
+
+
+def _relations(v: Mapping[str, float], origin: str,
+               where: Mapping[str, str] | None = None) -> list[str]:
+    """Checks that involve several keys; each names the file(s) its keys came from."""
+    def at(*keys: str) -> str:
+        return _files(where, origin, keys)
+
     out = []
     R = v["elastic_element.ring_radius"]
     q_min, q_max, amp = v["pivot.q_min"], v["pivot.q_max"], v["pivot.amplitude"]
     if not q_min < q_max:
-        out.append(f"{origin}: pivot.q_min ({q_min * 100:g} cm) must be below pivot.q_max "
-                   f"({q_max * 100:g} cm)")
+        out.append(f"{at('pivot.q_min', 'pivot.q_max')}: pivot.q_min ({q_min * 100:g} cm) "
+                   f"must be below pivot.q_max ({q_max * 100:g} cm)")
     if not (abs(q_min) <= amp and abs(q_max) <= amp):
-        out.append(f"{origin}: the pivot range [{q_min * 100:g}, {q_max * 100:g}] cm must lie "
-                   f"within the mechanism's reach +-{amp * 100:g} cm (pivot.amplitude)")
+        out.append(f"{at('pivot.q_min', 'pivot.q_max', 'pivot.amplitude')}: the pivot range "
+                   f"[{q_min * 100:g}, {q_max * 100:g}] cm must lie within the mechanism's "
+                   f"reach +-{amp * 100:g} cm (pivot.amplitude)")
     if not q_min + R > 0.0:
-        out.append(f"{origin}: pivot.q_min = {q_min * 100:g} cm must stay above the ring's "
-                   f"bottom pin: q_min + ring_radius > 0 (ring_radius = {R * 100:g} cm)")
+        out.append(f"{at('pivot.q_min', 'elastic_element.ring_radius')}: pivot.q_min = "
+                   f"{q_min * 100:g} cm must stay above the ring's bottom pin: q_min + "
+                   f"ring_radius > 0 (ring_radius = {R * 100:g} cm)")
     if not v["elastic_element.lever_length"] > R + q_max:
-        out.append(f"{origin}: elastic_element.lever_length must exceed ring_radius + "
-                   f"pivot.q_max so the lever reaches past the pivot")
+        files = at("elastic_element.lever_length", "elastic_element.ring_radius", "pivot.q_max")
+        out.append(f"{files}: elastic_element.lever_length must exceed ring_radius + "
+                   "pivot.q_max so the lever reaches past the pivot")
     return out
+
+
+#: Largest parameter file read [bytes]. A parameter file sets the few dozen keys of
+#: `SCHEMA`, each a value with its unit and a one-line source: a few kB (the bundled
+#: set is 8 kB). 1 MiB leaves room for long sources and comments a hundred times over,
+#: and refuses a log, an image or a device named by mistake before it is read.
+MAX_BYTES = 1 << 20
+#: Most parameter files one ``extends`` chain may hold. A set extends a lab's set that
+#: extends a bundled one; 32 is more than any chain a person keeps track of, and
+#: bounds the reading at 32 MiB (`MAX_BYTES` each).
+MAX_EXTENDS = 32
 
 
 def load(path: str | Path | None = None) -> Parameters:
@@ -413,15 +454,18 @@ def load(path: str | Path | None = None) -> Parameters:
     if path is None:
         file = _bundled(DEFAULT_FILE)
         origin = f"vsj default ({DEFAULT_FILE})"
-        return loads(read_text(file, "parameter file"), origin, base=file.parent)
-    file = Path(path)
-    return loads(read_text(file, "parameter file"), str(path), base=file.parent)
+    else:
+        file, origin = Path(path), str(path)
+    text = read_text(file, "parameter file", limit=MAX_BYTES)
+    table, where = _table(text, origin, file.parent, file)
+    return _from_table(table, origin, where)
 
 
 def loads(text: str, origin: str = "<string>", *, base: Path | None = None) -> Parameters:
     """Parse parameter-file text; ``origin`` names it in messages, and a relative
     ``extends`` path is read from ``base`` (default: the working directory)."""
-    return _from_table(_table(text, origin, base or Path("."), ()), origin)
+    table, where = _table(text, origin, base or Path("."), None)
+    return _from_table(table, origin, where)
 
 
 def bundled_names() -> list[str]:
@@ -429,38 +473,64 @@ def bundled_names() -> list[str]:
     return sorted(p.stem for p in _bundled("").glob("*.toml"))
 
 
-def _table(text: str, origin: str, base: Path, chain: tuple[str, ...]) -> dict:
-    """The TOML table of a parameter file with what it ``extends`` merged beneath it."""
+def _toml(text: str, origin: str) -> dict:
     try:
-        table = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{origin}: not valid TOML: {exc}") from None
-    parent = table.pop("extends", None)
-    if parent is None:
-        return table
+
+
+def _parent(parent, origin: str, base: Path) -> tuple[Path, str]:
+    """The file that ``extends = parent`` in ``origin`` names, and its name for messages."""
     if not isinstance(parent, str) or not parent.strip():
         raise InputError(f"{origin}: extends must name a bundled parameter set "
                          f"({', '.join(bundled_names())}) or a file, in quotes; got {parent!r}")
     if parent in bundled_names():
-        file = _bundled(f"{parent}.toml")
-        name = f"bundled set {parent}"
-    else:
-        file = base / parent
-        if file.suffix != ".toml" and not file.exists():
-            raise InputError(f"{origin}: extends = {parent!r}: no such file, and not a bundled "
-                             f"parameter set ({', '.join(bundled_names())})"
-                             f"{_nearest(parent, bundled_names())}")
-        name = str(file)
-    key = str(file.resolve())
-    if key in chain:
-        raise InputError(f"{origin}: extends = {parent!r} makes a cycle of parameter files")
-    merged = _table(read_text(file, "parameter file"), name, file.parent, chain + (key,))
-    for section, body in table.items():
-        if isinstance(body, Mapping) and isinstance(merged.get(section), Mapping):
-            merged[section] = {**merged[section], **body}
-        else:
-            merged[section] = body
-    return merged
+        return _bundled(f"{parent}.toml"), f"bundled set {parent}"
+    file = base / parent
+    if file.suffix != ".toml" and not os.path.lexists(file):
+        raise InputError(f"{origin}: extends = {parent!r}: no such file, and not a bundled "
+                         f"parameter set ({', '.join(bundled_names())})"
+                         f"{_nearest(parent, bundled_names())}")
+    return file, str(file)
+
+
+def _table(text: str, origin: str, base: Path, file: Path | None) -> tuple[dict, dict]:
+    """The TOML table of a parameter file (``text``, read from ``file`` if not None) with
+    the files it ``extends`` merged beneath it, and the name of the file each section
+    and key (``"section.key"``) was taken from."""
+    layers = [(_toml(text, origin), origin)]  # the file, then what it extends, ...
+    seen = {os.path.realpath(file): origin} if file is not None else {}
+    while (parent := layers[-1][0].pop("extends", None)) is not None:
+        child = layers[-1][1]
+        file, name = _parent(parent, child, base)
+        key = os.path.realpath(file)  # a symlink loop is left to the read to refuse
+        if key in seen:
+            raise InputError(f"{child}: extends = {parent!r} makes a cycle of parameter "
+                             f"files: {' -> '.join(n for _, n in layers)} -> {seen[key]}")
+        if len(layers) == MAX_EXTENDS:
+            raise InputError(f"{child}: extends = {parent!r}: a chain of more than "
+                             f"{MAX_EXTENDS} parameter files ({layers[0][1]} -> ... -> "
+                             f"{child} -> {name}); at most {MAX_EXTENDS} are followed")
+        try:
+            text = read_text(file, "parameter file", limit=MAX_BYTES)
+        except InputError as exc:
+            raise InputError(f"{child}: extends = {parent!r}: {exc}") from None
+        seen[key] = name
+        layers.append((_toml(text, name), name))
+        base = file.parent
+    merged: dict = {}
+    where: dict[str, str] = {}
+    for table, name in reversed(layers):
+        for section, body in table.items():
+            if isinstance(body, Mapping) and isinstance(merged.get(section), Mapping):
+                merged[section] = {**merged[section], **body}
+            else:
+                merged[section] = body
+            where[section] = name
+            if isinstance(body, Mapping):
+                where.update({f"{section}.{key}": name for key in body})
+    return merged, where
 
 
 def default() -> Parameters:

@@ -7,15 +7,42 @@ the command line write a quantity as a number and a unit, for example
 expected one. Radians are dimensionless, as in SI, so ``"N m"`` and
 ``"N m/rad"`` share a dimension.
 
-The text is checked against that form before pint sees it: one decimal number,
-then unit names joined by spaces, ``*`` or ``/``, with integer exponents of one
-digit (``m^2``, ``s**-1``), a ``1`` only as in ``1/cm``, and at most one level
-of parentheses. Nothing is evaluated: pint is handed the number as a float and
-the unit text alone, which by then is a product of powers of names.
+The text is checked against that form before anything converts it: one decimal
+number, then unit names joined by spaces, ``*`` or ``/``, with integer exponents
+of one digit (``m^2``, ``s**-1``), a ``1`` only as in ``1/cm``, and at most one
+level of parentheses. As in pint, ``*``, ``/`` and a space bind equally from left
+to right (``"N/m s"`` is N s/m). Nothing is evaluated: pint, where it is asked,
+is handed the number as a float and the unit text alone.
 
-pint is imported only when a conversion is not yet in the cache of conversion
-factors (see `cache_file`): a process that reads only units met before does not
-import it at all.
+Conversion factors
+------------------
+A unit made only of the names in `definitions` (the SI units of mechanics and
+electricity with their prefixes, radian, degree, turn, rpm, minute, hour,
+percent, and the inch, foot, pound, ounce and pound-force of the 1959
+international yard and pound) is converted here, from the exact definition of
+each name: a rational number times a power of pi times a product of powers of
+m, kg, s and A. A unit text's factor is exact until its single last rounding,
+to the nearest float, so the same text gives the same float in every process,
+on every machine and with every pint version. Every unit in vsj's own files and
+commands is of this kind. Any other unit (a plural such as ``"meters"``, an
+offset unit such as ``degC``, ``mdeg``) is converted by pint, in the process
+that meets it.
+
+Why the factors are defined in code and not cached: importing pint (which
+imports Dask) and building its registry is a large share of a warm
+``vsj simulate fig-4.15`` (``benchmarks/units_startup.py`` measures both), which
+is why earlier versions kept pint's factors in a file in the user's cache
+directory. A factor in a file is only as right as the file: one
+edited or damaged entry (``deg`` to ``rad`` = 1) silently turned degrees into
+radians, and nothing short of asking pint again could tell; asking pint costs what
+the file saved. A checksum would catch a damaged file but not an edited one. A
+factor derived from definitions in the code can change only with the code, and
+the tests compare every name of `definitions` with pint: its dimension, and its
+factor within pint's own rounding (pint multiplies rounded factors along each
+name's chain of definitions, so its foot is 0.30479999999999996 m; the factor
+here is the nearest float to the exact one). So no file outside vsj and pint
+takes part in a conversion: pint's registry is built without its disk cache
+too, and files that earlier versions left in ``~/.cache/vsj`` are never read.
 """
 
 from __future__ import annotations
@@ -23,6 +50,8 @@ from __future__ import annotations
 import functools
 import math
 import re
+from fractions import Fraction
+from typing import NamedTuple
 
 from .errors import InputError
 
@@ -41,13 +70,10 @@ _TOKEN = re.compile(r"\s*(?:(?P<name>(?:[^\W\d]|[°%])\w*)|(?P<one>1)(?![\w.])"
 
 @functools.lru_cache(maxsize=1)
 def registry():
-    """The shared pint registry (created once per process)."""
+    """The shared pint registry (created once per process, without pint's disk cache)."""
     import pint
 
-    try:
-        return pint.UnitRegistry(cache_folder=":auto:")
-    except OSError:  # read-only home: a registry without a disk cache works too
-        return pint.UnitRegistry()
+    return pint.UnitRegistry()
 
 
 @functools.lru_cache(maxsize=256)
@@ -149,12 +175,16 @@ def to_si(text: str | float | int, unit: str, *, where: str, infinite: bool = Fa
 
 def from_si(value: float, unit: str) -> float:
     """Convert an SI value to ``unit`` (for display and plots)."""
+    exact = _defined(unit)
+    if exact is not None:
+        return value * _nearest_float(_power(exact, -1))
+
     def convert(x):
         target = _unit(unit)
         base = registry().Quantity(1.0, target).to_base_units().units
         return registry().Quantity(x, base).to(target)
 
-    return _scaled(value, f"from|{unit}", convert)
+    return _by_pint(value, f"from|{unit}", convert)
 
 
 class _NotConvertible(Exception):
@@ -168,11 +198,17 @@ class _Unreadable(Exception):
 
 
 def _convert(value: float, unit_text: str, unit: str) -> float:
-    """``value`` in ``unit_text`` converted to ``unit``, exactly as pint converts it;
-    `_NotConvertible` or `_Unreadable` with pint's reason if it cannot be."""
+    """``value`` in ``unit_text`` converted to ``unit``: by `definitions` where both units
+    are made of their names, else as pint converts it; `_NotConvertible` or `_Unreadable`
+    with the reason if it cannot be."""
+    source, target = _defined(unit_text), _defined(unit)
+    if source is not None and target is not None:
+        if source.dimension != target.dimension:
+            raise _NotConvertible(unit_text)
+        return value * _nearest_float(_product([(source, 1), (target, -1)]))
     try:
-        return _scaled(value, f"to|{unit_text}|{unit}",
-                       lambda x: registry().Quantity(x, _unit(unit_text)).to(_unit(unit)))
+        return _by_pint(value, f"to|{unit_text}|{unit}",
+                        lambda x: registry().Quantity(x, _unit(unit_text)).to(_unit(unit)))
     except Exception as exc:
         import pint
 
@@ -183,133 +219,143 @@ def _convert(value: float, unit_text: str, unit: str) -> float:
         raise
 
 
-def _scaled(value: float, key: str, convert) -> float:
-    """``value`` times the cached factor ``key``; on a miss, pint's conversion
-    ``convert(x)`` (a pint quantity) gives the factor, remembered when the conversion is
-    a multiplication, and converts ``value`` itself when it is not."""
-    factor = _factors().get(key)
-    if factor is None:
-        factor = _remember(key, convert)
-        if factor is None:  # an offset or logarithmic unit
-            return float(convert(value).magnitude)
-    return value * factor
+_pint_factors: dict[str, float | None] = {}
 
 
-# -------------------------------------------------------------- conversion factors on disk
-#
-# Importing pint and building its registry costs more than a whole simulation of the
-# wrist (benchmarks/simulate_cli.py times the command). A conversion between
-# multiplicative units is ``value * factor``, pint's own arithmetic, so the factor pint
-# computed once is kept in a small JSON file in the user's cache directory
-# (``$VSJ_CACHE_DIR``, else ``$XDG_CACHE_HOME/vsj`` or ``~/.cache/vsj``),
-# one per pint version. A process that finds every unit it reads there never imports pint,
-# and gets the same floats bit for bit. The file is only a cache: one that is missing,
-# unreadable or malformed is ignored, and a directory that cannot be written is left alone.
-
-#: Most factors kept on disk (a parameter set uses a few dozen).
-CACHE_ENTRIES = 2000
-
-
-def cache_file():
-    """The file of conversion factors, or None if the home directory is unknown."""
-    import os
-    from pathlib import Path
-
-    folder = os.environ.get("VSJ_CACHE_DIR")
-    if not folder:
-        base = os.environ.get("XDG_CACHE_HOME")
-        try:
-            folder = Path(base) if base else Path.home() / ".cache"
-        except RuntimeError:
-            return None
-        folder = Path(folder) / "vsj"
-    return Path(folder) / f"units-pint-{_pint_version()}.json"
+def _by_pint(value: float, key: str, convert) -> float:
+    """``value`` converted by pint, ``convert(x)`` being the pint quantity x converted: as
+    ``value`` times pint's factor where the conversion is a multiplication (the factor is
+    kept for the rest of the process, in memory only), else by ``convert`` itself (an
+    offset or logarithmic unit)."""
+    if key not in _pint_factors:
+        factor = float(convert(1.0).magnitude)
+        multiplication = (math.isfinite(factor) and factor != 0.0
+                          and float(convert(0.0).magnitude) == 0.0
+                          and float(convert(3.0).magnitude) == 3.0 * factor)
+        _pint_factors[key] = factor if multiplication else None
+    factor = _pint_factors[key]
+    return value * factor if factor is not None else float(convert(value).magnitude)
 
 
-def _pint_version() -> str:
-    """The installed pint's version, from its ``dist-info`` folder: found without
-    importing pint (or importlib.metadata, which costs a short run a tenth of its time);
-    where there is no such folder, the time its package was last changed."""
-    import importlib.util
-    from pathlib import Path
+# ------------------------------------------------------------------ exact definitions
 
-    spec = importlib.util.find_spec("pint")
-    if spec is None or not spec.submodule_search_locations:
-        return "none"
-    package = Path(next(iter(spec.submodule_search_locations)))
-    found = list(package.parent.glob("pint-*.dist-info"))
-    if len(found) == 1:
-        return found[0].name[len("pint-"):-len(".dist-info")]
-    return f"changed-{(package / '__init__.py').stat().st_mtime_ns}"
+class Exact(NamedTuple):
+    """A unit as an exact multiple of SI base units: ``rational * pi**pi_power``
+    times m, kg, s and A raised to ``dimension``'s exponents (radians are 1)."""
+
+    rational: Fraction
+    pi_power: int
+    dimension: tuple[int, int, int, int]
+
+
+#: pi to 80 digits: with it, a factor holding a power of pi is still rounded to the
+#: nearest float (a double carries 17 digits).
+_PI = Fraction("3.1415926535897932384626433832795028841971693993751058209749445923078164062862")
+_ONE = Exact(Fraction(1), 0, (0, 0, 0, 0))
+
+# SI units that take prefixes: symbol, names, factor to the base units, dimension (m kg s A).
+_SI = [("m", ("meter", "metre"), Fraction(1), (1, 0, 0, 0)),
+       ("g", ("gram",), Fraction(1, 1000), (0, 1, 0, 0)),
+       ("s", ("second",), Fraction(1), (0, 0, 1, 0)),
+       ("A", ("ampere",), Fraction(1), (0, 0, 0, 1)),
+       ("rad", ("radian",), Fraction(1), (0, 0, 0, 0)),
+       ("Hz", ("hertz",), Fraction(1), (0, 0, -1, 0)),
+       ("N", ("newton",), Fraction(1), (1, 1, -2, 0)),
+       ("J", ("joule",), Fraction(1), (2, 1, -2, 0)),
+       ("W", ("watt",), Fraction(1), (2, 1, -3, 0)),
+       ("Pa", ("pascal",), Fraction(1), (-1, 1, -2, 0)),
+       ("V", ("volt",), Fraction(1), (2, 1, -3, -1)),
+       ("ohm", ("ohm",), Fraction(1), (2, 1, -3, -2)),
+       ("\u03a9", (), Fraction(1), (2, 1, -3, -2)),  # the ohm sign
+       ("H", ("henry",), Fraction(1), (2, 1, -2, -2))]
+# Prefixes: symbols (micro as u, the micro sign and the Greek mu), name, power of ten.
+_PREFIXES = [(("p",), "pico", -12), (("n",), "nano", -9), (("u", "\u00b5", "\u03bc"), "micro", -6),
+             (("m",), "milli", -3), (("c",), "centi", -2), (("d",), "deci", -1),
+             (("k",), "kilo", 3), (("M",), "mega", 6), (("G",), "giga", 9)]
+_POUND = Fraction(45359237, 10**8)  # kg, exact by the 1959 agreement
+# Units without prefixes: names, rational factor, power of pi, dimension.
+_OTHERS = [(("deg", "degree"), Fraction(1, 180), 1, (0, 0, 0, 0)),
+           (("turn", "revolution"), Fraction(2), 1, (0, 0, 0, 0)),
+           (("rpm",), Fraction(2, 60), 1, (0, 0, -1, 0)),
+           (("min", "minute"), Fraction(60), 0, (0, 0, 1, 0)),
+           (("h", "hr", "hour"), Fraction(3600), 0, (0, 0, 1, 0)),
+           (("%", "percent"), Fraction(1, 100), 0, (0, 0, 0, 0)),
+           (("in", "inch"), Fraction(254, 10**4), 0, (1, 0, 0, 0)),
+           (("ft", "foot"), Fraction(3048, 10**4), 0, (1, 0, 0, 0)),
+           (("lb", "pound"), _POUND, 0, (0, 1, 0, 0)),
+           (("oz", "ounce"), _POUND / 16, 0, (0, 1, 0, 0)),
+           (("lbf",), _POUND * Fraction(980665, 10**5), 0, (1, 1, -2, 0))]  # times g_n
 
 
 @functools.lru_cache(maxsize=1)
-def _factors() -> dict[str, float]:
-    """The factors read from `cache_file` (empty if there is none usable)."""
-    import json
-
-    path = cache_file()
-    try:
-        data = json.loads(path.read_text(encoding="utf-8")) if path else {}
-    except (OSError, ValueError):
-        return {}
-    if not (isinstance(data, dict) and all(
-            isinstance(k, str) and type(v) is float and math.isfinite(v) and v != 0.0
-            for k, v in data.items())):
-        return {}
-    return data
-
-
-_new: dict[str, float] = {}
+def definitions() -> dict[str, Exact]:
+    """The unit names vsj converts without pint, each with its exact SI definition."""
+    table = {}
+    for symbol, names, factor, dimension in _SI:
+        for name in (symbol, *names):
+            table[name] = Exact(factor, 0, dimension)
+        for symbols, prefix, power in _PREFIXES:
+            scaled = Exact(factor * Fraction(10) ** power, 0, dimension)
+            table.update({p + symbol: scaled for p in symbols})
+            table.update({prefix + name: scaled for name in names})
+    for names, factor, pi_power, dimension in _OTHERS:
+        table.update({name: Exact(factor, pi_power, dimension) for name in names})
+    return table
 
 
-def _remember(key: str, convert) -> float | None:
-    """pint's factor for ``key`` (``convert(x)`` is x converted), kept for this process and
-    written to the cache at exit; None if the conversion is not a multiplication."""
-    factor = float(convert(1.0).magnitude)
-    if not (math.isfinite(factor) and factor != 0.0
-            and float(convert(0.0).magnitude) == 0.0
-            and float(convert(3.0).magnitude) == 3.0 * factor):
+def _power(unit: Exact, exponent: int) -> Exact:
+    return Exact(unit.rational ** exponent, unit.pi_power * exponent,
+                 tuple(d * exponent for d in unit.dimension))
+
+
+def _product(factors) -> Exact:
+    """The product of (`Exact`, exponent) pairs."""
+    result = _ONE
+    for unit, exponent in factors:
+        u = _power(unit, exponent)
+        result = Exact(result.rational * u.rational, result.pi_power + u.pi_power,
+                       tuple(a + b for a, b in zip(result.dimension, u.dimension)))
+    return result
+
+
+def _nearest_float(unit: Exact) -> float:
+    """The float nearest to the unit's factor (Fraction to float rounds to nearest)."""
+    return float(unit.rational * _PI ** unit.pi_power)
+
+
+@functools.lru_cache(maxsize=256)
+def _defined(unit: str) -> Exact | None:
+    """``unit`` (of `FORM`'s grammar) as an `Exact`, or None if it is not of that grammar
+    or names a unit outside `definitions`."""
+    if _check_unit(unit) is not None:
         return None
-    factors = _factors()
-    if len(factors) < CACHE_ENTRIES:
-        factors[key] = factor
-        if not _new:
-            import atexit
-
-            atexit.register(_save)
-        _new[key] = factor
-    return factor
-
-
-def _save() -> None:
-    """Merge this process's new factors into the cache file (atomically replaced)."""
-    import json
-    import os
-    import tempfile
-
-    path = cache_file()
-    if path is None or not _new:
-        return
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        try:
-            old = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            old = {}
-        merged = {**(old if isinstance(old, dict) else {}), **_new}
-        if len(merged) > CACHE_ENTRIES:
-            return
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".units-", suffix=".json")
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as f:
-                json.dump(merged, f, sort_keys=True, indent=0)
-            os.replace(tmp, path)
-        except BaseException:
-            os.unlink(tmp)
-            raise
-    except OSError:
-        pass  # a read-only or full disk: the cache is only an optimisation
+    table = definitions()
+    levels: list[list[list]] = [[]]  # per open parenthesis: [unit, sign, exponent] read so far
+    signs = [1]  # per level: the sign of the next factor's exponent (-1 after '/')
+    position = 0
+    while position < len(unit):
+        m = _TOKEN.match(unit, position)
+        position = m.end()
+        kind, token = m.lastgroup, m.group(m.lastgroup)
+        if kind in ("name", "one"):
+            factor = table.get(token) if kind == "name" else _ONE
+            if factor is None:
+                return None
+            levels[-1].append([factor, signs[-1], 1])
+            signs[-1] = 1
+        elif kind == "power":
+            levels[-1][-1][2] = int(token.lstrip("^*"))
+        elif token == "(":
+            levels.append([])
+            signs.append(1)
+        elif token == ")":
+            group = _product((f, s * e) for f, s, e in levels.pop())
+            signs.pop()
+            levels[-1].append([group, signs[-1], 1])
+            signs[-1] = 1
+        else:  # * or /
+            signs[-1] = -1 if token == "/" else 1
+    return _product((f, s * e) for f, s, e in levels[0])
 
 
 def format_quantity(value: float, unit: str, digits: int = 6) -> str:

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import io
 import json
+import zipfile
 from pathlib import Path
 from typing import Mapping
 
 import numpy as np
 
 from .. import __version__
-from ..errors import InputError
+from ..errors import TEXT_BYTES, InputError, read_bytes
 from .data import FRICTION_TREATMENTS, LinearData
 
 #: File format tag of `save`/`load`.
@@ -97,20 +99,21 @@ def save(model: LinearData, path: Path) -> None:
 
 def load(path: Path, *, statespace: bool = True):
     """Read a file written by `save` (a `LinearModel`, or with ``statespace=False`` a
-    `LinearData`)."""
+    `LinearData`); a regular file of at most `vsj.errors.TEXT_BYTES`."""
     path = Path(path)
+    if path.suffix not in (".json", ".npz"):
+        raise InputError(f"{path}: a linear model file ends in .json or .npz")
+    data = read_bytes(path, "linear model file", TEXT_BYTES)
     try:
         if path.suffix == ".json":
-            return from_dict(json.loads(path.read_text(encoding="utf-8")), origin=str(path),
+            return from_dict(json.loads(data.decode("utf-8")), origin=str(path),
                              statespace=statespace)
-        if path.suffix == ".npz":
-            with np.load(path, allow_pickle=False) as z:
-                meta = json.loads(str(z["meta"]))
-                for k in "ABCD":
-                    meta[k] = z[k]
-                return from_dict(meta, origin=str(path), statespace=statespace)
-    except (OSError, ValueError) as exc:
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
+            meta = json.loads(str(z["meta"]))
+            for k in "ABCD":
+                meta[k] = z[k]
+            return from_dict(meta, origin=str(path), statespace=statespace)
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
         raise InputError(f"{path}: cannot read a linear model ({exc})") from None
-    raise InputError(f"{path}: a linear model file ends in .json or .npz")
 
 
