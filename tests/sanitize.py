@@ -15,6 +15,7 @@ sanitizer report ends the run with a non-zero exit code.
 from __future__ import annotations
 
 import os
+import platform
 import shutil
 import subprocess
 import sys
@@ -37,9 +38,28 @@ def compiler() -> str:
     raise SystemExit("sanitize: no C compiler")
 
 
+def is_clang(cc: str) -> bool:
+    done = subprocess.run([cc, "--version"], capture_output=True, text=True)
+    return "clang" in done.stdout
+
+
+def flags(cc: str) -> list[str]:
+    """The sanitizer flags; clang links its sanitizer runtime into a shared library only
+    when asked (GCC's is shared by default)."""
+    return FLAGS + (["-shared-libsan"] if is_clang(cc) else [])
+
+
+def runtime(cc: str) -> str:
+    """The sanitizer runtime to preload into Python (which is not instrumented)."""
+    name = (f"libclang_rt.asan-{platform.machine()}.so" if is_clang(cc) else "libasan.so")
+    return subprocess.run([cc, f"-print-file-name={name}"], capture_output=True, text=True,
+                          check=True).stdout.strip()
+
+
 def build(scratch: Path) -> tuple[Path, Path]:
     """The package with an instrumented engine (in scratch/pkg) and the example."""
     cc = compiler()
+    FLAGS = flags(cc)
     pkg = scratch / "pkg"
     shutil.rmtree(pkg, ignore_errors=True)
     shutil.copytree(ROOT / "src" / "vsj", pkg / "vsj",
@@ -202,9 +222,7 @@ def main(argv: list[str]) -> int:
     scratch.mkdir(parents=True, exist_ok=True)
     pkg, example = build(scratch)
     env = dict(os.environ)
-    runtime = subprocess.run([compiler(), "-print-file-name=libasan.so"], capture_output=True,
-                             text=True, check=True).stdout.strip()
-    env["LD_PRELOAD"] = runtime
+    env["LD_PRELOAD"] = runtime(compiler())
     # Python's allocator keeps memory at exit by design: leak reports would be its own
     env["ASAN_OPTIONS"] = "detect_leaks=0:abort_on_error=1"
     env["UBSAN_OPTIONS"] = "halt_on_error=1:print_stacktrace=1"

@@ -31,8 +31,9 @@ def finer_setting(solver: str, residual: float, options: SimulationOptions) -> s
     """What to run instead when the ledger's residual exceeds its tolerance: for the
     time-stepper a step that divides the output step and, at the residual's second
     order in the step (its springs, integrated by the trapezoidal rule), brings it to
-    a quarter of the tolerance; for dopri an rtol that, at the residual's first order
-    in rtol, brings it to a tenth."""
+    a quarter of the tolerance; for dopri an rtol that would bring it to a hundredth if
+    it followed rtol in proportion (it does only roughly: another rtol takes other
+    steps, whose errors need not cancel alike)."""
     excess = residual / options.ledger_tolerance
     if solver == "timestep":
         need = 2.0 * math.sqrt(excess)  # h/k: excess / k^2 <= 1/4
@@ -40,7 +41,7 @@ def finer_setting(solver: str, residual: float, options: SimulationOptions) -> s
         # decimal that divides the output step
         k = min(m * 10 ** j for j in range(12) for m in (1, 2, 4, 5, 8) if m * 10 ** j >= need)
         return f"step = \"{options.step / k:.6g} s\" (1/{k} of the step)"
-    return f"rtol = {options.rtol / (10.0 * excess):.2g}"
+    return f"rtol = {options.rtol / (100.0 * excess):.2g}"
 
 
 class Watch:
