@@ -267,21 +267,23 @@ def _file_refuses(key, value):
 
 
 def _candidates(spec, value):
-    """Values at and beyond a parameter's bounds, zero, and values that move it far
-    enough to break the relations it takes part in."""
-    out = {0.0, -value, 0.5 * value, 2.0 * value, -1.0}
+    """Values at and beyond a parameter's bounds, zero, non-finite values, and values
+    that move it far enough to break the relations it takes part in."""
+    out = {0.0, -value, 0.5 * value, 2.0 * value, -1.0, math.inf, -math.inf}
     nudge = 1e-6 * (abs(value) if value else 1.0)
     for bound in (spec.minimum, spec.maximum):
         if bound is not None:
             out |= {bound, bound - nudge, bound + nudge}
-    return sorted(out)
+    return sorted(out) + [math.nan]
 
 
 def test_each_tunable_parameter_is_refused_where_a_parameter_file_refuses_it(wrist):
     """Every tunable parameter, at its bounds (an excluded minimum such as a zero
-    stiffness or sharpness included), at zero, and far enough to break a relation
-    between keys (`vsj.params.RELATIONS`): fmi2SetReal refuses it exactly when a
-    parameter file with that value is refused."""
+    stiffness or sharpness included), at zero, non-finite, and far enough to break a
+    relation between keys (`vsj.params.RELATIONS`): fmi2SetReal refuses it exactly
+    when a parameter file with that value is refused. One exception: a file may make
+    an end stop rigid ('inf N m/rad'); in an FMU that is a change of the model's
+    structure, refused (export another FMU for it)."""
     md = read_model_description(str(wrist[0]))
     tunable = [v for v in md.modelVariables if v.variability == "tunable"]
     s = Instance(wrist, initialize=False)
@@ -292,7 +294,9 @@ def test_each_tunable_parameter_is_refused_where_a_parameter_file_refuses_it(wri
         start = float(variable.start)
         for x in _candidates(spec, start):
             fmu_refuses = refused(s.fmu.setReal, [variable.valueReference], [x])
-            if fmu_refuses != _file_refuses(variable.name, x):
+            if spec.infinite and x == math.inf:
+                assert fmu_refuses and not _file_refuses(variable.name, x)
+            elif fmu_refuses != _file_refuses(variable.name, x):
                 disagree.append((variable.name, x, fmu_refuses))
             if fmu_refuses:
                 kinds.add("strict" if spec.strict and x == spec.minimum else

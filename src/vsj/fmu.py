@@ -652,14 +652,19 @@ def map_body(tunables: list[Tunable], params: Parameters, q0: float, checks: Che
         low = t.minimum if math.isfinite(t.minimum) else -1.7976931348623157e308
         high = t.maximum if math.isfinite(t.maximum) else 1.7976931348623157e308
         flags = (1 if t.strict else 0) | (2 if t.nonzero else 0)
-        lines.append(f"{t.key} {t.value!r} {low!r} {high!r} {flags} {len(t.entries)}")
+        section, name = t.key.split(".", 1)
+        unit = _display(SCHEMA[section][name].unit)
+        lines.append(f"{t.key} {unit} {t.value!r} {low!r} {high!r} {flags} {len(t.entries)}")
         lines += [f"{array} {index} {slope!r}" for array, index, slope in t.entries]
     index = {t.key: k for k, t in enumerate(tunables)}
     lines.append(f"relations {len(RELATIONS)}")
     for relation in RELATIONS:
         lines.append(f"{int(relation.strict)} {len(relation.terms)} {relation.text}")
-        lines += [f"{index[key]} {weight!r} 0.0" if key in index else
-                  f"-1 {weight!r} {params[key]!r}" for key, weight in relation.terms]
+        for key, weight in relation.terms:
+            section, name = key.split(".", 1)
+            unit = _display(SCHEMA[section][name].unit)
+            lines.append(f"{index[key]} {weight!r} 0.0 {key} {unit}" if key in index else
+                         f"-1 {weight!r} {params[key]!r} {key} {unit}")
     lines.append(f"pivot {q0!r}")
     lines.append(f"springs {len(checks.springs)} {INTO_STOP!r} {DIVERGED!r}")
     lines += [f"{name} {column}" for name, column in checks.springs]

@@ -7,11 +7,11 @@
  *     guid G                       the GUID of modelDescription.xml
  *     parameters P
  *     then, per tunable parameter (value reference 100 + its index):
- *       key start min max flags count, and count lines "array index slope"
- *       (flags: 1 the minimum is excluded, 2 zero is excluded)
+ *       key unit start min max flags count, and count lines "array index slope"
+ *       (SI unit, "1" for none; flags: 1 the minimum is excluded, 2 zero is excluded)
  *     relations R
  *     then, per relation between keys: strict count text, and count lines
- *       "parameter weight value" (parameter -1: a constant, `value`)
+ *       "parameter weight value key unit" (parameter -1: a constant, `value`)
  *     pivot q0
  *     springs K into_stop diverged
  *     then, per spring (in the model's order): name, column of its end-stop angle
@@ -85,6 +85,7 @@ typedef struct {
 
 typedef struct {
     char key[KEY_MAX];
+    char unit[KEY_MAX]; /* SI, empty for none */
     double start, min, max;
     int flags;
     int64_t first, count;
@@ -93,6 +94,7 @@ typedef struct {
 typedef struct {
     int64_t parameter; /* -1: a constant */
     double weight, value;
+    char key[KEY_MAX], unit[KEY_MAX];
 } term;
 
 typedef struct {
@@ -262,12 +264,14 @@ static int read_parameters(fmu *f, FILE *file, char *why, size_t size) {
         parameter *par = f->parameters + p;
         long long entries;
         entry *grown;
-        if (fscanf(file, "%79s %lf %lf %lf %d %lld", par->key, &par->start, &par->min, &par->max,
-                   &par->flags, &entries) != 6
+        if (fscanf(file, "%79s %79s %lf %lf %lf %d %lld", par->key, par->unit, &par->start,
+                   &par->min, &par->max, &par->flags, &entries) != 7
             || entries < 0 || entries > 1000000 || par->flags < 0 || par->flags > 3) {
             snprintf(why, size, "parameter %lld unreadable", p);
             return 0;
         }
+        if (strcmp(par->unit, "1") == 0)
+            par->unit[0] = 0;
         par->first = total;
         par->count = entries;
         grown = (entry *)realloc(f->entries, (size_t)(total + entries + 1) * sizeof(entry));
@@ -329,12 +333,16 @@ static int read_relations(fmu *f, FILE *file, char *why, size_t size) {
         for (k = 0; k < terms; k++) {
             term *e = f->terms + total + k;
             long long index;
-            if (fscanf(file, "%lld %lf %lf", &index, &e->weight, &e->value) != 3 || index < -1
-                || index >= f->n_parameters || !isfinite(e->weight) || !isfinite(e->value)) {
+            if (fscanf(file, "%lld %lf %lf %79s %79s", &index, &e->weight, &e->value, e->key,
+                       e->unit) != 5
+                || index < -1 || index >= f->n_parameters || !isfinite(e->weight)
+                || !isfinite(e->value)) {
                 snprintf(why, size, "relation %lld has a bad term", r);
                 return 0;
             }
             e->parameter = index;
+            if (strcmp(e->unit, "1") == 0)
+                e->unit[0] = 0;
         }
         total += terms;
     }
@@ -574,14 +582,15 @@ static fmi2Status rebuild(fmu *f) {
 
 /* Why parameter p may not take x, as vsj.params.Spec.check says it (NULL: it may). */
 static const char *refusal(const parameter *p, double x, char *why, size_t size) {
+    const char *space = p->unit[0] ? " " : "";
     if (!isfinite(x))
         snprintf(why, size, "must be finite");
     else if ((p->flags & MIN_EXCLUDED) && !(x > p->min))
-        snprintf(why, size, "must be > %.6g", p->min);
+        snprintf(why, size, "must be > %.6g%s%s", p->min, space, p->unit);
     else if (!(p->flags & MIN_EXCLUDED) && !(x >= p->min))
-        snprintf(why, size, "must be >= %.6g", p->min);
+        snprintf(why, size, "must be >= %.6g%s%s", p->min, space, p->unit);
     else if (!(x <= p->max))
-        snprintf(why, size, "must be <= %.6g", p->max);
+        snprintf(why, size, "must be <= %.6g%s%s", p->max, space, p->unit);
     else if ((p->flags & ZERO_EXCLUDED) && x == 0.0)
         snprintf(why, size, "must be nonzero");
     else
@@ -1109,11 +1118,9 @@ static void relation_text(const fmu *f, int64_t r, char *text, size_t size) {
     for (k = 0; k < rel->count; k++) {
         const term *e = f->terms + rel->first + k;
         used = strlen(text);
-        if (e->parameter < 0)
-            snprintf(text + used, size - used, "%sa constant %g", k ? ", " : "", e->value);
-        else
-            snprintf(text + used, size - used, "%s%s = %g", k ? ", " : "",
-                     f->parameters[e->parameter].key, f->values[e->parameter]);
+        snprintf(text + used, size - used, "%s%s = %g%s%s%s", k ? ", " : "", e->key,
+                 e->parameter < 0 ? e->value : f->values[e->parameter], e->unit[0] ? " " : "",
+                 e->unit, e->parameter < 0 ? " (fixed by the export)" : "");
     }
     used = strlen(text);
     snprintf(text + used, size - used, ")");
@@ -1186,13 +1193,16 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     for (k = 0; k < nvr; k++) { /* each value checked before any is set */
         fmi2ValueReference r = vr[k];
         double x = value[k];
-        if (!isfinite(x)) {
-            snprintf(text, sizeof text, "%u", r);
-            return fail(f, "fmi2SetReal: value reference %s: the value is not finite", text);
-        }
-        if (r < (fmi2ValueReference)f->ni)
+        if (r < (fmi2ValueReference)f->ni) {
+            if (!isfinite(x)) {
+                snprintf(text, sizeof text, "%s = %g", f->loaded->input_names[r], x);
+                return fail(f, "fmi2SetReal: input %s: the value is not finite", text);
+            }
             continue;
+        }
         if (r == VR_Q0) {
+            if (!isfinite(x))
+                return fail(f, "fmi2SetReal: pivot_q0: the value is not finite%s", "");
             if (f->mode != INSTANTIATED && f->mode != INITIALIZING)
                 return fail(f, "fmi2SetReal: the initial pivot position is set before "
                                "initialization ends%s", "");
@@ -1201,7 +1211,8 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         } else if (r >= VR_PARAMETER && r < VR_PARAMETER + (fmi2ValueReference)f->n_parameters) {
             const parameter *p = f->parameters + (r - VR_PARAMETER);
             if (refusal(p, x, why, sizeof why)) {
-                snprintf(text, sizeof text, "%s = %g is outside its range: %s", p->key, x, why);
+                snprintf(text, sizeof text, "%s = %g%s%s is outside its range: %s", p->key, x,
+                         p->unit[0] ? " " : "", p->unit, why);
                 return fail(f, "fmi2SetReal: %s", text);
             }
             differs |= f->values[r - VR_PARAMETER] != x;
