@@ -446,7 +446,12 @@ def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None =
             shutil.copy(path, root / "sources" / path.name)
         (root / "sources" / "buildDescription.xml").write_text(build_description())
         (root / "documentation" / "index.html").write_text(
-            f"<html><body><h1>vsj wrist FMU</h1><p>{description}</p><p>Built by vsj "
+            f"<html><body><h1>vsj wrist FMU</h1><p>{description}</p><p>It refuses, with "
+            f"fmi2Error and the reason through the logger, what vsj refuses elsewhere (a "
+            f"parameter value a parameter file refuses, another FMU's GUID or state), and "
+            f"checks each run as vsj simulate does: a spring far past its end stop ends the "
+            f"run, one pressed into it or a motor above its voltage limit gives fmi2Warning, "
+            f"and fmi2Terminate judges the run's energy ledger.</p><p>Built by vsj "
             f"{__version__}; see vsj's README, section 'The wrist as an FMU'.</p></body></html>\n")
         said = {"linux64": compile_binary(
             "linux64", root / "binaries" / "linux64" / f"{MODEL_IDENTIFIER}.so")}

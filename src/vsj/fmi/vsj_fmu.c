@@ -1233,7 +1233,7 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
                (size_t)f->ni * sizeof(double));
         stored(f, f->record + f->at.applied, before, before + 3);
     }
-    changed = set_parameters(f, vr, nvr, value, sets_q0, q0);
+    changed = differs || sets_q0 ? set_parameters(f, vr, nvr, value, sets_q0, q0) : 0;
     if (changed < 0)
         return fmi2Error;
     if (changed && stepping) {
@@ -1314,26 +1314,32 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 
 /* ---- stepping ------------------------------------------------------------------ */
 
-/* The step's power outputs, and its ledger added to the run's. */
+/* The step's power outputs, and its ledger added to the run's (one pass). */
 static void account(fmu *f, double h) {
     const vsj_model *m = &f->model;
-    int64_t i, s_n = m->n_sources, nl = m->n_loads, nm = m->n_motors, nf = m->n_frictions;
-    int64_t nk = m->n_springs, at;
+    const double *step = f->ledger;
     double work_in = 0.0, lost = 0.0, *total = f->record + f->at.totals;
-    for (i = 0; i < f->nacc; i++)
-        total[i] += f->ledger[i];
-    for (i = 0; i < s_n + nl + nm; i++) /* sources, loads, motor supplies */
-        work_in += f->ledger[i];
-    at = s_n + nl + nm;
-    for (i = 0; i < nf + nm; i++) /* friction, then armature resistance */
-        lost += f->ledger[at + i];
-    at += nf + nm + nk; /* past the springs' own work: the pivot's, then the stops' */
-    if (pivot_row(f)[2] > 0.0)
-        for (i = 0; i < nk; i++)
-            work_in += f->ledger[at + i];
-    at += nk;
-    for (i = 0; i < nk; i++)
-        lost += f->ledger[at + i];
+    int64_t i = 0, nk = m->n_springs, end;
+    int moving = pivot_row(f)[2] > 0.0;
+    for (end = m->n_sources + m->n_loads + m->n_motors; i < end; i++) {
+        total[i] += step[i]; /* sources, loads, motor supplies */
+        work_in += step[i];
+    }
+    for (end += m->n_frictions + m->n_motors; i < end; i++) {
+        total[i] += step[i]; /* friction, then armature resistance */
+        lost += step[i];
+    }
+    for (end += nk; i < end; i++)
+        total[i] += step[i]; /* the springs' own work */
+    for (end += nk; i < end; i++) {
+        total[i] += step[i]; /* the pivot's on them: work in if it moves */
+        if (moving)
+            work_in += step[i];
+    }
+    for (end += nk; i < end; i++) {
+        total[i] += step[i]; /* their end stops' */
+        lost += step[i];
+    }
     f->power_in = work_in / h;
     f->power_dissipated = lost / h;
 }
