@@ -1004,7 +1004,7 @@ fmi2Status fmi2Terminate(fmi2Component c) {
     if (!(relative <= f->ledger_tolerance)) {
         snprintf(text, sizeof text, "its residual is %.6g of the energy in play, above the "
                  "ledger tolerance %g (the numerical settings are too coarse for this run: "
-                 "export the FMU with a shorter step)", relative, f->ledger_tolerance);
+                 "export the FMU with a shorter step, vsj fmu --step)", relative, f->ledger_tolerance);
         f->mode = FAILED;
         return fail(f, "fmi2Terminate: the run cannot be trusted: its energy ledger does not "
                        "close: %s", text);
