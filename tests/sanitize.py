@@ -4,7 +4,8 @@ Builds the extension and the C example with ``-fsanitize=address,undefined``
 into a scratch directory, then, in a process that preloads the sanitizer
 runtime, runs what the engine does for users: every regression scenario
 (smooth, stiction, both elastic models, benches), the MSL drive trains
-(clutches, brakes, breakaway peaks), the FMU through FMPy, batches on two threads with
+(clutches, brakes, breakaway peaks), the FMU through FMPy (its refusals and
+checks included), batches on two threads with
 both solvers, the step function with all three methods, the C example on
 good and bad model files, and the binding's refusal of bad arrays. Any
 sanitizer report ends the run with a non-zero exit code.
@@ -207,6 +208,38 @@ for bad in (lambda s: s.setReal([vr["tau_x"]], [float("nan")]),
         pass
     else:
         raise AssertionError("the FMU accepted a bad call")
+for damaged in (blob[:-1], blob[:100], blob[:-8] + bytes(8), bytes(len(blob))):
+    try:                                           # refused states: damaged or not a state
+        slaves[0].deSerializeFMUstate(damaged)
+    except Exception:
+        pass
+    else:
+        raise AssertionError("the FMU accepted a damaged state")
+for bad in (lambda s: s.setReal([vr["pivot.q_min"]], [0.05]),   # breaks a relation
+            lambda s: s.setReal([vr["planetary.mesh_sharpness"]], [0.0]),
+            lambda s: s.doStep(float("nan"), 1e-3)):
+    try:
+        bad(slaves[1])
+    except Exception:
+        pass
+    else:
+        raise AssertionError("the FMU accepted a bad call")
+stranger = FMU2Slave(guid="{00000000-0000-0000-0000-000000000000}", unzipDirectory=unzipped,
+                     modelIdentifier="vsj_wrist", instanceName="stranger")
+try:
+    stranger.instantiate()
+except Exception:
+    stranger.freeLibrary()
+else:
+    raise AssertionError("the FMU accepted a wrong GUID")
+slaves[1].setReal([vr["tau_x"]], [1e12])          # a run that diverges: the error state
+for k in range(10):
+    try:
+        slaves[1].doStep(t + k * 1e-3, 1e-3)
+    except Exception:
+        break
+else:
+    raise AssertionError("the FMU did not stop a diverged run")
 slaves[0].freeFMUstate(state)
 slaves[0].freeFMUstate(again)
 slaves[1].reset()

@@ -36,7 +36,7 @@ CASES = [
      "", "planetary.ring_inertia: missing"),
     ("missing unit", '"6.47e-5 kg m^2"', '"6.47e-5"', "has no unit"),
     ("wrong unit", '"6.47e-5 kg m^2"', '"6.47e-5 N m"', "cannot be converted"),
-    ("negative inertia", '"6.47e-5 kg m^2"', '"-6.47e-5 kg m^2"', "must be >= 0"),
+    ("negative inertia", '"6.47e-5 kg m^2"', '"-6.47e-5 kg m^2"', "must be > 0"),
     ("negative friction", '"0.00080 N m s/rad"', '"-0.0008 N m s/rad"', "must be >= 0"),
     ("zero tooth count", 'value = "16"', 'value = "0"', "sun_teeth = '0': must be > 0"),
     ("nan", '"0.00125 N m"', '"nan N m"', "NaN"),

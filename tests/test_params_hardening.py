@@ -224,8 +224,9 @@ def test_a_relation_between_keys_of_two_files_names_both(tmp_path):
     child = tmp_path / "child.toml"
     child.write_text('extends = "parent.toml"\n[pivot]\n'
                      'q_min = { value = "-2 cm", source = "bench" }\n')
-    with pytest.raises(InputError, match=rf"^{child} and {parent}: pivot.q_min \(-2 cm\) must "
-                                         r"be below pivot.q_max \(-2.5 cm\)$"):
+    with pytest.raises(InputError, match=rf"^{parent} and {child}: pivot.q_min must be below "
+                                         r"pivot.q_max \(pivot.q_max = -2.5 cm, pivot.q_min = "
+                                         r"-2 cm\)$"):
         params.load(child)
 
 

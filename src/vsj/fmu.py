@@ -12,7 +12,9 @@ the Modelica Association's Reference FMUs are:
 * ``sources/`` and ``sources/buildDescription.xml``: the same C files, so an
   importer can build the FMU for its own platform;
 * ``resources/model.json``: the wrist as `vsj.export` writes it, and
-  ``resources/fmu.txt``: how each tunable parameter moves the engine's arrays.
+  ``resources/fmu.txt``: how each tunable parameter moves the engine's arrays,
+  what a parameter file allows it (bounds, relations between keys), and what the
+  checks of a run need (end stops, voltage limits, the ledger's tolerance).
 
 `cross_check` writes the FMU with inputs, vsj's reference result and options
 in the layout of the FMI cross-check repository (modelica/fmi-cross-check), which
@@ -27,6 +29,17 @@ that the map holds at other values, alone and together with the others. The
 parameters that change the wrist's kinematics (tooth counts, ratios, the
 elastic element's geometry) are constants of an FMU; export another with
 ``--params`` to change them.
+
+What the FMU refuses and reports. It refuses (fmi2Error, with the reason through
+the importer's logger) another FMU's GUID, a parameter value that a parameter file
+refuses (`vsj.params.SCHEMA` and `vsj.params.RELATIONS`), a state serialized by
+another FMU (its header carries the GUID, which fingerprints the model file, the
+parameter map and vsj's version) or one damaged or holding non-finite values,
+and a non-finite or past-the-stop-time step. Each step is checked as
+`vsj.simulate` checks a run (`vsj.simulate.checks`): a spring `DIVERGED` past its
+end stop is an error that ends the run; a spring `INTO_STOP` past it, or a motor
+above its voltage limit, a warning (once per run); the energy ledger of the run is
+judged at fmi2Terminate.
 """
 
 from __future__ import annotations
@@ -48,9 +61,10 @@ import numpy as np
 
 from . import __version__, export
 from .errors import InputError
-from .params import SCHEMA, Parameters
+from .params import RELATIONS, SCHEMA, Parameters
 from .params import default as default_params
-from .simulate import InitialState, SimulationOptions
+from .simulate import DIVERGED, INTO_STOP, InitialState, SimulationOptions
+from .springs import EXPONENTIAL, EXPONENTIAL_FIELDS, GEOMETRIC, GEOMETRIC_REPORT, GEOMETRY_FIELDS
 from .wrist import WristOptions
 
 MODEL_IDENTIFIER = "vsj_wrist"
@@ -85,6 +99,8 @@ class Tunable:
     minimum: float
     maximum: float
     entries: list[tuple[int, int, float]]  # (array 0 mass / 1 par, index, slope)
+    strict: bool = False  # the minimum is excluded
+    nonzero: bool = False
 
 
 def _arrays(params: Parameters, wrist_options, options, method, period):
@@ -152,7 +168,8 @@ def tunable_map(params: Parameters, wrist_options, options, method, period
                    for i in np.flatnonzero(slope)]
         if not entries:
             continue  # no effect on this model (e.g. a DC-motor constant with velocity drives)
-        found.append(Tunable(key, float(value), low, high, entries))
+        found.append(Tunable(key, float(value), low, high, entries, spec.strict,
+                             spec.nonzero))
     _check_together(params, found, (mass0, par0), scale, wrist_options, options, method, period)
     return found
 
@@ -247,8 +264,11 @@ def model_description(document: dict, tunables: list[Tunable], params: Parameter
     for k, t in enumerate(tunables):
         section, name = t.key.split(".", 1)
         spec = SCHEMA[section][name]
+        # FMI's min is inclusive: an excluded bound (a zero stiffness) is said in words
+        excluded = (f"; must be > {t.minimum!r}" if t.strict else "") + (
+            "; must be nonzero" if t.nonzero else "")
         real(t.key, VR_PARAMETER + k, "parameter", "tunable", spec.unit,
-             f"{spec.description} ({params.sources[t.key]})", start=t.value,
+             f"{spec.description} ({params.sources[t.key]}){excluded}", start=t.value,
              minimum=t.minimum, maximum=t.maximum)
     variables.append('    <ScalarVariable name="n_stuck" valueReference="0" causality="output" '
                      'variability="discrete" initial="calculated" description="number of '
@@ -273,7 +293,9 @@ def model_description(document: dict, tunables: list[Tunable], params: Parameter
   </CoSimulation>
 {_unit_xml(units)}
   <LogCategories>
-    <Category name="logStatusError" description="bad calls and failed steps"/>
+    <Category name="logStatusError" description="bad calls, failed steps and runs"/>
+    <Category name="logStatusWarning"
+      description="a spring past its end stop, a motor above its voltage limit"/>
     <Category name="logAll" description="every message"/>
   </LogCategories>
   <DefaultExperiment startTime="0" stopTime="10" stepSize="{step!r}"/>
@@ -403,7 +425,10 @@ def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None =
         raise InputError(f"--q {q0:g} m is outside the pivot's range [{q_range[0]:g}, "
                          f"{q_range[1]:g}] m")
     text = json_text(document)
-    guid = "{" + str(uuid.UUID(hashlib.md5(text.encode()).hexdigest())) + "}"
+    body = map_body(tunables, params, q0, checks_of(stepper, document, options))
+    # the GUID fingerprints everything a state depends on: model, map and vsj's version
+    guid = "{" + str(uuid.UUID(hashlib.md5((text + body + __version__).encode()).hexdigest())) \
+        + "}"
     description = (f"vsj wrist ({friction} friction, {method} at {step:g} s; parameters "
                    f"{params.meta.get('name', params.origin)}, hash {params.hash()[:12]})")
     want_win = compiler("win64") is not None if win64 is None else win64
@@ -416,12 +441,17 @@ def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None =
         (root / "modelDescription.xml").write_text(model_description(
             document, tunables, params, q0, q_range, guid, step, description))
         (root / "resources" / "model.json").write_text(text)
-        (root / "resources" / "fmu.txt").write_text(map_text(tunables, q0, q_range))
+        (root / "resources" / "fmu.txt").write_text(map_text(guid, body))
         for path in _source_paths():
             shutil.copy(path, root / "sources" / path.name)
         (root / "sources" / "buildDescription.xml").write_text(build_description())
         (root / "documentation" / "index.html").write_text(
-            f"<html><body><h1>vsj wrist FMU</h1><p>{description}</p><p>Built by vsj "
+            f"<html><body><h1>vsj wrist FMU</h1><p>{description}</p><p>It refuses, with "
+            f"fmi2Error and the reason through the logger, what vsj refuses elsewhere (a "
+            f"parameter value a parameter file refuses, another FMU's GUID or state), and "
+            f"checks each run as vsj simulate does: a spring far past its end stop ends the "
+            f"run, one pressed into it or a motor above its voltage limit gives fmi2Warning, "
+            f"and fmi2Terminate judges the run's energy ledger.</p><p>Built by vsj "
             f"{__version__}; see vsj's README, section 'The wrist as an FMU'.</p></body></html>\n")
         said = {"linux64": compile_binary(
             "linux64", root / "binaries" / "linux64" / f"{MODEL_IDENTIFIER}.so")}
@@ -586,15 +616,71 @@ def json_text(document: dict) -> str:
     return json.dumps(document, allow_nan=False) + "\n"
 
 
-def map_text(tunables: list[Tunable], q0: float, q_range: tuple[float, float]) -> str:
-    lines = ["vsj-fmu 1", f"parameters {len(tunables)}"]
+@dataclass(frozen=True)
+class Checks:
+    """What the FMU's checks of a run need: per spring (in the model's order) its
+    name and the column of its end-stop angle in its row of the engine's ``par``
+    (-1: none); per voltage-limited input its index, limit [V] and motor; the
+    ledger's tolerance."""
+
+    springs: list[tuple[str, int]]
+    limits: list[tuple[int, float, str]]
+    ledger_tolerance: float
+
+
+def checks_of(stepper, document: dict, options: SimulationOptions) -> Checks:
+    """The `Checks` of a stepper's wrist, checked against its exported arrays."""
+    structure = stepper.structure
+    par = np.asarray(document["engine"]["par"], float).reshape(-1, ROW_VALUES)
+    code = document["engine"]["code"]
+    first = len(structure.frictions)
+    springs = []
+    for k, sp in enumerate(structure.springs):
+        fields = {EXPONENTIAL: EXPONENTIAL_FIELDS, GEOMETRIC: GEOMETRY_FIELDS,
+                  GEOMETRIC_REPORT: GEOMETRY_FIELDS}.get(sp.law)
+        column = fields.index("end_stop") if fields else -1
+        if code[first + k] != sp.law or (column >= 0 and par[first + k, column]
+                                         != sp.parameters[column]):
+            raise RuntimeError(f"vsj fmu: spring {sp.name} is not at row {first + k} of the "
+                               "exported model")
+        springs.append((sp.name, column))
+    names = [entry["name"] for entry in document["inputs"]]
+    limits = [(names.index(mo.channel), float(mo.voltage_limit), mo.name)
+              for mo in structure.motors if math.isfinite(mo.voltage_limit)]
+    return Checks(springs, limits, options.ledger_tolerance)
+
+
+def map_body(tunables: list[Tunable], params: Parameters, q0: float, checks: Checks) -> str:
+    """``fmu.txt`` after its GUID line (the layout: vsj/fmi/vsj_fmu.c)."""
+    lines = [f"parameters {len(tunables)}"]
     for t in tunables:
         low = t.minimum if math.isfinite(t.minimum) else -1.7976931348623157e308
         high = t.maximum if math.isfinite(t.maximum) else 1.7976931348623157e308
-        lines.append(f"{t.value!r} {low!r} {high!r} {len(t.entries)}")
+        flags = (1 if t.strict else 0) | (2 if t.nonzero else 0)
+        section, name = t.key.split(".", 1)
+        unit = _display(SCHEMA[section][name].unit)
+        lines.append(f"{t.key} {unit} {t.value!r} {low!r} {high!r} {flags} {len(t.entries)}")
         lines += [f"{array} {index} {slope!r}" for array, index, slope in t.entries]
-    lines.append(f"pivot {q0!r} {q_range[0]!r} {q_range[1]!r}")
+    index = {t.key: k for k, t in enumerate(tunables)}
+    lines.append(f"relations {len(RELATIONS)}")
+    for relation in RELATIONS:
+        lines.append(f"{int(relation.strict)} {len(relation.terms)} {relation.text}")
+        for key, weight in relation.terms:
+            section, name = key.split(".", 1)
+            unit = _display(SCHEMA[section][name].unit)
+            lines.append(f"{index[key]} {weight!r} 0.0 {key} {unit}" if key in index else
+                         f"-1 {weight!r} {params[key]!r} {key} {unit}")
+    lines.append(f"pivot {q0!r}")
+    lines.append(f"springs {len(checks.springs)} {INTO_STOP!r} {DIVERGED!r}")
+    lines += [f"{name} {column}" for name, column in checks.springs]
+    lines.append(f"limits {len(checks.limits)}")
+    lines += [f"{k} {limit!r} {motor}" for k, limit, motor in checks.limits]
+    lines.append(f"ledger {checks.ledger_tolerance!r}")
     return "\n".join(lines) + "\n"
+
+
+def map_text(guid: str, body: str) -> str:
+    return f"vsj-fmu 2\nguid {guid}\n{body}"
 
 
 __all__ = ["build", "cross_check", "choose_method", "compile_binary", "tunable_map", "model_description", "MODEL_IDENTIFIER", "OUTPUTS"]

@@ -120,9 +120,12 @@ SCHEMA: dict[str, dict[str, Spec]] = {
     "planetary": {
         "sun_teeth": Spec("1", "1", "teeth of the sun gear, N_S", 0.0, strict=True),
         "ring_teeth": Spec("1", "1", "teeth of the ring gear, N_R", 0.0, strict=True),
-        "sun_inertia": INERTIA.of("inertia of the sun and what is attached, I_S"),
-        "ring_inertia": INERTIA.of("inertia of the ring and what is attached, I_R"),
-        "carrier_inertia": INERTIA.of("inertia of the carrier and what is attached, I_C"),
+        "sun_inertia": INERTIA.of("inertia of the sun and what is attached, I_S",
+                                  strict=True),
+        "ring_inertia": INERTIA.of("inertia of the ring and what is attached, I_R",
+                                  strict=True),
+        "carrier_inertia": INERTIA.of("inertia of the carrier and what is attached, I_C",
+                                  strict=True),
         "sun_bearing_viscous": VISCOUS.of("sun bearing viscous friction, b_S"),
         "sun_bearing_stiction": STICTION.of("sun bearing stiction parameter"),
         "ring_bearing_viscous": VISCOUS.of("ring bearing viscous friction, b_R"),
@@ -411,31 +414,58 @@ def _files(where: Mapping[str, str] | None, origin: str, keys) -> str:
     return " and ".join(files) or origin
 
 
+@dataclass(frozen=True)
+class Relation:
+    """A relation between keys that a parameter set must satisfy: the sum of
+    ``weight * value`` over ``terms`` (in their order) is > 0, or >= 0 when not
+    ``strict``. ``text`` says what must hold, in words.
+
+    Each relation is linear, so that an importer of the FMU (`vsj.fmu`) can check
+    it on tunable parameters with the same arithmetic."""
+
+    terms: tuple[tuple[str, float], ...]
+    strict: bool
+    text: str
+
+    def margin(self, values: Mapping[str, float]) -> float:
+        """The sum that must be positive (or not negative)."""
+        return sum(weight * values[key] for key, weight in self.terms)
+
+    def holds(self, values: Mapping[str, float]) -> bool:
+        margin = self.margin(values)
+        return margin > 0.0 if self.strict else margin >= 0.0
+
+
+_REACH = "the pivot range must lie within the mechanism's reach, |q| <= pivot.amplitude"
+#: The relations between keys, checked after each key's own bounds.
+RELATIONS = (
+    Relation((("pivot.q_max", 1.0), ("pivot.q_min", -1.0)), True,
+             "pivot.q_min must be below pivot.q_max"),
+    Relation((("pivot.amplitude", 1.0), ("pivot.q_min", 1.0)), False, _REACH),
+    Relation((("pivot.amplitude", 1.0), ("pivot.q_min", -1.0)), False, _REACH),
+    Relation((("pivot.amplitude", 1.0), ("pivot.q_max", 1.0)), False, _REACH),
+    Relation((("pivot.amplitude", 1.0), ("pivot.q_max", -1.0)), False, _REACH),
+    Relation((("pivot.q_min", 1.0), ("elastic_element.ring_radius", 1.0)), True,
+             "pivot.q_min must stay above the ring's bottom pin: q_min + ring_radius > 0"),
+    Relation((("elastic_element.lever_length", 1.0), ("elastic_element.ring_radius", -1.0),
+              ("pivot.q_max", -1.0)), True,
+             "elastic_element.lever_length must exceed ring_radius + pivot.q_max so the lever "
+             "reaches past the pivot"),
+)
+
+
+def _show(key: str, value: float) -> str:
+    section, name = key.split(".", 1)
+    return f"{key} = {format_quantity(value, SCHEMA[section][name].display)}"
+
+
 def _relations(v: Mapping[str, float], origin: str,
                where: Mapping[str, str] | None = None) -> list[str]:
-    """Checks that involve several keys; each names the file(s) its keys came from."""
-    def at(*keys: str) -> str:
-        return _files(where, origin, keys)
-
-    out = []
-    R = v["elastic_element.ring_radius"]
-    q_min, q_max, amp = v["pivot.q_min"], v["pivot.q_max"], v["pivot.amplitude"]
-    if not q_min < q_max:
-        out.append(f"{at('pivot.q_min', 'pivot.q_max')}: pivot.q_min ({q_min * 100:g} cm) "
-                   f"must be below pivot.q_max ({q_max * 100:g} cm)")
-    if not (abs(q_min) <= amp and abs(q_max) <= amp):
-        out.append(f"{at('pivot.q_min', 'pivot.q_max', 'pivot.amplitude')}: the pivot range "
-                   f"[{q_min * 100:g}, {q_max * 100:g}] cm must lie within the mechanism's "
-                   f"reach +-{amp * 100:g} cm (pivot.amplitude)")
-    if not q_min + R > 0.0:
-        out.append(f"{at('pivot.q_min', 'elastic_element.ring_radius')}: pivot.q_min = "
-                   f"{q_min * 100:g} cm must stay above the ring's bottom pin: q_min + "
-                   f"ring_radius > 0 (ring_radius = {R * 100:g} cm)")
-    if not v["elastic_element.lever_length"] > R + q_max:
-        files = at("elastic_element.lever_length", "elastic_element.ring_radius", "pivot.q_max")
-        out.append(f"{files}: elastic_element.lever_length must exceed ring_radius + "
-                   "pivot.q_max so the lever reaches past the pivot")
-    return out
+    """Why the values break `RELATIONS`: one message per broken relation, naming the
+    values it involves and the file(s) they came from."""
+    return [f"{_files(where, origin, [k for k, _ in r.terms])}: {r.text} "
+            f"({', '.join(_show(k, v[k]) for k, _ in r.terms)})"
+            for r in RELATIONS if not r.holds(v)]
 
 
 #: Largest parameter file read [bytes]. A parameter file sets the few dozen keys of
