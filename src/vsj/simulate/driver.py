@@ -184,7 +184,8 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
     watch = Watch(structure)
     started = _time.perf_counter()
     engine = Engine(model)
-    run = engine.start(solver, y0, duration, options)
+    # the last sample may lie past the duration by the grid's round-off: the run reaches it
+    run = engine.start(solver, y0, max(duration, float(t_out[-1])), options)
     per_block = block_samples(structure, layout, ports)
     reached, status = 0, core.OK
     for start in range(0, n_out, per_block):
