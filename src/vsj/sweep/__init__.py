@@ -14,6 +14,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -243,6 +244,9 @@ def _recover(spec, directory, record: dict, values: np.ndarray, make,
     out = directory.path
     notes = []
     frame = record["frame"]
+    if os.path.lexists(directory.zarr) and not directory.zarr.is_dir():
+        raise OutputError(f"--out {out}: {store.ZARR} is not a directory; vsj did not make it "
+                          "so: move it away, or start a new directory")
     if directory.zarr.is_dir():
         foreign = [f for f in store.foreign_in_store(directory.zarr, frame)]
         if foreign:

@@ -55,8 +55,9 @@ class Job:
     @cached_property
     def key(self) -> str:
         return hashlib.sha256(pickle.dumps((self.spec.text, self.spec.method,
-                                            self.scenario_text,
-                                            self.params.hash()))).hexdigest()
+                                            self.scenario_text, self.scenario_origin,
+                                            self.params.hash(),
+                                            self.params.origin))).hexdigest()
 
 
 @dataclass

@@ -185,7 +185,8 @@ def read_manifest(directory: Path, option: str = "--out") -> dict:
     for index, entry in record["done"].items():
         if not (index.isdigit() and isinstance(entry, dict) and
                 isinstance(entry.get("sha256"), str) and isinstance(entry.get("runs"), list)
-                and len(entry["runs"]) == 2):
+                and len(entry["runs"]) == 2 and all(type(r) is int for r in entry["runs"])
+                and 0 <= entry["runs"][0] < entry["runs"][1] <= record["runs"]):
             raise OutputError(f"{option} {directory}: {MANIFEST}: done.{index} is not a "
                               "finished chunk's record; start the sweep in a new directory")
     return record
