@@ -248,7 +248,7 @@ def _recover(spec, directory, record: dict, values: np.ndarray, make,
         raise OutputError(f"--out {out}: {store.ZARR} is not a directory; vsj did not make it "
                           "so: move it away, or start a new directory")
     if directory.zarr.is_dir():
-        foreign = [f for f in store.foreign_in_store(directory.zarr, frame)]
+        foreign = store.foreign_in_store(directory.zarr, frame)
         if foreign:
             raise OutputError(f"--out {out}: {store.ZARR} holds files that vsj did not write "
                               f"({', '.join(foreign[:5])}); move them away, or start a new "
@@ -299,7 +299,8 @@ def _drawn_differ(out: Path, names: list[str], record: dict) -> str:
     changed = [f"{k} {then.get(k)} there, {now.get(k)} now" for k in sorted(set(then) | set(now))
                if then.get(k) != now.get(k)]
     why = (f"the libraries that draw them differ ({'; '.join(changed)})" if changed else
-           "with the same inputs and libraries: the store was changed")
+           "with the inputs and the versions of NumPy, SciPy and SALib it recorded (another "
+           "platform or Python?)")
     return (f"--resume {out}: the values of {', '.join(names)} drawn now differ from those "
             f"the sweep there stored, {why}; start a new directory")
 

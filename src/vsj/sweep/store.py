@@ -60,9 +60,10 @@ _OURS = re.compile(OUTPUTS["sweep"])
 _TEMPORARY = re.compile(rf"\.(?:{OUTPUTS['sweep']}|{re.escape(ZARR)})\.vsj-tmp-\w+")
 #: zarr's temporary file of a chunk or metadata file being written (``KEY.HEX.partial``).
 _PARTIAL = re.compile(r".*\.[0-9a-f]{32}\.partial")
-#: Largest sweep.json read [bytes]: about 200 bytes per chunk and per failed run; a sweep
-#: of `vsj.sweep.spec.MAX_RUNS` runs in chunks of one, every run failed, stays below it.
-MANIFEST_BYTES = 4 << 30
+#: Largest sweep.json read [bytes]: it holds about 250 bytes per chunk and 300 per failed
+#: run, so a sweep of `vsj.sweep.spec.MAX_RUNS` runs in chunks of one, every run failed,
+#: stays below it (5.5 GB); a device or a file far beyond it is refused unread.
+MANIFEST_BYTES = 8 << 30
 
 
 class Directory:
