@@ -73,7 +73,7 @@ from typing import Self
 import numpy as np
 
 from . import __version__
-from .errors import InputError
+from .errors import InputError, read_bytes
 from .params import Parameters
 from .simulate import Result
 
@@ -381,10 +381,14 @@ def _lock_holder(fd: int) -> str:
 
 
 def file_record(path: Path) -> dict:
-    """``{"sha256": ..., "bytes": ...}`` of a file."""
+    """``{"sha256": ..., "bytes": ...}`` of a regular file (anything else, such as a FIFO
+    that would block the read, raises `OSError` before it is read)."""
     digest = hashlib.sha256()
     size = 0
-    with open(path, "rb") as handle:
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    with open(fd, "rb") as handle:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OSError(errno.EINVAL, "not a regular file", str(path))
         while chunk := handle.read(1 << 20):
             digest.update(chunk)
             size += len(chunk)
@@ -867,32 +871,53 @@ class ResultSet:
 
 def verify(directory: str | Path) -> list[str]:
     """What is wrong with the result sets in ``directory`` (empty when every set in its
-    manifest is complete and every file has the size and SHA-256 recorded, in the
-    manifest and in ``meta.json``'s ``files``)."""
+    manifest is complete, every file has the size and SHA-256 recorded, in the manifest
+    and in ``meta.json``'s ``files``, and the directory holds no other file). Only
+    regular files are read: a FIFO or a device is named, never opened for reading."""
     directory = Path(directory)
-    if not (directory / MANIFEST).is_file():
+    if not _regular_file(directory / MANIFEST):
         return [f"{directory}: no {MANIFEST}"]
     sets = read_manifest(directory)["sets"]
     if not sets:
         return [f"{directory / MANIFEST}: not a vsj manifest"]
     problems = []
+    listed = {MANIFEST}
     for name, entry in sets.items():
         if not entry.get("complete"):
             problems.append(f"set {name!r}: incomplete (its writing was interrupted)")
         files = dict(entry.get("files", {}))
-        if "meta.json" in files:
-            with contextlib.suppress(OSError, ValueError, AttributeError):
-                meta = json.loads((directory / "meta.json").read_text(encoding="utf-8"))
+        listed |= set(files)
+        if "meta.json" in files and _regular_file(directory / "meta.json"):
+            with contextlib.suppress(InputError, ValueError, AttributeError):
+                meta = json.loads(read_bytes(directory / "meta.json", "meta.json",
+                                             SMALL_OUTPUT_BYTES))
                 for f, record in meta.get("files", {}).items():
                     if files.get(f, record) != record:
                         problems.append(f"set {name!r}: {f}: meta.json and {MANIFEST} differ")
         for f, record in sorted(files.items()):
             path = directory / f
-            if not path.is_file():
+            if not os.path.lexists(path):
                 problems.append(f"set {name!r}: {f} is missing")
+            elif not _regular_file(path):
+                problems.append(f"set {name!r}: {f} is not a regular file")
             elif file_record(path) != record:
                 problems.append(f"set {name!r}: {f} has changed (its SHA-256 differs)")
+    for entry in sorted(os.listdir(directory)):
+        if entry not in listed:
+            kind = ("left by an interrupted write (the next vsj command writing here "
+                    "removes it)" if _TEMPORARY.fullmatch(entry) or
+                    _IN_PLACE_STAGING.fullmatch(entry) else
+                    f"a foreign file (not recorded in {MANIFEST})")
+            problems.append(f"{entry}: {kind}")
     return problems
+
+
+def _regular_file(path: Path) -> bool:
+    """Whether ``path`` is a regular file (not following a symbolic link)."""
+    try:
+        return stat.S_ISREG(os.stat(path, follow_symlinks=False).st_mode)
+    except OSError:
+        return False
 
 
 # --- size estimates -----------------------------------------------------------------

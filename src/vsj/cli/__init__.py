@@ -6,6 +6,7 @@ Exit codes: 0 success, 1 a simulation or fit failed, 2 bad input.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -132,14 +133,28 @@ def cmd_reproduce(args) -> int:
 
 def cmd_verify(args) -> int:
     from ..output import MANIFEST, read_manifest, verify
+    from ..sweep import store
 
     directory = Path(args.dir)
     if not directory.is_dir():
         raise InputError(f"{directory}: not a directory")
-    problems = verify(directory)
+    sweep = os.path.lexists(directory / store.MANIFEST)
+    if sweep and not os.path.lexists(directory / MANIFEST):
+        problems = store.verify(directory)
+    else:
+        problems = verify(directory)
+        if problems == [f"{directory}: no {MANIFEST}"]:
+            problems = [f"{directory}: no {MANIFEST} (result sets) or {store.MANIFEST} "
+                        "(a sweep): not an output directory of vsj"]
     if problems:
         print(f"{directory}:\n  " + "\n  ".join(problems), file=sys.stderr)
         return 1
+    if sweep and not os.path.lexists(directory / MANIFEST):
+        record = store.read_manifest(directory, "")
+        print(f"{directory}: a complete sweep of {record['runs']} runs: its "
+              f"{record['chunks']} chunks and {len(record['files'])} files as "
+              f"{store.MANIFEST} records them")
+        return 0
     sets = read_manifest(directory)["sets"]
     files = sum(len(entry["files"]) for entry in sets.values())
     print(f"{directory}: {len(sets)} result set(s), {files} files as {MANIFEST} records them")
@@ -229,7 +244,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_reproduce)
 
     p = sub.add_parser("verify", help="check that an output directory holds complete result "
-                                      "sets, every file as its manifest records it")
+                                      "sets or a complete sweep, every file as its manifest "
+                                      "records it and no other")
     p.add_argument("dir", metavar="DIR", help="an output directory of vsj")
     p.set_defaults(func=cmd_verify)
 

@@ -20,11 +20,15 @@ def cmd_sweep(args) -> int:
     try:
         outcome = sweep.run(spec, Path(args.out), resume=args.resume, scheduler=scheduler,
                             chunk=args.chunk, workers=args.workers,
-                            plots=not args.no_plot)
+                            plots=not args.no_plot,
+                            announce=lambda text: print(f"vsj sweep: {text}", file=sys.stderr))
     except KeyboardInterrupt:
         print(f"vsj: interrupted; the finished chunks are in {args.out}; run the same command "
               "with --resume to do the rest", file=sys.stderr)
         return 130
+    except sweep.Unfinished as exc:
+        print(f"vsj: failed: {exc}", file=sys.stderr)
+        return 1
     print(f"{outcome.runs} runs ({outcome.ran} now, {outcome.failed} failed) in "
           f"{outcome.chunks} chunks, {outcome.seconds:.1f} s")
     if outcome.sensitivity:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,103 +54,255 @@ class Outcome:
     method: str | None = None
     #: seconds this process spent storing returned chunks (zarr regions, manifest)
     storing: float = 0.0
+    #: what a resumed sweep found damaged and redid (one sentence each)
+    notes: list[str] = field(default_factory=list)
+
+
+class Unfinished(RuntimeError):
+    """A sweep stopped by a failure to write or read its directory (a full or read-only
+    file system, an I/O error). The chunks finished before it are kept when the sweep
+    was recorded, and the message says how to go on (``--resume``)."""
 
 
 def run(spec: SweepSpec, out: str | Path, *, resume: bool = False,
         scheduler: str | None = None, chunk: int | None = None, workers: int | None = None,
-        plots: bool = True, show_progress: bool = True) -> Outcome:
+        plots: bool = True, show_progress: bool = True, announce=None) -> Outcome:
     """Run the sweep ``spec`` into ``out`` (see the module docstring). Everything the
     sweep file, scenario and parameter set allow to be checked is checked before any
-    run (`vsj.errors.InputError`)."""
-    from .. import __version__
+    run (`vsj.errors.InputError`), the free space against a bound on the bytes the
+    sweep writes included. ``announce(text)``, if given, is told that bound before the
+    runs start, and what a resumed sweep found damaged and runs again. A failure to
+    write the directory raises `Unfinished`."""
     from ..errors import InputError
-    from ..progress import progress
     from . import store
     from .runner import describe, job_for
-    from .sampling import design
-    from .schedulers import execute
+    from .spec import within_pivot_range
 
     started = time.perf_counter()
     job = job_for(spec)
     info = describe(job)
-    values, unit = design(spec)
-    runs = len(values)
+    base = info["base_params"]
+    if not {"pivot.q_min", "pivot.q_max"} & set(spec.varied):
+        spec = within_pivot_range(spec, base.pivot.q_min, base.pivot.q_max)
+    runs = run_count(spec)
     if chunk is not None and not 1 <= chunk <= runs:
         raise InputError(f"--chunk {chunk}: must be between 1 and the {runs} runs")
     out = Path(out)
+    say = announce or (lambda text: None)
     with store.Directory(out, resume=resume) as directory:
-        record = store.read_manifest(out) if resume else None
-        size = chunk or (record or {}).get("chunk") or default_chunk(runs)
-        expected = {"spec_sha256": spec.sha256(), "job": job.key, "runs": runs, "chunk": size,
-                    "vsj_version": __version__}
-        from .spec import spec_of
-
-        units = [spec_of(name).unit for name in spec.varied]
-        if record is not None:
-            store.check_resume(out, record, expected)
-            ds = store.open_dataset(directory.zarr)
-            for j, name in enumerate(spec.varied):
-                if not np.array_equal(ds[name].values, values[:, j]):
-                    raise InputError(f"--resume {out}: the values of {name} drawn now differ "
-                                     "from those stored (another NumPy, SciPy or SALib?)")
-        bounds = [(i, i * size, min(runs, (i + 1) * size)) for i in range(math.ceil(runs / size))]
-        done = set(record["done"]) if record is not None else set()
-        todo = [(i, a, values[a:b]) for i, a, b in bounds if str(i) not in done]
-        ran = 0
-        storing = 0.0
-        bar = None
-        # the workers start on their first chunks while this process makes the store
-        running = execute(job, todo, scheduler, workers)
         try:
-            if record is None:
-                base = info["base_params"]
-                store.create(directory.zarr, varied=spec.varied, values=values, units=units,
-                             time=info["time"], keep=info["keep"],
-                             keep_units=info["keep_units"], metrics=info["metrics"],
-                             metric_units=info["metric_units"], chunk=size, attrs={
-                                 "vsj_version": __version__, "scenario": job.scenario_origin,
-                                 "parameters": base.origin, "parameters_hash": base.hash(),
-                                 "solver": info["solver"], "seed": spec.seed,
-                                 "sweep_file": spec.origin, "sweep": spec.text,
-                                 "method": spec.method or ""})
-                record = {"about": "chunks of this sweep whose runs are in sweep.zarr; "
-                                   "'vsj sweep SPEC --out DIR --resume' runs the others",
-                          **expected, "chunks": math.ceil(runs / size), "done": {},
-                          "failed_runs": {}, "complete": False}
-                store.write_manifest(out, record)
-            if show_progress:
-                bar = progress(None, desc="sweep", unit="run", total=runs)
-                bar.update(runs - sum(len(v) for _, _, v in todo))
-            writer = store.Writer(directory.zarr)
-            for index, result in running:
-                began = time.perf_counter()
-                stop = bounds[index][2]
-                writer.write(result, stop)
-                record["done"][str(index)] = {"runs": [result.start, stop],
-                                              "failed": result.failed,
-                                              "sha256": store.digest(result)}
-                for k, message in enumerate(result.messages):
-                    if result.status[k] != 0:
-                        record["failed_runs"][str(result.start + k)] = message
-                record["done"] = dict(sorted(record["done"].items(), key=lambda kv: int(kv[0])))
-                record["failed_runs"] = dict(sorted(record["failed_runs"].items(),
-                                                    key=lambda kv: int(kv[0])))
-                store.write_manifest(out, record)
-                storing += time.perf_counter() - began
-                ran += len(result.status)
-                if bar is not None:
-                    bar.update(len(result.status))
-        finally:
-            running.close()
-            if bar is not None:
-                bar.close()
-        outcome = Outcome(out, runs, ran, len(record["failed_runs"]), len(bounds), True,
-                          0.0, method=spec.method, storing=storing)
-        _finish(spec, out, directory.zarr, record, unit, outcome, plots)
-        record["complete"] = True
-        store.write_manifest(out, record)
+            record = store.read_manifest(out) if resume else None
+            size = chunk or (record or {}).get("chunk") or default_chunk(runs)
+            expected = {**store.inputs(job, spec), "runs": runs, "chunk": size}
+            if record is not None:
+                store.check_resume(out, record, expected, job=job, spec=spec)
+            outcome = _run(spec, job, info, directory, record, expected, size,
+                           scheduler=scheduler, workers=workers, plots=plots,
+                           show_progress=show_progress, say=say)
+        except OSError as exc:
+            recorded = (out / store.MANIFEST).exists()
+            what = exc.filename or out
+            remedy = ("the finished chunks are kept: make room (or make it writable) and "
+                      "run the same command with --resume" if recorded else
+                      "nothing was kept: make room (or make it writable) and run the "
+                      "command again")
+            raise Unfinished(f"{what}: writing the sweep failed ({exc.strerror or exc}); "
+                             f"{remedy}") from None
     outcome.seconds = time.perf_counter() - started
     return outcome
+
+
+def _check_space(out: Path, info, spec, runs: int, size: int, record, plots: bool,
+                 say) -> None:
+    """`OutputError` if the runs not done yet may not fit the free space of ``out``;
+    else ``say`` how many bytes they write at most."""
+    from ..output import OutputError
+    from . import store
+
+    done = sum(b - a for a, b in (e["runs"] for e in (record or {"done": {}})["done"].values()))
+    todo = runs - done
+    need = store.estimate(todo, math.ceil(todo / size), len(info["time"]), len(info["keep"]),
+                          len(info["metrics"]), len(spec.varied), figures=plots)
+    free = store.free_bytes(out)
+    if say is None and need <= free:
+        return
+    plan = (f"{runs} runs in {math.ceil(runs / size)} chunks, {todo} to run: up to "
+            f"{store.size_text(need)} on disk ({len(info['time'])} samples x "
+            f"{len(info['keep'])} kept signals and {len(info['metrics'])} metrics per run, "
+            f"uncompressed); {store.size_text(free)} free")
+    if need > free:
+        raise OutputError(f"--out {out}: {plan}: not enough room; nothing was run (keep fewer "
+                          "signals, a coarser output.every, or choose another disk)")
+    if say is not None:
+        say(plan)
+
+
+def _run(spec, job, info, directory, record, expected, size, *, scheduler, workers, plots,
+         show_progress, say) -> Outcome:
+    from .. import __version__
+    from ..output import file_record
+    from ..progress import progress
+    from . import store
+    from .sampling import design
+    from .schedulers import execute
+    from .spec import spec_of
+
+    out = directory.path
+    runs = run_count(spec)
+    # before the draws (which take a while for millions of runs): the runs not recorded
+    # done; once the finished chunks are checked, again with those to run again
+    _check_space(out, info, spec, runs, size, record, plots, None)
+    values, unit = design(spec)
+    units = [spec_of(name).unit for name in spec.varied]
+
+    def make(path: Path) -> None:
+        base = info["base_params"]
+        store.create(path, varied=spec.varied, values=values, units=units,
+                     time=info["time"], keep=info["keep"], keep_units=info["keep_units"],
+                     metrics=info["metrics"], metric_units=info["metric_units"], chunk=size,
+                     attrs={"vsj_version": __version__, "scenario": job.scenario_origin,
+                            "parameters": base.origin, "parameters_hash": base.hash(),
+                            "solver": info["solver"], "seed": spec.seed,
+                            "sweep_file": spec.origin, "sweep": spec.text,
+                            "method": spec.method or ""})
+
+    notes: list[str] = []
+    if record is not None:
+        notes = _recover(spec, directory, record, values, make, show_progress)
+        for note in notes:
+            say(note)
+    _check_space(out, info, spec, runs, size, record, plots, say)
+    bounds = [(i, i * size, min(runs, (i + 1) * size)) for i in range(math.ceil(runs / size))]
+    done = set(record["done"]) if record is not None else set()
+    todo = [(i, a, values[a:b]) for i, a, b in bounds if str(i) not in done]
+    ran = 0
+    storing = 0.0
+    bar = None
+    # the workers start on their first chunks while this process makes the store
+    running = execute(job, todo, scheduler, workers)
+    try:
+        if record is None:
+            make(directory.zarr)
+            record = {"about": "chunks of this sweep whose runs are in sweep.zarr; "
+                               "'vsj sweep SPEC --out DIR --resume' runs the others",
+                      **expected, "libraries": store.libraries(),
+                      "chunks": math.ceil(runs / size), "done": {}, "failed_runs": {},
+                      "complete": False, "frame": store.frame_record(directory.zarr)}
+            store.write_manifest(out, record)
+        if show_progress:
+            bar = progress(None, desc="sweep", unit="run", total=runs)
+            bar.update(runs - sum(len(v) for _, _, v in todo))
+        writer = store.Writer(directory.zarr)
+        for index, result in running:
+            began = time.perf_counter()
+            stop = bounds[index][2]
+            writer.write(result, stop)
+            record["done"][str(index)] = {"runs": [result.start, stop],
+                                          "failed": result.failed,
+                                          "sha256": store.digest(result)}
+            for k, message in enumerate(result.messages):
+                if result.status[k] != 0:
+                    record["failed_runs"][str(result.start + k)] = message
+            record["done"] = dict(sorted(record["done"].items(), key=lambda kv: int(kv[0])))
+            record["failed_runs"] = dict(sorted(record["failed_runs"].items(),
+                                                key=lambda kv: int(kv[0])))
+            store.write_manifest(out, record)
+            storing += time.perf_counter() - began
+            ran += len(result.status)
+            if bar is not None:
+                bar.update(len(result.status))
+    finally:
+        running.close()
+        if bar is not None:
+            bar.close()
+    outcome = Outcome(out, runs, ran, len(record["failed_runs"]), len(bounds), True,
+                      0.0, method=spec.method, storing=storing, notes=notes)
+    _finish(spec, out, directory.zarr, record, unit, outcome, plots)
+    written = {name: file_record(out / name) for name in outcome.files
+               if name not in (store.ZARR, store.MANIFEST)}
+    for name in record.get("files", {}):
+        if name not in written:  # a figure of an earlier finish (with plots)
+            (out / name).unlink(missing_ok=True)
+    record["files"] = written
+    record["complete"] = True
+    store.write_manifest(out, record)
+    return outcome
+
+
+def _recover(spec, directory, record: dict, values: np.ndarray, make,
+             show_progress: bool) -> list[str]:
+    """Make the store of a resumed sweep whole: refuse files vsj did not write in it,
+    rebuild its frame from the inputs where that is damaged or missing, check that the
+    values drawn now are those stored, and forget every finished chunk whose numbers no
+    longer match its SHA-256 (to run it again). Returns what was found, one sentence
+    each."""
+    from ..errors import InputError
+    from ..output import OutputError
+    from ..progress import progress
+    from . import store
+
+    out = directory.path
+    notes = []
+    frame = record["frame"]
+    if os.path.lexists(directory.zarr) and not directory.zarr.is_dir():
+        raise OutputError(f"--out {out}: {store.ZARR} is not a directory; vsj did not make it "
+                          "so: move it away, or start a new directory")
+    if directory.zarr.is_dir():
+        foreign = store.foreign_in_store(directory.zarr, frame)
+        if foreign:
+            raise OutputError(f"--out {out}: {store.ZARR} holds files that vsj did not write "
+                              f"({', '.join(foreign[:5])}); move them away, or start a new "
+                              "directory")
+    damage = store.check_frame(directory.zarr, frame)
+    if damage:
+        temp = store.build_frame(out, make)
+        fresh = store.frame_record(temp)
+        drawn = [n for n in spec.varied
+                 if fresh["coordinates"].get(n) != frame["coordinates"].get(n)]
+        if drawn:
+            import shutil
+
+            shutil.rmtree(temp)
+            raise InputError(_drawn_differ(out, drawn, record))
+        store.install_frame(temp, directory.zarr)
+        record["frame"] = fresh
+        notes.append(f"{'; '.join(damage)}: rebuilt from the sweep's inputs")
+    else:
+        ds = store.open_dataset(directory.zarr)
+        drawn = [n for j, n in enumerate(spec.varied)
+                 if not np.array_equal(ds[n].values, values[:, j])]
+        if drawn:
+            raise InputError(_drawn_differ(out, drawn, record))
+    bar = None
+    if show_progress and record["done"]:
+        bar = progress(None, desc="checking finished chunks", unit="run",
+                       total=sum(b - a for a, b in (e["runs"] for e in record["done"].values())))
+    try:
+        bad = store.check_chunks(directory.zarr, record,
+                                 progress=bar.update if bar is not None else None)
+    finally:
+        if bar is not None:
+            bar.close()
+    for index, why in sorted(bad.items()):
+        a, b = record["done"][str(index)]["runs"]
+        notes.append(f"chunk {index} ({store.runs_text(a, b)}): {why}: run again")
+    if bad or damage:
+        store.drop_chunks(record, bad)
+        store.write_manifest(out, record)
+    return notes
+
+
+def _drawn_differ(out: Path, names: list[str], record: dict) -> str:
+    from . import store
+
+    then, now = record.get("libraries", {}), store.libraries()
+    changed = [f"{k} {then.get(k)} there, {now.get(k)} now" for k in sorted(set(then) | set(now))
+               if then.get(k) != now.get(k)]
+    why = (f"the libraries that draw them differ ({'; '.join(changed)})" if changed else
+           "with the inputs and the versions of NumPy, SciPy and SALib it recorded (another "
+           "platform or Python?)")
+    return (f"--resume {out}: the values of {', '.join(names)} drawn now differ from those "
+            f"the sweep there stored, {why}; start a new directory")
 
 
 def _finish(spec: SweepSpec, out: Path, zarr_path: Path, record: dict, unit,
@@ -223,6 +376,7 @@ def _finish(spec: SweepSpec, out: Path, zarr_path: Path, record: dict, unit,
 __all__ = [
     "Outcome",
     "SweepSpec",
+    "Unfinished",
     "default_chunk",
     "load",
     "loads",

@@ -1,7 +1,8 @@
 """Running one chunk of a sweep: models, the batch kernel, signals, metrics.
 
-`run_chunk` is a pure function of a `Job` (the sweep, with the texts of its
-scenario and parameter set, so a worker on another machine needs no files) and
+`run_chunk` is a pure function of a `Job` (the sweep, with the text of its
+scenario and its parameter set resolved, every file it ``extends`` merged, so a
+worker on another machine needs no files) and
 the chunk's values of the varied quantities. Each run is built exactly as
 ``vsj simulate`` builds it (the parameter set with the run's values, the
 network, the compiled model, the initial state), integrated by the batch kernel
@@ -48,13 +49,15 @@ class Job:
     spec: SweepSpec
     scenario_text: str
     scenario_origin: str
-    params_text: str | None
-    params_origin: str | None
+    #: the parameter set as resolved where the sweep starts (``extends`` followed there)
+    params: Parameters
 
     @cached_property
     def key(self) -> str:
         return hashlib.sha256(pickle.dumps((self.spec.text, self.spec.method,
-                                            self.scenario_text, self.params_text))).hexdigest()
+                                            self.scenario_text, self.scenario_origin,
+                                            self.params.hash(),
+                                            self.params.origin))).hexdigest()
 
 
 @dataclass
@@ -169,14 +172,12 @@ class Prepared:
     """A `Job` made ready in one process: scenario, base model, signals, metrics."""
 
     def __init__(self, job: Job):
-        from .. import params as params_module
         from .. import scenario as scenarios
 
         spec = job.spec
         self.spec = spec
         scen = scenarios.loads(job.scenario_text, job.scenario_origin)
-        params = (params_module.default() if job.params_text is None
-                  else params_module.loads(job.params_text, job.params_origin))
+        params = job.params
         case = pick_case(scen, spec)
         self.case = case
         prepared = scenarios.prepare_case(scen, case, params)
@@ -218,6 +219,8 @@ class Prepared:
         names = set(self.recipes) | set(self.derived)
         powers = [k for k in self.recipes if k.startswith("friction.") and k.endswith(".power")]
         self.metrics = [Evaluator(m, names, parameters, units, powers) for m in spec.metrics]
+        for metric in spec.metrics:
+            check_window(metric, self.t_out, spec.table.get("metrics", {}).get(metric.name))
         for i, name in enumerate(spec.keep):
             if name not in names:
                 why = (" (the time-stepper's batch runs do not sample the stiction impulses; "
@@ -336,6 +339,33 @@ class Prepared:
                                  f"[{lo * 100:g}, {hi * 100:g}] cm")
             initial = replace(initial, q=q)
         return initial
+
+
+def check_window(metric, time: np.ndarray, entry) -> None:
+    """`InputError` unless ``metric``'s window holds enough of the samples ``time`` (s):
+    one for a reduction, two for a lag (its sine and cosine fit), and a lag's frequency
+    below the samples' Nyquist frequency (above it the fit sees an alias)."""
+    options = metric.options
+    if "start" not in options and "stop" not in options and "frequency" not in options:
+        return
+    entry = entry if isinstance(entry, Mapping) else {}
+    start, stop = options.get("start", 0.0), options.get("stop", math.inf)
+    # the same slack as the evaluator's window (`vsj.sweep.metrics.Evaluator`)
+    inside = np.count_nonzero((time >= start - 1e-12) & (time <= stop + 1e-12))
+    needed = 2 if metric.kind == "lag" else 1
+    if inside < needed:
+        spacing = time[1] - time[0] if len(time) > 1 else 0.0
+        shown = ", ".join(f"{k} = {entry.get(k, options[k])!r}" for k in ("start", "stop")
+                          if k in options)
+        raise InputError(f"{metric.where}: the window {shown} holds {inside} of the run's "
+                         f"samples ({time[0]:g} s to {time[-1]:g} s every {spacing:g} s); "
+                         f"a {metric.kind} metric needs at least {needed}")
+    if "frequency" in options and len(time) > 1:
+        nyquist = 0.5 / (time[1] - time[0])
+        if not options["frequency"] < nyquist:
+            raise InputError(f"{metric.where}.frequency = {entry.get('frequency')!r}: at or "
+                             f"above the Nyquist frequency {nyquist:g} Hz of the samples "
+                             f"every {time[1] - time[0]:g} s (output.every)")
 
 
 def pick_case(scen, spec: SweepSpec):
@@ -513,14 +543,14 @@ def _measure(p: Prepared, run: _Run, states: np.ndarray, transitions: int,
 
 
 def job_for(spec: SweepSpec) -> Job:
-    """The `Job` of a sweep file: its scenario's and parameter set's texts read here."""
+    """The `Job` of a sweep file: its scenario's text read and its parameter set loaded
+    here (the files it ``extends`` read relative to it), so workers read no files."""
+    from .. import params as params_module
     from .. import scenario as scenarios
-    from ..errors import read_text
 
     scen = scenarios.load(spec.scenario)
     text = scen_text(scen, spec.scenario)
-    params_text = None if spec.params is None else read_text(spec.params, "parameter file")
-    return Job(spec, text, scen.origin, params_text, spec.params)
+    return Job(spec, text, scen.origin, params_module.load(spec.params))
 
 
 def scen_text(scen, name: str) -> str:

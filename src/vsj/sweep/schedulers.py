@@ -32,12 +32,17 @@ def execute(job: Job, chunks: list[tuple[int, int, object]], scheduler: str | No
             workers: int | None = None) -> Iterator[tuple[int, ChunkResult]]:
     """Start running ``chunks`` (index, start, values) of ``job``; the generator returned
     yields the results as they finish (its ``close`` stops the workers)."""
-    if not chunks:
-        return iter(())
-    running = (_local(job, chunks, workers) if scheduler is None
-               else _dask(job, chunks, scheduler, workers))
+    if not chunks:  # every chunk done: a generator still, for the caller to close
+        running = _nothing()
+    else:
+        running = (_local(job, chunks, workers) if scheduler is None
+                   else _dask(job, chunks, scheduler, workers))
     next(running)  # up to the first chunks handed out
     return running
+
+
+def _nothing():
+    yield None
 
 
 def _local(job, chunks, workers):

@@ -39,7 +39,8 @@ Grids and lists make a full factorial; the sampled parameters (distributions
 and the covariance) are drawn ``samples`` times for each of its points.
 Distributions are truncated to the parameter's allowed range (`vsj.params.SCHEMA`,
 and for ``q`` the parameter set's pivot range) and optionally to ``min`` and
-``max``; a distribution whose centre or bounds lie outside that range is refused.
+``max``; a grid or list value, or a distribution's centre or bounds, outside that
+range is refused (q's when the parameter set is loaded, before any run).
 With a sensitivity ``method`` the design is SALib's: Saltelli's extension of
 Sobol's sequence (``samples`` base points, ``samples * (D + 2)`` runs) or Morris
 trajectories (``samples`` trajectories of ``D + 1`` runs); grids and covariances do
@@ -207,7 +208,9 @@ def _check_value(value: float, spec: Spec, where: str, text) -> None:
         raise InputError(f"{where} = {text!r}: {why} ({spec.description})")
 
 
-def _vary(name: str, entry, origin: str):
+def _vary(name: str, entry, origin: str, bounds: tuple[float, float] | None = None):
+    """The `Fixed` or `Distribution` of ``[vary] name = entry``; ``bounds`` (SI) narrow
+    the allowed range (q's: the parameter set's pivot range, known once it is loaded)."""
     where = _where(origin, "vary", json.dumps(name) if "." in name else name)
     spec = spec_of(name)
     if spec is None:
@@ -227,6 +230,7 @@ def _vary(name: str, entry, origin: str):
         for i, text in enumerate(texts):
             value = _quantity(text, spec, f"{where}.values[{i}]")
             _check_value(value, spec, f"{where}.values[{i}]", text)
+            _check_bounds(value, bounds, name, spec, f"{where}.values[{i}]", text)
             values.append(value)
         return Fixed(name, tuple(values))
     if "from" in entry or "to" in entry or "count" in entry:
@@ -237,8 +241,9 @@ def _vary(name: str, entry, origin: str):
                                  f"missing {key!r}")
         a = _quantity(entry["from"], spec, f"{where}.from")
         b = _quantity(entry["to"], spec, f"{where}.to")
-        _check_value(a, spec, f"{where}.from", entry["from"])
-        _check_value(b, spec, f"{where}.to", entry["to"])
+        for value, key in ((a, "from"), (b, "to")):
+            _check_value(value, spec, f"{where}.{key}", entry[key])
+            _check_bounds(value, bounds, name, spec, f"{where}.{key}", entry[key])
         count = _int(entry, "count", where, 0, 1, 1_000_000)
         if count == 1:
             return Fixed(name, (a,))
@@ -249,6 +254,8 @@ def _vary(name: str, entry, origin: str):
     kind = _text(entry, "distribution", where, choices=tuple(DISTRIBUTIONS))
     _keys(entry, DISTRIBUTIONS[kind] | {"distribution", "min", "max"}, where)
     lo, hi = allowed_range(spec)
+    if bounds is not None:
+        lo, hi = max(lo, bounds[0]), min(hi, bounds[1])
     for key, pick in (("min", max), ("max", min)):
         if key in entry:
             value = _quantity(entry[key], spec, f"{where}.{key}")
@@ -288,6 +295,35 @@ def _vary(name: str, entry, origin: str):
                              "deviation of the logarithm)")
         lo = max(lo, 0.0)
     return Distribution(name, kind, args, lo, hi)
+
+
+def _check_bounds(value: float, bounds, name: str, spec: Spec, where: str, text) -> None:
+    if bounds is not None and not bounds[0] <= value <= bounds[1]:
+        raise InputError(f"{where} = {text!r}: outside the range [{_show(bounds[0], spec)}, "
+                         f"{_show(bounds[1], spec)}] allowed for {name} ({spec.description})")
+
+
+def within_pivot_range(spec: SweepSpec, q_min: float, q_max: float) -> SweepSpec:
+    """``spec`` with q's values checked against, and its distribution truncated to, the
+    pivot range [q_min, q_max] (m) of the parameter set the sweep runs with: a grid,
+    list or distribution outside it is refused before any run (`InputError`)."""
+    from dataclasses import replace
+
+    cov = spec.covariance
+    if cov is not None and Q in cov.names:
+        j = cov.names.index(Q)
+        if not q_min < cov.mean[j] < q_max:
+            raise InputError(f"{cov.origin}: parameters.q = {cov.mean[j]!r}: outside the "
+                             f"pivot range [{q_min!r}, {q_max!r}] m of the parameter set")
+        bounds = tuple((q_min, q_max) if k == j else b for k, b in enumerate(cov.bounds))
+        spec = replace(spec, covariance=replace(cov, bounds=bounds))
+    entry = spec.table.get("vary", {}).get(Q)
+    if entry is None:
+        return spec
+    item = _vary(Q, entry, spec.origin, bounds=(q_min, q_max))
+    if isinstance(item, Fixed):
+        return spec
+    return replace(spec, sampled=tuple(item if d.name == Q else d for d in spec.sampled))
 
 
 def _show(value: float, spec: Spec) -> str:
@@ -375,7 +411,28 @@ def _metric(name: str, entry, origin: str) -> Metric:
     missing = sorted(KINDS[kind].required - set(options))
     if missing:
         raise InputError(f"{where}: metric kind {kind!r} needs {', '.join(missing)}")
+    _check_metric_options(options, entry, where)
     return Metric(name, kind, options, where)
+
+
+def _check_metric_options(options: Mapping, entry: Mapping, where: str) -> None:
+    """Refuse a window, frequency or tolerance no run can be measured with (the
+    window's samples are checked against the run's when the scenario is known)."""
+    for key in ("start", "stop"):
+        if key in options and not (math.isfinite(options[key]) and options[key] >= 0.0):
+            raise InputError(f"{where}.{key} = {entry[key]!r}: must be a finite time >= 0 s "
+                             "(from the start of the run)")
+    if "start" in options and "stop" in options and not options["stop"] > options["start"]:
+        raise InputError(f"{where}.stop = {entry['stop']!r}: must be after start = "
+                         f"{entry['start']!r}")
+    if "frequency" in options and not (math.isfinite(options["frequency"])
+                                       and options["frequency"] > 0.0):
+        raise InputError(f"{where}.frequency = {entry['frequency']!r}: must be a finite "
+                         "frequency > 0 Hz (the lag is the phase lag at it over 2 pi f)")
+    if "tolerance" in options and not (math.isfinite(options["tolerance"])
+                                       and 0.0 < options["tolerance"] < 1.0):
+        raise InputError(f"{where}.tolerance = {entry['tolerance']!r}: must be a fraction "
+                         "of the signal's change between 0 and 1")
 
 
 def loads(text: str, origin: str, base: Path | None = None) -> SweepSpec:
