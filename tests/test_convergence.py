@@ -75,7 +75,8 @@ def oscillator(damping: str):
 
 def max_error(result) -> float:
     assert result.success, result.message
-    assert result.time[-1] == pytest.approx(DURATION)
+    # the last sample, a multiple of the output step: a few roundings of the duration
+    assert result.time[-1] == pytest.approx(DURATION, rel=4 * np.finfo(float).eps, abs=0.0)
     return float(np.max(np.abs(result["m.flange"] - exact(result.time))))
 
 

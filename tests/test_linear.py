@@ -257,7 +257,7 @@ def test_exponential_model_has_the_stiffness_and_pivot_sensitivity_of_eq_4_5(par
     torque = lin.C[list(lin.output_labels).index("vsm_1_torque")]
     # the same sum of positive terms in C and here: exp to an ulp each (two libms may
     # differ by one), a contracted multiply-add rounding once instead of twice
-    assert torque[0] == pytest.approx(-k_q, rel=4 * EPS)
+    assert torque[0] == pytest.approx(-k_q, rel=4 * EPS, abs=0.0)
     phi = lin.operating_point["states"]["vsm_1.ring.angle"]
     tau = lin.operating_point["outputs"]["vsm_1_torque"]
     dtau_dq = lin.D[list(lin.output_labels).index("vsm_1_torque"),
@@ -269,7 +269,7 @@ def test_exponential_model_has_the_stiffness_and_pivot_sensitivity_of_eq_4_5(par
     h = 1e-7
     truncation = (ee.a2 * h) ** 2 / 6
     roundoff = EPS * (abs(q) + 4 * abs(tau / exact)) / h
-    assert dtau_dq == pytest.approx(exact, rel=truncation + roundoff)
+    assert dtau_dq == pytest.approx(exact, rel=truncation + roundoff, abs=0.0)
     # without friction the modes are undamped and at the natural frequencies, to the
     # eigensolver's round-off
     error = _eigenvalue_error(lin)
@@ -344,7 +344,7 @@ def test_dc_motor_wrist_holds_the_load_with_the_operating_currents(params):
     for i in (1, 2):
         # the voltage is set as R i: one product, correctly rounded
         assert op["inputs"][f"voltage_{i}"] == pytest.approx(
-            motor.resistance * op["states"][f"motor_{i}.current"], rel=EPS)
+            motor.resistance * op["states"][f"motor_{i}.current"], rel=EPS, abs=0.0)
     # the motor position is pinned by Newton's equations, to their tolerance
     assert op["outputs"]["motor_1"] == pytest.approx(0.1, abs=EQUILIBRIUM_TOL)
     # the operating point is an equilibrium of the nonlinear model with these voltages
@@ -450,7 +450,7 @@ def test_cli_linearize_prints_json(capsys):
                  "--outputs", "theta_x,theta_y"]) == 0
     data = json.loads(capsys.readouterr().out)
     # "-0.4cm" converted: the decimal's rounding and one product, an ulp each
-    assert data["operating_point"]["q"] == pytest.approx(-0.004, rel=2 * EPS)
+    assert data["operating_point"]["q"] == pytest.approx(-0.004, rel=2 * EPS, abs=0.0)
     assert [o["name"] for o in data["outputs"]] == ["theta_x", "theta_y"]
 
 
@@ -488,7 +488,7 @@ def test_the_linearize_command_does_not_import_python_control(tmp_path):
     assert done.stdout.strip().splitlines()[-1] == "False"
     model = linear.load(out)
     assert isinstance(model, control.StateSpace)
-    assert model.operating_point["q"] == pytest.approx(-0.004, rel=2 * EPS)  # as above
+    assert model.operating_point["q"] == pytest.approx(-0.004, rel=2 * EPS, abs=0.0)
 
 
 def test_an_operating_point_past_the_end_stop_is_warned_about(params):
