@@ -19,8 +19,8 @@ ULPS = 8 * EPS
 #: lengths are centimetres: a relative step of a few 1e-5). Each derivative is
 #: Richardson's (4 d(h/2) - d(h)) / 3, whose truncation, h^4 times the fifth
 #: derivative, is below 1e-13 of it even where the lever's pin comes closest to the
-#: pivot (r2 = R - |q|, derivatives growing as (R / r2)^n). A value's round-off d becomes 2 d / h in d(h/2) and d / h in d(h):
-#: 4/3 x 2 + 1/3 x 1 = 3 times d / h.
+#: pivot (r2 = R - |q|, derivatives growing as (R / r2)^n). A value's round-off d
+#: becomes 2 d / h in d(h/2) and d / h in d(h): 4/3 x 2 + 1/3 x 1 = 3 times d / h.
 FD_STEP = 1e-4
 FD_STEP_Q = 1e-6
 RICHARDSON = 3.0
