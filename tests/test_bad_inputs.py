@@ -165,9 +165,13 @@ def test_random_text_never_raises_anything_but_input_error(text, unit):
 @given(st.floats(allow_nan=False, allow_infinity=False, min_value=-1e300, max_value=1e300)
        .filter(lambda v: v == 0.0 or abs(v) > 1e-290))  # below, the conversion underflows
 def test_numbers_with_units_read_back(value):
-    assert to_si(f"{value!r} cm", "m", where="test") == pytest.approx(value / 100, rel=1e-12)
-    assert to_si(f"{value!r} mN m/rad", "N*m", where="test") == pytest.approx(value / 1000,
-                                                                             rel=1e-12)
+    # repr reads back exactly; the conversion's factor (rounded once) times the value
+    # (rounded once) against the correctly rounded quotient: at most 2 ulps apart
+    ulps = 2 * np.finfo(float).eps
+    assert to_si(f"{value!r} cm", "m", where="test") == pytest.approx(value / 100, rel=ulps,
+                                                                      abs=0.0)
+    assert to_si(f"{value!r} mN m/rad", "N*m", where="test") == pytest.approx(
+        value / 1000, rel=ulps, abs=0.0)
 
 
 # ------------------------------------------------------------------ parameter files

@@ -3,8 +3,8 @@
 `examples/c/step_wrist.c` is built here with the system C compiler from the
 engine's sources alone (no Python), fed a model file from ``vsj export-model``
 and a sequence of inputs, and compared with the Python step function (the
-same engine: equal to round-off in the printed outputs) and with
-`vsj.simulate.simulate` (to `SIMULATE_TOL`).
+same engine, in another build: `same_engine`) and with `vsj.simulate.simulate`
+(both to their error tolerance).
 """
 
 import json
@@ -18,6 +18,7 @@ import pytest
 
 from vsj import export
 from vsj.cli import main
+from vsj.engine.core import IMPULSE_REL
 from vsj.inputs import Constant
 from vsj.simulate import InitialState, SimulationOptions, simulate
 from vsj.wrist import build_wrist
@@ -25,11 +26,29 @@ from vsj.wrist import build_wrist
 ROOT = Path(__file__).resolve().parents[1]
 ENGINE = ROOT / "src" / "vsj" / "engine" / "c"
 EXAMPLE = ROOT / "examples" / "c" / "step_wrist.c"
-#: The example against simulate over the same periods (issue 17), both at rtol 1e-12.
-SIMULATE_TOL = 1e-9
-#: The example against the Python stepper: the same computation, printed with 17 digits;
-#: only the output rows' dot products may round differently.
-SAME_TOL = 1e-13
+EPS = np.finfo(float).eps
+
+
+def same_engine(stepper, periods: int, size: np.ndarray, span: np.ndarray) -> np.ndarray:
+    """How far the example (built here with -std=c99 -O2, which does not contract
+    multiply-adds) and vsj's extension (setuptools' flags; a GNU C build on arm64
+    contracts them) may part after ``periods`` periods [each output's unit], per output
+    of size ``size`` and range ``span``. Two builds round differently; then dopri's
+    step control may accept other steps, and each run is only as good as its
+    tolerance, restarted every period: periods x 2 (rtol |y| + atol). rk4's fixed
+    substeps add a few ulps of the state each. The time-stepper with true stiction
+    decides each element's impulse to IMPULSE_REL of the slip scale: steps x elements x
+    IMPULSE_REL of the range (the regression tubes' model). The printed 17 digits and
+    the output rows' dot products add a few ulps."""
+    options, method = stepper.options, stepper.method
+    if method == "dopri":
+        allowed = periods * 2 * (options.rtol * size + options.atol)
+    elif method == "rk4":
+        allowed = periods * stepper.substeps * 4 * EPS * size
+    else:
+        steps = periods * max(1, round(stepper.period / options.step))
+        allowed = steps * len(stepper.structure.frictions) * IMPULSE_REL * span
+    return allowed + 4 * EPS * size
 
 
 def compiler() -> str:
@@ -99,8 +118,11 @@ def test_the_c_program_steps_the_wrist_as_python_does(step_wrist, params, tmp_pa
         stepper.step(state, u, out=state)
         expected.append(rows @ state)
     expected = np.array(expected)
-    assert np.max(np.abs(data[:, 1:-1] - expected)) <= SAME_TOL * np.max(np.abs(expected))
-    assert np.allclose(data[:, -1], -0.01)  # q: the pivot drive held still
+    allowed = same_engine(stepper, periods, np.max(np.abs(expected), axis=0),
+                          np.ptp(expected, axis=0))
+    assert np.all(np.max(np.abs(data[:, 1:-1] - expected), axis=0) <= allowed)
+    # q: the pivot drive held still; its angle set from q by asin and read back by sin
+    assert np.all(np.abs(data[:, -1] + 0.01) <= 4 * EPS * params.pivot.amplitude)
     assert np.ptp(data[:, names.index("theta_x") + 1]) > 1e-3  # the wrist moved
 
 
@@ -120,7 +142,11 @@ def test_the_c_program_agrees_with_simulate(step_wrist, params, tmp_path):
     assert result.success
     for name in ("theta_x", "theta_y", "phi_1", "phi_2"):
         column = header.index(f"{name} [rad]")
-        assert np.max(np.abs(data[:, column] - result[name])) < SIMULATE_TOL, name
+        # each run within its tolerance of the exact motion (test_convergence); the
+        # example restarts dopri every period, so its errors may add up over them
+        size = np.max(np.abs(result[name]))
+        allowed = (periods + 1) * (options.rtol * size + options.atol)
+        assert np.max(np.abs(data[:, column] - result[name])) <= allowed, name
     assert np.ptp(data[:, header.index("theta_x [rad]")]) > 1e-2
 
 

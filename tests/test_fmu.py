@@ -11,7 +11,7 @@ evaluates them mid-step in both: the results agree to round-off. A velocity
 source held that way changes its speed in a jump at each communication point;
 the FMU (the step function) applies the jump between two steps, `simulate`'s
 time-stepper inside one (its trapezoidal positions see half of it), a first-order
-difference of the scheme, not of the FMU (5e-4 of the range at 1 ms, measured).
+difference of the scheme, not of the FMU.
 So the fig-4.15 motion with stiction is checked on DC motors driven by held
 voltages, and the velocity-driven fig-4.15 with smooth friction (dopri, where the
 FMU's held speeds differ from the scenario's smooth ones by O(h^2)) at a 0.25 ms
@@ -31,16 +31,36 @@ from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.validation import validate_fmu
 
 from vsj import fmu, params, scenario
+from vsj.engine.core import IMPULSE_REL
 from vsj.inputs import Constant, Hold
 from vsj.simulate import InitialState, SimulationOptions, simulate
 from vsj.wrist import WristOptions, build_wrist
 
 H = 1e-3
 Q0 = -0.01
-#: FMU against vsj's own engine: the same C code on the same inputs
-SAME = 1e-9
-#: FMU against `vsj simulate`, a fraction of each signal's range (the issue's acceptance)
+EPS = np.finfo(float).eps
+#: FMU against `vsj simulate`, a fraction of each signal's range: the acceptance of the
+#: FMU's issue (a requirement on the FMU, not a numerical tolerance); each comparison
+#: also checks the bound its numerics give, which is at least as tight.
 OF_RANGE = 1e-6
+#: The FMU's q: the pivot angle is set from q0 by asin and read back by sin, a few
+#: roundings of the crank radius.
+Q_ROUND_TRIP = 4 * EPS * params.default().pivot.amplitude
+
+
+def same_engine(steps: int, elements: int, span: float, value: float) -> float:
+    """How far two builds of the engine (the FMU's binary, compiled by fmu.build, and
+    vsj's extension, under whatever flags) may part on the same inputs [the signal's
+    unit]: with true stiction each step decides each friction element's impulse to
+    IMPULSE_REL of the slip scale, so the states drift apart by at most steps x
+    elements x IMPULSE_REL of their range ``span`` (the regression tubes' model), above
+    a few ulps of the signal's size ``value``."""
+    return steps * elements * IMPULSE_REL * span + 4 * EPS * value
+
+
+def frictions(wrist_options=None) -> int:
+    """The number of friction elements of the wrist."""
+    return len(build_wrist(params.default(), wrist_options).assemble().frictions)
 #: FMU outputs and the `simulate` signals they are
 SIGNALS = {"theta_x": "theta_x", "theta_y": "theta_y",
            "deflection_1": "spring.vsm_1.deflection", "deflection_2": "spring.vsm_2.deflection",
@@ -138,12 +158,16 @@ def test_a_held_wrist_under_a_torque_matches_vsj_simulate_and_does_not_drift(wri
     ref = simulate(structure, {"tau_x": Constant(0.3)}, 2.0, initial=InitialState(q=Q0),
                    options=SimulationOptions(friction="stiction", step=H, output_step=H))
     assert ref.success
+    steps, elements = ref.solver["steps"], len(structure.frictions)
+    span = max(np.ptp(ref[name]) for name in ("theta_x", "theta_y"))  # the wrist's motion
     for name in ("theta_x", "theta_y"):
-        span = max(np.ptp(ref[name]), 1e-3)
-        assert np.max(np.abs(out[name] - ref[name])) <= 1e-6 * span, name
-    assert np.allclose(out["q"], Q0, atol=1e-12)
+        size = np.max(np.abs(ref[name]))
+        allowed = same_engine(steps, elements, span, size)
+        assert np.max(np.abs(out[name] - ref[name])) <= allowed, name
+    assert np.all(np.abs(out["q"] - Q0) <= Q_ROUND_TRIP)
     settled = out["time"] >= 1.0
-    assert np.ptp(out["theta_x"][settled]) == 0.0  # held by true stiction: no creep at all
+    # held by true stiction: no creep beyond the impulse solver's tolerance
+    assert np.ptp(out["theta_x"][settled]) <= same_engine(steps, elements, span, 0.0)
     assert out["n_stuck"][-1] > 0
 
 
@@ -157,7 +181,7 @@ def test_time_varying_commands_match_the_step_function(wrist_fmu, unzipped):
     state = stepper.initial_state(InitialState(q=Q0))
     slave = Slave(path, unzipped)
     rows = stepper.angle_rows(["theta_x", "theta_y"])
-    worst = 0.0
+    worst, angles = 0.0, []
     for k in range(1500):
         t = k * H
         u = {"motor_1": 3.0 * np.sin(2 * np.pi * 0.5 * t),
@@ -166,10 +190,12 @@ def test_time_varying_commands_match_the_step_function(wrist_fmu, unzipped):
         inputs = np.array([u[n] for n in stepper.input_names])
         state = stepper.step(state, inputs)
         slave.step(u)
-        worst = max(worst, float(np.max(np.abs(slave.get("theta_x", "theta_y")
-                                               - rows @ state))))
+        angles.append(rows @ state)
+        worst = max(worst, float(np.max(np.abs(slave.get("theta_x", "theta_y") - angles[-1]))))
     slave.close()
-    assert worst <= SAME
+    angles = np.array(angles)
+    assert worst <= same_engine(len(angles), frictions(), np.max(np.ptp(angles, axis=0)),
+                                np.max(np.abs(angles)))
 
 
 def test_two_instances_give_the_results_of_two_separate_runs(wrist_fmu, unzipped):
@@ -209,7 +235,9 @@ def test_a_tunable_parameter_changes_the_result_as_a_parameter_file_does(wrist_f
     default = simulate(build_wrist(params.default()).assemble(), {"tau_x": Constant(0.3)}, 0.8,
                        initial=InitialState(q=Q0),
                        options=SimulationOptions(friction="stiction", step=H, output_step=H))
-    assert abs(theta - ref["theta_x"][-1]) <= 1e-9
+    allowed = same_engine(ref.solver["steps"], frictions(), np.ptp(ref["theta_x"]),
+                          abs(theta))
+    assert abs(theta - ref["theta_x"][-1]) <= allowed
     assert abs(theta - default["theta_x"][-1]) > 1e-4
 
 
@@ -360,14 +388,27 @@ def test_fig_4_15_with_smooth_friction_matches_vsj_simulate(tmp_path):
     outputs = [n for n in SIGNALS if n != "q" and not n.endswith("_speed")]
     out = simulate_fmu(str(path), stop_time=duration, step_size=h, output_interval=h,
                        input=held_table(names, t, commands), output=outputs + ["q"])
+    options = SimulationOptions(friction=case.options.friction, output_step=H)
     ref = simulate(build_wrist(params.default(), wrist_options).assemble(),
                    {**motion, "tau_y": Constant(0.05)}, duration, initial=case.initial,
-                   options=SimulationOptions(friction=case.options.friction, output_step=H))
+                   options=options)
     assert ref.success and ref.solver["name"] == "dopri"
     worst = worst_of_range(out, ref, outputs, every=int(round(H / h)))
     assert max(worst.values()) <= OF_RANGE, worst
+    # the numerics: the held speeds put each motor angle at most h^2 / 8 x its largest
+    # acceleration off the smooth one between communication points (equal at them), a
+    # slowly varying offset that reaches every output through kinematic gains below 1;
+    # both runs add dopri's global error, rtol of the signal's size plus atol (the FMU
+    # runs with the same default tolerances)
+    fine = np.linspace(0.0, duration, 20001)
+    acceleration = max(np.max(np.abs(np.gradient(np.gradient(motion[m].value(fine), fine),
+                                                 fine)[2:-2])) for m in ("motor_1", "motor_2"))
+    for name in outputs:
+        size = np.max(np.abs(ref[SIGNALS[name]]))
+        allowed = h * h / 8 * acceleration + 2 * (options.rtol * size + options.atol)
+        assert worst[name] * max(np.ptp(ref[SIGNALS[name]]), 1e-9) <= allowed, name
     assert np.ptp(ref["theta_x"]) > 0.5  # the circle was drawn
-    assert np.all(out["q"] == case.initial.q)
+    assert np.all(np.abs(out["q"] - case.initial.q) <= Q_ROUND_TRIP)
 
 
 def test_fig_4_15_circle_with_stiction_on_dc_motors_matches_vsj_simulate(tmp_path):
@@ -395,6 +436,13 @@ def test_fig_4_15_circle_with_stiction_on_dc_motors_matches_vsj_simulate(tmp_pat
     assert ref.success and ref.solver["name"] == "timestep"
     worst = worst_of_range(out, ref, list(SIGNALS))
     assert max(worst.values()) <= OF_RANGE, worst
+    # the same time-stepper on identical inputs in two builds of the engine
+    elements = frictions(wrist_options)
+    for name in SIGNALS:
+        span = max(np.ptp(ref[SIGNALS[name]]), 1e-9)
+        allowed = same_engine(ref.solver["steps"], elements, span,
+                              np.max(np.abs(ref[SIGNALS[name]])))
+        assert worst[name] * span <= allowed, name
     assert np.ptp(ref["theta_x"]) > 0.3 and np.max(out["n_stuck"]) > 0
 
 
@@ -438,11 +486,19 @@ def test_cross_check_folder_passes_fmpy_validation(cross_check_dir):
     assert validate_result(result=result, reference=reference, t_start=options["StartTime"],
                            t_stop=options["StopTime"]) is None
     # far inside FMPy's band (10 % of the range): the same numbers, at each reference time
+    # (FMPy's time is a sum of steps, rounded once per step)
     at = np.searchsorted(result["time"], reference["time"] + 1e-9, side="right") - 1
-    assert np.allclose(result["time"][at], reference["time"], rtol=0, atol=1e-12)
+    steps = int(round(options["StopTime"] / options["StepSize"]))
+    np.testing.assert_allclose(result["time"][at], reference["time"], rtol=0,
+                               atol=steps * EPS * options["StopTime"])
+    # the reference is vsj's own step function on the same held inputs: two builds of
+    # the engine (the FMU's time-stepper at H, period by period)
+    engine_steps = int(round(options["StopTime"] / H))
     for name in reference.dtype.names[1:]:
         span = max(np.ptp(reference[name]), 1e-9)
-        assert np.max(np.abs(result[name][at] - reference[name])) <= OF_RANGE * span, name
+        allowed = same_engine(engine_steps, frictions(), span, np.max(np.abs(reference[name])))
+        assert allowed <= OF_RANGE * span  # within the acceptance
+        assert np.max(np.abs(result[name][at] - reference[name])) <= allowed, name
     assert np.ptp(reference["theta_x"]) > 0.5
     # the importer's side of the cross-check: a result folder, validated by FMPy as well
     import fmpy

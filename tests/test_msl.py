@@ -15,6 +15,10 @@ import pytest
 from vsj import compare, msl
 from vsj.inputs import Constant
 
+from test_motor import LEDGER_ROUNDOFF_PER_STEP
+
+EPS = np.finfo(float).eps
+
 
 @pytest.fixture(scope="module", params=list(msl.EXAMPLES))
 def case(request):
@@ -43,12 +47,16 @@ def test_stick_and_slip_agree_with_the_reference_within_one_step(case):
         for (t_ref, before, after), (t_ours, b, a) in zip(ref_switches, ours):
             assert (before, after) == (b, a)
             # the first sample that shows the switch comes after it, at most a step later
-            assert t_ref - 1e-12 <= t_ours <= t_ref + h + 1e-12, (name, t_ref, t_ours)
+            # (sample times are k h, rounded to a few ulps of their size)
+            slack = 8 * EPS * max(t_ref, 1.0)
+            assert t_ref - slack <= t_ours <= t_ref + h + slack, (name, t_ref, t_ours)
 
 
 def test_the_energy_ledger_closes_with_clutches_and_brakes(case):
     example, _, result = case
-    assert result.ledger["relative_residual"] < 1e-9
+    # linear springs and dampers, exact impulses: the ledger closes to its round-off, a
+    # few roundings per booked term and step
+    assert result.ledger["relative_residual"] <= result.solver["steps"] * LEDGER_ROUNDOFF_PER_STEP
     heat = [result.ledger["dissipated"][f"friction {e}"] for e in example.modes.values()]
     assert min(heat) > 0.0
 
@@ -86,7 +94,7 @@ def test_the_tube_follows_the_msl_definition():
     for lag, inside in ((0.003, True), (0.006, False)):
         y = (t >= 1.0 + lag).astype(float)
         report = compare.tube(t_ref, y_ref, t, y, relative=2e-3)
-        assert report.half_width == pytest.approx(0.004)
+        assert report.half_width == pytest.approx(0.004, rel=EPS, abs=0.0)  # 2e-3 x 2 s
         assert report.inside is inside, (lag, report)
     # the height: 2e-3 of the range, not of the value
     y = np.where(t >= 1.0, 1.0, 0.0) + 0.0019
