@@ -105,7 +105,8 @@ def test_round_trip_through_toml(params):
     # values that need every digit a double has (the bundled ones are short decimals)
     spec = {f"{s}.{n}": v for s, names in params_module.SCHEMA.items() for n, v in names.items()}
     long = params.with_overrides(
-        {key: f"{value * (1 + 1 / 3000)!r} {spec[key].unit}" for key, value in params.values.items()
+        {key: f"{value * (1 + 1 / 3000)!r} {spec[key].unit}"
+         for key, value in params.values.items()
          if math.isfinite(value) and value != round(value)}, origin="test")
     again = params_module.loads(long.to_toml(), "round trip")
     assert any(again[key] != value for key, value in long.values.items())  # digits were cut

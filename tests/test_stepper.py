@@ -81,7 +81,8 @@ def test_one_step_agrees_with_simulate(params, case):
     rows = stepper.angle_rows(names)
     n = stepper.layout.n
     # the free angles' rounding through the rows, and the rows' own sums (a few terms)
-    tol = np.abs(rows[:, :n]) @ angle_tol + CANCELLATION_ULPS * EPS * (np.abs(rows) @ np.abs(after))
+    tol = (np.abs(rows[:, :n]) @ angle_tol
+           + CANCELLATION_ULPS * EPS * (np.abs(rows) @ np.abs(after)))
     for name, value, bound in zip(names, rows @ after, tol):
         assert abs(value - result[name][-1]) <= bound, name
     for motor in stepper.structure.motors:
