@@ -31,7 +31,9 @@ def _short(duration: str) -> str:
 #: tens of milliseconds; the margin is for a loaded machine).
 SETTLE_TIMEOUT = 20.0
 #: Kills aimed at the writing of a run (its last 0.1 s to 0.25 s; the test takes about
-#: 0.6 s a kill).
+#: 0.6 s a kill). Each is delayed uniformly over 1.5 times the longest writing of three
+#: whole runs, so it lands while the run writes with probability about 2/3; at least a
+#: third of them must (fewer happen with probability 8e-4, the binomial tail).
 WRITING_KILLS = 16
 
 
