@@ -43,7 +43,10 @@ def test_batch_over_parameter_sets(params):
         single = simulate(s, inputs, 1.0, initial=InitialState(q=0.0),
                           options=SimulationOptions(output_step=0.01), ports=False)
         assert np.array_equal(batch.angle("diff.theta_x")[r], single["theta_x"])
-    assert not np.allclose(batch.angle("diff.theta_x")[0], batch.angle("diff.theta_x")[1])
+    # the inertia matters: the two runs differ beyond what either solver's tolerance
+    # allows (an error-per-step controller's global error follows its rtol)
+    a, b = batch.angle("diff.theta_x")
+    assert np.max(np.abs(a - b)) > SimulationOptions().rtol * np.max(np.abs(a))
 
 
 def test_time_stepper_checks_the_shapes_of_its_sample_arrays(params):

@@ -11,6 +11,8 @@ from vsj.cli import main
 from vsj.output import MANIFEST, read_trajectory, verify
 
 SHORT = SHORT_SCENARIO
+#: Round-off of the ledger per solver step (as in tests/test_regression.py).
+LEDGER_ROUNDOFF_PER_STEP = 1e-15
 
 
 def write(tmp_path, text, name="scen.toml"):
@@ -30,7 +32,11 @@ def test_simulate_writes_trajectory_meta_and_plot(tmp_path, capsys):
     assert data.shape == (31, len(header)) and np.all(np.isfinite(data))
     meta = json.loads((out / "meta.json").read_text())
     assert meta["success"] is True and meta["vsj_version"]
-    assert meta["cases"][0]["ledger"]["relative_residual"] < 1e-6
+    # the run's ledger as the record keeps it: closed to its rtol plus round-off per step
+    # (the terms are integrated by the state's error-controlled steps)
+    solver = meta["cases"][0]["solver"]
+    assert meta["cases"][0]["ledger"]["relative_residual"] <= (
+        solver["options"]["rtol"] + solver["steps"] * LEDGER_ROUNDOFF_PER_STEP)
     assert meta["parameters"]["values"]["planetary.ring_inertia"]["source"]
     assert meta["scenario"]["definition"]["duration"] == "0.3 s"
     assert (out / "trajectory.png").stat().st_size > 1000

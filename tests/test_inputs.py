@@ -14,9 +14,39 @@ from scipy.interpolate import CubicSpline
 from vsj.inputs import Table, evaluate, spline_pieces
 
 
+EPS = np.finfo(float).eps
+#: Rounding of a handful of operations (a slope, a Horner sum of four terms): half an
+#: ulp each.
+ULPS = 8
+
+
 def _grid(n: int, seed: int):
     rng = np.random.default_rng(seed)
     return np.cumsum(rng.uniform(0.05, 2.0, n)), rng.normal(size=n)
+
+
+def slope_condition(t) -> float:
+    """Condition number of the linear system whose solution is a not-a-knot spline's
+    slopes at the knots ``t`` (continuous second derivative inside, continuous third
+    derivative across the first and last inner knots; de Boor, A Practical Guide to
+    Splines, ch. IV): the slopes, and so the coefficients, carry rounding of that many
+    ulp of their size. 1 for two or three knots (a closed form)."""
+    n = len(t)
+    if n < 4:
+        return 1.0
+    h = np.diff(t)
+    a = np.zeros((n, n))
+    for i in range(1, n - 1):
+        a[i, i - 1:i + 2] = h[i], 2 * (h[i - 1] + h[i]), h[i - 1]
+    a[0, :2] = h[1], h[0] + h[1]
+    a[-1, -2:] = h[-1] + h[-2], h[-2]
+    return float(np.linalg.cond(a))
+
+
+def piece_sizes(knots, coef):
+    """Largest term of each piece's Horner sum over its interval, sum_k |c_k| h^k."""
+    h = np.diff(knots)[:, None] ** np.arange(4)
+    return np.sum(np.abs(coef) * h, axis=1)
 
 
 @pytest.mark.parametrize("n", [2, 3, 4, 5, 6, 20, 500])
@@ -25,10 +55,16 @@ def test_the_spline_is_scipys_cubic_spline(n):
     knots, coef = spline_pieces(t, y)
     reference = CubicSpline(t, y)  # not-a-knot ends, SciPy's default
     assert np.array_equal(knots, t)
-    scale = np.max(np.abs(reference.c))
-    assert np.max(np.abs(coef - reference.c[::-1].T)) <= 1e-13 * scale
+    # two solutions of the same system, each to its condition number times a few ulp
+    # (each coefficient weighed by what it adds over its piece, c_k h^k)
+    rounding = ULPS * EPS * slope_condition(t)
+    sizes = piece_sizes(knots, coef)
+    reach = np.diff(knots)[:, None] ** np.arange(4)
+    assert np.all(np.abs(coef - reference.c[::-1].T) * reach <= rounding * sizes[:, None])
+    # and each evaluation a Horner sum of such coefficients
     inside = np.linspace(t[0], t[-1], 1001)
-    assert np.max(np.abs(evaluate((knots, coef), inside) - reference(inside))) <= 1e-12 * scale
+    assert np.max(np.abs(evaluate((knots, coef), inside) - reference(inside))) \
+        <= 2 * rounding * sizes.max()
 
 
 def test_a_cubic_is_reproduced_exactly():
@@ -36,8 +72,15 @@ def test_a_cubic_is_reproduced_exactly():
     cubic = np.polynomial.Polynomial([0.3, -1.2, 0.7, 0.25])
     knots, coef = spline_pieces(t, cubic(t))
     inside = np.linspace(t[0], t[-1], 333)
-    assert np.max(np.abs(evaluate((knots, coef), inside) - cubic(inside))) <= 1e-11
-    assert np.allclose(coef[:, 3], 0.25, rtol=1e-9)
+    rounding = ULPS * EPS * slope_condition(t)
+    assert np.max(np.abs(evaluate((knots, coef), inside) - cubic(inside))) \
+        <= rounding * piece_sizes(knots, coef).max()
+    # the leading coefficient is (m_i + m_i+1 - 2 secant) / h^2: the slopes' rounding
+    # over h^2, after a cancellation of terms as large as the slopes
+    h = np.diff(knots)
+    slopes = np.abs(coef[:, 1]) + np.abs(coef[:, 1] + h * (2 * coef[:, 2] + 3 * h * coef[:, 3]))
+    secants = np.abs(np.diff(cubic(t))) / h
+    assert np.all(np.abs(coef[:, 3] - 0.25) <= rounding * (slopes + 2 * secants) / h ** 2)
 
 
 def test_value_slope_and_curvature_are_continuous_at_inner_knots():
@@ -48,17 +91,29 @@ def test_value_slope_and_curvature_are_continuous_at_inner_knots():
             c[:-1, 1] + h * (2 * c[:-1, 2] + 3 * h * c[:-1, 3]),
             2 * c[:-1, 2] + 6 * h * c[:-1, 3]]
     right = [c[1:, 0], c[1:, 1], 2 * c[1:, 2]]
-    for a, b in zip(left, right):
-        assert np.max(np.abs(a - b)) <= 1e-9 * np.max(np.abs(b))
+    # in exact arithmetic equal (the slopes solve the continuity conditions); here each
+    # side's terms rounded as the slopes are, and as the Horner sums are
+    rounding = ULPS * EPS * slope_condition(t)
+    terms = [np.abs(c[:-1, 0]) + h * (np.abs(c[:-1, 1]) + h * (np.abs(c[:-1, 2])
+                                                            + h * np.abs(c[:-1, 3]))),
+             np.abs(c[:-1, 1]) + h * (2 * np.abs(c[:-1, 2]) + 3 * h * np.abs(c[:-1, 3])),
+             2 * np.abs(c[:-1, 2]) + 6 * h * np.abs(c[:-1, 3])]
+    for a, b, size in zip(left, right, terms):
+        assert np.all(np.abs(a - b) <= rounding * (size + np.abs(b)))
 
 
 def test_a_cubic_table_holds_its_end_values_outside():
     t, y = _grid(6, 3)
     table = Table(tuple(t), tuple(y), "cubic")
     inside = np.linspace(t[0], t[-1], 50)
-    assert np.allclose(table.value(inside), CubicSpline(t, y)(inside), rtol=0, atol=1e-12)
-    assert table.value(np.array([t[0] - 5.0, t[-1] + 5.0])) == pytest.approx([y[0], y[-1]],
-                                                                              abs=1e-12)
+    knots, coef = spline_pieces(t, y)
+    sizes = piece_sizes(knots, coef)
+    rounding = ULPS * EPS * slope_condition(t)
+    assert np.allclose(table.value(inside), CubicSpline(t, y)(inside), rtol=0,
+                       atol=2 * rounding * sizes.max())
+    # outside: the first value as it is, the last as the last piece's Horner sum ends
+    assert table.value(np.array([t[0] - 5.0])) == y[0]
+    assert abs(table.value(np.array([t[-1] + 5.0]))[0] - y[-1]) <= rounding * sizes[-1]
 
 
 def test_a_run_with_sampled_inputs_does_not_import_scipy_interpolate():

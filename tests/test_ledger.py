@@ -4,8 +4,10 @@ import pytest
 
 from vsj import scenario as scenarios
 
-#: dopri runs at rtol 1e-8; the issue asks 1e-6 of the work done.
-LEDGER_TOL = 1e-6
+#: Round-off of the ledger per solver step: each booked term is a product of a few
+#: doubles, rounded to about 1e-16 each; ten of them per step and term (as in
+#: tests/test_regression.py).
+LEDGER_ROUNDOFF_PER_STEP = 1e-15
 
 
 def test_ledger_closes_on_fig_4_15_with_smooth_friction(params):
@@ -15,10 +17,15 @@ def test_ledger_closes_on_fig_4_15_with_smooth_friction(params):
         result = run.result
         assert result.success, result.message
         led = result.ledger
-        assert led["relative_residual"] < LEDGER_TOL
+        # every term is integrated by the same error-controlled steps as the state (as
+        # tests/test_regression.py checks): to the run's rtol, plus round-off per step
+        rtol = result.solver["options"]["rtol"]
+        tol = rtol + result.solver["steps"] * LEDGER_ROUNDOFF_PER_STEP
+        assert led["relative_residual"] <= tol, run.case.label
         assert led["total_in"] > 0.1  # the motors do real work against friction
-        # every friction element dissipates
-        assert all(v >= -1e-12 for v in led["dissipated"].values())
+        # every friction element dissipates: f(s) s >= 0 at every instant, so its
+        # integral can fall below zero only by the integration's error
+        assert all(v >= -rtol * led["total_in"] for v in led["dissipated"].values())
         # the balance is made of independently accumulated terms, not a residual
         assert led["total_dissipated"] == pytest.approx(
-            led["total_in"] - led["total_stored"], rel=LEDGER_TOL)
+            led["total_in"] - led["total_stored"], rel=tol, abs=0.0)

@@ -9,6 +9,14 @@ from vsj import measurements
 from vsj.cli import main
 from vsj.errors import InputError
 
+EPS = np.finfo(float).eps
+#: A number read and converted to SI: the decimal read to half an ulp, times a unit
+#: factor rounded to half an ulp (pint's, or the cache's).
+CONVERSION = 2 * EPS
+#: `measurements.write` keeps 10 significant digits: half a unit of the tenth digit,
+#: plus the conversions both ways.
+WRITTEN = 0.5 * 10.0 ** (1 - 10) + 2 * CONVERSION
+
 GOOD = "# a comment\ntime [s],velocity [rpm],torque [mN m],angle [deg]\n" + "".join(
     f"{0.1 * i:.1f},{60.0},{5.0 + i},{90.0 * i}\n" for i in range(6))
 
@@ -21,9 +29,9 @@ def write(tmp_path, text, name="m.csv"):
 
 def test_units_are_converted_to_si(tmp_path):
     m = measurements.read(write(tmp_path, GOOD))
-    assert m["velocity"][0] == pytest.approx(2 * math.pi)          # 60 rpm
-    assert m["torque"][1] == pytest.approx(6e-3)                   # 6 mN m
-    assert m["angle"][2] == pytest.approx(math.pi)                 # 180 deg
+    assert m["velocity"][0] == pytest.approx(2 * math.pi, rel=CONVERSION, abs=0)  # 60 rpm
+    assert m["torque"][1] == pytest.approx(6e-3, rel=CONVERSION, abs=0)  # 6 mN m
+    assert m["angle"][2] == pytest.approx(math.pi, rel=CONVERSION, abs=0)  # 180 deg
     assert m.comments == ["a comment"]
 
 
@@ -32,17 +40,18 @@ def test_separators_are_detected(tmp_path, sep):
     text = "deflection [deg]{0}torque [N m]{0}pivot [mm]\n".format(sep) + "".join(
         f"{i}{sep}{0.1 * i}{sep}14\n" for i in range(6))
     m = measurements.read(write(tmp_path, text))
-    assert m["deflection"][3] == pytest.approx(math.radians(3))
-    assert m["pivot"][0] == pytest.approx(0.014)
+    assert m["deflection"][3] == pytest.approx(math.radians(3), rel=CONVERSION, abs=0)
+    assert m["pivot"][0] == pytest.approx(0.014, rel=CONVERSION, abs=0)
 
 
 def test_write_then_read_round_trips_and_marks_synthetic(tmp_path):
     t = np.linspace(0, 1, 11)
+    torque = t * 1e-3 / 3  # thirds: every digit counts
     path = tmp_path / "w.csv"
-    measurements.write(path, {"time": (t, "s"), "torque": (t * 1e-3, "mN m")},
+    measurements.write(path, {"time": (t, "s"), "torque": (torque, "mN m")},
                        ["synthetic test data"])
     m = measurements.read(path)
-    np.testing.assert_allclose(m["torque"], t * 1e-3, rtol=1e-9)
+    np.testing.assert_allclose(m["torque"], torque, rtol=WRITTEN, atol=0)
     assert m.synthetic
     assert "torque [mN m]" in path.read_text()
 

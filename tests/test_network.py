@@ -11,6 +11,10 @@ from vsj.simulate import InitialState, simulate
 from vsj.wrist import WristOptions, build_wrist
 
 
+#: A handful of roundings, half an ulp each.
+ROUNDING = 8 * np.finfo(float).eps
+
+
 def test_wrist_reduces_to_one_degree_of_freedom_per_chain(params):
     s = build_wrist(params).assemble()
     assert s.free == ("vsm_1.ring", "vsm_2.ring")
@@ -51,11 +55,17 @@ def test_connection_torques_balance_the_sources(params):
     assert r.success
     port = r["port.motor_1.flange--pg_1.sun.torque"]
     source = r["source.motor_1.torque"]
-    assert np.max(np.abs(port + source)) < 1e-9 * max(1.0, np.max(np.abs(source)))
+    # both solved from Newton's law on the constraint rows: a few ulp of the largest
+    # torque of the run, amplified by the rows' condition number
+    largest = max(np.max(np.abs(r[name])) for name in r.columns() if name.endswith(".torque"))
+    tol = ROUNDING * np.linalg.cond(s.constraint_rows) * largest
+    assert np.max(np.abs(port + source)) <= tol
     assert np.max(np.abs(source)) > 1e-3
     # power flows through a rigid connection unchanged: into the sun = out of the motor
-    assert np.allclose(r["port.motor_1.flange--pg_1.sun.power"], -r["source.motor_1.power"],
-                       atol=1e-12)
+    # (each torque times the same speed)
+    speed = np.abs(r["source.motor_1.speed"])
+    assert np.all(np.abs(r["port.motor_1.flange--pg_1.sun.power"] + r["source.motor_1.power"])
+                  <= (tol + ROUNDING * largest) * speed)
 
 
 def test_initial_angles_must_respect_the_constraints(params):

@@ -1,7 +1,9 @@
 """Parameter files: every kind of error is named, and the CLI exits with 2."""
 
+import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from vsj import params as params_module
@@ -9,6 +11,7 @@ from vsj.errors import InputError
 from vsj.cli import main
 
 DEFAULT = Path(params_module._bundled(params_module.DEFAULT_FILE)).read_text()
+EPS = np.finfo(float).eps
 
 
 def broken(tmp_path, old, new, name="bad.toml"):
@@ -87,11 +90,28 @@ def test_simulate_rejects_a_bad_parameter_file_before_writing(tmp_path, capsys):
     assert "ring_inertia" in capsys.readouterr().err
 
 
+#: A value written with `Parameters.to_toml` (10 significant digits in its display unit)
+#: and read back: half a unit of the tenth digit, plus an ulp for each unit conversion.
+TOML_ROUND_TRIP = 0.5 * 10.0 ** (1 - 10) + 2 * EPS
+#: A value read in its SI unit: one multiplication by a unit factor of 1 (an ulp at most).
+SAME_UNIT = EPS
+
+
 def test_round_trip_through_toml(params):
     again = params_module.loads(params.to_toml(), "round trip")
     for key, value in params.values.items():
-        assert again[key] == pytest.approx(value, rel=1e-9)
+        assert again[key] == pytest.approx(value, rel=TOML_ROUND_TRIP, abs=0.0)
         assert again.sources[key] == params.sources[key]
+    # values that need every digit a double has (the bundled ones are short decimals)
+    spec = {f"{s}.{n}": v for s, names in params_module.SCHEMA.items() for n, v in names.items()}
+    long = params.with_overrides(
+        {key: f"{value * (1 + 1 / 3000)!r} {spec[key].unit}"
+         for key, value in params.values.items()
+         if math.isfinite(value) and value != round(value)}, origin="test")
+    again = params_module.loads(long.to_toml(), "round trip")
+    assert any(again[key] != value for key, value in long.values.items())  # digits were cut
+    for key, value in long.values.items():
+        assert again[key] == pytest.approx(value, rel=TOML_ROUND_TRIP, abs=0.0), key
 
 
 def test_a_three_line_file_extends_the_bundled_set(tmp_path):
@@ -99,7 +119,7 @@ def test_a_three_line_file_extends_the_bundled_set(tmp_path):
     file.write_text('extends = "second_prototype"\n[transmission]\n'
                     'stiction = { value = "0.004 N m", source = "my bench" }\n')
     mine, base = params_module.load(file), params_module.default()
-    assert mine["transmission.stiction"] == pytest.approx(0.004)
+    assert mine["transmission.stiction"] == pytest.approx(0.004, rel=SAME_UNIT, abs=0.0)
     assert mine.sources["transmission.stiction"] == "my bench"
     changed = {k for k in base.values if mine.values[k] != base.values[k]}
     assert changed == {"transmission.stiction"}
@@ -109,8 +129,8 @@ def test_a_three_line_file_extends_the_bundled_set(tmp_path):
     child.write_text('extends = "../mine.toml"\n[differential]\n'
                      'inertia_x = { value = "1e-4 kg m^2", source = "CAD" }\n')
     grand = params_module.load(child)
-    assert grand["transmission.stiction"] == pytest.approx(0.004)
-    assert grand["differential.inertia_x"] == pytest.approx(1e-4)
+    assert grand["transmission.stiction"] == pytest.approx(0.004, rel=SAME_UNIT, abs=0.0)
+    assert grand["differential.inertia_x"] == pytest.approx(1e-4, rel=SAME_UNIT, abs=0.0)
 
 
 def test_extends_names_the_nearest_key_and_refuses_cycles(tmp_path):
