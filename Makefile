@@ -5,7 +5,7 @@ CC ?= cc
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-ENGINE := $(wildcard src/vsj/engine/c/*.c src/vsj/engine/c/*.h) src/vsj/engine/_core.c
+ENGINE := $(wildcard src/vsj/engine/c/*.c src/vsj/engine/c/*.h) src/vsj/_core.c
 
 .PHONY: install reproduce figures test bench sanitize portable clean
 
@@ -61,4 +61,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/fmu.py
 
 clean:
-	rm -rf $(VENV) reproduction out build src/vsj.egg-info src/vsj/engine/*.so
+	rm -rf $(VENV) reproduction out build src/vsj.egg-info src/vsj/*.so src/vsj/engine/*.so

@@ -10,7 +10,7 @@ from setuptools import Extension, setup
 from setuptools.command.build_ext import build_ext
 
 ENGINE = Path("src/vsj/engine")
-SOURCES = [str(ENGINE / "_core.c")] + sorted(str(p) for p in (ENGINE / "c").glob("*.c"))
+SOURCES = ["src/vsj/_core.c"] + sorted(str(p) for p in (ENGINE / "c").glob("*.c"))
 
 
 class BuildOnEveryCore(build_ext):
@@ -32,6 +32,6 @@ class BuildOnEveryCore(build_ext):
             self.compiler.compile = compile_all
 
 
-setup(ext_modules=[Extension("vsj.engine._core", sources=SOURCES,
+setup(ext_modules=[Extension("vsj._core", sources=SOURCES,
                              depends=[str(p) for p in (ENGINE / "c").glob("*.h")])],
       cmdclass={"build_ext": BuildOnEveryCore})

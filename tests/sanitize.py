@@ -65,11 +65,11 @@ def build(scratch: Path) -> tuple[Path, Path]:
     shutil.rmtree(pkg, ignore_errors=True)
     shutil.copytree(ROOT / "src" / "vsj", pkg / "vsj",
                     ignore=shutil.ignore_patterns("*.so", "__pycache__"))
-    sources = [ENGINE / "_core.c"] + sorted((ENGINE / "c").glob("*.c"))
+    sources = [ROOT / "src" / "vsj" / "_core.c"] + sorted((ENGINE / "c").glob("*.c"))
     include = sysconfig.get_paths()["include"]
     suffix = sysconfig.get_config_var("EXT_SUFFIX")
     subprocess.run([cc, *FLAGS, "-shared", "-fPIC", "-I", include, "-o",
-                    str(pkg / "vsj" / "engine" / f"_core{suffix}"), *map(str, sources), "-lm"],
+                    str(pkg / "vsj" / f"_core{suffix}"), *map(str, sources), "-lm"],
                    check=True)
     example = scratch / "step_wrist"
     subprocess.run([cc, "-std=c99", *FLAGS, "-I", str(ENGINE / "c"), "-o", str(example),
@@ -83,13 +83,13 @@ def build(scratch: Path) -> tuple[Path, Path]:
 
 
 WORKLOAD = r'''
-import json, subprocess, sys
+import json, struct, subprocess, sys
 from pathlib import Path
 import numpy as np
 sys.path.insert(0, str(Path(sys.argv[1])))
 import vsj
 from vsj import export, scenario as scenarios
-from vsj.engine import _core
+from vsj import _core
 from vsj.simulate import InitialState, SimulationOptions, simulate_batch
 from vsj.stepper import Stepper
 
@@ -97,7 +97,7 @@ spec = __import__("importlib.util").util.spec_from_file_location(
     "make_references", sys.argv[2] + "/tests/references/make_references.py")
 refs = __import__("importlib.util").util.module_from_spec(spec)
 spec.loader.exec_module(refs)
-assert "pkg" in vsj.engine._core.__file__, vsj.engine._core.__file__
+assert "pkg" in vsj._core.__file__, vsj._core.__file__
 
 for name in refs.REFERENCES:                      # the scenarios
     refs.run(name)
@@ -141,16 +141,29 @@ for method, friction in (("dopri", "arctan"), ("rk4", "arctan"), ("timestep", "s
     stepper.jacobian(state, [0.0] * 5)
     print("step", method, flush=True)
     document = export.model_document(stepper, params=params, initial=InitialState(q=-0.01))
-    path = Path(sys.argv[3]) / f"wrist-{method}.json"
-    export.write_model(path, document)
+    path = Path(sys.argv[3]) / f"wrist-{method}.vsjm"
+    export.write_model(path, document, stepper)
     done = subprocess.run([sys.argv[4], str(path), "100"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
-    for key, bad, message in (("xc", [7] * len(document["engine"]["xc"]), "column"),
-                              ("xp", [0, 10 ** 15] + document["engine"]["xp"][2:],
-                               "must not decrease")):
-        broken = json.loads(json.dumps(document))
-        broken["engine"][key] = bad  # a column out of range; pointers past the columns
-        path.write_text(json.dumps(broken))
+    good = path.read_bytes()
+
+    def sealed(data):
+        return data[:-8] + struct.pack("<Q", export._fnv1a(data[:-8]))
+
+    def edited(name, values):  # an array of the model replaced, both checksums remade
+        old = np.asarray(getattr(stepper.model, name), dtype="<i8").tobytes()
+        start = good.index(b"VSJM")
+        length = struct.unpack("<q", good[start - 8:start])[0]
+        blob = sealed(good[start:start + length].replace(old, np.asarray(values, "<i8").tobytes()))
+        return sealed(good[:start] + blob + good[start + length:])
+
+    for data, message in ((good[:-100], "damaged"), (sealed(good[:-100] + good[-8:]), "trunc"),
+                          (edited("xc", [7] * len(stepper.model.xc)), "column"),
+                          (edited("xp", [0, 10 ** 15] + list(stepper.model.xp[2:])),
+                           "must not decrease"),
+                          (edited("xp", list(stepper.model.xp[:-1]) + [10 ** 15]),
+                           "truncated")):
+        path.write_bytes(data)  # a column out of range; pointers past the columns
         done = subprocess.run([sys.argv[4], str(path), "3"], capture_output=True, text=True)
         assert done.returncode == 2 and message in done.stderr, done.stderr
     print("example", method, flush=True)

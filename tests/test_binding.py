@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from vsj import scenario as scenarios
-from vsj.engine import Engine, _core
+from vsj import _core
+from vsj.engine import Engine
 from vsj.engine.core import native
 from vsj.simulate import SimulationOptions, prepare
 from vsj.stepper import Stepper

@@ -7,8 +7,8 @@ same engine, in another build: `same_engine`) and with `vsj.simulate.simulate`
 (both to their error tolerance).
 """
 
-import json
 import os
+import struct
 import shutil
 import subprocess
 from pathlib import Path
@@ -93,8 +93,8 @@ def export_wrist(tmp_path, params, **kwargs) -> tuple[Path, dict, object]:
     inputs = kwargs.pop("inputs", None)
     stepper = export.wrist_stepper(params, **kwargs)
     document = export.model_document(stepper, params=params, initial=initial, inputs=inputs)
-    path = tmp_path / "wrist.json"
-    export.write_model(path, document)
+    path = tmp_path / "wrist.vsjm"
+    export.write_model(path, document, stepper)
     return path, document, stepper
 
 
@@ -151,54 +151,60 @@ def test_the_c_program_agrees_with_simulate(step_wrist, params, tmp_path):
 
 
 def test_export_model_command_writes_what_the_library_reads(step_wrist, tmp_path):
-    path = tmp_path / "dc.json"
+    path = tmp_path / "dc.vsjm"
     assert main(["export-model", "--out", str(path), "--motor-model", "dc",
                  "--friction", "stiction", "--q=-1cm"]) == 0
-    document = json.loads(path.read_text())
-    assert document["solver"]["method"] == "timestep"
-    assert [i["name"] for i in document["inputs"]] == ["motor_s", "tau_x", "tau_y",
-                                                       "voltage_1", "voltage_2"]
-    assert any(s["name"] == "motor_1.current" for s in document["state"])
+    data = path.read_bytes()
+    assert data[:4] == b"VSJP" and struct.unpack("<q", data[16:24])[0] == 2  # time-stepper
+    for name in (b"motor_s", b"tau_x", b"tau_y", b"voltage_1", b"voltage_2"):
+        assert name in data
     header, data = run_example(step_wrist, path, 20, [0.0, 0.0, 0.0, 3.0, -3.0], tmp_path)
     assert data.shape == (21, len(header))
     assert np.ptp(data[:, header.index("theta_y [rad]")]) > 0.0  # the motors turned
 
 
+def _sealed(data: bytes) -> bytes:
+    """``data`` with its checksum (the last 8 bytes) made right again."""
+    return data[:-8] + struct.pack("<Q", export._fnv1a(data[:-8]))
+
+
+def _with_code(document, stepper, code) -> bytes:
+    """The program file of ``stepper`` with its model's law codes replaced (past the
+    Python checks: the bytes are edited and both checksums remade)."""
+    data = export.program_bytes(document, stepper)
+    old = np.asarray(stepper.model.code, dtype="<i8").tobytes()
+    new = np.asarray(code, dtype="<i8").tobytes()
+    assert data.count(old) == 1
+    start = data.index(b"VSJM")
+    length = struct.unpack("<q", data[start - 8:start])[0]
+    blob = _sealed(data[start:start + length].replace(old, new))
+    return _sealed(data[:start] + blob + data[start + length:])
+
+
 @pytest.mark.parametrize("change, message", [
-    (lambda d: d["engine"].pop("mass"), 'engine: missing key "mass"'),
-    (lambda d: d["engine"].update(xc=d["engine"]["xc"][:-1]), "engine.xc: expected"),
-    (lambda d: d["engine"].update(code=[99] * len(d["engine"]["code"])), "unknown law"),
-    (lambda d: d.update(format="other"), 'model.format: expected "vsj-model"'),
-    (lambda d: d.update(version=1), "model.version"),
-    (lambda d: d["solver"].update(method="euler"), "solver.method"),
-    (lambda d: d["inputs"].pop(), "model.inputs: 4 names for 5 input channels"),
-    (lambda d: d.update(initial_state=d["initial_state"][:-1]), "initial_state: expected"),
+    (lambda d, s: b"{\"format\": \"vsj-model\"}\n", "not a vsj model file"),
+    (lambda d, s: _sealed(export.program_bytes(d, s)[:4] + b"\x09"
+                          + export.program_bytes(d, s)[5:]), "another format version"),
+    (lambda d, s: bytes([b ^ (1 if k == 100 else 0)
+                         for k, b in enumerate(export.program_bytes(d, s))]), "damaged"),
+    (lambda d, s: _sealed(export.program_bytes(d, s)[:-80] + b"\0" * 8), "truncated"),
+    (lambda d, s: export.program_bytes({**d, "solver": {**d["solver"], "rtol": -1.0}}, s),
+     "solver settings are out of range"),
+    (lambda d, s: export.program_bytes({**d, "initial_state": d["initial_state"][:-1],
+                                        "outputs": [{**o, "row": o["row"][:-1]}
+                                                    for o in d["outputs"]]}, s),
+     "initial state does not fit"),
+    (lambda d, s: export.program_bytes({**d, "inputs": d["inputs"][:-1]}, s),
+     "inputs do not fit"),
+    (lambda d, s: _with_code(d, s, [99] * len(s.model.code)), "unknown law"),
 ])
-def test_a_bad_model_file_is_refused_with_the_key(step_wrist, params, tmp_path, change, message):
-    path, document, _ = export_wrist(tmp_path, params)
-    change(document)
-    path.write_text(json.dumps(document))
+def test_a_bad_model_file_is_refused_with_its_reason(step_wrist, params, tmp_path, change,
+                                                     message):
+    path, document, stepper = export_wrist(tmp_path, params, method="dopri")
+    path.write_bytes(change(document, stepper))
     done = subprocess.run([str(step_wrist), str(path), "3"], capture_output=True, text=True)
     assert done.returncode == 2
     assert message in done.stderr and str(path) in done.stderr
-
-
-@pytest.mark.parametrize("text, message", [
-    ('{"format": "vsj-model",\n "version": 1,\n "engine": [1, 2,',
-     "line 3, column 18: unexpected end"),
-    ("[" * 100, "nested too deeply"),
-    ('{"format": "vsj-model" "version": 1}', "expected ',' or '}'"),
-    ('{"format": "\\q"}', "unknown escape"),
-    ("", "unexpected end"),
-    ('{"version": 1e999999}', "number out of range"),
-    ('{"version": 01}', "expected ',' or '}'"),
-])
-def test_malformed_json_is_refused_with_its_place(step_wrist, tmp_path, text, message):
-    path = tmp_path / "bad.json"
-    path.write_text(text)
-    done = subprocess.run([str(step_wrist), str(path), "3"], capture_output=True, text=True)
-    assert done.returncode == 2
-    assert message in done.stderr
 
 
 def test_the_engine_sources_need_only_the_c_standard_library():

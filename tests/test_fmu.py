@@ -145,7 +145,7 @@ def test_fmpy_validates_the_fmu_and_the_binary_exports_every_fmi2_function(wrist
     assert variables["pivot_q0"].start == str(Q0) or float(variables["pivot_q0"].start) == Q0
     assert {"planetary.sun_teeth", "transmission.ratio"} <= set(info["constant"])
     for name in ("sources/vsj_fmu.c", "sources/timestep.c", "sources/buildDescription.xml",
-                 "resources/model.json", "resources/fmu.txt", "modelDescription.xml"):
+                 "resources/model.vsjm", "resources/fmu.txt", "modelDescription.xml"):
         assert (Path(unzipped) / name).is_file(), name
 
 

@@ -11,7 +11,7 @@ from vsj import benches
 from vsj.benches import SENSOR_DAMPING, SENSOR_STIFFNESS
 from vsj import scenario as scenarios
 from vsj.components import Bearing, IdealGear, Inertia, TorqueSource
-from vsj.engine import _core
+from vsj import _core
 from vsj.engine.core import IMPULSE_REL
 from vsj.inputs import Sine, Table
 from vsj.network import Network

@@ -5,7 +5,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from conftest import override
-from vsj.inputs import Sine
+from vsj.inputs import Sine, engine_pieces, evaluate_repeating
 from vsj.simulate import InitialState, SimulationOptions, simulate
 from vsj.wrist import WristOptions, build_wrist
 
@@ -46,12 +46,10 @@ def hand_matrices(p):
 
 
 def _spline(pieces, t):
-    """Value and slope at ``t`` of a piecewise cubic (``vsj.inputs`` pieces)."""
-    knots, coef = pieces
-    i = min(max(int(np.searchsorted(knots, t, side="right")) - 1, 0), len(coef) - 1)
-    tau, c = t - knots[i], coef[i]
-    return (c[0] + tau * (c[1] + tau * (c[2] + tau * c[3])),
-            c[1] + tau * (2 * c[2] + 3 * tau * c[3]))
+    """Value and slope at ``t`` of the engine's pieces of a signal (`engine_pieces`: the
+    last period repeated where the signal repeats)."""
+    value, slope = evaluate_repeating(*pieces, t)
+    return value[0], slope[0]
 
 
 def hand_model(p):
@@ -64,8 +62,8 @@ def hand_model(p):
     m = hand_matrices(p)
     M, Mu, D, Du, G = m["M"], m["Mu"], m["D"], m["Du"], m["G"]
     Minv = np.linalg.inv(M)
-    speeds = [s.pieces(DURATION) for s in U]
-    loads = [s.pieces(DURATION) for s in TAU]
+    speeds = [engine_pieces(s, DURATION) for s in U]
+    loads = [engine_pieces(s, DURATION) for s in TAU]
 
     def rhs(t, y):
         phi, w = y[:2], y[2:]

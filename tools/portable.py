@@ -71,7 +71,7 @@ def run(name: str, env: dict[str, str]) -> tuple[bool, float]:
     test_env = {**os.environ, **env, "PYTHONPATH": str(src)}
     if "CFLAGS" in env:  # the tests' own C builds (the C example) take them too
         test_env["VSJ_TEST_CFLAGS"] = env["CFLAGS"]
-    check = subprocess.run([sys.executable, "-c", "import vsj.engine._core as c; print(c.__file__)"],
+    check = subprocess.run([sys.executable, "-c", "import vsj._core as c; print(c.__file__)"],
                            env=test_env, capture_output=True, text=True, cwd=ROOT)
     if str(src) not in check.stdout:
         raise SystemExit(f"portable {name}: the suite would not load the copy ({check.stdout}"

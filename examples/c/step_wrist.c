@@ -10,8 +10,8 @@
  *     cc -std=c99 -O2 -I src/vsj/engine/c -o step_wrist examples/c/step_wrist.c \
  *        src/vsj/engine/c/[a-z]*.c -lm
  * Run:
- *     vsj export-model --out wrist.json --q=-1cm
- *     ./step_wrist wrist.json 1000 inputs.csv > outputs.csv
+ *     vsj export-model --out wrist.vsjm --q=-1cm
+ *     ./step_wrist wrist.vsjm 1000 inputs.csv > outputs.csv
  *
  * inputs.csv (optional) holds one line per period with a value for each input
  * channel, in the order the model file lists them (commas or spaces between);
@@ -64,7 +64,7 @@ int main(int argc, char **argv) {
     long periods, p;
     int64_t k, status = VSJ_OK;
     if (argc < 3) {
-        fprintf(stderr, "usage: step_wrist MODEL.json PERIODS [INPUTS.csv]\n");
+        fprintf(stderr, "usage: step_wrist MODEL.vsjm PERIODS [INPUTS.csv]\n");
         return 2;
     }
     wrist = vsj_load_model(argv[1], message, sizeof message);

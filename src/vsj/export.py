@@ -1,18 +1,19 @@
 """A wrist as a file for the C engine: what ``vsj export-model`` writes.
 
-The document holds the engine's arrays (`vsj.engine.model`) for inputs held
-over each control period, the names and units of the inputs, of the step
-function's state and of a set of outputs (each a row that multiplies the
-state), the initial state and the solver settings. ``vsj_load_model`` of the
-C library (``vsj/engine/c/vsj.h``) reads it; ``examples/c/step_wrist.c`` steps
-it one control period at a time. JSON numbers are written in their shortest
-form that reads back exactly, so a C program steps the very model Python
-does.
+`model_document` describes a stepper as plain data: the engine's arrays
+(`vsj.engine.model`) for inputs held over each control period, the names and
+units of the inputs, of the step function's state and of a set of outputs (each a
+row that multiplies the state), the initial state and the solver settings.
+`program_bytes` writes what the C library reads (``vsj_load_model``, see
+``engine/c/load.c``): those settings and names, then the model's own binary form
+(``engine/c/blob.c``, the arrays exactly as Python holds them, to the bit), with a
+checksum. ``examples/c/step_wrist.c`` steps such a file one control period at a
+time, and the FMU carries one.
 """
 
 from __future__ import annotations
 
-import json
+import struct
 from dataclasses import asdict
 from pathlib import Path
 
@@ -21,15 +22,20 @@ import numpy as np
 from . import __version__
 from .params import Parameters
 from .simulate import InitialState, SimulationOptions
+from .engine.core import native
+from .engine.model import ARRAYS
 from .stepper import METHODS, Stepper
 from .wrist import WristOptions
 
 FORMAT = "vsj-model"
-VERSION = 2
+VERSION = 3
+#: The program file's format version (engine/c/load.c reads this one only).
+PROGRAM_VERSION = 1
+#: The step functions' codes in the program file.
+METHOD_CODES = {"dopri": 0, "rk4": 1, "timestep": 2}
 
-#: The engine arrays, in the order of ``vsj_model``.
-ENGINE_ARRAYS = ("dims", "mass", "Minv", "xp", "xc", "xv", "up", "uc", "uv", "par", "code",
-                 "src_ch", "src_pos0", "knots", "coef", "cum", "first", "count", "table")
+#: The engine arrays, in the order of ``vsj_model`` (c/vsj_layout.h).
+ENGINE_ARRAYS = ARRAYS
 
 
 def wrist_stepper(params: Parameters, wrist_options: WristOptions | None = None, *,
@@ -51,6 +57,7 @@ def model_document(stepper: Stepper, *, params: Parameters | None = None,
     rows = stepper.angle_rows(signals)
     engine = {name: np.asarray(getattr(stepper.model, name)).ravel().tolist()
               for name in ENGINE_ARRAYS}
+    engine["sizes"] = dict(stepper.model.sizes)
     doc = {
         "format": FORMAT,
         "version": VERSION,
@@ -78,13 +85,46 @@ def model_document(stepper: Stepper, *, params: Parameters | None = None,
     return doc
 
 
-def write_model(path: Path, document: dict) -> None:
-    """Write an export document (atomically: a failed write leaves no half file)."""
+def _fnv1a(data: bytes) -> int:
+    h = 14695981039346656037
+    for byte in data:
+        h = ((h ^ byte) * 1099511628211) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
+def _name(text: str) -> bytes:
+    raw = text.encode("utf-8")
+    return struct.pack("<q", len(raw)) + raw + b"\0" * (-len(raw) % 8)
+
+
+def program_bytes(document: dict, stepper: Stepper) -> bytes:
+    """The file the C library reads (engine/c/load.c): settings, names, the initial
+    state, the output rows, the stepper's model in its binary form, a checksum."""
+    solver = document["solver"]
+    parts = [b"VSJP", struct.pack("<IQ", PROGRAM_VERSION, 0),
+             struct.pack("<qddddq", METHOD_CODES[solver["method"]], solver["period"],
+                         solver["rtol"], solver["atol"], solver["step"], solver["substeps"]),
+             struct.pack("<q", len(document["inputs"]))]
+    parts += [_name(i["name"]) for i in document["inputs"]]
+    state = np.asarray(document["initial_state"], dtype="<f8")
+    parts += [struct.pack("<q", len(state)), state.tobytes(),
+              struct.pack("<q", len(document["outputs"]))]
+    parts += [_name(o["name"]) for o in document["outputs"]]
+    parts += [np.asarray([o["row"] for o in document["outputs"]], dtype="<f8").tobytes()]
+    blob = native(stepper.model).to_bytes()
+    parts += [struct.pack("<q", len(blob)), blob, b"\0" * (-len(blob) % 8)]
+    data = b"".join(parts)
+    return data + struct.pack("<Q", _fnv1a(data))
+
+
+def write_model(path: Path, document: dict, stepper: Stepper) -> None:
+    """Write the program file of ``stepper`` (atomically: a failed write leaves no half
+    file)."""
     from .output import atomic_write
 
-    with atomic_write(Path(path)) as handle:
-        json.dump(document, handle, allow_nan=False)
-        handle.write("\n")
+    with atomic_write(Path(path), "wb") as handle:
+        handle.write(program_bytes(document, stepper))
 
 
-__all__ = ["wrist_stepper", "model_document", "write_model", "METHODS", "FORMAT", "VERSION"]
+__all__ = ["wrist_stepper", "model_document", "program_bytes", "write_model", "METHODS",
+           "FORMAT", "VERSION", "PROGRAM_VERSION"]

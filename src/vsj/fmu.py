@@ -11,7 +11,7 @@ the Modelica Association's Reference FMUs are:
   and its FMI layer (``vsj/fmi/vsj_fmu.c``), built with the system compiler;
 * ``sources/`` and ``sources/buildDescription.xml``: the same C files, so an
   importer can build the FMU for its own platform;
-* ``resources/model.json``: the wrist as `vsj.export` writes it, and
+* ``resources/model.vsjm``: the wrist as `vsj.export` writes it, and
   ``resources/fmu.txt``: how each tunable parameter moves the engine's arrays,
   what a parameter file allows it (bounds, relations between keys), and what the
   checks of a run need (end stops, voltage limits, the ledger's tolerance).
@@ -424,11 +424,11 @@ def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None =
     if not q_range[0] <= q0 <= q_range[1]:
         raise InputError(f"--q {q0:g} m is outside the pivot's range [{q_range[0]:g}, "
                          f"{q_range[1]:g}] m")
-    text = json_text(document)
+    program = export.program_bytes(document, stepper)
     body = map_body(tunables, params, q0, checks_of(stepper, document, options))
     # the GUID fingerprints everything a state depends on: model, map and vsj's version
-    guid = "{" + str(uuid.UUID(hashlib.md5((text + body + __version__).encode()).hexdigest())) \
-        + "}"
+    guid = "{" + str(uuid.UUID(hashlib.md5(program + (body + __version__).encode())
+                               .hexdigest())) + "}"
     description = (f"vsj wrist ({friction} friction, {method} at {step:g} s; parameters "
                    f"{params.meta.get('name', params.origin)}, hash {params.hash()[:12]})")
     want_win = compiler("win64") is not None if win64 is None else win64
@@ -440,7 +440,7 @@ def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None =
         (root / "documentation").mkdir()
         (root / "modelDescription.xml").write_text(model_description(
             document, tunables, params, q0, q_range, guid, step, description))
-        (root / "resources" / "model.json").write_text(text)
+        (root / "resources" / "model.vsjm").write_bytes(program)
         (root / "resources" / "fmu.txt").write_text(map_text(guid, body))
         for path in _source_paths():
             shutil.copy(path, root / "sources" / path.name)
@@ -608,12 +608,6 @@ Reproduce with FMPy:
 
     python -m fmpy.cross_check.validate_vendor_repo <this repository>
 """
-
-
-def json_text(document: dict) -> str:
-    import json
-
-    return json.dumps(document, allow_nan=False) + "\n"
 
 
 @dataclass(frozen=True)

@@ -77,7 +77,7 @@ def torque(law: str, speeds, *, viscous=0.0, stiction=0.0, sharpness=1.0, width=
     Coulomb torque ``k pi/2 sign(s)`` is added to the viscous part (at ``s = 0``
     the torque is whatever holds the element and is not a function of speed).
     """
-    from .engine import _core
+    from . import _core
 
     code = law_code(law)
     shape = np.shape(np.atleast_1d(speeds))

@@ -52,6 +52,12 @@ class Input:
         if a sampled signal would need more than `MAX_KNOTS`."""
         raise NotImplementedError
 
+    def repeats(self) -> tuple[float, float] | None:
+        """``(t0, period)`` if the signal repeats with ``period`` [s] from ``t0`` on, and
+        ``pieces(t0 + period)`` ends with one period that starts on a knot (the engine
+        then repeats it instead of splining the whole run); None otherwise."""
+        return None
+
     def describe(self) -> str:
         return repr(self)
 
@@ -83,6 +89,35 @@ def as_inputs(inputs, channels) -> dict[str, Input]:
                              f"Step, Table, Hold, Position, ...) or a number, got "
                              f"{type(signal).__name__}{hint}")
     return out
+
+
+def engine_pieces(signal: Input, t_end: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """The pieces the engine holds of ``signal`` over ``[0, t_end]``, and the period it
+    repeats them with (0: none): a signal that repeats (`Input.repeats`) within
+    ``t_end`` is splined up to the end of its first whole period only."""
+    repeats = signal.repeats()
+    if repeats is not None and repeats[0] + repeats[1] < t_end:
+        knots, coef = signal.pieces(repeats[0] + repeats[1])
+        return np.asarray(knots, dtype=float), np.asarray(coef, dtype=float), repeats[1]
+    knots, coef = signal.pieces(t_end)
+    return np.asarray(knots, dtype=float), np.asarray(coef, dtype=float), 0.0
+
+
+def evaluate_repeating(knots, coef, period: float, t):
+    """Value and slope of the pieces at the times ``t``, the last ``period`` seconds
+    repeated after the last knot (as the engine evaluates a channel)."""
+    t = np.array(t, dtype=float, ndmin=1)
+    last = knots[-1]
+    if period > 0.0:
+        late = t >= last
+        t[late] -= (np.floor((t[late] - last) / period) + 1.0) * period
+        t[late] = np.maximum(t[late], last - period)
+    k = np.clip(np.searchsorted(knots, t, side="right") - 1, 0, len(coef) - 1)
+    tau = np.clip(t, knots[0], last) - knots[k]
+    c = coef[k]
+    value = c[:, 0] + tau * (c[:, 1] + tau * (c[:, 2] + tau * c[:, 3]))
+    slope = c[:, 1] + tau * (2 * c[:, 2] + 3 * c[:, 3] * tau)
+    return value, np.where((t >= knots[0]) & (t <= last), slope, 0.0)
 
 
 def spline_pieces(t, y) -> Pieces:
@@ -240,10 +275,34 @@ class Sine(Input):
             segments.append((off, t_end, False))
         return segments
 
+    def _periodic_grid(self) -> tuple[float, int] | None:
+        """For a sine that never stops: the step that divides its period (its knots from
+        its onset on), and the number of steps from the onset until the fade-in ends
+        (rounded up), after which the sine repeats."""
+        if math.isfinite(self.stop):
+            return None
+        step = 1.0 / (self.frequency * max(4, math.ceil(1.0 / (self.frequency * self._step()))))
+        on = max(self.start, 0.0)
+        return step, math.ceil(max(self.start + self.fade_in - on, 0.0) / step - 1e-9)
+
+    def repeats(self) -> tuple[float, float] | None:
+        grid = self._periodic_grid()
+        if grid is None:
+            return None
+        step, fade_steps = grid
+        return max(self.start, 0.0) + fade_steps * step, 1.0 / self.frequency
+
     def pieces(self, t_end: float) -> Pieces:
         knots, coefs = [], []
+        grid = self._periodic_grid()
         for a, b, waving in self._segments(t_end):
-            if waving:
+            if waving and grid is not None:
+                step = grid[0]  # knots on the period's grid, so that a period starts on one
+                n = max(4, math.ceil((b - a) / step - 1e-9))
+                _intervals(n * step, step)
+                k = a + np.arange(n + 1) * step
+                k, c = spline_pieces(k, self._wave(k))
+            elif waving:
                 k, c = _sampled(lambda t, a=a: self._wave(t + a), b - a, self._step())
                 k = k + a
             else:
@@ -435,6 +494,9 @@ class Position(Input):
     def knots(self, t_end: float) -> int:
         return self.angle.knots(t_end)
 
+    def repeats(self) -> tuple[float, float] | None:
+        return self.angle.repeats()
+
     def describe(self) -> str:
         return f"angle given by {self.angle.describe()}"
 
@@ -460,20 +522,34 @@ def circle(radius: float, period: float, *, fade_in: float, cos_axis: bool) -> I
         trig = np.cos if cos_axis else np.sin
         return radius * env * trig(omega * t)
 
-    return Position(_Sampled(angle, min(period / 400.0, max(fade_in, period) / 400.0),
-                             f"circle radius {radius:g}, period {period:g} s"))
+    step = period / 400.0  # divides the period: the circle repeats after its fade-in
+    return Position(_Sampled(angle, step, f"circle radius {radius:g}, period {period:g} s",
+                             (math.ceil(fade_in / step - 1e-9) * step, period)))
 
 
 @dataclass(frozen=True)
 class _Sampled(Input):
+    """A function of time splined at knots ``step`` apart from t = 0 (or, if it repeats
+    with ``period`` from ``t0`` on, ``(t0, period)``, at knots of a step that divides
+    the period)."""
+
     fun: object
     step: float
     label: str
+    period: tuple[float, float] | None = None
 
     def value(self, t):
         return self.fun(np.asarray(t, dtype=float))
 
+    def repeats(self) -> tuple[float, float] | None:
+        return self.period
+
     def pieces(self, t_end: float) -> Pieces:
+        if self.period is not None:
+            n = max(4, math.ceil(t_end / self.step - 1e-9))
+            _intervals(n * self.step, self.step)
+            t = np.arange(n + 1) * self.step
+            return spline_pieces(t, self.fun(t))
         return _sampled(self.fun, t_end, self.step)
 
     def knots(self, t_end: float) -> int:

@@ -239,7 +239,8 @@ _SNIFF_BYTES = 64 * 1024
 
 
 def written_by_vsj(path: str | Path) -> bool:
-    """Whether the existing file ``path`` carries vsj's mark: an FMU whose
+    """Whether the existing file ``path`` carries vsj's mark: a model file of the C
+    engine (``VSJP``/``VSJM``), an FMU whose
     modelDescription.xml names vsj as its generation tool, a JSON document with a
     ``vsj`` or ``vsj_version`` key (or a ``format`` that starts with ``vsj``), or a text
     file (TOML, CSV) whose comment lines at the top name vsj. Unreadable or other files
@@ -250,6 +251,8 @@ def written_by_vsj(path: str | Path) -> bool:
     try:
         with open(path, "rb") as handle:
             head = handle.read(_SNIFF_BYTES)
+            if head.startswith((b"VSJP", b"VSJM")):  # a model file (vsj.export)
+                return True
             if head.startswith(b"PK"):
                 handle.seek(0)
                 with zipfile.ZipFile(handle) as archive:

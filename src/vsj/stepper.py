@@ -66,7 +66,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .engine import OK, STATUS_TEXT, Engine, compile_model
-from .engine import _core
+from . import _core
 from .engine.core import pivot_position
 from .engine.model import EngineModel, friction_laws_for
 from .errors import InputError, SimulationError

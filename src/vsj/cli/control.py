@@ -153,7 +153,7 @@ def cmd_export_model(args) -> int:
     document = export.model_document(stepper, params=params, initial=initial,
                                      wrist_options=wrist_options)
     with write_errors("--out", args.out):
-        export.write_model(Path(args.out), document)
+        export.write_model(Path(args.out), document, stepper)
     print(f"wrote {args.out}: {len(document['inputs'])} inputs "
           f"({', '.join(i['name'] for i in document['inputs'])}), a state of "
           f"{len(document['state'])}, {len(document['outputs'])} outputs; step function "

@@ -28,8 +28,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from . import _core
-from .model import EngineModel
+from .. import _core
+from .model import SIZES, EngineModel
 
 OK = 0
 NOT_FINITE = 1
@@ -49,10 +49,8 @@ IMPULSE_REL = 1e-12
 
 def native(model: EngineModel) -> _core.Model:
     """The C engine's checked copy of ``model`` (raises ValueError if it is inconsistent)."""
-    return _core.Model(model.dims, model.mass, model.Minv, model.xp, model.xc, model.xv,
-                       model.up, model.uc, model.uv, model.par, model.code, model.src_ch,
-                       model.src_pos0, model.knots, model.coef, model.cum, model.first,
-                       model.count, model.table)
+    return _core.Model(np.array([model.sizes[k] for k in SIZES], dtype=np.int64),
+                       model.arrays())
 
 
 class Engine:

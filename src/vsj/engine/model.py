@@ -19,45 +19,56 @@ from __future__ import annotations
 import fnmatch
 import math
 from dataclasses import dataclass
-from typing import Mapping, NamedTuple
+from collections import namedtuple
+from typing import Mapping
 
 import numpy as np
 
 from .. import friction as friction_laws
 from ..errors import InputError
-from ..inputs import Constant, Input
+from ..inputs import Constant, Input, engine_pieces
 from ..network import Structure
 
-#: Columns of ``par`` (rows are padded with zeros).
-N_PAR = 9
+from .. import _core
 
-# indices into ``dims``
+#: Columns of ``par`` (rows are padded with zeros).
+N_PAR = _core.NPAR
+#: The model's sizes and arrays, in the order of the C layout (c/vsj_layout.h), which
+#: declares each once with its type and what it holds.
+SIZES: tuple[str, ...] = _core.LAYOUT["sizes"]
+ARRAYS: tuple[str, ...] = tuple(name for name, _, _ in _core.LAYOUT["arrays"])
+_KINDS = {name: np.dtype(kind) for name, kind, _ in _core.LAYOUT["arrays"]}
+# indices into ``dims`` (the first eight sizes)
 D_N, D_S, D_F, D_K, D_L, D_M, D_CH, D_R = range(8)
 
 
-class EngineModel(NamedTuple):
-    """Matrices and parameters of one model."""
+class EngineModel(namedtuple("EngineModel", ("sizes", "rows") + ARRAYS)):
+    """A compiled model: its ``sizes`` (a dict, `SIZES`), the dense element ``rows``
+    (``(R, n + s)``: free-coordinate then source part) and one field per array of the C
+    layout (`ARRAYS`, see c/vsj_layout.h for what each holds)."""
 
-    dims: np.ndarray      # int64: n, s, f, k, loads, motors, channels, rows
-    mass: np.ndarray      # (n+s, n+s) kinetic energy matrix over (v, u)
-    Minv: np.ndarray      # (n, n) inverse of the free block
-    rows: np.ndarray      # (R, n+s) element rows
-    xp: np.ndarray        # CSR of the rows' free-coordinate part: pointers (R+1,) int64,
-    xc: np.ndarray        # ... column indices int64,
-    xv: np.ndarray        # ... values
-    up: np.ndarray        # CSR of the rows' source part: pointers, columns, values
-    uc: np.ndarray
-    uv: np.ndarray
-    par: np.ndarray       # (R, 9) element parameters
-    code: np.ndarray      # (R,) int64 law code or input channel
-    src_ch: np.ndarray    # (s,) int64 input channel of each source
-    src_pos0: np.ndarray  # (s,) source angles at t = 0
-    knots: np.ndarray     # concatenated spline knots of all channels
-    coef: np.ndarray      # (pieces, 4) cubic coefficients
-    cum: np.ndarray       # integral from each channel's first knot to each knot
-    first: np.ndarray     # (channels,) int64 index of each channel's first piece
-    count: np.ndarray     # (channels,) int64 number of pieces
-    table: np.ndarray     # (rows, 2) friction tables: slip speed, coefficient
+    __slots__ = ()
+
+    @property
+    def dims(self) -> np.ndarray:
+        """n, sources, frictions, springs, loads, motors, channels, rows (int64)."""
+        return np.array([self.sizes[k] for k in SIZES[:8]], dtype=np.int64)
+
+    def _asdict(self) -> dict:
+        """Every field, the sizes as an int64 array (so that models compare as arrays)."""
+        out = super()._asdict()
+        out["sizes"] = np.array([self.sizes[k] for k in SIZES], dtype=np.int64)
+        return out
+
+    def _replace(self, **changes):
+        if "sizes" in changes and not isinstance(changes["sizes"], dict):
+            changes["sizes"] = dict(zip(SIZES, (int(v) for v in changes["sizes"])))
+        return super()._replace(**changes)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The C layout's arrays, by name, as the engine takes them."""
+        return {name: np.ascontiguousarray(getattr(self, name), dtype=_KINDS[name]).reshape(-1)
+                for name in ARRAYS}
 
 
 @dataclass(frozen=True)
@@ -137,7 +148,11 @@ def friction_laws_for(structure: Structure, default: str,
 
 
 def input_bank(structure: Structure, inputs: Mapping[str, Input], t_end: float):
-    """Splines of every input channel, concatenated: (knots, coef, cum, first, count)."""
+    """Splines of every input channel, concatenated: (knots, coef, cum, first, count,
+    period). A signal that repeats (`Input.repeats`) within ``t_end`` is splined up to
+    the end of its first whole period only, and the engine repeats that period
+    (``period``: its length and the channel's integral over it), so that its memory
+    does not grow with the run."""
     channels = structure.channels()
     unknown = sorted(set(inputs) - set(channels))
     if unknown:
@@ -148,11 +163,12 @@ def input_bank(structure: Structure, inputs: Mapping[str, Input], t_end: float):
     if channels:
         knots, coefs, cums = [], [], []
     offset = 0
-    for ch in channels:
+    period = np.zeros((len(channels), 2))
+    for i, ch in enumerate(channels):
         signal = inputs.get(ch, Constant(0.0))
         if signal.is_position and ch not in source_channels:
             raise InputError(f"input {ch!r}: only velocity sources can be driven by an angle")
-        k, c = signal.pieces(t_end)
+        k, c, period[i, 0] = engine_pieces(signal, t_end)
         k = np.asarray(k, dtype=float)
         c = np.asarray(c, dtype=float).reshape(-1, 4)
         dt = np.diff(k)
@@ -161,11 +177,16 @@ def input_bank(structure: Structure, inputs: Mapping[str, Input], t_end: float):
         knots.append(k)
         coefs.append(c)
         cums.append(np.concatenate([[0.0], np.cumsum(integral)]))
+        if period[i, 0] > 0.0:  # the integral over the last period (knots end it)
+            start = int(np.searchsorted(k, k[-1] - period[i, 0] * (1 + 1e-12)))
+            if abs(k[-1] - k[start] - period[i, 0]) > 1e-9 * period[i, 0]:
+                raise ValueError(f"input {ch!r}: its repeating period does not start on a knot")
+            period[i, 1] = cums[-1][-1] - cums[-1][start]
         first.append(offset)
         count.append(len(c))
         offset += len(c)
     return (np.concatenate(knots), np.ascontiguousarray(np.vstack(coefs)),
-            np.concatenate(cums), _ints(first), _ints(count))
+            np.concatenate(cums), _ints(first), _ints(count), period.reshape(-1))
 
 
 def compile_model(structure: Structure, inputs: Mapping[str, Input], t_end: float, *,
@@ -218,17 +239,19 @@ def compile_model(structure: Structure, inputs: Mapping[str, Input], t_end: floa
     dense = np.array(rows).reshape(len(rows), n + s)
     xp, xc, xv = _csr(dense[:, :n])
     up, uc, uv = _csr(dense[:, n:])
-    dims = _ints([n, s, len(structure.frictions), len(structure.springs), len(structure.loads),
-                  len(structure.motors), len(chan), len(rows)])
     src_pos0 = np.zeros(s) if source_angles is None else np.asarray(source_angles, dtype=float)
+    sizes = dict(n=n, n_sources=s, n_frictions=len(structure.frictions),
+                 n_springs=len(structure.springs), n_loads=len(structure.loads),
+                 n_motors=len(structure.motors), n_channels=len(chan), n_rows=len(rows),
+                 n_pieces=len(bank[1]), n_table=len(table))
     model = EngineModel(
-        dims=dims, mass=np.ascontiguousarray(mass), Minv=np.ascontiguousarray(Minv),
+        sizes=sizes, mass=np.ascontiguousarray(mass), Minv=np.ascontiguousarray(Minv),
         rows=np.ascontiguousarray(dense), xp=xp, xc=xc, xv=xv, up=up, uc=uc, uv=uv,
         par=np.ascontiguousarray(np.array(par)), code=_ints(code),
         src_ch=_ints([chan[src.channel] for src in structure.sources]),
         src_pos0=np.ascontiguousarray(src_pos0, dtype=float),
         knots=bank[0], coef=bank[1], cum=bank[2], first=bank[3], count=bank[4],
-        table=np.ascontiguousarray(np.array(table, dtype=float).reshape(-1, 2)))
+        period=bank[5], table=np.ascontiguousarray(np.array(table, dtype=float).reshape(-1, 2)))
     layout = Layout(n=n, n_sources=s, n_frictions=len(structure.frictions),
                     n_springs=len(structure.springs), n_loads=len(structure.loads),
                     n_motors=len(structure.motors))

@@ -1,6 +1,6 @@
 /* vsj's wrist as an FMI 2.0 co-simulation FMU, on the C engine (vsj.h).
  *
- * The FMU's resources hold the wrist exported by vsj (`model.json`, read by
+ * The FMU's resources hold the wrist exported by vsj (`model.vsjm`, read by
  * vsj_load_model) and `fmu.txt`, written by vsj.fmu beside modelDescription.xml:
  *
  *     vsj-fmu 2
@@ -854,7 +854,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         return refuse(f, "vsj's FMU is for co-simulation only%s", "");
     if (!fmuResourceLocation)
         return refuse(f, "no resource location given%s", "");
-    path = resource_path(fmuResourceLocation, "model.json");
+    path = resource_path(fmuResourceLocation, "model.vsjm");
     if (!path)
         return refuse(f, "out of memory%s", "");
     f->loaded = vsj_load_model(path, why, sizeof why);

@@ -222,7 +222,7 @@ static inline double vsj__friction(int64_t law, double b, double k, double kb, d
 static inline void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c, double t) {
     double *ch = w->chan + 3 * c;
     int64_t p0, npieces, koff, j, p;
-    double t0, t_last, tau, c0, c1, c2, c3;
+    double t0, t_last, tau, c0, c1, c2, c3, base;
     if (w->held) { /* held over a control period, from t = 0 */
         double v = w->held[c];
         ch[0] = v;
@@ -242,6 +242,16 @@ static inline void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c,
         return;
     }
     t_last = m->knots[koff + npieces];
+    base = 0.0;
+    if (t >= t_last && m->period[2 * c] > 0.0) {
+        /* a repeating channel: fold t into its last period, add the whole periods'
+         * integral */
+        double period = m->period[2 * c], turns = floor((t - t_last) / period) + 1.0;
+        t -= turns * period;
+        if (t < t_last - period) /* round-off at a period's end */
+            t = t_last - period;
+        base = turns * m->period[2 * c + 1];
+    }
     if (t >= t_last) {
         const double *cf;
         double v;
@@ -270,7 +280,8 @@ static inline void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c,
     c3 = m->coef[4 * p + 3];
     ch[0] = c0 + tau * (c1 + tau * (c2 + tau * c3));
     ch[1] = c1 + tau * (2.0 * c2 + 3.0 * c3 * tau);
-    ch[2] = m->cum[koff + j] + tau * (c0 + tau * (0.5 * c1 + tau * (c2 / 3.0 + 0.25 * c3 * tau)));
+    ch[2] = base + m->cum[koff + j]
+            + tau * (c0 + tau * (0.5 * c1 + tau * (c2 / 3.0 + 0.25 * c3 * tau)));
 }
 
 static inline void vsj__eval_source(const vsj_model *m, vsj_work *w, int64_t j) {

@@ -30,6 +30,12 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "vsj_layout.h"
+
+/* The C type of each kind of array in vsj_layout.h. */
+#define VSJ_TYPE_VSJ_REAL double
+#define VSJ_TYPE_VSJ_INT int64_t
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -69,76 +75,48 @@ enum vsj_spring_law {
     VSJ_GEOMETRIC_REPORT = 3  /* same parameters, the ring torque of eq 3.8 */
 };
 
-/* The compiled form of an assembled network. Every pointer refers to memory
- * the caller owns and keeps alive while the model is used; the engine never
- * writes through them. Matrices are row-major. Sizes:
- *   mass      (n + n_sources)^2    kinetic energy matrix over (v, u)
- *   Minv      n^2                  inverse of its free block
- *   xp, up    n_rows + 1           CSR row pointers (free / source parts)
- *   xc, xv    xp[n_rows]           column (< n) and value
- *   uc, uv    up[n_rows]           column (< n_sources) and value
- *   par       n_rows * VSJ_NPAR    parameters of each row:
- *             friction element: viscous b, stiction k, arctan sharpness k_b,
- *                               slope width w, peak (static over kinetic
- *                               level, >= 1), normal-force channel (-1: none),
- *                               first row and rows of its friction table (0
- *                               rows: none); Coulomb level k pi/2 f(t) mu(|s|)
- *                               with f the channel's value clipped to [0, 1]
- *                               and mu the table's coefficient at the slip
- *                               speed, peak times that at zero speed while the
- *                               element is stuck; 1 if the time-stepper
- *                               integrates its viscous part with the
- *                               trapezoidal rule (a damper), 0 for implicit
- *                               Euler (friction)
- *             spring:           the law's parameters (enum vsj_spring_law)
- *             motor:            resistance, inductance, torque constant
- *             pivot:            amplitude, fixed q, moving (1 or 0), q_min, q_max
- *   code      n_rows               law code (friction, spring) or input channel
- *                                  (load, motor); 0 for the pivot
- *   src_ch    n_sources            input channel of each velocity source
- *   src_pos0  n_sources            source angles at t = 0
- *   first, count  n_channels       each channel's first spline piece and number
- *   coef      n_pieces * 4         cubic coefficients c0 + c1 tau + c2 tau^2 + c3 tau^3
- *   knots, cum  n_pieces + n_channels
- *                                  knots of channel c at first[c] + c + j, and the
- *                                  integral of the channel from its first knot
- *   table     2 * n_table          friction tables: rows of (slip speed >= 0,
- *                                  coefficient >= 0), speeds increasing within a
- *                                  table; linear between rows, constant beyond
- */
+/* The compiled form of an assembled network: its sizes and arrays, each declared
+ * once in vsj_layout.h (VSJ_SIZES, VSJ_ARRAYS), which says what each holds. Every
+ * pointer refers to memory the caller owns and keeps alive while the model is used;
+ * the engine never writes through them. Matrices are row-major. The rows of `par`:
+ *   friction element: viscous b, stiction k, arctan sharpness k_b, slope width w, peak
+ *                     (static over kinetic level, >= 1), normal-force channel (-1:
+ *                     none), first row and rows of its friction table (0 rows: none);
+ *                     Coulomb level k pi/2 f(t) mu(|s|) with f the channel's value
+ *                     clipped to [0, 1] and mu the table's coefficient at the slip
+ *                     speed, peak times that at zero speed while the element is stuck;
+ *                     1 if the time-stepper integrates its viscous part with the
+ *                     trapezoidal rule (a damper), 0 for implicit Euler (friction)
+ *   spring:           the law's parameters (enum vsj_spring_law)
+ *   motor:            resistance, inductance, torque constant
+ *   pivot:            amplitude, fixed q, moving (1 or 0), q_min, q_max
+ * Input channel c is a cubic spline: pieces first[c] .. first[c] + count[c] - 1 with
+ * coefficients c0 + c1 tau + c2 tau^2 + c3 tau^3 and knots at first[c] + c + j; before
+ * its first knot it holds its first value, after its last its last value or, where
+ * period[2 c] > 0, it repeats its last period[2 c] seconds (period[2 c + 1]: the
+ * integral over one period). Friction tables are rows of (slip speed >= 0, coefficient
+ * >= 0), speeds increasing within a table; linear between rows, constant beyond. */
 typedef struct vsj_model {
-    int64_t n;           /* generalised coordinates */
-    int64_t n_sources;   /* velocity sources */
-    int64_t n_frictions;
-    int64_t n_springs;
-    int64_t n_loads;
-    int64_t n_motors;
-    int64_t n_channels;  /* input channels */
-    int64_t n_rows;      /* n_frictions + n_springs + n_loads + n_motors + 1 */
-    int64_t n_pieces;    /* spline pieces of all channels */
-    int64_t n_table;     /* rows of the friction tables */
-    const double *mass;
-    const double *Minv;
-    const int64_t *xp;
-    const int64_t *xc;
-    const double *xv;
-    const int64_t *up;
-    const int64_t *uc;
-    const double *uv;
-    const double *par;
-    const int64_t *code;
-    const int64_t *src_ch;
-    const double *src_pos0;
-    const double *knots;
-    const double *coef;
-    const double *cum;
-    const int64_t *first;
-    const int64_t *count;
-    const double *table;
+#define VSJ_SIZE_FIELD(name, doc) int64_t name;
+    VSJ_SIZES(VSJ_SIZE_FIELD)
+#undef VSJ_SIZE_FIELD
+#define VSJ_ARRAY_FIELD(name, kind, count, doc) const VSJ_TYPE_##kind *name;
+    VSJ_ARRAYS(VSJ_ARRAY_FIELD)
+#undef VSJ_ARRAY_FIELD
 } vsj_model;
 
 /* Run-time state of one computation (opaque; one per thread). */
 typedef struct vsj_work vsj_work;
+
+/* A model as bytes (blob.c): vsj_model_write writes m's versioned binary form into
+ * `out` if it holds `capacity` bytes, and returns the bytes it needs (call it with NULL
+ * to ask). vsj_model_read makes a model of its own from such bytes (checked: format,
+ * version, layout, sizes, checksum, then vsj_check_model), or returns NULL with the
+ * reason in `message`; free it with vsj_model_free. */
+size_t vsj_model_write(const vsj_model *m, unsigned char *out, size_t capacity);
+vsj_model *vsj_model_read(const unsigned char *data, size_t length, char *message,
+                          size_t size);
+void vsj_model_free(vsj_model *m);
 
 /* Checks sizes, indices, codes and finiteness of a model. Returns VSJ_OK, or
  * VSJ_BAD_ARGUMENT with a message in `message` (of `size` bytes). */
@@ -348,8 +326,8 @@ double vsj_step_pivot_position(const vsj_model *m, const double *s);
 
 /* ---- models from files ----------------------------------------------------- */
 
-/* A model read from a file written by `vsj export-model` (JSON), with the
- * memory behind it, the names of its inputs and its default initial stepper
+/* A model read from a file written by `vsj export-model` (binary, see load.c), with
+ * the memory behind it, the names of its inputs and its default initial stepper
  * state, and output rows: output k = sum_j rows[k * state_size + j] s[j]. */
 typedef struct vsj_loaded {
     vsj_model model;
@@ -363,12 +341,13 @@ typedef struct vsj_loaded {
     double period;              /* the control period it was exported for [s] */
     double rtol, atol, step;    /* dopri tolerances, time-stepper step [s] */
     int64_t substeps;           /* rk4 */
+    vsj_model *owned;           /* the memory of `model`'s arrays */
 } vsj_loaded;
 
 /* Reads a model file; NULL on failure with the reason in `message`. */
 vsj_loaded *vsj_load_model(const char *path, char *message, size_t size);
-/* The same from text in memory (`length` bytes). */
-vsj_loaded *vsj_parse_model(const char *text, size_t length, char *message, size_t size);
+/* The same from the file's bytes in memory (`length` bytes). */
+vsj_loaded *vsj_parse_model(const char *data, size_t length, char *message, size_t size);
 void vsj_free_loaded(vsj_loaded *loaded);
 
 #ifdef __cplusplus

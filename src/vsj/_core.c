@@ -1,4 +1,5 @@
-/* vsj.engine._core: the Python binding of the C engine (c/vsj.h).
+/* vsj._core: the Python binding of the C engine (engine/c/vsj.h), a leaf of the
+ * package: it adds no physics and imports nothing of vsj.
  *
  * Thin: it checks what it hands to C (buffer types, shapes, model indices)
  * and adds no physics. Arrays are taken through the buffer protocol, so the
@@ -14,7 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "c/vsj.h"
+#include "engine/c/vsj.h"
 
 /* ---- buffers ------------------------------------------------------------------ */
 
@@ -78,202 +79,220 @@ static Py_ssize_t items(const arg *a) { return a->view.len / a->view.itemsize; }
 
 /* ---- Model --------------------------------------------------------------------- */
 
-#define N_ARRAYS 18
-
-static const char *const ARRAY_NAMES[N_ARRAYS] = {
-    "mass", "Minv", "xp", "xc", "xv", "up", "uc", "uv", "par", "code",
-    "src_ch", "src_pos0", "knots", "coef", "cum", "first", "count", "table"};
-static const enum kind ARRAY_KINDS[N_ARRAYS] = {
-    DOUBLES, DOUBLES, INTS, INTS, DOUBLES, INTS, INTS, DOUBLES, DOUBLES, INTS,
-    INTS, DOUBLES, DOUBLES, DOUBLES, DOUBLES, INTS, INTS, DOUBLES};
-
+/* A model of its own: made from Python arrays (named as in vsj_layout.h) or from
+ * bytes, through the model's binary form (c/blob.c), so that every model the engine
+ * runs was checked by the same reader. */
 typedef struct {
     PyObject_HEAD
-    vsj_model m;
-    void *arrays[N_ARRAYS];
+    vsj_model *model;
+    vsj_model m; /* a copy of *model's fields, for the functions below */
 } ModelObject;
 
 static void model_dealloc(ModelObject *self) {
-    int i;
-    for (i = 0; i < N_ARRAYS; i++)
-        free(self->arrays[i]);
+    vsj_model_free(self->model);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
-/* Expected items of each array, from the sizes (and the CSR pointers). */
-static Py_ssize_t expected_items(int i, const vsj_model *m) {
-    int64_t n = m->n, s = m->n_sources, rows = m->n_rows;
-    switch (i) {
-    case 0: return (Py_ssize_t)((n + s) * (n + s));
-    case 1: return (Py_ssize_t)(n * n);
-    case 2: case 5: return (Py_ssize_t)(rows + 1);
-    case 3: case 4: return (Py_ssize_t)m->xp[rows];
-    case 6: case 7: return (Py_ssize_t)m->up[rows];
-    case 8: return (Py_ssize_t)(rows * VSJ_NPAR);
-    case 9: return (Py_ssize_t)rows;
-    case 10: case 11: return (Py_ssize_t)s;
-    case 12: case 14: return (Py_ssize_t)(m->n_pieces + m->n_channels);
-    case 13: return (Py_ssize_t)(4 * m->n_pieces);
-    case 17: return (Py_ssize_t)(2 * m->n_table);
-    default: return (Py_ssize_t)m->n_channels;
-    }
-}
+#define VSJ__COUNT_ONE(...) +1
+static const char *const SIZE_NAMES[] = {
+#define VSJ__SIZE_NAME(name, doc) #name,
+    VSJ_SIZES(VSJ__SIZE_NAME)
+#undef VSJ__SIZE_NAME
+};
+static const char *const ARRAY_NAMES[] = {
+#define VSJ__ARRAY_NAME(name, kind, count, doc) #name,
+    VSJ_ARRAYS(VSJ__ARRAY_NAME)
+#undef VSJ__ARRAY_NAME
+};
+static const int ARRAY_KINDS[] = {
+#define VSJ__ARRAY_KIND(name, kind, count, doc) kind,
+    VSJ_ARRAYS(VSJ__ARRAY_KIND)
+#undef VSJ__ARRAY_KIND
+};
+static const char *const ARRAY_DOCS[] = {
+#define VSJ__ARRAY_DOC(name, kind, count, doc) doc,
+    VSJ_ARRAYS(VSJ__ARRAY_DOC)
+#undef VSJ__ARRAY_DOC
+};
+#define N_SIZES ((int)(sizeof SIZE_NAMES / sizeof SIZE_NAMES[0]))
+#define N_ARRAYS ((int)(sizeof ARRAY_NAMES / sizeof ARRAY_NAMES[0]))
 
-static PyObject *model_new(PyTypeObject *type, PyObject *args, PyObject *kwds) {
-    static char *keywords[] = {"dims", "mass", "Minv", "xp", "xc", "xv", "up", "uc", "uv", "par",
-                               "code", "src_ch", "src_pos0", "knots", "coef", "cum", "first",
-                               "count", "table", NULL};
-    PyObject *objs[N_ARRAYS + 1];
-    arg dims, a;
-    ModelObject *self;
-    const int64_t *d;
+static ModelObject *model_of_bytes(PyTypeObject *type, const unsigned char *data, size_t len) {
     char message[256];
-    int i;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "OOOOOOOOOOOOOOOOOOO:Model", keywords,
-                                     &objs[0], &objs[1], &objs[2], &objs[3], &objs[4], &objs[5],
-                                     &objs[6], &objs[7], &objs[8], &objs[9], &objs[10],
-                                     &objs[11], &objs[12], &objs[13], &objs[14], &objs[15],
-                                     &objs[16], &objs[17], &objs[18]))
+    ModelObject *self;
+    vsj_model *model = vsj_model_read(data, len, message, sizeof message);
+    if (!model) {
+        PyErr_SetString(PyExc_ValueError, message);
         return NULL;
-    if (get(objs[0], &dims, INTS, 0, 8, "dims") < 0)
-        return NULL;
+    }
     self = (ModelObject *)type->tp_alloc(type, 0);
     if (!self) {
-        release(&dims);
+        vsj_model_free(model);
         return NULL;
     }
-    d = (const int64_t *)dims.view.buf;
-    for (i = 0; i < 8; i++)
-        if (d[i] < 0 || d[i] > 100000000) {
-            PyErr_Format(PyExc_ValueError, "dims: size %d is %lld, outside 0..1e8", i,
-                         (long long)d[i]);
-            release(&dims);
-            Py_DECREF(self);
+    self->model = model;
+    self->m = *model;
+    return self;
+}
+
+/* Model(sizes, arrays): sizes in the order of vsj_layout.h's VSJ_SIZES, arrays a
+ * mapping from each VSJ_ARRAYS name to a contiguous float64 or int64 array */
+static PyObject *model_new(PyTypeObject *type, PyObject *args, PyObject *kwds) {
+    static char *keywords[] = {"sizes", "arrays", NULL};
+    PyObject *osizes, *oarrays, *result = NULL;
+    arg sizes, held[N_ARRAYS];
+    vsj_model probe;
+    int64_t values[N_SIZES];
+    unsigned char *bytes = NULL;
+    size_t need;
+    int i, k, taken = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "OO!:Model", keywords, &osizes, &PyDict_Type,
+                                     &oarrays))
+        return NULL;
+    if (get(osizes, &sizes, INTS, 0, N_SIZES, "sizes") < 0)
+        return NULL;
+    memcpy(values, sizes.view.buf, sizeof values);
+    release(&sizes);
+    for (i = 0; i < N_SIZES; i++)
+        if (values[i] < 0 || values[i] > 100000000) {
+            PyErr_Format(PyExc_ValueError, "sizes: %s is %lld, outside 0..1e8", SIZE_NAMES[i],
+                         (long long)values[i]);
             return NULL;
         }
-    self->m.n = d[0];
-    self->m.n_sources = d[1];
-    self->m.n_frictions = d[2];
-    self->m.n_springs = d[3];
-    self->m.n_loads = d[4];
-    self->m.n_motors = d[5];
-    self->m.n_channels = d[6];
-    self->m.n_rows = d[7];
-    release(&dims);
-    if (self->m.n_rows != self->m.n_frictions + self->m.n_springs + self->m.n_loads
-                              + self->m.n_motors + 1) {
+    memset(&probe, 0, sizeof probe);
+    k = 0;
+#define VSJ__SET_SIZE(name, doc) probe.name = values[k++];
+    VSJ_SIZES(VSJ__SET_SIZE)
+#undef VSJ__SET_SIZE
+    if (probe.n_rows != probe.n_frictions + probe.n_springs + probe.n_loads + probe.n_motors + 1) {
         PyErr_SetString(PyExc_ValueError,
-                        "dims: rows must be frictions + springs + loads + motors + 1");
-        Py_DECREF(self);
+                        "sizes: n_rows must be n_frictions + n_springs + n_loads + n_motors + 1");
         return NULL;
     }
-    /* the number of spline pieces comes from the length of coef */
-    if (get(objs[14], &a, DOUBLES, 0, -1, "coef") < 0) {
-        Py_DECREF(self);
+    k = 0;
+    /* each array in table order: its count may read an earlier one (CSR pointers) */
+#define VSJ__TAKE(name, kind, count, doc)                                                   \
+    {                                                                                       \
+        const vsj_model *M = &probe;                                                        \
+        PyObject *o = PyDict_GetItemString(oarrays, #name);                                 \
+        Py_ssize_t want;                                                                    \
+        if (!o) {                                                                           \
+            PyErr_SetString(PyExc_KeyError, "arrays: no array " #name);                     \
+            goto done;                                                                      \
+        }                                                                                   \
+        want = (Py_ssize_t)(count);                                                         \
+        if (get(o, &held[k], kind == VSJ_REAL ? DOUBLES : INTS, 0, want, #name) < 0)        \
+            goto done;                                                                      \
+        taken = k + 1;                                                                      \
+        probe.name = (const VSJ_TYPE_##kind *)held[k].view.buf;                             \
+        if (kind == VSJ_INT && (k == 2 || k == 5)) { /* CSR pointers, before they size */   \
+            const int64_t *p_ = (const int64_t *)probe.name;                                \
+            int64_t r_;                                                                     \
+            for (r_ = 0; r_ < probe.n_rows; r_++)                                           \
+                if (p_[0] != 0 || p_[r_ + 1] < p_[r_] || p_[probe.n_rows] > 100000000) {    \
+                    PyErr_SetString(PyExc_ValueError, "model array " #name                  \
+                                    ": pointers must start at 0 and not decrease");         \
+                    goto done;                                                              \
+                }                                                                           \
+        }                                                                                   \
+        k++;                                                                                \
+        (void)M;                                                                            \
+    }
+    VSJ_ARRAYS(VSJ__TAKE)
+#undef VSJ__TAKE
+    need = vsj_model_write(&probe, NULL, 0);
+    bytes = (unsigned char *)malloc(need);
+    if (!bytes) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    vsj_model_write(&probe, bytes, need);
+    result = (PyObject *)model_of_bytes(type, bytes, need);
+done:
+    for (i = 0; i < taken; i++)
+        release(&held[i]);
+    free(bytes);
+    return result;
+}
+
+/* Model.from_bytes(data): a model from its binary form */
+static PyObject *model_from_bytes(PyObject *cls, PyObject *arg_) {
+    Py_buffer view;
+    PyObject *result;
+    if (PyObject_GetBuffer(arg_, &view, PyBUF_SIMPLE) != 0)
         return NULL;
-    }
-    self->m.n_pieces = (int64_t)(items(&a) / 4);
-    release(&a);
-    /* and the friction tables' rows from the length of table */
-    if (get(objs[18], &a, DOUBLES, 0, -1, "table") < 0) {
-        Py_DECREF(self);
-        return NULL;
-    }
-    self->m.n_table = (int64_t)(items(&a) / 2);
-    release(&a);
-    for (i = 0; i < N_ARRAYS; i++) {
-        Py_ssize_t want;
-        size_t bytes;
-        if (get(objs[i + 1], &a, ARRAY_KINDS[i], 0, -1, ARRAY_NAMES[i]) < 0) {
-            Py_DECREF(self);
-            return NULL;
-        }
-        want = expected_items(i, &self->m);
-        if (items(&a) != want || (i == 2 || i == 5 ? want < 1 : 0)) {
-            PyErr_Format(PyExc_ValueError, "model array %s: expected %zd items, got %zd",
-                         ARRAY_NAMES[i], want, items(&a));
-            release(&a);
-            Py_DECREF(self);
-            return NULL;
-        }
-        bytes = (size_t)a.view.len;
-        self->arrays[i] = malloc(bytes ? bytes : 1);
-        if (!self->arrays[i]) {
-            release(&a);
-            Py_DECREF(self);
-            return PyErr_NoMemory();
-        }
-        memcpy(self->arrays[i], a.view.buf, bytes);
-        release(&a);
-        /* CSR pointers must be sane before their last entry sizes the next arrays */
-        if (i == 2 || i == 5) {
-            const int64_t *ptr = (const int64_t *)self->arrays[i];
-            int64_t r;
-            for (r = 0; r < self->m.n_rows; r++)
-                if (ptr[r + 1] < ptr[r] || ptr[0] != 0) {
-                    PyErr_Format(PyExc_ValueError, "model array %s: pointers must start at 0 "
-                                 "and not decrease", ARRAY_NAMES[i]);
-                    Py_DECREF(self);
-                    return NULL;
-                }
-            if (ptr[self->m.n_rows] > 100000000) {
-                PyErr_Format(PyExc_ValueError, "model array %s: too many entries",
-                             ARRAY_NAMES[i]);
-                Py_DECREF(self);
-                return NULL;
-            }
-            if (i == 2)
-                self->m.xp = ptr;
-            else
-                self->m.up = ptr;
-        }
-    }
-    self->m.mass = (const double *)self->arrays[0];
-    self->m.Minv = (const double *)self->arrays[1];
-    self->m.xc = (const int64_t *)self->arrays[3];
-    self->m.xv = (const double *)self->arrays[4];
-    self->m.uc = (const int64_t *)self->arrays[6];
-    self->m.uv = (const double *)self->arrays[7];
-    self->m.par = (const double *)self->arrays[8];
-    self->m.code = (const int64_t *)self->arrays[9];
-    self->m.src_ch = (const int64_t *)self->arrays[10];
-    self->m.src_pos0 = (const double *)self->arrays[11];
-    self->m.knots = (const double *)self->arrays[12];
-    self->m.coef = (const double *)self->arrays[13];
-    self->m.cum = (const double *)self->arrays[14];
-    self->m.first = (const int64_t *)self->arrays[15];
-    self->m.count = (const int64_t *)self->arrays[16];
-    self->m.table = (const double *)self->arrays[17];
-    if (vsj_check_model(&self->m, message, sizeof message) != VSJ_OK) {
-        PyErr_SetString(PyExc_ValueError, message);
-        Py_DECREF(self);
-        return NULL;
-    }
-    return (PyObject *)self;
+    result = (PyObject *)model_of_bytes((PyTypeObject *)cls, (const unsigned char *)view.buf,
+                                        (size_t)view.len);
+    PyBuffer_Release(&view);
+    return result;
+}
+
+/* model.to_bytes(): its binary form */
+static PyObject *model_to_bytes(ModelObject *self, PyObject *Py_UNUSED(ignored)) {
+    size_t need = vsj_model_write(&self->m, NULL, 0);
+    PyObject *out = PyBytes_FromStringAndSize(NULL, (Py_ssize_t)need);
+    if (out)
+        vsj_model_write(&self->m, (unsigned char *)PyBytes_AS_STRING(out), need);
+    return out;
 }
 
 static PyObject *model_sizes(ModelObject *self, PyObject *Py_UNUSED(ignored)) {
-    return Py_BuildValue("(LLLLLLLL)", (long long)self->m.n, (long long)self->m.n_sources,
-                         (long long)self->m.n_frictions, (long long)self->m.n_springs,
-                         (long long)self->m.n_loads, (long long)self->m.n_motors,
-                         (long long)self->m.n_channels, (long long)self->m.n_rows);
+    PyObject *out = PyDict_New();
+    if (!out)
+        return NULL;
+#define VSJ__SIZE_ITEM(name, doc)                                                   \
+    {                                                                               \
+        PyObject *v_ = PyLong_FromLongLong((long long)self->m.name);                \
+        if (!v_ || PyDict_SetItemString(out, #name, v_) < 0) {                      \
+            Py_XDECREF(v_);                                                         \
+            Py_DECREF(out);                                                         \
+            return NULL;                                                            \
+        }                                                                           \
+        Py_DECREF(v_);                                                              \
+    }
+    VSJ_SIZES(VSJ__SIZE_ITEM)
+#undef VSJ__SIZE_ITEM
+    return out;
 }
 
 static PyMethodDef model_methods[] = {
-    {"sizes", (PyCFunction)model_sizes, METH_NOARGS,
-     "(n, sources, frictions, springs, loads, motors, channels, rows)"},
+    {"sizes", (PyCFunction)model_sizes, METH_NOARGS, "The model's sizes, by name."},
+    {"to_bytes", (PyCFunction)model_to_bytes, METH_NOARGS, "The model's binary form."},
+    {"from_bytes", (PyCFunction)model_from_bytes, METH_O | METH_CLASS,
+     "A model from its binary form (checked)."},
     {NULL, NULL, 0, NULL}};
 
 static PyTypeObject ModelType = {
     PyVarObject_HEAD_INIT(NULL, 0)
-    .tp_name = "vsj.engine._core.Model",
+    .tp_name = "vsj._core.Model",
     .tp_basicsize = sizeof(ModelObject),
     .tp_dealloc = (destructor)model_dealloc,
     .tp_flags = Py_TPFLAGS_DEFAULT,
-    .tp_doc = "A checked copy of an engine model's arrays (vsj.engine.model.EngineModel).",
+    .tp_doc = "A checked model of the engine: Model(sizes, arrays), or Model.from_bytes.",
     .tp_methods = model_methods,
     .tp_new = model_new,
 };
+
+/* The layout, for Python: {"sizes": (names...), "arrays": ((name, kind, doc), ...)}
+ * with kind "float64" or "int64". */
+static PyObject *layout_object(void) {
+    PyObject *sizes = PyTuple_New(N_SIZES), *arrays = PyTuple_New(N_ARRAYS), *out;
+    int i;
+    if (!sizes || !arrays) {
+        Py_XDECREF(sizes);
+        Py_XDECREF(arrays);
+        return NULL;
+    }
+    for (i = 0; i < N_SIZES; i++)
+        PyTuple_SET_ITEM(sizes, i, PyUnicode_FromString(SIZE_NAMES[i]));
+    for (i = 0; i < N_ARRAYS; i++)
+        PyTuple_SET_ITEM(arrays, i, Py_BuildValue("(sss)", ARRAY_NAMES[i],
+                                                  ARRAY_KINDS[i] == VSJ_REAL ? "float64"
+                                                                             : "int64",
+                                                  ARRAY_DOCS[i]));
+    out = Py_BuildValue("{sNsN}", "sizes", sizes, "arrays", arrays);
+    return out;
+}
 
 /* ---- Work ----------------------------------------------------------------------- */
 
@@ -309,7 +328,7 @@ static PyObject *work_new(PyTypeObject *type, PyObject *args, PyObject *kwds) {
 
 static PyTypeObject WorkType = {
     PyVarObject_HEAD_INIT(NULL, 0)
-    .tp_name = "vsj.engine._core.Work",
+    .tp_name = "vsj._core.Work",
     .tp_basicsize = sizeof(WorkObject),
     .tp_dealloc = (destructor)work_dealloc,
     .tp_flags = Py_TPFLAGS_DEFAULT,
@@ -1372,7 +1391,7 @@ static PyMethodDef methods[] = {
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {
-    PyModuleDef_HEAD_INIT, "vsj.engine._core",
+    PyModuleDef_HEAD_INIT, "vsj._core",
     "The compiled engine of vsj (C99 library vsj.h) behind a thin binding.", -1, methods,
     NULL, NULL, NULL, NULL};
 
@@ -1392,6 +1411,10 @@ PyMODINIT_FUNC PyInit__core(void) {
     Py_INCREF(&WorkType);
     if (PyModule_AddObject(m, "Work", (PyObject *)&WorkType) < 0) {
         Py_DECREF(&WorkType);
+        Py_DECREF(m);
+        return NULL;
+    }
+    if (PyModule_AddObject(m, "LAYOUT", layout_object()) < 0) {
         Py_DECREF(m);
         return NULL;
     }

@@ -1,0 +1,62 @@
+/*
+ * The compiled model's layout, declared once.
+ *
+ * Every size and every array of `vsj_model` is one line of the tables below.
+ * The struct (vsj.h), the Python binding (its constructor and the names it
+ * gives Python), the checks of sizes, the binary model files that `vsj
+ * export-model` and the FMU carry (blob.c) and their reader all expand these
+ * tables with the preprocessor, so adding an array is one line here (the
+ * MuJoCo way: its mjxmacro.h does the same for mjModel).
+ *
+ * VSJ_SIZES(X): X(name, description)
+ * VSJ_ARRAYS(X): X(name, kind, count, description); kind is VSJ_REAL (double)
+ *   or VSJ_INT (int64_t); count is an expression of the model M whose arrays
+ *   earlier in the table are already set (the CSR columns count what their
+ *   pointers say).
+ */
+#ifndef VSJ_LAYOUT_H
+#define VSJ_LAYOUT_H
+
+#define VSJ_SIZES(X)                                                                    \
+    X(n, "generalised coordinates (free flanges after the constraints are eliminated)") \
+    X(n_sources, "velocity sources")                                                    \
+    X(n_frictions, "friction elements")                                                 \
+    X(n_springs, "springs")                                                             \
+    X(n_loads, "external torques")                                                      \
+    X(n_motors, "DC motors")                                                            \
+    X(n_channels, "input channels")                                                     \
+    X(n_rows, "element rows: frictions, springs, loads, motors, then the pivot")        \
+    X(n_pieces, "cubic spline pieces of all input channels")                            \
+    X(n_table, "rows of the friction tables")
+
+#define VSJ_ARRAYS(X)                                                                          \
+    X(mass, VSJ_REAL, (M->n + M->n_sources) * (M->n + M->n_sources),                           \
+      "kinetic energy matrix over (v, u), row-major")                                          \
+    X(Minv, VSJ_REAL, M->n * M->n, "inverse of the mass matrix's free block")                  \
+    X(xp, VSJ_INT, M->n_rows + 1, "CSR pointers of the rows' free-coordinate part")            \
+    X(xc, VSJ_INT, M->xp[M->n_rows], "their columns (< n)")                                    \
+    X(xv, VSJ_REAL, M->xp[M->n_rows], "their values")                                          \
+    X(up, VSJ_INT, M->n_rows + 1, "CSR pointers of the rows' source part")                     \
+    X(uc, VSJ_INT, M->up[M->n_rows], "their columns (< n_sources)")                            \
+    X(uv, VSJ_REAL, M->up[M->n_rows], "their values")                                          \
+    X(par, VSJ_REAL, M->n_rows * VSJ_NPAR, "parameters of each row (see vsj.h)")               \
+    X(code, VSJ_INT, M->n_rows, "law of each friction and spring row, input channel of each "  \
+      "load and motor row, 0 for the pivot")                                                   \
+    X(src_ch, VSJ_INT, M->n_sources, "input channel of each velocity source")                 \
+    X(src_pos0, VSJ_REAL, M->n_sources, "source angles at t = 0")                             \
+    X(knots, VSJ_REAL, M->n_pieces + M->n_channels,                                            \
+      "knots of channel c at first[c] + c + j")                                                \
+    X(coef, VSJ_REAL, 4 * M->n_pieces, "cubic coefficients of each piece")                     \
+    X(cum, VSJ_REAL, M->n_pieces + M->n_channels,                                              \
+      "integral of each channel from its first knot to each knot")                             \
+    X(first, VSJ_INT, M->n_channels, "each channel's first spline piece")                      \
+    X(count, VSJ_INT, M->n_channels, "each channel's number of pieces")                        \
+    X(period, VSJ_REAL, 2 * M->n_channels,                                                     \
+      "each channel's period once it repeats (0: it does not; its pieces end with one "        \
+      "period) and its integral over one period")                                              \
+    X(table, VSJ_REAL, 2 * M->n_table, "friction tables: rows of (slip speed, coefficient)")
+
+#define VSJ_REAL 0
+#define VSJ_INT 1
+
+#endif /* VSJ_LAYOUT_H */
