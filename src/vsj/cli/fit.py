@@ -471,6 +471,8 @@ def cmd_fit_wrist(args) -> int:
                      f"  {e.name} = {e.value * 1e3:.4g} ms ({e.status})")
     for c in fit.combinations:
         lines.append(f"  not determined by these data: {c}")
+    if fit.uncertainty:
+        lines.append(f"  standard errors: {fit.uncertainty['description']}")
     lines.append(f"  {fit.reached} of {len(fit.starts)} starts reached the best optimum (same "
                  "cost and end point within the noise)")
     for kind, per in fit.quality.items():

@@ -33,17 +33,29 @@ Each compared signal's delay behind the inputs is fitted with the parameters
 (`vsj.identification.wrist_model`, `DELAY_BOUND`); the delays start at zero
 from every start and are reported apart from the parameters.
 
-**Uncertainty.** The covariance is a sandwich over blocks of `BLOCK` s of
-residuals (see `_statistics`), from a central-difference Jacobian at the
-optimum with steps of about half a standard error (`_central_jacobian`); the
-physical parameters' block of it is reported (the delays' uncertainty is in
-it). Identifiability comes
-from the singular values of the Jacobian in relative parameter changes: a
-direction whose relative standard error exceeds `UNDETERMINED` (the data fix
-that combination of parameters to worse than +-50 %) is not determined; the
-parameters along it (share above `BLIND_SHARE`) are reported as not determined,
-without an interval, and the combination is named. The covariance is taken over
-the determined directions only.
+**Uncertainty.** The standard errors have two parts (`_covariance`), from a
+central-difference Jacobian at the optimum with steps of about half a
+standard error (`_central_jacobian`):
+
+* the compared signals' own errors: a sandwich over blocks of consecutive
+  samples, the block length chosen from the residuals' autocorrelation (the
+  shortest at which block sums are uncorrelated, `_block_samples`);
+* the noise of the measured inputs (external torques), which the model takes
+  as exact: simulated at the optimum with fresh noise of the inputs' own level
+  (`Setup.input_draws` draws, `WristModel.perturbed_residuals`), each draw's
+  residual change taken through one Gauss-Newton step; the sandwich's
+  expected share of it is taken out so that it is not counted twice.
+
+95 % intervals use Student's t with Welch-Satterthwaite degrees of freedom
+(blocks and draws). `WristFit.uncertainty` (``uncertainty`` in the JSON)
+says how they were computed. The physical parameters' block of the
+covariance is reported (the delays' uncertainty is in it). Identifiability
+comes from the singular values of the Jacobian in relative parameter
+changes: a direction whose relative standard error exceeds `UNDETERMINED`
+(the data fix that combination of parameters to worse than +-50 %) is not
+determined; the parameters along it (share above `BLIND_SHARE`) are reported
+as not determined, without an interval, and the combination is named. The
+covariance is taken over the determined directions only.
 
 **Fit quality** per compared signal: NRMSE (rms error over the signal's range)
 and fit % (``100 (1 - |y - y_sim| / |y - mean y|)``, as MATLAB's ``compare``),
@@ -85,12 +97,18 @@ FD_STEP = {"arctan": 1e-4, "stiction": 1e-3}
 COVARIANCE_STEP = 0.5
 #: Default bounds: the start divided and multiplied by this.
 BOUND_FACTOR = 5.0
-#: Block length [s] of the covariance's sandwich (see `_statistics`).
-BLOCK = 0.5
+#: Level of the test that chooses the sandwich's block length, and the fewest blocks it
+#: may leave (`_block_samples`).
+BLOCKING_LEVEL, MIN_BLOCKS = 0.99, 8
 #: Delays of the compared signals (`vsj.identification.wrist_model`): bounds [s] either
 #: way (well inside a window's lead, which leaves room to read the model's signal that
 #: much earlier or later) and the unit [s] they are fitted and judged in.
 DELAY_BOUND, DELAY_UNIT = 0.02, 1e-3
+#: The windows' start states are read again at the fitted delays (`_read_states_late`)
+#: when a delay has moved by more than this [s] since they were read: at the wrist's
+#: speeds of a few rad/s, 10 us moves a start angle by a tenth of the encoders' noise.
+#: At most `STATE_PASSES` such passes (each a short refit) follow the first fit.
+STATE_DELAY_TOLERANCE, STATE_PASSES = 1e-5, 3
 #: Seconds of the log that each start is fitted to (`_subset`): a start only has to find
 #: its basin; the best one is then refined on every window.
 START_SECONDS = 10.0
@@ -151,6 +169,10 @@ class WristFit:
     notes: list[str] = field(default_factory=list)
     traces: dict = field(default_factory=dict, repr=False)
     delays: list[Estimate] = field(default_factory=list)
+    #: How the standard errors were computed (`_covariance`): method, block length,
+    #: draws of the inputs' noise, each parameter's share of variance from the inputs
+    #: and its degrees of freedom.
+    uncertainty: dict = field(default_factory=dict)
 
     @property
     def names(self) -> list[str]:
@@ -187,7 +209,8 @@ class WristFit:
             "quality": {kind: {name: vars(q) for name, q in per.items()}
                         for kind, per in self.quality.items()},
             "simulations": self.simulations, "simulated_seconds": self.simulated_seconds,
-            "wall_time": self.wall_time, "notes": self.notes}
+            "wall_time": self.wall_time, "notes": self.notes,
+            "uncertainty": self.uncertainty}
 
     def overrides(self, files: str) -> dict:
         """Parameter-file overrides of the determined estimates, ``source`` saying where
@@ -335,12 +358,18 @@ def fit_wrist(logs: Sequence[Measurement], params: Parameters, setup: Setup, *,
     smooth = _solve(_Problem(model, scale, SMOOTH), runs[best].x, lo_t, hi_t,
                     max(3, max_iterations // 3))
     say(f"smooth law, every window: cost {smooth.cost:.6g}")
+    _read_states_late(model, smooth, scale, n_par)
     final = _solve(_Problem(model, scale, FINAL), smooth.x, lo_t, hi_t, max_iterations)
-    # re-weight: each signal's noise from its own residuals (never below the data's own),
-    # so that a signal the model cannot follow does not dominate; then finish the fit
-    noise = _residual_noise(model, final.fun)
-    if any(noise[k] > 1.5 * model.noise[k] for k in noise):
-        model.set_noise(noise)
+    for _ in range(STATE_PASSES):
+        # re-weight: each signal's noise from its own residuals (never below the data's
+        # own), so that a signal the model cannot follow does not dominate; and read the
+        # windows' start states at the delays just fitted; then finish the fit
+        noise = _residual_noise(model, final.fun)
+        reweight = any(noise[k] > 1.5 * model.noise[k] for k in noise)
+        if reweight:
+            model.set_noise(noise)
+        if not (_read_states_late(model, final, scale, n_par) or reweight):
+            break
         final = _solve(_Problem(model, scale, FINAL), final.x, lo_t, hi_t,
                        max(3, max_iterations // 3))
     noise = model.noise
@@ -352,7 +381,13 @@ def fit_wrist(logs: Sequence[Measurement], params: Parameters, setup: Setup, *,
     if not ok:
         raise SimulationError("the wrist failed to simulate at the identified parameters")
     final.jac = _central_jacobian(_Problem(model, scale, FINAL), final)
-    result = _statistics(model, final, scale, lo, hi, base)
+    drawn = None
+    if setup.input_draws > 0 and model.noisy_inputs():
+        perturbed, ran = model.perturbed_residuals(values, FINAL, setup.input_draws, seed=seed)
+        # a draw the wrist failed to simulate says nothing about the noise's effect
+        drawn = perturbed[ran] - final.fun[None]
+        say(f"inputs' noise: {int(np.sum(ran))} draws")
+    result = _statistics(model, final, scale, lo, hi, base, drawn)
     result.starts = [{"start": {n: float(v) for n, v in zip(model.names, p * scale)},
                       "end": {n: float(v) for n, v in zip(model.names, r.x * scale)},
                       "cost": float(r.cost), "reached_best": bool(ok)}
@@ -368,6 +403,10 @@ def fit_wrist(logs: Sequence[Measurement], params: Parameters, setup: Setup, *,
         fitted = dict(zip(model.delay_names, values[n_par:]))
         vvalues = np.concatenate([values[:n_par],
                                   [fitted.get(n, 0.0) for n in vmodel.delay_names]])
+        # and the start states are read as the fit read its own
+        read = dict(zip(model.delay_names, model.state_delays))
+        if vmodel.delay_names:
+            vmodel.set_state_delays([read.get(n, 0.0) for n in vmodel.delay_names])
         q, traces, _ = _quality(vmodel, vvalues)
         result.quality["validation"] = q
         result.traces["validation"] = traces
@@ -385,6 +424,29 @@ def fit_wrist(logs: Sequence[Measurement], params: Parameters, setup: Setup, *,
                      f"compared: {', '.join(o.name for o in model.outputs)}; inputs: "
                      + ", ".join(f"{c} <- {col}" for c, (col, _) in model.channels.items())]
     return result
+
+
+def _read_states_late(model: WristModel, result, scale: np.ndarray, n_par: int) -> bool:
+    """Read the windows' start states at the delays of the least-squares ``result``
+    (`WristModel.set_state_delays`) when one has moved by more than
+    `STATE_DELAY_TOLERANCE` since they were read; returns whether they were read
+    again. A delay the data do not determine (its standard error, from the solver's
+    Jacobian, above `UNDETERMINED` of `DELAY_UNIT`, as `_statistics` judges it) is
+    taken as zero: a signal that does not move leaves its delay free to wander to a
+    bound, and its start would be read there."""
+    delays = result.x[n_par:] * scale[n_par:]
+    if not len(delays):
+        return False
+    J = np.asarray(result.jac, dtype=float)
+    s2 = float(np.sum(result.fun ** 2)) / max(len(result.fun) - len(result.x), 1)
+    with np.errstate(invalid="ignore"):
+        se = np.sqrt(s2 * np.clip(np.diag(np.linalg.pinv(J.T @ J)), 0.0, None))
+    determined = (J[:, n_par:] != 0).any(axis=0) & (se[n_par:] * scale[n_par:]
+                                                     <= UNDETERMINED * DELAY_UNIT)
+    delays = np.where(determined, delays, 0.0)
+    if np.max(np.abs(delays - model.state_delays)) <= STATE_DELAY_TOLERANCE:
+        return False
+    return model.set_state_delays(delays)
 
 
 def _central_jacobian(problem: _Problem, result) -> np.ndarray:
@@ -449,7 +511,12 @@ def _residual_noise(model: WristModel, weighted: np.ndarray) -> dict[str, float]
     return out
 
 
-def _statistics(model: WristModel, result, scale, lo, hi, base) -> WristFit:
+def _statistics(model: WristModel, result, scale, lo, hi, base,
+                drawn: np.ndarray | None = None) -> WristFit:
+    """Estimates, covariance and identifiability at the optimum ``result`` (its
+    ``jac`` the central-difference Jacobian); ``drawn``: residual changes (draws,
+    compared values) that fresh noise of the measured inputs makes
+    (`WristModel.perturbed_residuals` less ``result.fun``), or None."""
     n_phys = len(model.names)
     names = model.names + model.delay_names
     n_par = len(names)
@@ -483,26 +550,21 @@ def _statistics(model: WristModel, result, scale, lo, hi, base) -> WristFit:
                                f"{v[i]:.2g} {names[i]} [ms]" for i in big)
             combinations.append(f"{terms} (relative standard error {_pct(rel_se[k])})")
     keep = ~blind
-    # Residuals of a windowed output-error fit are not white: an error in a window's
-    # measured start state, or the noise of a measured input, lasts as long as the
-    # wrist remembers it (with stiction, a stick phase). The covariance is therefore
-    # the sandwich over blocks of `BLOCK` s of consecutive samples (all signals
-    # together), which holds for errors correlated over less than a block.
-    inv = (Vt[keep].T / sv[keep] ** 2) @ Vt[keep]
-    g = np.zeros((n_par,))
-    meat = np.zeros((n_par, n_par))
-    for rows in _blocks(model):
-        g = Jrel[rows].T @ result.fun[rows]
-        meat += np.outer(g, g)
-    cov_rel = inv @ meat @ inv * (m / max(dof, 1))
-    cov = cov_rel * np.outer(unit, unit)
     bad = np.array([names[i] in undetermined or active[i] for i in range(n_par)])
+    inv = (Vt[keep].T / sv[keep] ** 2) @ Vt[keep]
+    cov_rel, var_out, var_in, method = _covariance(model, Jrel, result.fun, inv, drawn,
+                                                  ~bad[:n_phys], int(np.sum(keep)))
+    cov = cov_rel * np.outer(unit, unit)
     cov[bad, :] = np.nan
     cov[:, bad] = np.nan
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(sd, sd)
-    t = stats.t.ppf(0.975, max(dof, 1))
+        # Welch-Satterthwaite: the two parts of each variance are estimated from
+        # `blocks` blocks and `draws` draws
+        blocks, draws = method["blocks"], method["input_draws"]
+        nu = (var_out + var_in) ** 2 / (var_out ** 2 / max(blocks - 1, 1)
+                                        + (var_in ** 2 / (draws - 1) if draws > 1 else 0.0))
     estimates = []
     for i, name in enumerate(names):
         section, key = name.split(".", 1)
@@ -510,11 +572,17 @@ def _statistics(model: WristModel, result, scale, lo, hi, base) -> WristFit:
                   else "determined")
         e = float(sd[i]) if status == "determined" else math.inf if \
             status == "not determined" else math.nan
+        t = stats.t.ppf(0.975, nu[i]) if math.isfinite(nu[i]) and nu[i] > 0 else math.inf
         ci = (float(values[i] - t * e), float(values[i] + t * e)) if status == "determined" \
             else None
         estimates.append(Estimate(name, float(values[i]),
                                   SCHEMA[section][key].unit if i < n_phys else "s", e, ci,
                                   status, float(base[i]), (float(lo[i]), float(hi[i]))))
+    det = [i for i in range(n_phys) if not bad[i]]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        method["input_share"] = {names[i]: float(var_in[i] / (var_out[i] + var_in[i]))
+                                 for i in det}
+    method["dof"] = {names[i]: float(nu[i]) for i in det}
     phys = slice(0, n_phys)
     # the delays are nuisance parameters: reported apart, the covariance of the physical
     # parameters is their block of the whole (the delays' uncertainty included)
@@ -523,21 +591,143 @@ def _statistics(model: WristModel, result, scale, lo, hi, base) -> WristFit:
                     undetermined=undetermined, combinations=combinations, starts=[], reached=0,
                     cost=float(result.cost), dof=dof, residual_sd=math.sqrt(s2), quality={},
                     files=[], validation_files=[], synthetic=False, simulations=0,
-                    simulated_seconds=0.0, wall_time=0.0)
+                    simulated_seconds=0.0, wall_time=0.0, uncertainty=method)
 
 
-def _blocks(model: WristModel):
-    """Index arrays of the residual vector, one per block of `BLOCK` s of samples."""
-    pos = 0
+def _covariance(model: WristModel, Jrel: np.ndarray, residuals: np.ndarray, inv: np.ndarray,
+                drawn: np.ndarray | None, judged: np.ndarray, n_kept: int):
+    """Covariance of the parameters in relative units (see the module docstring):
+    ``(cov, variance from the compared signals, variance from the inputs' noise,
+    method)``; ``judged``: the physical parameters whose influence chooses the block
+    length.
+
+    Two parts. The compared signals' own errors (noise, and what the model does not
+    follow) give a sandwich over blocks of consecutive samples, all signals
+    together, the block length chosen from the residuals' own autocorrelation
+    (`_block_samples`). The measured inputs' noise, which the model takes as exact,
+    moves the estimates by as much again or more, and in a way the residuals hide
+    (with stiction, a slip that a noise excursion starts early leaves the wrist
+    elsewhere until the next one): it is measured by simulation, fresh noise of the
+    inputs' own level drawn ``draws`` times at the optimum and each draw's residual
+    change ``dr`` taken through one Gauss-Newton step, ``-inv J' dr``; their
+    covariance is this part. The observed residuals hold a share of that same
+    effect, what is left of it after the parameters have followed it; its
+    expected share in the blocks, from the draws' ``dr`` less what the step
+    explains, is taken out of the sandwich so that it is not counted twice. A
+    finite number of blocks ``G`` understates the spread of block sums about
+    estimated parameters by ``(G - 1) / G``, which is put back.
+    """
+    rows_of, sample_of = _layout(model)
+    scores = np.zeros((len(sample_of), Jrel.shape[1]))
+    np.add.at(scores, rows_of, Jrel * residuals[:, None])
+    influence = scores @ inv
+    size = _block_samples(model, influence[:, :len(judged)][:, judged], n_kept)
+    labels, count = _block_labels(model, size)
+    row_block = labels[rows_of]
+    g = np.zeros((count, Jrel.shape[1]))
+    np.add.at(g, row_block, Jrel * residuals[:, None])
+    meat = g.T @ g * (count / max(count - 1, 1))
+    cov_in = np.zeros_like(meat)
+    draws = 0 if drawn is None else len(drawn)
+    if draws > 1:
+        shared = np.zeros_like(meat)
+        steps = []
+        for dr in drawn:
+            step = -inv @ (Jrel.T @ dr)
+            steps.append(step)
+            # what the draw leaves in the residuals once the parameters have followed it:
+            # the observed residuals are those at the optimum
+            gd = np.zeros_like(g)
+            np.add.at(gd, row_block, Jrel * (dr + Jrel @ step)[:, None])
+            shared += gd.T @ gd
+        # the steps' spread about their mean: a mean step is what adding noise to noisy
+        # inputs does, a curvature of the response rather than an error of the estimate
+        cov_in = np.atleast_2d(np.cov(np.array(steps), rowvar=False))
+        meat -= shared / draws
+        w, V = np.linalg.eigh(0.5 * (meat + meat.T))
+        meat = (V * np.clip(w, 0.0, None)) @ V.T
+    else:
+        draws = 0
+    cov_out = inv @ meat @ inv
+    period = float(np.median(np.concatenate([np.diff(lg["time"]) for lg in model.logs])))
+    method = {
+        "method": "block sandwich" + (" + Monte Carlo of the inputs' noise" if draws else ""),
+        "block_samples": int(size), "block_seconds": float(size * period),
+        "blocks": int(count), "input_draws": int(draws),
+        "input_noise": model.noisy_inputs() if draws else {},
+        "description": (
+            f"sandwich over {count} blocks of {size} samples ({size * period:.3g} s, the "
+            "shortest at which the block sums of every determined parameter's influence "
+            "are uncorrelated: Jonsson's automated blocking test at "
+            f"{100 * BLOCKING_LEVEL:g} %)"
+            + (f", plus the spread that {draws} fresh draws of the measured inputs' noise "
+               f"({', '.join(model.noisy_inputs())}) cause at the optimum (one "
+               "Gauss-Newton step each; the sandwich's expected share of it taken out)"
+               if draws else "")
+            + "; 95 % intervals from Student's t with Welch-Satterthwaite degrees of "
+              "freedom")}
+    return cov_out + cov_in, np.diag(cov_out).copy(), np.diag(cov_in).copy(), method
+
+
+def _layout(model: WristModel) -> tuple[np.ndarray, np.ndarray]:
+    """For each entry of the residual vector, the index of its sample (counted over
+    every window, in time order within each); and each sample's window."""
     k = len(model.outputs)
-    for w in model.windows:
+    rows, windows = [], []
+    first = 0
+    for j, w in enumerate(model.windows):
         n = len(w.samples)
-        t = model.logs[w.log]["time"][w.samples]
-        ids = np.floor((t - t[0]) / BLOCK).astype(int)
-        for b in np.unique(ids):
-            cols = np.flatnonzero(ids == b)
-            yield (pos + np.arange(k)[:, None] * n + cols[None, :]).reshape(-1)
-        pos += n * k
+        rows.append(np.tile(first + np.arange(n), k))
+        windows.append(np.full(n, j))
+        first += n
+    return np.concatenate(rows), np.concatenate(windows)
+
+
+def _block_labels(model: WristModel, size: int) -> tuple[np.ndarray, int]:
+    """Block of each sample: runs of ``size`` consecutive samples within a window (the
+    last of a window may be shorter); and the number of blocks."""
+    labels, count = [], 0
+    for w in model.windows:
+        ids = np.arange(len(w.samples)) // size
+        labels.append(count + ids)
+        count += int(ids[-1]) + 1
+    return np.concatenate(labels), count
+
+
+def _block_samples(model: WristModel, influence: np.ndarray, n_kept: int) -> int:
+    """Block length [samples] of the sandwich: the largest over the columns of
+    ``influence`` (per sample, each parameter's share of its estimate's error) of the
+    shortest length ``2**j`` at which the sums over consecutive blocks are
+    uncorrelated, at that length and every longer one (M. Jonsson, "Standard error
+    estimation by an automated blocking method", Phys. Rev. E 98, 043304, 2018: the
+    sum over levels of blocks times the squared lag-one correlation is chi-square
+    under no correlation, tested at `BLOCKING_LEVEL`). Levels leave at least
+    `MIN_BLOCKS` and twice the determined directions' count of blocks, so that the
+    sandwich's meat has the rank to describe them."""
+    sizes = [len(w.samples) for w in model.windows]
+    least = max(MIN_BLOCKS, 2 * n_kept)
+    levels = 0
+    while sum(n // 2 ** (levels + 1) for n in sizes) >= least:
+        levels += 1
+    chosen = 0
+    ends = np.cumsum([0] + sizes)
+    for col in influence.T:
+        terms = []
+        series = [col[a:b] for a, b in zip(ends[:-1], ends[1:])]
+        for _ in range(levels + 1):
+            blocks = sum(len(x) for x in series)
+            num = sum(float(np.dot(x[:-1], x[1:])) for x in series if len(x) > 1)
+            den = sum(float(np.dot(x, x)) for x in series)
+            pairs = sum(max(len(x) - 1, 0) for x in series)
+            rho = num / den * blocks / max(pairs, 1) if den > 0 else 0.0
+            terms.append(blocks * rho ** 2)
+            series = [x[:len(x) // 2 * 2].reshape(-1, 2).sum(axis=1) for x in series]
+        tail = np.cumsum(terms[::-1])[::-1]
+        level = next((j for j in range(len(terms))
+                      if tail[j] < stats.chi2.ppf(BLOCKING_LEVEL, len(terms) - j)),
+                     len(terms) - 1)
+        chosen = max(chosen, level)
+    return 2 ** chosen
 
 
 def _pct(x: float) -> str:

@@ -9,14 +9,19 @@ differences between simulated and measured signals.
 **Windows.** A long log is cut into windows (default 5 s). Each starts from
 the *measured* state at its start, so that a model error or noise does not
 drift through the whole log: the measured angles (end-effector encoders,
-motor encoders, pivot) and their slopes (a local straight-line fit over
+motor encoders, pivot) and their slopes (a local parabola fitted over
 `SLOPE_HALF_WIDTH`) fix every generalised coordinate they can; the ones they
 cannot (a parasitic compliance's twist, a ring angle nobody measured) are set
 quasi-statically, to the minimum of the springs' energy under the measured
-ones, and their speeds by the same rule a moment later. The first `lead`
-seconds of each window (default 50 ms) are simulated but not compared, which
-leaves the small transient of that guess out of the fit. Consecutive windows
-overlap by ``lead``, so every sample after the first lead is compared once.
+ones, and their speeds by the same rule a moment later. That guess is not
+the wrist's state: the twist it sets holds no friction torque, and the
+slopes of noisy angles are noisy; the transient it starts dies out with the
+wrist's slowest modes, over a few tenths of a second. The first `lead`
+seconds of each window (default 0.5 s) are therefore simulated but not
+compared. Consecutive windows overlap by ``lead``, so every sample after the
+first lead is compared once; the last window takes in a remainder too short
+for a window of its own. A signal recorded behind the inputs (see **Delays**)
+is read that much later for the start state (`WristModel.set_state_delays`).
 
 **Batch.** The engine's batch runner (`vsj.engine.core.run_batch`) takes, per
 run, the mass matrix, its inverse, the element parameters, the source angles
@@ -44,7 +49,13 @@ viscous friction by seven standard errors). With ``Setup.delays`` each compared
 signal therefore gets its own delay behind the inputs, a nuisance parameter of
 the fit: the model's signal is read at ``t - delay`` (linear interpolation on
 the simulation's grid), which needs no extra run, so a Jacobian column of a
-delay costs no simulation.
+delay costs no simulation. The start states, read from the same signals, are
+read at the delays the fit has found so far (`WristModel.set_state_delays`,
+updated between the fit's stages).
+
+**Noisy inputs.** A measured external torque drives the model as if exact;
+`perturbed_residuals` simulates what its noise does, for the covariance
+(`vsj.identification.wrist`).
 
 Outputs compared: angles and speeds of any named signal that moves with the
 generalised coordinates (``theta_x``, ``theta_y``, ``phi_1``, ``motor_1``
@@ -77,6 +88,10 @@ SLOPE_HALF_WIDTH = 0.02
 #: Width [s] of the smoothing of measured external torques: shorter than their edges
 #: (a pulse of `vsj.identification.wrist_experiment` rises in 50 ms).
 TORQUE_SMOOTHING = 0.015
+#: Polynomial order of that smoothing (Savitzky-Golay): a quintic follows a pulse's edge
+#: over the smoothing width where a cubic rounds it off, and the break-away of a stuck
+#: joint, which the stiction levels are read from, happens on those edges.
+SMOOTHING_ORDER = 5
 #: Residual of a run that failed (per compared sample, in noise units): large against any
 #: fit, finite so that the optimiser steps back.
 FAILED_RESIDUAL = 1e3
@@ -102,9 +117,12 @@ class Setup:
     the time-stepper's step with true stiction, ``smooth_step`` [s] with a smooth
     friction law (the stages that only find the basin: a coarser step costs less,
     and its discretisation error, which biases estimates by about a standard
-    error at 1 ms against a 0.5 ms truth, does not reach the final fit); ``threads``: engine threads (None: every core);
-    ``delays``: estimate each compared signal's delay behind the inputs (see
-    `WristModel`).
+    error at 1 ms against a 0.5 ms truth, does not reach the final fit); ``threads``:
+    engine threads (None: every core); ``delays``: estimate each compared signal's
+    delay behind the inputs (see `WristModel`); ``input_draws``: draws of the
+    measured inputs' noise for the covariance (`WristModel.perturbed_residuals`; 0:
+    none). The relative spread of a variance from ``K`` draws is about
+    ``sqrt(2 / K)``: 32 draws give its standard error to about 12 %.
     """
 
     free: tuple[str, ...]
@@ -112,12 +130,13 @@ class Setup:
     inputs: tuple[str, ...] | None = None
     outputs: tuple[str, ...] | None = None
     window: float = 5.0
-    lead: float = 0.05
+    lead: float = 0.5
     step: float = 5e-4
     smooth_step: float = 1e-3
     slope_width: float = 0.01
     threads: int | None = None
     delays: bool = True
+    input_draws: int = 32
 
 
 def known_columns(structure) -> dict[str, str]:
@@ -212,6 +231,35 @@ class Window:
     quasi_static: dict = field(default_factory=dict)  # spring parameters -> (x0, v0)
 
 
+def _added_to_tables(model, span, channels, extra: Mapping[str, np.ndarray]):
+    """An engine model whose linear-table inputs ``channels`` ((index among the
+    network's channels, log column)) have ``extra[column]`` (over the whole log) added,
+    sampled as `WristModel._inputs` samples the column (``span``: its ``i0, i1``, the
+    window's start and the log's times). The input bank (`vsj.engine.model.input_bank`) holds, per
+    channel in order, ``count + 1`` knots and running integrals and ``count`` pieces
+    ``(value, slope, 0, 0)``: only this channel's are changed, not rebuilt."""
+    knots, coef, cum = model.knots.copy(), model.coef.copy(), model.cum.copy()
+    i0, i1, start, times = span
+    for index, column in channels:
+        first, count = int(model.first[index]), int(model.count[index])
+        at = first + index  # each earlier channel has one knot more than pieces
+        k = knots[at:at + count + 1]
+        add = extra[column]
+        delta = np.concatenate([[np.interp(start, times, add)], add[i0:i1]])
+        if len(delta) != count + 1:
+            raise ValueError(f"input {column}: {len(delta)} values for {count} pieces")
+        dt = np.diff(k)
+        coef[first:first + count, 0] += delta[:-1]
+        coef[first:first + count, 1] += np.diff(delta) / dt
+        cum[at + 1:at + count + 1] += np.cumsum(0.5 * (delta[:-1] + delta[1:]) * dt)
+    return model._replace(knots=knots, coef=coef, cum=cum)
+
+
+def _smoothing_points(t: np.ndarray) -> int:
+    """Odd number of samples that span `TORQUE_SMOOTHING` at the log's median period."""
+    return int(TORQUE_SMOOTHING / float(np.median(np.diff(t)))) | 1
+
+
 def with_values(params: Parameters, values: Mapping[str, float]) -> Parameters:
     """``params`` with SI ``values`` replaced (no text round trip: the fit's inner loop)."""
     merged = dict(params.values)
@@ -291,6 +339,9 @@ class WristModel:
         self.delay_names = ([f"delay.{o.name}" for o in self.outputs] if setup.delays
                             else [])
         self.n_state = 2 * self.structure.n + len(self.structure.motors)
+        #: Per compared signal, how late [s] its samples are read for a window's start
+        #: state (`set_state_delays`).
+        self.state_delays = np.zeros(len(self.outputs))
         self.windows = [w for i in range(len(self.logs)) for w in self._windows(i)]
         if not self.windows:
             raise InputError(f"{self.logs[0].path}: too short for a window of "
@@ -385,7 +436,9 @@ class WristModel:
         start = float(t[0]) + SLOPE_HALF_WIDTH
         end = float(t[-1]) - SLOPE_HALF_WIDTH
         while start + lead + 10 * h <= end:
-            duration = min(W, end - start)
+            # the last window takes in a remainder shorter than half a window's compared
+            # part: a short window alone would be mostly the transient after its start
+            duration = end - start if end - start < W + 0.5 * (W - lead) else W
             if duration < lead + 10 * h:
                 break
             n_out = math.floor(duration / h + 1e-9) + 1
@@ -414,12 +467,24 @@ class WristModel:
 
     # -- engines and initial states ---------------------------------------------------
 
+    @staticmethod
+    def _span(log: Measurement, start: float, duration: float) -> tuple[int, int]:
+        """Samples ``i0:i1`` of the log that a window's input tables take, after the
+        value interpolated at its start."""
+        t = log["time"]
+        return (int(np.searchsorted(t, start, side="right")),
+                min(int(np.searchsorted(t, start + duration)) + 2, len(t)))
+
+    def _table_times(self, w: Window):
+        """``(i0, i1, start, log times)`` of a window's input tables (see `_inputs`)."""
+        log = self.logs[w.log]
+        return (*self._span(log, w.start, w.duration), w.start, log["time"])
+
     def _inputs(self, log: Measurement, start: float, duration: float):
         # the tables start at the window's start: a source's angle is the integral of its
         # speed from the first knot, which must be the window's time zero
         t = log["time"]
-        i0 = int(np.searchsorted(t, start, side="right"))
-        i1 = min(int(np.searchsorted(t, start + duration)) + 2, len(t))
+        i0, i1 = self._span(log, start, duration)
         tau = (0.0,) + tuple(t[i0:i1] - start)
         out = {}
         for channel, (column, how) in self.channels.items():
@@ -429,20 +494,114 @@ class WristModel:
             out[channel] = Position(table) if how == "angle" else table
         return out
 
+    def noisy_inputs(self) -> dict[str, float]:
+        """Input columns that are measurements with noise, which the model takes as
+        exact: the external torques (`_smoothed`), with their noise [SI] estimated from
+        the data as a compared signal's is (`estimate_noise`); those without noise
+        (a torque computed, not measured) are left out."""
+        out = {}
+        for channel, (column, _) in self.channels.items():
+            if channel.startswith("tau_"):
+                sd = self.estimate_noise(column)
+                span = max(float(np.ptp(np.concatenate([lg[column] for lg in self.logs]))),
+                           1e-300)
+                if sd > NOISE_FLOOR * span:
+                    out[column] = sd
+        return out
+
+    def perturbed_residuals(self, values: np.ndarray, law: str, draws: int, seed: int = 0
+                            ) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals (draws, compared values) of one parameter set (free parameters,
+        then delays) when each noisy input column (`noisy_inputs`) gets fresh white
+        noise of its own level, smoothed as the column is; and which draws ran.
+
+        What these residuals differ by from `residuals` at the same parameters is what
+        the inputs' noise does to the simulated signals: the model, fed a measured
+        torque, follows its noise where the wrist did not (with stiction, a slip a
+        noise excursion starts or stops early), an error the compared signals'
+        noise does not describe. The start states and the compared samples are the
+        log's own."""
+        from scipy.signal import savgol_filter
+
+        values = np.asarray(values, dtype=float).reshape(-1)
+        n_phys = len(self.names)
+        noisy = self.noisy_inputs()
+        rng = np.random.default_rng(seed)
+        extras = []
+        for _ in range(draws):
+            per_log = []
+            for log in self.logs:
+                t = log["time"]
+                n = _smoothing_points(t)
+                extra = {}
+                for column, sd in noisy.items():
+                    e = rng.normal(0.0, sd, len(t))
+                    extra[column] = savgol_filter(e, n, SMOOTHING_ORDER) if \
+                        SMOOTHING_ORDER + 2 <= n < len(t) else e
+                per_log.append(extra)
+            extras.append(per_log)
+        for k in range(len(self.windows)):
+            if law not in self.windows[k].engines:
+                self._prepare(self.windows[k], law)
+        mass, Minv, par = self._compiled_for(values[:n_phys], law)
+        delays = np.zeros((1, len(self.outputs)))
+        if len(values) > n_phys:
+            delays[0] = values[n_phys:]
+        h = self.step_of(law)
+        wts = self.weights()[:, None]
+        out = np.empty((draws, self.compared))
+        ok = np.ones(draws, dtype=bool)
+        offsets = np.cumsum([0] + [len(w.samples) * len(self.outputs) for w in self.windows])
+
+        channels = self.structure.channels()
+        noisy_channels = [(channels.index(ch), col) for ch, (col, _) in self.channels.items()
+                          if col in noisy]
+
+        def work(task):
+            d, k = task
+            w = self.windows[k]
+            base = w.engines[law].model
+            engine = Engine(_added_to_tables(base, self._table_times(w), noisy_channels,
+                                             extras[d][w.log]))
+            layout = Layout(*(int(v) for v in base.dims[:6]))
+            y0 = np.hstack([self._initial(w, law, mass, Minv, par), np.zeros(layout.n_acc)])
+            states, _, status, _, _, _ = core.run_batch(
+                "timestep", engine, mass[None], Minv[None], par[None], w.sigma0[None],
+                y0[None], w.duration, w.grids[h][0], h=h,
+                max_steps=int(w.duration / h) + 10, threads=1)
+            sim = self._sample(w, self._signals(w, states, h), delays, h)[0]
+            r = ((sim - self.measured(k)) * wts).reshape(-1)
+            return d, k, r, bool(status[0] == core.OK)
+
+        tasks = [(d, k) for d in range(draws) for k in range(len(self.windows))]
+        threads = max(1, self.setup.threads or core.available_cores())
+        if threads == 1 or len(tasks) == 1:
+            done = [work(t) for t in tasks]
+        else:
+            with ThreadPoolExecutor(max_workers=threads) as pool:
+                done = list(pool.map(work, tasks))
+        for d, k, r, good in done:
+            out[d, offsets[k]:offsets[k + 1]] = r
+            ok[d] &= good
+        self.runs += len(tasks)
+        self.simulated += draws * sum(w.duration for w in self.windows)
+        out[~ok] = FAILED_RESIDUAL
+        return out, ok
+
     def _smoothed(self, log: Measurement, column: str) -> np.ndarray:
-        """A measured external torque, its sensor noise smoothed (Savitzky-Golay, cubic,
-        over `TORQUE_SMOOTHING`): output error assumes exact inputs, and white torque
-        noise fed to the model moves it where the real wrist was not moved."""
+        """A measured external torque, its sensor noise smoothed (Savitzky-Golay of order
+        `SMOOTHING_ORDER` over `TORQUE_SMOOTHING`): output error assumes exact inputs,
+        and white torque noise fed to the model moves it where the real wrist was not
+        moved. The noise within the wrist's own band stays; `perturbed_residuals`
+        measures what it does."""
         from scipy.signal import savgol_filter
 
         key = (id(log), column)
         cache = self.__dict__.setdefault("_smooth_cache", {})
         if key not in cache:
-            t = log["time"]
-            period = float(np.median(np.diff(t)))
-            n = int(TORQUE_SMOOTHING / period) | 1
-            cache[key] = (savgol_filter(log[column], n, 3) if 5 <= n < len(t)
-                          else log[column])
+            n = _smoothing_points(log["time"])
+            cache[key] = (savgol_filter(log[column], n, SMOOTHING_ORDER)
+                          if SMOOTHING_ORDER + 2 <= n < len(log["time"]) else log[column])
         return cache[key]
 
     def _prepare(self, w: Window, law: str) -> None:
@@ -456,13 +615,43 @@ class WristModel:
             if h not in w.grids:
                 t_out = np.arange(round(w.duration / h) + 1) * h
                 w.grids[h] = (t_out, *engine.source_signals(t_out))
-        if w.sigma0 is not None:
-            return
-        w.sigma0, w.x0, w.v0, w.null, w.later = self._measured_state(log, w.start, engine,
-                                                                     inputs)
-        w.currents = np.array([self._local(log, f"motor.{m.name}.current", w.start)[0]
-                               if f"motor.{m.name}.current" in log.columns else 0.0
-                               for m in self.structure.motors])
+        if w.sigma0 is None:
+            self._measure(w, engine)
+
+    def _measure(self, w: Window, engine: Engine) -> None:
+        """The window's start state from the measurements (see `set_state_delays`)."""
+        log = self.logs[w.log]
+        w.sigma0, w.x0, w.v0, w.null, w.later = self._measured_state(log, w.start, engine)
+        w.quasi_static.clear()
+        delay = dict(zip((o.name for o in self.outputs), self.state_delays))
+        w.currents = np.array([
+            self._local(log, f"motor.{m.name}.current",
+                        w.start + delay.get(f"motor.{m.name}.current", 0.0))[0]
+            if f"motor.{m.name}.current" in log.columns else 0.0
+            for m in self.structure.motors])
+
+    def set_state_delays(self, delays: Sequence[float]) -> bool:
+        """Read each compared signal ``delays`` [s] (in the order of `outputs`) late
+        when a window's start state is taken from it; returns whether any changed.
+
+        A signal recorded ``d`` behind the inputs shows at ``start + d`` the state
+        the model has at ``start``: read at ``start`` instead, a window would start
+        where the wrist was ``d`` earlier, an error of the speed times ``d`` that the
+        fitted delay cannot undo (it shifts the compared signal, not the start) and
+        that the fit then explains with the inertias and the damping."""
+        d = np.asarray(delays, dtype=float).reshape(-1)
+        if d.shape != self.state_delays.shape:
+            raise ValueError(f"{len(d)} delays for {len(self.outputs)} compared signals")
+        if np.array_equal(d, self.state_delays):
+            return False
+        self.state_delays = d.copy()
+        for w in self.windows:
+            engine = next(iter(w.engines.values()), None)
+            if engine is None:
+                w.sigma0 = None  # measured when the window is first prepared
+            else:
+                self._measure(w, engine)
+        return True
 
     @staticmethod
     def _local(log: Measurement, column: str, at: float) -> tuple[float, float]:
@@ -482,14 +671,15 @@ class WristModel:
         _, slope, value = np.polyfit(tt, yy, 2)
         return float(value), float(slope)
 
-    def _angles_at(self, log: Measurement, at: float, sigma_rel: np.ndarray):
-        """Named flange angles and speeds at ``at``: measured outputs and sources."""
+    def _angles_at(self, log: Measurement, at: float):
+        """Named flange angles and speeds of the model at ``at``: measured outputs
+        (each read its state delay later) and sources."""
         st = self.structure
         angles, speeds = {}, {}
-        for o in self.outputs:
+        for o, delay in zip(self.outputs, self.state_delays):
             if o.kind == "angle":
                 flange = next(s.flange for s in st.signals if s.name == o.name)
-                angles[flange], speeds[flange] = self._local(log, o.name, at)
+                angles[flange], speeds[flange] = self._local(log, o.name, at + delay)
         for j, src in enumerate(st.sources):
             column, how = self.channels.get(src.channel, (None, None))
             if how == "angle":
@@ -527,10 +717,10 @@ class WristModel:
         t, angle = cache[key]
         return float(np.interp(at, t, angle))
 
-    def _measured_state(self, log, start, engine, inputs):
+    def _measured_state(self, log, start, engine):
         st = self.structure
         n = st.n
-        angles, speeds = self._angles_at(log, start, None)
+        angles, speeds = self._angles_at(log, start)
         x0, sigma0 = st.initial_positions(angles)
         u0 = engine.source_speeds(0.0)
         v0 = st.initial_speeds(speeds, u0) if speeds else np.zeros(n)
@@ -544,7 +734,7 @@ class WristModel:
         later = None
         if null.shape[1]:
             dt = 0.01
-            a2, _ = self._angles_at(log, start + dt, None)
+            a2, _ = self._angles_at(log, start + dt)
             x2, s2 = st.initial_positions(a2)
             later = (dt, x2, s2)
         return sigma0, x0, v0, null, later

@@ -103,6 +103,7 @@ def html_page(fit, figures: dict[str, bytes]) -> str:
              "<h2>Estimates</h2><table><tr><th class=l>parameter</th><th>value</th>"
              "<th>standard error</th><th>95 % interval</th><th class=l>unit (SI)</th>"
              "<th class=l>status</th><th>start</th><th>bounds</th></tr>", *rows, "</table>",
+             *_uncertainty(fit),
              *(["<h2>Channel delays</h2><p>Each compared signal's delay behind the inputs "
                 "(a nuisance parameter: the recorder's channels need not be "
                 "simultaneous).</p><table><tr><th class=l>signal</th><th>delay [ms]</th>"
@@ -125,6 +126,24 @@ def html_page(fit, figures: dict[str, bytes]) -> str:
     parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{esc(n)}</li>" for n in fit.notes)
                  + "</ul></body></html>")
     return "\n".join(parts) + "\n"
+
+
+def _uncertainty(fit) -> list[str]:
+    """How the standard errors were computed, and how much of each variance the
+    measured inputs' noise makes."""
+    u = fit.uncertainty
+    if not u:
+        return []
+    esc = html.escape
+    out = [f"<p>Standard errors: {esc(u['description'])}.</p>"]
+    if u.get("input_share"):
+        out.append("<table><tr><th class=l>parameter</th><th>share of variance from the "
+                   "inputs' noise</th><th>degrees of freedom</th></tr>")
+        out += [f"<tr><td class=l>{esc(name)}</td><td>{100 * share:.0f} %</td>"
+                f"<td>{u['dof'][name]:.3g}</td></tr>"
+                for name, share in u["input_share"].items() if math.isfinite(share)]
+        out.append("</table>")
+    return out
 
 
 def write(fit, results) -> list[str]:
