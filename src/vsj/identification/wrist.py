@@ -526,8 +526,11 @@ def _statistics(model: WristModel, result, scale, lo, hi, base,
     m = len(result.fun)
     dof = m - n_par
     s2 = float(np.sum(result.fun ** 2)) / max(dof, 1)
-    # per relative change of each parameter; per `DELAY_UNIT` of a delay
-    unit = np.concatenate([np.abs(values[:n_phys]), np.full(n_par - n_phys, DELAY_UNIT)])
+    # per relative change of each parameter (of the smaller of its estimate and its
+    # start, so that one the data leave open cannot look determined by having drifted
+    # to a large bound); per `DELAY_UNIT` of a delay
+    unit = np.concatenate([np.minimum(np.abs(values[:n_phys]), np.abs(base[:n_phys])),
+                           np.full(n_par - n_phys, DELAY_UNIT)])
     Jrel = J * (unit / scale)[None, :]
     _, sv, Vt = np.linalg.svd(Jrel, full_matrices=False)
     rel_se = np.where(sv > 0, math.sqrt(s2) / np.maximum(sv, 1e-300), math.inf)
