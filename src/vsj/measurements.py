@@ -72,6 +72,8 @@ class Measurement:
     columns: dict[str, np.ndarray]
     units: dict[str, str]
     comments: list[str] = field(default_factory=list)
+    #: The file's line number of each row (for messages), where it was read from a file.
+    lines: np.ndarray | None = None
 
     @property
     def synthetic(self) -> bool:
@@ -309,7 +311,8 @@ def read_log(path: str | Path, known: Mapping[str, str], *, min_points: int = 5)
         raise InputError(f"{path}, line {number}: time does not increase "
                          f"({columns['time'][bad[0]]:g} s, then "
                          f"{columns['time'][bad[0] + 1]:g} s)")
-    return Measurement(path=path, columns=columns, units=units, comments=comments)
+    return Measurement(path=path, columns=columns, units=units, comments=comments,
+                       lines=np.array([number for number, _ in rows[1:]], dtype=np.int64))
 
 
 def write_log(path: str | Path, columns: Mapping[str, tuple[np.ndarray, str]],

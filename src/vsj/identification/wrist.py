@@ -423,6 +423,7 @@ def fit_wrist(logs: Sequence[Measurement], params: Parameters, setup: Setup, *,
                       "not compared"),
                      f"compared: {', '.join(o.name for o in model.outputs)}; inputs: "
                      + ", ".join(f"{c} <- {col}" for c, (col, _) in model.channels.items())]
+    result.notes += model.gaps
     return result
 
 

@@ -85,6 +85,10 @@ from ..wrist import WristOptions, build_wrist
 #: window's start: long enough to average encoder quantisation and noise over about 40
 #: samples at 1 kHz, short against the wrist's motion (its fastest modes are near 10 Hz).
 SLOPE_HALF_WIDTH = 0.02
+#: An interval of more than this many sample periods (the median interval) is a gap in
+#: a log: at least one sample is missing (a log's jitter moves a sample by less than
+#: half a period).
+GAP_PERIODS = 1.5
 #: Width [s] of the smoothing of measured external torques: shorter than their edges
 #: (a pulse of `vsj.identification.wrist_experiment` rises in 50 ms).
 TORQUE_SMOOTHING = 0.015
@@ -255,6 +259,13 @@ def _added_to_tables(model, span, channels, extra: Mapping[str, np.ndarray]):
     return model._replace(knots=knots, coef=coef, cum=cum)
 
 
+def gap_indices(t: np.ndarray) -> np.ndarray:
+    """Indices k of a log's gaps: samples k and k + 1 are more than `GAP_PERIODS`
+    sample periods (the median interval) apart."""
+    dt = np.diff(t)
+    return np.flatnonzero(dt > GAP_PERIODS * float(np.median(dt))) if dt.size else dt.astype(int)
+
+
 def _smoothing_points(t: np.ndarray) -> int:
     """Odd number of samples that span `TORQUE_SMOOTHING` at the log's median period."""
     return int(TORQUE_SMOOTHING / float(np.median(np.diff(t)))) | 1
@@ -342,6 +353,8 @@ class WristModel:
         #: Per compared signal, how late [s] its samples are read for a window's start
         #: state (`set_state_delays`).
         self.state_delays = np.zeros(len(self.outputs))
+        #: Gaps in the logs' sampling, one message each (`segments`).
+        self.gaps: list[str] = []
         self.windows = [w for i in range(len(self.logs)) for w in self._windows(i)]
         if not self.windows:
             raise InputError(f"{self.logs[0].path}: too short for a window of "
@@ -424,17 +437,39 @@ class WristModel:
                              "states determine (theta_x, theta_y, motor currents, ...)")
         return out
 
-    def _windows(self, i: int) -> list[Window]:
+    def segments(self, i: int) -> list[tuple[float, float]]:
+        """The stretches of log ``i`` sampled without a gap: an interval of more than
+        `GAP_PERIODS` sample periods (the median interval) means samples are missing (a
+        logger's dropout), and no window may run its inputs across them. Each gap is
+        noted in `gaps` with the file's line."""
         log = self.logs[i]
         t = log["time"]
+        dt = np.diff(t)
+        gaps = gap_indices(t)
+        bounds = [float(t[0])] + [x for k in gaps for x in (float(t[k]), float(t[k + 1]))] \
+            + [float(t[-1])]
+        for k in gaps:
+            line = f", line {log.lines[k + 1]}" if log.lines is not None else ""
+            self.gaps.append(f"{log.path}{line}: no samples for {dt[k]:.4g} s (from "
+                             f"t = {t[k]:.6g} s to {t[k + 1]:.6g} s, {dt[k] / np.median(dt):.3g} "
+                             f"sample periods); the stretches either side are fitted apart")
+        return list(zip(bounds[0::2], bounds[1::2]))
+
+    def _windows(self, i: int) -> list[Window]:
         # windows last a whole number of either step
         W, lead, h = self.setup.window, self.setup.lead, max(self.setup.step,
                                                               self.setup.smooth_step)
         if not (W > lead + 10 * h):
             raise InputError(f"window {W:g} s must exceed lead {lead:g} s by 10 steps")
+        return [w for first, last in self.segments(i)
+                for w in self._segment_windows(i, first, last, W, lead, h)]
+
+    def _segment_windows(self, i: int, first: float, last: float, W: float, lead: float,
+                         h: float) -> list[Window]:
+        t = self.logs[i]["time"]
         out = []
-        start = float(t[0]) + SLOPE_HALF_WIDTH
-        end = float(t[-1]) - SLOPE_HALF_WIDTH
+        start = first + SLOPE_HALF_WIDTH
+        end = last - SLOPE_HALF_WIDTH
         while start + lead + 10 * h <= end:
             # the last window takes in a remainder shorter than half a window's compared
             # part: a short window alone would be mostly the transient after its start
@@ -700,20 +735,25 @@ class WristModel:
             t = log["time"]
             column, _ = self.channels.get(src.channel, (None, None))
             speed = log[column] if column is not None else np.zeros_like(t)
-            angle = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1])
-                                                     * np.diff(t))])
-            offset = 0.0
+            step = 0.5 * (speed[1:] + speed[:-1]) * np.diff(t)
+            step[gap_indices(t)] = 0.0  # never integrated across a gap (anchored below)
+            angle = np.concatenate([[0.0], np.cumsum(step)])
             names = _signals_of(self.structure, src.flange)
             measured = [n for n in names if n in log.columns]
+            anchor = None
             if measured:
-                offset = float(np.mean(log[measured[0]] - angle))
+                anchor = log[measured[0]]
             elif src.channel == "motor_s" and "q" in log.columns and \
                     self.structure.pivot.flange is not None:
                 _, ru = self.structure.rows(self.structure.pivot.flange)
                 amp = self.structure.pivot.amplitude
-                pivot = np.arcsin(np.clip(log["q"] / amp, -1, 1))
-                offset = float(np.mean(pivot / ru[j] - angle)) if ru[j] else 0.0
-            cache[key] = (t, angle + offset)
+                if ru[j]:
+                    anchor = np.arcsin(np.clip(log["q"] / amp, -1, 1)) / ru[j]
+            if anchor is not None:  # each stretch between gaps anchored on its own
+                bounds = [0, *(int(k) + 1 for k in gap_indices(t)), len(t)]
+                for a, b in zip(bounds[:-1], bounds[1:]):
+                    angle[a:b] += float(np.mean(anchor[a:b] - angle[a:b]))
+            cache[key] = (t, angle)
         t, angle = cache[key]
         return float(np.interp(at, t, angle))
 
