@@ -109,3 +109,32 @@ def test_simulate_says_what_an_input_must_be(params):
     a = vsj.simulate(wrist, {"motor_1": 1.5}, 0.05, ports=False)
     b = vsj.simulate(wrist, {"motor_1": Constant(1.5)}, 0.05, ports=False)
     assert a.success and np.array_equal(a["theta_x"], b["theta_x"])
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["synth", "friction", "--fixed", "sun", "--report", "second", "--out", "OUT"], "--out"),
+    (["synth", "stiffness", "--q", "1.4", "--out", "OUT"], "--out"),
+])
+def test_synth_outputs_replace_only_their_own_files(tmp_path, capsys, argv, option):
+    target = tmp_path / "data.csv"
+    target.write_text("time [s],torque [N m]\n0,1\n")  # a user's measurements
+    args = [str(target) if a == "OUT" else a for a in argv]
+    assert main(args) == 2
+    assert "vsj did not write it" in capsys.readouterr().err
+    assert target.read_text() == "time [s],torque [N m]\n0,1\n"
+    assert main(args + ["--force"]) == 0 and written_by_vsj(target)
+    assert main(args) == 0  # its own file: replaced without --force
+
+
+def test_written_parameter_files_carry_vsjs_mark(tmp_path):
+    sun, ring = tmp_path / "sun.csv", tmp_path / "ring.csv"
+    for fixed, path in (("sun", sun), ("ring", ring)):
+        assert main(["synth", "friction", "--fixed", fixed, "--report", "second", "--out",
+                     str(path)]) == 0
+    out = tmp_path / "mine.toml"
+    out.write_text("# my own notes\n")
+    base = ["fit", "planetary", "--fixed-sun", str(sun), "--fixed-ring", str(ring)]
+    assert main(base + ["--write-params", str(out)]) == 2
+    assert out.read_text() == "# my own notes\n"
+    assert main(base + ["--write-params", str(out), "--force"]) == 0
+    assert written_by_vsj(out)

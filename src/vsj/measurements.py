@@ -211,6 +211,17 @@ def _delimiter(header: str, path: str, line: int) -> str:
     return best
 
 
+def _mark(buffer, comments: Sequence[str]) -> None:
+    """The comment lines of a file vsj writes: ``comments``, then vsj's mark
+    (`vsj.output.written_by_vsj` recognises it, so that vsj replaces the file again)."""
+    from . import __version__
+
+    for c in comments:
+        for line in str(c).splitlines():
+            buffer.write(f"# {line}\n")
+    buffer.write(f"# written by vsj {__version__}\n")
+
+
 def write(path: str | Path, columns: Mapping[str, tuple[np.ndarray, str]],
           comments: Sequence[str] = ()) -> None:
     """Write a measurement file: ``columns`` maps quantity to (SI values, unit to write)."""
@@ -221,9 +232,7 @@ def write(path: str | Path, columns: Mapping[str, tuple[np.ndarray, str]],
         if q not in QUANTITIES:
             raise ValueError(f"unknown quantity {q!r}")
     buffer = io.StringIO()
-    for c in comments:
-        for line in str(c).splitlines():
-            buffer.write(f"# {line}\n")
+    _mark(buffer, comments)
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow([f"{q} [{columns[q][1]}]" for q in names])
     converted = [np.array([from_si(1.0, columns[q][1])]) * np.asarray(columns[q][0])
@@ -322,9 +331,7 @@ def write_log(path: str | Path, columns: Mapping[str, tuple[np.ndarray, str]],
 
     names = list(columns)
     buffer = io.StringIO()
-    for c in comments:
-        for line in str(c).splitlines():
-            buffer.write(f"# {line}\n")
+    _mark(buffer, comments)
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow([f"{q} [{columns[q][1]}]" for q in names])
     converted = np.column_stack([np.asarray(columns[q][0], dtype=float)

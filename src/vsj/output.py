@@ -268,8 +268,10 @@ def written_by_vsj(path: str | Path) -> bool:
                     or str(document.get("format", "")).startswith("vsj"))
     except (OSError, ValueError, zipfile.BadZipFile, UnicodeDecodeError):
         return False
-    for line in head.decode("utf-8", errors="replace").splitlines()[:20]:
-        if line.startswith("#") and re.search(r"\bvsj\b", line):
+    for line in head.decode("utf-8", errors="replace").splitlines():
+        if not line.startswith("#"):  # the comments at the top only
+            return False
+        if re.search(r"\bvsj\b", line):
             return True
     return False
 

@@ -16,6 +16,26 @@ from pathlib import Path
 from ..errors import InputError
 
 
+def _force(parser) -> None:
+    """The --force of a command that writes single files (vsj replaces only a file that
+    carries its mark unless forced, `vsj.output.check_output_file`)."""
+    parser.add_argument("--force", action="store_true",
+                        help="replace an output file even if vsj did not write it")
+
+
+def _at_least_one(text: str) -> int:
+    """A whole number >= 1 (argparse type): a count of starts or threads."""
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} must be at least 1")
+    return value
+
+
 def _floats(text: str, count: int, what: str) -> tuple[float, ...]:
     try:
         values = tuple(float(v) for v in text.split(","))
@@ -58,7 +78,7 @@ def cmd_synth_friction(args) -> int:
     from .. import measurements, synth
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
-    check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES)
+    check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES, force=args.force)
     if args.report:  # argparse has checked it is 'old' or 'second'
         constants, params = synth.REPORT_CONSTANTS[(args.report, args.fixed)], None
     elif args.constants:
@@ -88,7 +108,7 @@ def cmd_synth_stiffness(args) -> int:
     out = Path(args.out)
     single = len(qs) == 1 and out.suffix == ".csv"
     if single:
-        check_output_file(out, "--out", size=SMALL_OUTPUT_BYTES)
+        check_output_file(out, "--out", size=SMALL_OUTPUT_BYTES, force=args.force)
     written = []
     with _results(None if single else out, "synth stiffness") as results:
         for q in qs:
@@ -153,15 +173,18 @@ def _write_params(path: str, overrides: dict, base: str | None) -> None:
 
     params = _params(base)
     identified = params.with_overrides(overrides, origin=str(path))
+    from .. import __version__
+
     with write_errors("--write-params", path), atomic_write(Path(path)) as handle:
-        handle.write(identified.to_toml())
+        handle.write(f"# parameter set written by vsj {__version__}\n" + identified.to_toml())
 
 
 def _check_write_params(args) -> None:
     from ..output import SMALL_OUTPUT_BYTES, check_output_file
 
     if args.write_params:
-        check_output_file(args.write_params, "--write-params", size=SMALL_OUTPUT_BYTES)
+        check_output_file(args.write_params, "--write-params", size=SMALL_OUTPUT_BYTES,
+                          force=args.force)
 
 
 def cmd_fit_planetary(args) -> int:
@@ -496,7 +519,7 @@ def cmd_synth_wrist(args) -> int:
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
     experiment = wrist_experiment.load(args.experiment)
-    check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES)
+    check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES, force=args.force)
     data = synth.wrist(experiment, _params(args.params), seed=args.seed)
     with write_errors("--out", args.out):
         measurements.write_log(args.out, data.columns, data.comments)
@@ -527,7 +550,7 @@ def cmd_excite(args) -> int:
     if not max_torque >= 0:
         raise InputError(f"--max-torque {args.max_torque}: must be >= 0 N m")
     q = to_si(args.q, "m", where="--q")
-    check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES)
+    check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES, force=args.force)
     d = wrist_experiment.design(
         params, names, duration, max_speed=max_speed, max_torque=max_torque,
         max_motor_torque=max_motor_torque, q=q, candidates=args.candidates, seed=args.seed,
@@ -562,6 +585,7 @@ def register(sub) -> None:
     p = sub.add_parser("synth", help="write synthetic measurement files (labelled synthetic)")
     kinds = p.add_subparsers(dest="kind", required=True)
     f = kinds.add_parser("friction", help="a fixed-sun or fixed-ring torque-velocity curve")
+    _force(f)
     f.add_argument("--fixed", choices=("sun", "ring"), required=True)
     source = f.add_mutually_exclusive_group()
     source.add_argument("--report", choices=("old", "second"),
@@ -580,12 +604,14 @@ def register(sub) -> None:
     f.add_argument("--out", required=True, metavar="FILE")
     f.set_defaults(func=cmd_synth_friction)
     x = kinds.add_parser("wrist", help="a log of the whole wrist running an experiment")
+    _force(x)
     x.add_argument("--experiment", required=True, metavar="EXP.toml")
     x.add_argument("--params", metavar="FILE", help="the true parameter set (default bundled)")
     x.add_argument("--seed", type=int, default=1)
     x.add_argument("--out", required=True, metavar="LOG.csv")
     x.set_defaults(func=cmd_synth_wrist)
     s = kinds.add_parser("stiffness", help="torque-deflection curves of the elastic bench")
+    _force(s)
     s.add_argument("--q", type=float, action="append", required=True, metavar="CM",
                    help="pivot position in cm (repeat for several curves)")
     s.add_argument("--params", metavar="FILE", help="parameter file (default: bundled)")
@@ -606,6 +632,7 @@ def register(sub) -> None:
     f.add_argument("--out", metavar="DIR", help="write the plot and JSON here")
     f.set_defaults(func=cmd_fit_friction)
     g = kinds.add_parser("planetary", help="the planetary module's parameters from both tests")
+    _force(g)
     g.add_argument("--fixed-sun", required=True, metavar="FILE")
     g.add_argument("--fixed-ring", required=True, metavar="FILE")
     g.add_argument("--tooth-ratio", type=float, metavar="X",
@@ -619,6 +646,7 @@ def register(sub) -> None:
                    help="write the base set with the identified planetary parameters")
     g.set_defaults(func=cmd_fit_planetary)
     k = kinds.add_parser("stiffness", help="K per curve and K(q) (eq 4.5) from several curves")
+    _force(k)
     k.add_argument("files", nargs="+")
     k.add_argument("--json", action="store_true")
     k.add_argument("--out", metavar="DIR", help="write plots and JSON here")
@@ -647,18 +675,22 @@ def register(sub) -> None:
     w.add_argument("--motor-model", choices=("velocity", "dc"),
                    help="primary motors (default: dc when the log has voltages)")
     w.add_argument("--window", default="5 s", help="window length (default 5 s)")
-    w.add_argument("--starts", type=int, default=4, help="starting points (default 4)")
+    w.add_argument("--starts", type=_at_least_one, default=4,
+                   help="starting points (default 4)")
     w.add_argument("--no-delays", action="store_true", help="do not estimate each compared "
                    "signal's delay behind the inputs (channels recorded simultaneously)")
     w.add_argument("--seed", type=int, default=0, help="seed of the space-filling starts")
-    w.add_argument("--threads", type=int, help="engine threads (default: every core)")
+    w.add_argument("--threads", type=_at_least_one,
+                   help="engine threads (default: every core)")
     w.add_argument("--json", action="store_true")
     w.add_argument("--out", metavar="DIR", help="write the page, plots and JSON here")
     w.add_argument("--write-params", metavar="FILE",
                    help="write the parameter set with the determined estimates")
+    _force(w)
     w.set_defaults(func=cmd_fit_wrist)
     e = sub.add_parser("excite", help="design an excitation of the wrist that makes the named "
                                       "parameters identifiable (D-optimal)")
+    _force(e)
     e.add_argument("--free", action="append", required=True, metavar="NAME")
     e.add_argument("--duration", required=True, help="e.g. '20 s'")
     e.add_argument("--params", metavar="FILE")

@@ -141,6 +141,41 @@ def _plain(spec):
             for k, v in spec.items()}
 
 
+#: Per component: the keys that are lists (of one length, one entry per term) and those
+#: that are single numbers; frequencies and widths must be > 0.
+_SHAPES = {"multisine": (("frequency", "amplitude", "phase"), ()),
+           "chirp": ((), ("start_frequency", "end_frequency", "amplitude")),
+           "sine": ((), ("frequency", "amplitude")),
+           "pulses": (("start", "height"), ("width",)),
+           "steps": (("time", "value"), ())}
+_POSITIVE = ("frequency", "start_frequency", "end_frequency", "width")
+
+
+def _check_component(kind: str, spec: Mapping, where: str) -> None:
+    """`InputError` unless ``spec`` has the shape its ``kind`` needs (`_SHAPES`)."""
+    lists, numbers = _SHAPES[kind]
+    extra = sorted(set(spec) - set(lists) - set(numbers))
+    if extra:
+        raise InputError(f"{where}.{extra[0]}: unknown key; {kind} takes "
+                         f"{', '.join(lists + numbers)}")
+    for key in numbers:
+        if not isinstance(spec[key], float):
+            raise InputError(f"{where}.{key} = {[float(v) for v in spec[key]]!r}: a single "
+                             "number")
+    for key in lists:
+        if not isinstance(spec[key], tuple):
+            raise InputError(f"{where}.{key} = {spec[key]!r}: a list of numbers, one per term")
+    lengths = {key: len(spec[key]) for key in lists}
+    if len(set(lengths.values())) > 1:
+        raise InputError(f"{where}: {', '.join(f'{k} has {n}' for k, n in lengths.items())} "
+                         "entries; each term needs one of each")
+    for key in _POSITIVE:
+        if key in spec and not np.all(np.asarray(spec[key]) > 0.0):
+            raise InputError(f"{where}.{key} = {spec[key]!r}: must be > 0")
+    if kind == "steps" and np.any(np.diff(spec["time"]) <= 0.0):
+        raise InputError(f"{where}.time = {list(spec['time'])!r}: times must increase")
+
+
 def _smoothstep(z):
     z = np.clip(z, 0.0, 1.0)
     return z ** 3 * (10.0 - 15.0 * z + 6.0 * z * z)
@@ -247,6 +282,7 @@ def from_table(doc: Mapping, origin: str) -> Experiment:
                     clean[k] = float(v)
                 else:
                     raise InputError(f"{where}.{k} = {v!r}: a number or a list of numbers")
+            _check_component(kind, clean, where)
             out.append((kind, clean))
         signals[channel] = tuple(out)
     need = ("motor_1", "motor_2") if motors == "velocity" else ("voltage_1", "voltage_2")
