@@ -44,7 +44,6 @@ import wrist_reference as ref  # noqa: E402
 
 from vsj import params as params_module  # noqa: E402
 from vsj import scenario as scenarios  # noqa: E402
-from vsj.engine import Engine  # noqa: E402
 from vsj.simulate import (InitialState, SimulationOptions, prepare, simulate,  # noqa: E402
                           simulate_batch)
 
@@ -84,23 +83,22 @@ def setup():
 
 def vsj_core(structure, inputs, case, rtol, atol, ledger):
     """vsj's integrator alone (no sampling of derived signals), states every 10 ms."""
-    model, layout, y0 = prepare(structure, inputs, DURATION, SimulationOptions(), case.initial)
+    plan = prepare(structure, inputs, DURATION, SimulationOptions(rtol=rtol, atol=atol,
+                                                                  max_steps=10 ** 8),
+                   case.initial)
     t_out = np.arange(int(round(DURATION / SAMPLE)) + 1) * SAMPLE
-    y_start = y0 if ledger else y0[:layout.n_state]
-    engine = Engine(model)
+    plan.native  # checked once, outside the timings
+    n_state = plan.layout.n_state
 
     def run():
-        out = np.zeros((len(t_out), layout.n_state))
-        y = y_start.copy()
-        engine.dopri(y, 0.0, DURATION, t_out, rtol, atol, np.inf, 10 ** 8, layout.n_state, out)
-        return out
+        return plan.sample(t_out, ledger=ledger)[1][:, :n_state]
 
     return run, t_out
 
 
 def theta_x_of(structure, states, t_out, inputs, case):
-    model, layout, _ = prepare(structure, inputs, DURATION, SimulationOptions(), case.initial)
-    sigma, _ = Engine(model).source_signals(t_out)
+    plan = prepare(structure, inputs, DURATION, SimulationOptions(), case.initial)
+    sigma, _ = plan.engine().source_signals(t_out)
     rx, ru = structure.rows("diff.theta_x")
     return states[:, :structure.n] @ rx + sigma @ ru
 
@@ -187,17 +185,14 @@ def main() -> int:
 
     # true stiction
     sopts = SimulationOptions(friction="stiction")
-    model, layout, y0 = prepare(structure, inputs, DURATION, sopts, case.initial)
-    stick_engine = Engine(model)
+    stick_plan = prepare(structure, inputs, DURATION, sopts, case.initial)
+    stick_plan = stick_plan.with_scheme(max_steps=10 ** 8)
+    n_state = stick_plan.layout.n_state
 
     def stick_run(h):
         """The time-stepper with its ledger: states and friction torques sampled."""
-        out = np.full((len(t_out), y0.shape[0]), np.nan)
-        coulomb = np.zeros((len(t_out), layout.n_frictions))
-        stuck = np.zeros((len(t_out), layout.n_frictions), dtype=bool)
-        flips = stick_engine.timestep(y0.copy(), DURATION, h, t_out, 10 ** 8, True, out,
-                                      coulomb, stuck)[3]
-        return out[:, :layout.n_state], flips.sum()
+        run, out, _, _ = stick_plan.with_scheme(step=h).sample(t_out)
+        return out[:, :n_state], run.transitions().sum()
 
     theta_stick_ref = theta_x_of(structure, stick_run(1e-4)[0], t_out, inputs, case)
     stick_errors = {}

@@ -11,7 +11,7 @@ this prints the count used.
 Three ways, in interleaved blocks of runs (this machine is a shared VM whose speed
 drifts; each way sees every moment alike, and the order rotates from block to block):
 
-* kernel: `vsj.engine.core.run_batch` on every core, the block's models compiled
+* kernel: `vsj.engine.plan.run_batch` on every core, the block's plans made
   beforehand and not timed: the integration alone;
 * sweep: `vsj.sweep.run` with the default scheduler (every core), from the sweep
   file to sweep.zarr, metrics.csv and the manifest (models, chunking, the metrics,
@@ -72,25 +72,20 @@ KERNEL_SLICE = 512
 
 def bare_kernel(spec) -> float:
     """Seconds the batch kernel takes for the spec's runs (models built beforehand)."""
-    from vsj.engine import Engine, core
+    from vsj.engine.plan import run_batch
     from vsj.sweep import runner, sampling
 
     p = runner.prepared(runner.job_for(spec))
     values, _ = sampling.design(spec)
-    o = p.options
     elapsed = 0.0
     for a in range(0, len(values), KERNEL_SLICE):
-        built = [runner._build(p, v) for v in values[a:a + KERNEL_SLICE]]
-        first = built[0]
-        engine = Engine(first.model._replace(src_pos0=first.sigma0))
-        arrays = [np.array([getattr(b.model, k) for b in built]) for k in ("mass", "Minv", "par")]
-        src0s, y0s = np.array([b.sigma0 for b in built]), np.array([b.y0 for b in built])
+        plans = [runner._build(p, v).plan for v in values[a:a + KERNEL_SLICE]]
+        for plan in plans:
+            plan.native  # checked beforehand: the kernel alone is timed
         started = time.perf_counter()
-        _, _, status, *_ = core.run_batch(
-            p.solver, engine, *arrays, src0s, y0s, p.duration, p.t_out, rtol=o.rtol,
-            atol=o.atol, h_max=o.max_step, max_steps=o.max_steps, h=o.step)
+        batch = run_batch(plans, p.t_out)
         elapsed += time.perf_counter() - started
-        assert np.all(status == 0)
+        assert np.all(batch.status == 0)
     return elapsed
 
 

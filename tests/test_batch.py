@@ -50,7 +50,7 @@ def test_batch_over_parameter_sets(params):
 
 
 def test_time_stepper_checks_the_shapes_of_its_sample_arrays(params):
-    from vsj.engine import Engine
+    from vsj import _core
     from vsj.simulate import prepare
 
     scen = scenarios.load("fig-4.15")
@@ -58,17 +58,20 @@ def test_time_stepper_checks_the_shapes_of_its_sample_arrays(params):
     prep = scenarios.prepare_case(scen, case, params)
     structure, inputs = prep.structure, prep.inputs
     options = SimulationOptions(friction="stiction")
-    model, layout, y0 = prepare(structure, inputs, 0.05, options, case.initial)
+    plan = prepare(structure, inputs, 0.05, options, case.initial)
+    y0, layout = plan.y0, plan.layout
     t_out = np.arange(6) * 0.01
     nf = layout.n_frictions
-    engine = Engine(model)
+    scheme = plan.scheme.code(layout.n_state, True)
 
     def run(n_out, coulomb_rows, columns):
         out = np.full((n_out, y0.shape[0]), np.nan)
         coulomb = np.zeros((coulomb_rows, columns)) if coulomb_rows else None
         stuck = np.zeros((coulomb_rows, columns), dtype=bool) if coulomb_rows else None
-        status = engine.timestep(y0.copy(), 0.05, 1e-3, t_out, 10 ** 6, True, out, coulomb,
-                                 stuck)[0]
+        work = _core.Work(plan.native)
+        status = _core.run(plan.native, work, y0.copy(), scheme, 0.05, begin=(0.0, 0.05),
+                           finish=True, t_out=t_out, out=out, coulomb=coulomb,
+                           stuck=stuck)[0]
         return status, out, coulomb
 
     status, out, coulomb = run(6, 0, nf)  # no friction samples: states only

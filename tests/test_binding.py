@@ -22,7 +22,7 @@ def model(params):
     scen = scenarios.load("fig-4.15")
     case = scen.cases[0]
     prep = scenarios.prepare_case(scen, case, params)
-    return prepare(prep.structure, prep.inputs, 1.0, SimulationOptions(), case.initial)[0]
+    return prepare(prep.structure, prep.inputs, 1.0, SimulationOptions(), case.initial).model
 
 
 def test_spline_ranges_that_overflow_are_refused(model):
@@ -42,6 +42,11 @@ def test_an_inconsistent_mass_matrix_is_refused(model, change, match):
         native(model._replace(**change(model)))
 
 
+def _held(model, method, h=1e-3, substeps=1):
+    """The scheme tuple of ``vsj._core.run`` for a held period."""
+    return (method, 1e-8, 1e-10, 1e300, 0, h, 10, False, substeps)
+
+
 def test_arguments_are_converted_one_at_a_time(model):
     """A failed conversion raises its own error (not SystemError from the next one)."""
     engine = Engine(model)
@@ -53,11 +58,12 @@ def test_arguments_are_converted_one_at_a_time(model):
             raise KeyError("boom")
 
     with pytest.raises(TypeError):
-        _core.step("x", engine.c, engine.work, state, inputs, 1e-3, 1e-8, 1e-10, 10, 1, 1e-3)
+        _core.run(engine.c, engine.work, state, ("x",) + _held(model, 0)[1:], 1e-3,
+                  held=inputs)
     with pytest.raises(KeyError, match="boom"):
-        _core.step(0, engine.c, engine.work, state, inputs, Bad(), 1e-8, 1e-10, 10, 1, 1e-3)
-    with pytest.raises(ValueError, match="method must be"):
-        _core.step(2 ** 32, engine.c, engine.work, state, inputs, 1e-3, 1e-8, 1e-10, 10, 1, 1e-3)
+        _core.run(engine.c, engine.work, state, _held(model, 0), Bad(), held=inputs)
+    with pytest.raises(ValueError, match="method"):
+        _core.run(engine.c, engine.work, state, _held(model, 2 ** 32), 1e-3, held=inputs)
 
 
 @pytest.mark.parametrize("dt, substeps, h", [(1e300, 1, 1e-4), (1e-3, 10 ** 15, 1e-3),
@@ -66,10 +72,10 @@ def test_absurd_step_counts_are_refused_not_run(model, dt, substeps, h):
     engine = Engine(model)
     state = np.zeros(int(2 * model.dims[0] + model.dims[5] + model.dims[1]))
     inputs = np.zeros(int(model.dims[6]))
-    method = 1 if substeps > 1 else 2
-    with pytest.raises(ValueError, match="steps per period"):
-        _core.step(method, engine.c, engine.work, state, inputs, dt, 1e-8, 1e-10, 10, substeps,
-                   h)
+    method = 2 if substeps > 1 else 1
+    with pytest.raises(ValueError, match="steps"):
+        _core.run(engine.c, engine.work, state, _held(model, method, h, substeps), dt,
+                  held=inputs)
 
 
 def test_a_step_longer_than_the_period_takes_one_shortened_step(params):
@@ -86,9 +92,9 @@ def test_a_work_prepared_for_another_model_is_refused(model):
     _core.ts_prepare(a.c, a.work)
     state = np.zeros(int(2 * model.dims[0] + model.dims[5] + model.dims[1]))
     inputs = np.zeros(int(model.dims[6]))
-    assert _core.step(2, a.c, a.work, state, inputs, 1e-3, 1e-8, 1e-10, 10, 1, 1e-3) == 0
+    assert _core.run(a.c, a.work, state, _held(model, 1), 1e-3, held=inputs)[0] == 0
     # the same sizes, another model: its friction groups and end stops were not analysed
-    assert _core.step(2, b.c, a.work, state, inputs, 1e-3, 1e-8, 1e-10, 10, 1, 1e-3) == 6
+    assert _core.run(b.c, a.work, state, _held(model, 1), 1e-3, held=inputs)[0] == 6
 
 
 def test_observation_times_must_be_finite(model):
@@ -110,15 +116,21 @@ def test_the_impulse_problem_refuses_non_finite_data():
         _core.solve_impulses(np.zeros((2000, 2)), qs, np.ones(2), active, *out)
 
 
-def test_batch_samples_of_the_time_stepper_fall_on_its_steps(model):
+def test_samples_of_the_time_stepper_fall_on_its_steps(model):
     engine = Engine(model)
     ny = int(2 * model.dims[0] + model.dims[5])
-    n_acc = int(model.dims[1] + model.dims[4] + 2 * model.dims[5] + model.dims[2]
-                + 3 * model.dims[3])
+    scheme = (1, 1e-8, 1e-10, 1e300, ny, 1e-3, 1000, False, 1)
+    y = np.zeros(ny)
     with pytest.raises(ValueError, match="multiples of the step"):
-        _core.batch_run(1, engine.c, engine.work, 0, model.mass[None], model.Minv[None],
-                        model.par[None], model.src_pos0[None], np.zeros((1, ny + n_acc)), 0.01,
-                        np.array([0.0, 0.0015]), 1e-8, 1e-10, np.inf, 1000, 1e-3,
-                        np.zeros((1, 2, ny)), np.zeros((1, ny + n_acc)),
-                        np.zeros(1, np.int64), np.zeros(1), np.zeros(1, np.int64),
-                        np.zeros(1, np.int64))
+        _core.run(engine.c, engine.work, y, scheme, 0.01, begin=(0.0, 0.01),
+                  t_out=np.array([0.0, 0.0015]), out=np.zeros((2, ny)))
+
+
+def test_a_run_cannot_be_advanced_past_its_end(model):
+    engine = Engine(model)
+    ny = int(2 * model.dims[0] + model.dims[5])
+    scheme = (0, 1e-8, 1e-10, 1e300, ny, 1e-3, 1000, False, 1)
+    y = np.zeros(ny)
+    assert _core.run(engine.c, engine.work, y, scheme, 0.0, begin=(0.0, 0.01))[0] == 0
+    status = _core.run(engine.c, engine.work, y, scheme, 0.02)[0]
+    assert status == 6 and np.all(y == 0.0)  # VSJ_BAD_ARGUMENT, the state untouched

@@ -4,7 +4,6 @@ item 7)."""
 
 from __future__ import annotations
 
-import numpy as np
 
 from vsj import measurements, synth
 from vsj.identification.wrist import fit_wrist

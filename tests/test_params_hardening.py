@@ -9,7 +9,6 @@ instead of stopping the suite.
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys

@@ -259,11 +259,11 @@ def test_pass_through_parameters_retune_a_shared_model_bit_for_bit(spec_file):
     values = np.array([-0.01, p.base_params["elastic_element.lever_length"], 0.0123456789])
     run = runner._build(p, values)
     alone = runner._compiled(p, p.parameters_for(values)).model
-    ran, compiled = run.model._asdict(), alone._asdict()
+    ran, compiled = run.plan.model._asdict(), alone._asdict()
     for name in compiled:
         if name != "src_pos0":
             assert np.asarray(ran[name]).tobytes() == np.asarray(compiled[name]).tobytes(), name
-    assert not np.array_equal(run.model.par, p.base_model.par)
+    assert not np.array_equal(run.plan.model.par, p.base_model.par)
 
     # a quantity that enters as a product is not pass-through, one that enters as it is is
     def build(v):

@@ -381,80 +381,6 @@ static int increasing(const double *t, Py_ssize_t n, const char *name) {
     return 0;
 }
 
-/* dopri(model, work, y, t0, t_end, t_out, rtol, atol, h_max, max_steps, n_err, out) */
-static PyObject *py_dopri(PyObject *mod, PyObject *args) {
-    ModelObject *model;
-    WorkObject *work;
-    PyObject *oy, *ot, *oout;
-    double t0, t_end, rtol, atol, h_max;
-    long long max_steps, n_err;
-    arg y, t_out, out;
-    Py_ssize_t ny, n_out, cols;
-    vsj_report r;
-    (void)mod;
-    if (!PyArg_ParseTuple(args, "O!O!OddOdddLLO:dopri", &ModelType, &model, &WorkType, &work,
-                          &oy, &t0, &t_end, &ot, &rtol, &atol, &h_max, &max_steps, &n_err,
-                          &oout))
-        return NULL;
-    if (finite_scalar(t0, "t0") < 0 || finite_scalar(t_end, "t_end") < 0)
-        return NULL;
-    if (!(t_end > t0) || !(rtol > 0.0) || !(atol > 0.0) || !(h_max > 0.0) || max_steps < 1) {
-        PyErr_SetString(PyExc_ValueError,
-                        "dopri: needs t_end > t0, rtol > 0, atol > 0, h_max > 0, max_steps >= 1");
-        return NULL;
-    }
-    if (get(oy, &y, DOUBLES, 1, -1, "y") < 0)
-        return NULL;
-    ny = items(&y);
-    if (ny != vsj_n_state(&model->m) && ny != vsj_n_state(&model->m) + vsj_n_acc(&model->m)) {
-        PyErr_Format(PyExc_ValueError, "y: expected %lld or %lld values, got %zd",
-                     (long long)vsj_n_state(&model->m),
-                     (long long)(vsj_n_state(&model->m) + vsj_n_acc(&model->m)), ny);
-        release(&y);
-        return NULL;
-    }
-    if (n_err < 0 || n_err > ny) {
-        PyErr_SetString(PyExc_ValueError, "n_err: outside 0..len(y)");
-        release(&y);
-        return NULL;
-    }
-    if (get(ot, &t_out, DOUBLES, 0, -1, "t_out") < 0) {
-        release(&y);
-        return NULL;
-    }
-    n_out = items(&t_out);
-    if (increasing((const double *)t_out.view.buf, n_out, "t_out") < 0
-        || get(oout, &out, DOUBLES, 1, -1, "out") < 0) {
-        release(&y);
-        release(&t_out);
-        return NULL;
-    }
-    cols = n_out ? items(&out) / n_out : 0;
-    if (cols * n_out != items(&out) || (out.view.ndim == 2 && out.view.shape[0] != n_out)) {
-        PyErr_SetString(PyExc_ValueError, "out: needs one row per sample");
-        release(&y);
-        release(&t_out);
-        release(&out);
-        return NULL;
-    }
-    if (take(work, &model->m) < 0) {
-        release(&y);
-        release(&t_out);
-        release(&out);
-        return NULL;
-    }
-    Py_BEGIN_ALLOW_THREADS
-    r = vsj_dopri(&model->m, work->w, (double *)y.view.buf, ny, t0, t_end,
-                  (const double *)t_out.view.buf, n_out, rtol, atol, h_max, max_steps, n_err,
-                  (double *)out.view.buf, cols);
-    Py_END_ALLOW_THREADS
-    give_back(work);
-    release(&y);
-    release(&t_out);
-    release(&out);
-    return report_tuple(r);
-}
-
 /* The time-stepper samples at whole steps: the times must be multiples of h. */
 static int multiples(const double *t, Py_ssize_t n, double h) {
     Py_ssize_t i;
@@ -515,176 +441,151 @@ static int ts_samples(ts_args *a, const vsj_model *m, PyObject *ot, PyObject *oo
     return 0;
 }
 
-/* timestep(model, work, y, duration, h, t_out, max_steps, ledger, out, coulomb, stuck,
- *          transitions) */
-static PyObject *py_timestep(PyObject *mod, PyObject *args) {
-    ModelObject *model;
-    WorkObject *work;
-    PyObject *oy, *ot, *oout, *oc, *os, *otr;
-    double duration, h;
-    long long max_steps;
-    int ledger;
-    arg y, tr;
-    ts_args a;
-    Py_ssize_t ny, want;
-    vsj_report r;
-    (void)mod;
-    if (!PyArg_ParseTuple(args, "O!O!OddOLpOOOO:timestep", &ModelType, &model, &WorkType, &work,
-                          &oy, &duration, &h, &ot, &max_steps, &ledger, &oout, &oc, &os, &otr))
-        return NULL;
-    if (!(isfinite(duration) && duration > 0.0 && isfinite(h) && h > 0.0) || max_steps < 1) {
-        PyErr_SetString(PyExc_ValueError,
-                        "timestep: needs duration > 0, a step h > 0 and max_steps >= 1");
-        return NULL;
+static int step_args(ModelObject *model, PyObject *os, PyObject *ou, arg *s, arg *u,
+                     int writable) {
+    Py_ssize_t i;
+    const double *v;
+    if (get(os, s, DOUBLES, writable, (Py_ssize_t)vsj_step_state_size(&model->m), "state") < 0)
+        return -1;
+    if (get(ou, u, DOUBLES, 0, (Py_ssize_t)model->m.n_channels, "inputs") < 0) {
+        release(s);
+        return -1;
     }
-    if (duration / h > 1e12) {
-        PyErr_SetString(PyExc_ValueError, "timestep: more than 1e12 steps");
-        return NULL;
-    }
-    want = (Py_ssize_t)(vsj_n_state(&model->m) + (ledger ? vsj_n_acc(&model->m) : 0));
-    if (get(oy, &y, DOUBLES, 1, -1, "y") < 0)
-        return NULL;
-    ny = items(&y);
-    if (ny < want) {
-        PyErr_Format(PyExc_ValueError, "y: expected at least %zd values, got %zd", want, ny);
-        release(&y);
-        return NULL;
-    }
-    if (ts_samples(&a, &model->m, ot, oout, oc, os, h) < 0) {
-        ts_release(&a);
-        release(&y);
-        return NULL;
-    }
-    if (get(otr, &tr, INTS, 1, (Py_ssize_t)model->m.n_frictions, "transitions") < 0) {
-        ts_release(&a);
-        release(&y);
-        return NULL;
-    }
-    if (take(work, &model->m) < 0) {
-        ts_release(&a);
-        release(&y);
-        release(&tr);
-        return NULL;
-    }
-    Py_BEGIN_ALLOW_THREADS
-    r = vsj_timestep(&model->m, work->w, (double *)y.view.buf, duration, h, max_steps, ledger,
-                     &a.samples, (int64_t *)tr.view.buf);
-    Py_END_ALLOW_THREADS
-    give_back(work);
-    ts_release(&a);
-    release(&y);
-    release(&tr);
-    return report_tuple(r);
+    v = (const double *)u->view.buf;
+    for (i = 0; i < items(u); i++)
+        if (!isfinite(v[i])) {
+            PyErr_Format(PyExc_ValueError, "inputs: value %zd is not finite", i);
+            release(s);
+            release(u);
+            return -1;
+        }
+    v = (const double *)s->view.buf;
+    for (i = 0; i < items(s); i++)
+        if (!isfinite(v[i])) {
+            PyErr_Format(PyExc_ValueError, "state: value %zd is not finite", i);
+            release(s);
+            release(u);
+            return -1;
+        }
+    return 0;
 }
 
-/* begin(kind, model, work, y, t0, t_end, rtol, atol, h_max, max_steps, n_err) -> status:
- * a run that `advance` continues in blocks of samples. kind 0: Dormand-Prince
- * (vsj_dopri_begin); 1: the time-stepper (vsj_ts_prepare, vsj_ts_begin; y is the
- * state, the tolerances are not used). */
-static PyObject *py_begin(PyObject *mod, PyObject *args) {
+/* ---- runs: the one entry point of every driver ------------------------------------- */
+
+/* A scheme from its tuple (method, rtol, atol, h_max, n_err, h, max_steps, ledger,
+ * substeps); method 0 dopri, 1 time-stepper, 2 rk4 (a held period only). */
+static int scheme_of(PyObject *o, vsj_scheme *sc, long long *substeps) {
+    long long method, n_err, max_steps;
+    int ledger;
+    if (!PyArg_ParseTuple(o, "LdddLdLpL:scheme", &method, &sc->rtol, &sc->atol, &sc->h_max,
+                          &n_err, &sc->h, &max_steps, &ledger, substeps))
+        return -1;
+    if (method < 0 || method > 2 || !(sc->rtol > 0.0) || !(sc->atol > 0.0) || !(sc->h_max > 0.0)
+        || !(isfinite(sc->h) && sc->h > 0.0) || max_steps < 1 || n_err < 0 || *substeps < 1
+        || *substeps > VSJ_MAX_PERIOD_STEPS) {
+        PyErr_SetString(PyExc_ValueError, "scheme: method 0, 1 or 2; rtol, atol, h_max and h "
+                                          "> 0; max_steps and substeps >= 1; n_err >= 0");
+        return -1;
+    }
+    sc->method = (int)method;
+    sc->n_err = n_err;
+    sc->max_steps = max_steps;
+    sc->ledger = ledger;
+    return 0;
+}
+
+/* A held period of the step function: y is its state [x, p, i, sigma] (vsj.h). */
+static PyObject *held_period(ModelObject *model, WorkObject *work, PyObject *oy, PyObject *oheld,
+                             const vsj_scheme *sc, long long substeps, double dt) {
+    arg s, u;
+    int status;
+    if (!(isfinite(dt) && dt > 0.0) || (sc->method == 1 && !(dt / sc->h <= VSJ_MAX_PERIOD_STEPS))) {
+        PyErr_Format(PyExc_ValueError, "run: a held period needs dt > 0 and at most %d steps",
+                     VSJ_MAX_PERIOD_STEPS);
+        return NULL;
+    }
+    if (step_args(model, oy, oheld, &s, &u, 1) < 0)
+        return NULL;
+    if (take(work, &model->m) < 0) {
+        release(&s);
+        release(&u);
+        return NULL;
+    }
+    if (sc->method == 0)
+        status = vsj_step_dopri(&model->m, work->w, (double *)s.view.buf,
+                                (const double *)u.view.buf, dt, sc->rtol, sc->atol,
+                                sc->max_steps);
+    else if (sc->method == 2)
+        status = vsj_step_rk4(&model->m, work->w, (double *)s.view.buf,
+                              (const double *)u.view.buf, dt, substeps);
+    else
+        status = vsj_step_timestep(&model->m, work->w, (double *)s.view.buf,
+                                   (const double *)u.view.buf, dt, sc->h);
+    give_back(work);
+    release(&s);
+    release(&u);
+    return Py_BuildValue("(idLL)", status, dt, 0LL, 0LL);
+}
+
+/* run(model, work, y, scheme, until, begin=None, finish=False, t_out=None, out=None,
+ *     coulomb=None, stuck=None, held=None) -> (status, t, steps, rejected)
+ * The engine's one entry point for integrating (c/run.c). With `begin` = (t0, t_end)
+ * a run starts from y; it is then sampled at t_out (rows into out; the time-stepper's
+ * Coulomb torques and stick states into coulomb, stuck), and with `finish` integrated to
+ * its end; y receives the state where it stands. With `held` (one value per input
+ * channel) y is the step function's state instead, advanced by one period of `until`
+ * seconds with those inputs held. Releases the GIL while it integrates. */
+static PyObject *py_run(PyObject *mod, PyObject *args, PyObject *kwds) {
+    static char *keywords[] = {"model", "work", "y", "scheme", "until", "begin", "finish",
+                               "t_out", "out", "coulomb", "stuck", "held", NULL};
     ModelObject *model;
     WorkObject *work;
-    PyObject *oy;
-    int kind, status;
-    double t0, t_end, rtol, atol, h_max;
-    long long max_steps, n_err;
+    PyObject *oy, *oscheme, *obegin = Py_None, *ot = Py_None, *oout = Py_None;
+    PyObject *oc = Py_None, *os = Py_None, *oheld = Py_None;
+    int finish = 0, status = VSJ_OK;
+    double until;
+    vsj_scheme sc;
+    long long substeps;
     arg y;
-    Py_ssize_t ny, state = 0, full = 0;
+    ts_args a;
+    Py_ssize_t ny, state, full;
+    vsj_report r;
     (void)mod;
-    if (!PyArg_ParseTuple(args, "iO!O!OdddddLL:begin", &kind, &ModelType, &model, &WorkType,
-                          &work, &oy, &t0, &t_end, &rtol, &atol, &h_max, &max_steps, &n_err))
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "O!O!OOd|OpOOOOO:run", keywords, &ModelType,
+                                     &model, &WorkType, &work, &oy, &oscheme, &until, &obegin,
+                                     &finish, &ot, &oout, &oc, &os, &oheld))
         return NULL;
-    if (kind != 0 && kind != 1) {
-        PyErr_SetString(PyExc_ValueError, "begin: kind is 0 (dopri) or 1 (time-stepper)");
+    if (scheme_of(oscheme, &sc, &substeps) < 0)
         return NULL;
-    }
-    if (finite_scalar(t0, "t0") < 0 || finite_scalar(t_end, "t_end") < 0)
-        return NULL;
-    if (!(t_end >= t0) || !(rtol > 0.0) || !(atol > 0.0) || !(h_max > 0.0) || max_steps < 1) {
-        PyErr_SetString(PyExc_ValueError,
-                        "begin: needs t_end >= t0, rtol > 0, atol > 0, h_max > 0, max_steps >= 1");
+    if (oheld != Py_None)
+        return held_period(model, work, oy, oheld, &sc, substeps, until);
+    if (sc.method == 2) {
+        PyErr_SetString(PyExc_ValueError, "run: rk4 steps held periods only");
         return NULL;
     }
-    if (get(oy, &y, DOUBLES, 0, -1, "y") < 0)
+    if (!isfinite(until)) {
+        PyErr_SetString(PyExc_ValueError, "run: `until` must be finite");
+        return NULL;
+    }
+    if (get(oy, &y, DOUBLES, 1, -1, "y") < 0)
         return NULL;
     ny = items(&y);
     state = (Py_ssize_t)vsj_n_state(&model->m);
     full = state + (Py_ssize_t)vsj_n_acc(&model->m);
     if (ny != state && ny != full) {
-        PyErr_Format(PyExc_ValueError, "y: expected %zd or %zd values, got %zd", state, full,
-                     ny);
+        PyErr_Format(PyExc_ValueError, "y: expected %zd or %zd values, got %zd", state, full, ny);
         release(&y);
         return NULL;
     }
-    if (n_err < 0 || n_err > ny) {
-        PyErr_SetString(PyExc_ValueError, "n_err: outside 0..len(y)");
-        release(&y);
-        return NULL;
-    }
-    if (take(work, &model->m) < 0) {
-        release(&y);
-        return NULL;
-    }
-    if (kind == 0) {
-        status = vsj_dopri_begin(&model->m, work->w, (const double *)y.view.buf, ny, t0, t_end,
-                                 rtol, atol, h_max, max_steps, n_err);
-    } else {
-        status = vsj_ts_prepare(&model->m, work->w);
-        if (status == VSJ_OK)
-            status = vsj_ts_begin(&model->m, work->w, (const double *)y.view.buf, t0);
-        if (status == VSJ_PIVOT_RANGE) /* reported by the advance, at its time */
-            status = VSJ_OK;
-    }
-    give_back(work);
-    release(&y);
-    return PyLong_FromLong(status);
-}
-
-/* advance(kind, model, work, y, t_end, t_out, out, coulomb, stuck, finish, h, max_steps,
- *         ledger) -> report: the samples at t_out of a run that `begin` started. dopri:
- * to t_end only with `finish`; the time-stepper: to t_end (the last sample), with the
- * Coulomb torques and stick states of its friction elements if `coulomb` is not None,
- * and the energy accumulators in y with `ledger`. y receives the state reached. */
-static PyObject *py_advance(PyObject *mod, PyObject *args) {
-    ModelObject *model;
-    WorkObject *work;
-    PyObject *oy, *ot, *oout, *oc, *os;
-    int kind, finish, ledger;
-    double t_end, h;
-    long long max_steps;
-    arg y;
-    ts_args a;
-    Py_ssize_t ny, want;
-    vsj_report r;
-    (void)mod;
-    if (!PyArg_ParseTuple(args, "iO!O!OdOOOOpdLp:advance", &kind, &ModelType, &model, &WorkType,
-                          &work, &oy, &t_end, &ot, &oout, &oc, &os, &finish, &h, &max_steps,
-                          &ledger))
-        return NULL;
-    if (kind != 0 && kind != 1) {
-        PyErr_SetString(PyExc_ValueError, "advance: kind is 0 (dopri) or 1 (time-stepper)");
-        return NULL;
-    }
-    if (!(isfinite(t_end) && isfinite(h) && h > 0.0) || max_steps < 1) {
-        PyErr_SetString(PyExc_ValueError, "advance: needs a finite t_end, h > 0, max_steps >= 1");
-        return NULL;
-    }
-    if (get(oy, &y, DOUBLES, 1, -1, "y") < 0)
-        return NULL;
-    ny = items(&y);
-    want = (Py_ssize_t)(vsj_n_state(&model->m) + (ledger ? vsj_n_acc(&model->m) : 0));
-    if (ny < want) {
-        PyErr_Format(PyExc_ValueError, "y: expected at least %zd values, got %zd", want, ny);
-        release(&y);
-        return NULL;
-    }
-    if (ts_samples(&a, &model->m, ot, oout, oc, os, kind == 1 ? h : 0.0) < 0) {
+    memset(&a, 0, sizeof a);
+    if (ot != Py_None && ts_samples(&a, &model->m, ot, oout, oc, os, sc.method == 1 ? sc.h : 0.0)
+                             < 0) {
         ts_release(&a);
         release(&y);
         return NULL;
     }
-    if (a.samples.n > 0 && a.samples.t[a.samples.n - 1] > t_end) {
-        PyErr_SetString(PyExc_ValueError, "advance: t_out beyond t_end");
+    if (a.samples.n > 0 && a.samples.t[a.samples.n - 1] > until) {
+        PyErr_SetString(PyExc_ValueError, "run: t_out beyond `until`");
         ts_release(&a);
         release(&y);
         return NULL;
@@ -693,14 +594,28 @@ static PyObject *py_advance(PyObject *mod, PyObject *args) {
         ts_release(&a);
         release(&y);
         return NULL;
+    }
+    if (obegin != Py_None) {
+        double t0, t_end;
+        if (!PyArg_ParseTuple(obegin, "dd:begin", &t0, &t_end)) {
+            give_back(work);
+            ts_release(&a);
+            release(&y);
+            return NULL;
+        }
+        if (sc.method == 0 && sc.n_err > ny)
+            sc.n_err = ny;
+        status = vsj_begin(&model->m, work->w, &sc, (const double *)y.view.buf, ny, t0, t_end);
+        if (status != VSJ_OK) {
+            give_back(work);
+            ts_release(&a);
+            release(&y);
+            return Py_BuildValue("(idLL)", status, t0, 0LL, 0LL);
+        }
     }
     Py_BEGIN_ALLOW_THREADS
-    if (kind == 0)
-        r = vsj_dopri_advance(&model->m, work->w, a.samples.t, a.samples.n, a.samples.out,
-                              a.samples.out_cols, finish, (double *)y.view.buf);
-    else
-        r = vsj_ts_advance(&model->m, work->w, (double *)y.view.buf, t_end, h, max_steps,
-                           ledger, &a.samples);
+    r = vsj_advance(&model->m, work->w, (double *)y.view.buf, until, finish,
+                    ot != Py_None ? &a.samples : NULL);
     Py_END_ALLOW_THREADS
     give_back(work);
     ts_release(&a);
@@ -910,109 +825,6 @@ static PyObject *py_stored_energy(PyObject *mod, PyObject *args) {
 /* ---- the step function --------------------------------------------------------------- */
 
 /* The state and the inputs of a step, checked. */
-static int step_args(ModelObject *model, PyObject *os, PyObject *ou, arg *s, arg *u,
-                     int writable) {
-    Py_ssize_t i;
-    const double *v;
-    if (get(os, s, DOUBLES, writable, (Py_ssize_t)vsj_step_state_size(&model->m), "state") < 0)
-        return -1;
-    if (get(ou, u, DOUBLES, 0, (Py_ssize_t)model->m.n_channels, "inputs") < 0) {
-        release(s);
-        return -1;
-    }
-    v = (const double *)u->view.buf;
-    for (i = 0; i < items(u); i++)
-        if (!isfinite(v[i])) {
-            PyErr_Format(PyExc_ValueError, "inputs: value %zd is not finite", i);
-            release(s);
-            release(u);
-            return -1;
-        }
-    v = (const double *)s->view.buf;
-    for (i = 0; i < items(s); i++)
-        if (!isfinite(v[i])) {
-            PyErr_Format(PyExc_ValueError, "state: value %zd is not finite", i);
-            release(s);
-            release(u);
-            return -1;
-        }
-    return 0;
-}
-
-/* step(method, model, work, state, inputs, dt, rtol, atol, max_steps, substeps, h) -> status;
- * method 0: dopri, 1: rk4, 2: time-stepper */
-static PyObject *py_step(PyObject *mod, PyObject *const *argv, Py_ssize_t argc) {
-    ModelObject *model;
-    WorkObject *work;
-    arg s, u;
-    int method, status;
-    double dt, rtol, atol, h;
-    long long max_steps, substeps;
-    (void)mod;
-    if (argc != 11) {
-        PyErr_SetString(PyExc_TypeError, "step: 11 arguments");
-        return NULL;
-    }
-    if (!PyObject_TypeCheck(argv[1], &ModelType) || !PyObject_TypeCheck(argv[2], &WorkType)) {
-        PyErr_SetString(PyExc_TypeError, "step: needs a Model and a Work");
-        return NULL;
-    }
-    model = (ModelObject *)argv[1];
-    work = (WorkObject *)argv[2];
-    /* one conversion at a time: each may fail, and the next must not run then */
-    {
-        long long code = PyLong_AsLongLong(argv[0]);
-        if (code == -1 && PyErr_Occurred())
-            return NULL;
-        if (code < 0 || code > 2) {
-            PyErr_SetString(PyExc_ValueError, "step: method must be 0 (dopri), 1 (rk4) or 2 "
-                                              "(time-stepper)");
-            return NULL;
-        }
-        method = (int)code;
-    }
-    if ((dt = PyFloat_AsDouble(argv[5])) == -1.0 && PyErr_Occurred())
-        return NULL;
-    if ((rtol = PyFloat_AsDouble(argv[6])) == -1.0 && PyErr_Occurred())
-        return NULL;
-    if ((atol = PyFloat_AsDouble(argv[7])) == -1.0 && PyErr_Occurred())
-        return NULL;
-    if ((max_steps = PyLong_AsLongLong(argv[8])) == -1 && PyErr_Occurred())
-        return NULL;
-    if ((substeps = PyLong_AsLongLong(argv[9])) == -1 && PyErr_Occurred())
-        return NULL;
-    if ((h = PyFloat_AsDouble(argv[10])) == -1.0 && PyErr_Occurred())
-        return NULL;
-    if (!(isfinite(dt) && dt > 0.0) || !(rtol > 0.0) || !(atol > 0.0) || max_steps < 1
-        || substeps < 1 || substeps > VSJ_MAX_PERIOD_STEPS || !(isfinite(h) && h > 0.0)
-        || (method == 2 && !(dt / h <= VSJ_MAX_PERIOD_STEPS))) {
-        PyErr_Format(PyExc_ValueError, "step: needs dt > 0, rtol > 0, atol > 0, max_steps >= 1, "
-                     "substeps in 1..%d, a step h > 0 and at most %d steps per period",
-                     VSJ_MAX_PERIOD_STEPS, VSJ_MAX_PERIOD_STEPS);
-        return NULL;
-    }
-    if (step_args(model, argv[3], argv[4], &s, &u, 1) < 0)
-        return NULL;
-    if (take(work, &model->m) < 0) {
-        release(&s);
-        release(&u);
-        return NULL;
-    }
-    if (method == 0) {
-        status = vsj_step_dopri(&model->m, work->w, (double *)s.view.buf,
-                                (const double *)u.view.buf, dt, rtol, atol, max_steps);
-    } else if (method == 1) {
-        status = vsj_step_rk4(&model->m, work->w, (double *)s.view.buf,
-                              (const double *)u.view.buf, dt, substeps);
-    } else {
-        status = vsj_step_timestep(&model->m, work->w, (double *)s.view.buf,
-                                   (const double *)u.view.buf, dt, h);
-    }
-    give_back(work);
-    release(&s);
-    release(&u);
-    return PyLong_FromLong(status);
-}
 
 /* ts_prepare(model, work) -> status: the time-stepper's analysis, its history cleared */
 static PyObject *py_ts_prepare(PyObject *mod, PyObject *args) {
@@ -1060,132 +872,6 @@ static PyObject *py_step_rate(PyObject *mod, PyObject *args) {
     release(&u);
     release(&d);
     return PyLong_FromLong(status);
-}
-
-/* ---- batches ---------------------------------------------------------------------------- */
-
-/* batch_run(kind, model, work, r, masses, Minvs, pars, src0s, y0s, t_end, t_out, rtol, atol,
- *           h_max, max_steps, h, outs, y_end, status, t_stop, steps, transitions)
- * Run r of a batch: the model with run r's mass matrix, inverse, parameters and
- * source angles, from state y0s[r]; samples into outs[r] (states only, no
- * ledger). kind 0: dopri, 1: time-stepper. */
-static PyObject *py_batch_run(PyObject *mod, PyObject *args) {
-    ModelObject *model;
-    WorkObject *work;
-    PyObject *o[12];
-    int kind;
-    long long r, max_steps;
-    double t_end, rtol, atol, h_max, h;
-    arg a[12];
-    vsj_model mr;
-    Py_ssize_t runs, n_out, ny, sz, i, nst;
-    int64_t nf;
-    vsj_report rep = {VSJ_OK, 0.0, 0, 0};
-    char message[256];
-    int ok = 1, status;
-    int64_t flips = 0;
-    (void)mod;
-    if (!PyArg_ParseTuple(args, "iO!O!LOOOOOdOdddLdOOOOOO:batch_run", &kind, &ModelType, &model,
-                          &WorkType, &work, &r, &o[0], &o[1], &o[2], &o[3], &o[4], &t_end, &o[5],
-                          &rtol, &atol, &h_max, &max_steps, &h, &o[6], &o[7], &o[8], &o[9],
-                          &o[10], &o[11]))
-        return NULL;
-    if ((kind != 0 && kind != 1) || !(isfinite(t_end) && t_end > 0.0) || !(rtol > 0.0)
-        || !(atol > 0.0) || !(h_max > 0.0) || max_steps < 1 || !(isfinite(h) && h > 0.0)) {
-        PyErr_SetString(PyExc_ValueError, "batch_run: bad kind, time, tolerance or step");
-        return NULL;
-    }
-    for (i = 0; i < 12; i++)
-        a[i].held = 0;
-    sz = (Py_ssize_t)(model->m.n + model->m.n_sources);
-    nf = model->m.n_frictions;
-    ny = (Py_ssize_t)vsj_n_state(&model->m) + (kind == 1 ? (Py_ssize_t)vsj_n_acc(&model->m) : 0);
-    nst = (Py_ssize_t)vsj_n_state(&model->m);
-    if (get(o[4], &a[4], DOUBLES, 0, -1, "y0s") < 0)
-        return NULL;
-    runs = items(&a[4]) / ny;
-    if (runs * ny != items(&a[4]) || r < 0 || r >= runs) {
-        PyErr_SetString(PyExc_ValueError, "batch_run: y0s needs one state row per run, r in range");
-        ok = 0;
-    }
-    if (ok && (get(o[0], &a[0], DOUBLES, 0, runs * sz * sz, "masses") < 0
-               || get(o[1], &a[1], DOUBLES, 0, runs * (Py_ssize_t)(model->m.n * model->m.n),
-                      "Minvs") < 0
-               || get(o[2], &a[2], DOUBLES, 0, runs * (Py_ssize_t)(model->m.n_rows * VSJ_NPAR),
-                      "pars") < 0
-               || get(o[3], &a[3], DOUBLES, 0, runs * (Py_ssize_t)model->m.n_sources,
-                      "src0s") < 0
-               || get(o[5], &a[5], DOUBLES, 0, -1, "t_out") < 0))
-        ok = 0;
-    n_out = ok ? items(&a[5]) : 0;
-    if (ok && kind == 1 && multiples((const double *)a[5].view.buf, n_out, h) < 0)
-        ok = 0;
-    if (ok && (increasing((const double *)a[5].view.buf, n_out, "t_out") < 0
-               || get(o[6], &a[6], DOUBLES, 1, runs * n_out * nst, "outs") < 0
-               || get(o[7], &a[7], DOUBLES, 1, runs * ny, "y_end") < 0
-               || get(o[8], &a[8], INTS, 1, runs, "status") < 0
-               || get(o[9], &a[9], DOUBLES, 1, runs, "t_stop") < 0
-               || get(o[10], &a[10], INTS, 1, runs, "steps") < 0
-               || get(o[11], &a[11], INTS, 1, runs, "transitions") < 0))
-        ok = 0;
-    if (ok) {
-        mr = model->m;
-        mr.mass = (const double *)a[0].view.buf + r * sz * sz;
-        mr.Minv = (const double *)a[1].view.buf + r * model->m.n * model->m.n;
-        mr.par = (const double *)a[2].view.buf + r * model->m.n_rows * VSJ_NPAR;
-        mr.src_pos0 = (const double *)a[3].view.buf + r * model->m.n_sources;
-        if (vsj_check_model(&mr, message, sizeof message) != VSJ_OK) {
-            PyErr_Format(PyExc_ValueError, "batch run %lld: %s", r, message);
-            ok = 0;
-        }
-    }
-    if (ok && take(work, &model->m) < 0)
-        ok = 0;
-    if (!ok) {
-        for (i = 0; i < 12; i++)
-            release(&a[i]);
-        return NULL;
-    }
-    {
-        double *y = (double *)a[7].view.buf + r * ny;
-        double *out = (double *)a[6].view.buf + r * n_out * nst;
-        const double *t_out = (const double *)a[5].view.buf;
-        memcpy(y, (const double *)a[4].view.buf + r * ny, (size_t)ny * sizeof(double));
-        Py_BEGIN_ALLOW_THREADS
-        if (kind == 0) {
-            rep = vsj_dopri(&mr, work->w, y, ny, 0.0, t_end, t_out, n_out, rtol, atol, h_max,
-                            max_steps, nst, out, nst);
-        } else {
-            vsj_samples smp;
-            smp.t = t_out;
-            smp.n = n_out;
-            smp.out = out;
-            smp.out_cols = nst;
-            smp.coulomb = NULL;
-            smp.stuck = NULL;
-            rep = vsj_timestep(&mr, work->w, y, t_end, h, max_steps, 0, &smp, NULL);
-        }
-        Py_END_ALLOW_THREADS
-        if (kind == 1) {
-            int64_t *tr = (int64_t *)malloc((size_t)(nf > 0 ? nf : 1) * sizeof(int64_t));
-            int64_t e;
-            if (tr) {
-                vsj_ts_transitions(work->w, tr);
-                for (e = 0; e < nf; e++)
-                    flips += tr[e];
-                free(tr);
-            }
-        }
-    }
-    give_back(work);
-    status = rep.status;
-    ((int64_t *)a[8].view.buf)[r] = status;
-    ((double *)a[9].view.buf)[r] = rep.t;
-    ((int64_t *)a[10].view.buf)[r] = rep.steps;
-    ((int64_t *)a[11].view.buf)[r] = flips;
-    for (i = 0; i < 12; i++)
-        release(&a[i]);
-    Py_RETURN_NONE;
 }
 
 /* solve_impulses(YT, qs, cap, active, ps, states, iterations): vsj_solve_impulses */
@@ -1366,20 +1052,16 @@ static PyObject *py_observation_width(PyObject *mod, PyObject *arg_) {
 }
 
 static PyMethodDef methods[] = {
-    {"dopri", py_dopri, METH_VARARGS, "Adaptive Dormand-Prince 5(4) (vsj_dopri)."},
-    {"timestep", py_timestep, METH_VARARGS, "The time-stepper with true stiction (vsj_timestep)."},
-    {"begin", py_begin, METH_VARARGS, "Start a run that advance continues in blocks."},
-    {"advance", py_advance, METH_VARARGS, "The next block of samples of a run."},
+    {"run", (PyCFunction)(void (*)(void))py_run, METH_VARARGS | METH_KEYWORDS,
+     "The engine's one entry point for integrating: start, sample and finish a run, or "
+     "advance the step function by a held period."},
     {"transitions", py_transitions, METH_VARARGS, "The time-stepper's stick-phase counts."},
     {"observe", py_observe, METH_VARARGS, "Every internal signal at samples (vsj_observe)."},
     {"derivatives", py_derivatives, METH_VARARGS, "dy/dt (vsj_derivatives)."},
     {"source_signals", py_source_signals, METH_VARARGS, "Source angles and speeds."},
     {"stored_energy", py_stored_energy, METH_VARARGS, "Kinetic, spring and inductor energy."},
-    {"step", (PyCFunction)(void (*)(void))py_step, METH_FASTCALL,
-     "One control period (vsj_step_dopri, vsj_step_rk4, vsj_step_timestep)."},
     {"ts_prepare", py_ts_prepare, METH_VARARGS, "Analyse a model for the time-stepper."},
     {"step_rate", py_step_rate, METH_VARARGS, "ds/dt of the step function's state."},
-    {"batch_run", py_batch_run, METH_VARARGS, "One run of a batch (releases the GIL)."},
     {"solve_impulses", py_solve_impulses, METH_VARARGS,
      "The joint Coulomb impulse problem for a sequence of right-hand sides."},
     {"spring_law", py_spring_law, METH_VARARGS, "Spring law at many deflections."},

@@ -22,7 +22,6 @@ import numpy as np
 from . import __version__
 from .params import Parameters
 from .simulate import InitialState, SimulationOptions
-from .engine.core import native
 from .engine.model import ARRAYS
 from .stepper import METHODS, Stepper
 from .wrist import WristOptions
@@ -111,7 +110,7 @@ def program_bytes(document: dict, stepper: Stepper) -> bytes:
               struct.pack("<q", len(document["outputs"]))]
     parts += [_name(o["name"]) for o in document["outputs"]]
     parts += [np.asarray([o["row"] for o in document["outputs"]], dtype="<f8").tobytes()]
-    blob = native(stepper.model).to_bytes()
+    blob = stepper.plan.native.to_bytes()
     parts += [struct.pack("<q", len(blob)), blob, b"\0" * (-len(blob) % 8)]
     data = b"".join(parts)
     return data + struct.pack("<Q", _fnv1a(data))

@@ -65,17 +65,19 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .engine import OK, STATUS_TEXT, Engine, compile_model
+from dataclasses import replace
+
 from . import _core
+from .engine import OK, STATUS_TEXT
 from .engine.core import pivot_position
 from .engine.model import EngineModel, friction_laws_for
+from .engine.plan import Plan, Scheme
 from .errors import InputError, SimulationError
 from .inputs import Constant
 from .network import Structure
 from .simulate import InitialState, SimulationOptions, prepare
 
 METHODS = ("dopri", "rk4", "timestep")
-_METHOD_CODE = {"dopri": 0, "rk4": 1, "timestep": 2}
 
 #: The most steps one period may take (rk4 substeps, time-stepper steps; vsj.h's
 #: VSJ_MAX_PERIOD_STEPS).
@@ -136,10 +138,12 @@ class Stepper:
         self.step_size = float(options.step)
         self.input_names = structure.channels()
         held = {ch: Constant(0.0) for ch in self.input_names}
-        model, self.layout = compile_model(
-            structure, held, self.period, friction=options.friction,
-            friction_overrides=options.friction_overrides, slope_width=options.slope_width)
-        self.use_model(model)
+        scheme = replace(Scheme.of(method, options), max_steps=self.max_steps,
+                         substeps=substeps)
+        self.plan = Plan.compile(structure, held, self.period, options, None, scheme,
+                                 held=True)
+        self.layout = self.plan.layout
+        self.use_model(self.plan.model)
         n, nm, s = self.layout.n, self.layout.n_motors, self.layout.n_sources
         self.state_names = tuple(
             [f"{f}.angle" for f in structure.free] + [f"{f}.momentum" for f in structure.free]
@@ -153,7 +157,8 @@ class Stepper:
         """Step with ``model`` from now on: the engine arrays of the same network with
         other parameters (the time-stepper's stick/slip history starts afresh)."""
         self.model = model
-        self._engine = Engine(model)
+        self.plan = replace(self.plan, model=model)
+        self._engine = self.plan.engine()
         self._c, self._work = self._engine.c, self._engine.work
         if self.method == "timestep":
             _core.ts_prepare(self._c, self._work)
@@ -215,8 +220,9 @@ class Stepper:
         """
         u = self.input_vector(inputs)
         held = {ch: Constant(float(v)) for ch, v in zip(self.input_names, u)}
-        model, layout, y0 = prepare(self.structure, held, self.period, self.options,
-                                    initial or InitialState())
+        plan = prepare(self.structure, held, self.period, self.options,
+                       initial or InitialState())
+        model, layout, y0 = plan.model, plan.layout, plan.y0
         n, nm = layout.n, layout.n_motors
         state = np.empty(self.n_state)
         state[:n] = y0[:n]
@@ -294,9 +300,7 @@ class Stepper:
         elif out is not y:
             out[:] = y
         try:
-            status = _core.step(_METHOD_CODE[self.method], self._c, self._work, out, u,
-                                self.period, self.rtol, self.atol, self.max_steps, self.substeps,
-                                self.step_size)
+            status = self.plan.hold(self._work, out, u)
         except ValueError:
             self._check_finite(y, u)
             raise

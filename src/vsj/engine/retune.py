@@ -28,7 +28,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-#: The arrays that may differ between the runs of one batch (`core.run_batch`).
+#: The arrays that may differ between the runs of one batch (`vsj.engine.plan.run_batch`).
 RETUNABLE = ("mass", "Minv", "par")
 
 Arrays = Mapping[str, np.ndarray]

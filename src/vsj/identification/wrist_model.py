@@ -23,19 +23,14 @@ first lead is compared once; the last window takes in a remainder too short
 for a window of its own. A signal recorded behind the inputs (see **Delays**)
 is read that much later for the start state (`WristModel.set_state_delays`).
 
-**Batch.** The engine's batch runner (`vsj.engine.core.run_batch`) takes, per
-run, the mass matrix, its inverse, the element parameters, the source angles
-and the initial state; the inputs (splines) are those of the one compiled
-model it runs. `vsj.simulate.simulate_batch` therefore runs many parameter sets
-over *one* input history; windows need one input history each (a window's
-time starts at zero). Without changing the engine, the cleanest way is one
-compiled model per window (its inputs shifted to start at zero) and, per
-parameter set, the mass matrix and parameters compiled once; every
-(window, parameter chunk) pair is then one call of ``run_batch`` on one
-thread, and a pool of threads runs all of them (the C engine releases the
-GIL). All windows of all parameter sets of one evaluation are one such batch.
+**Batch.** Each window has one compiled model (its inputs shifted to start at
+zero), and each parameter set its mass matrix, inverse and element parameters,
+compiled once; a run is that window's plan (`vsj.engine.plan.Plan`) retuned with
+them and its quasi-static initial state. Every (window, parameter chunk) pair is
+one call of `vsj.engine.plan.run_batch` on one thread, and a pool of threads runs
+all of them (the C engine releases the GIL).
 
-A free parameter may change what ``run_batch`` takes per run (inertias, every
+A free parameter may change what a retuned plan takes per run (inertias, every
 friction level, spring stiffnesses, compliances that start nonzero, motor
 constants, the elastic element's constants); one that changes the kinematic
 rows (a gear ratio, a tooth count) or the topology (a compliance or damping
@@ -75,6 +70,7 @@ import numpy as np
 
 from ..engine import Engine, compile_model, core
 from ..engine.model import Layout
+from ..engine.plan import Plan, Scheme, run_batch
 from ..errors import InputError
 from ..inputs import Position, Table
 from ..measurements import Measurement
@@ -596,17 +592,14 @@ class WristModel:
             d, k = task
             w = self.windows[k]
             base = w.engines[law].model
-            engine = Engine(_added_to_tables(base, self._table_times(w), noisy_channels,
-                                             extras[d][w.log]))
-            layout = Layout(*(int(v) for v in base.dims[:6]))
-            y0 = np.hstack([self._initial(w, law, mass, Minv, par), np.zeros(layout.n_acc)])
-            states, _, status, _, _, _ = core.run_batch(
-                "timestep", engine, mass[None], Minv[None], par[None], w.sigma0[None],
-                y0[None], w.duration, w.grids[h][0], h=h,
-                max_steps=int(w.duration / h) + 10, threads=1)
-            sim = self._sample(w, self._signals(w, states, h), delays, h)[0]
+            noisy_model = _added_to_tables(base, self._table_times(w), noisy_channels,
+                                           extras[d][w.log])
+            plan = self._plan(w, law, h, noisy_model).retuned(
+                y0=self._initial(w, law, mass, Minv, par), mass=mass, Minv=Minv, par=par)
+            batch = run_batch([plan], w.grids[h][0], threads=1)
+            sim = self._sample(w, self._signals(w, batch.states, h), delays, h)[0]
             r = ((sim - self.measured(k)) * wts).reshape(-1)
-            return d, k, r, bool(status[0] == core.OK)
+            return d, k, r, bool(batch.status[0] == core.OK)
 
         tasks = [(d, k) for d in range(draws) for k in range(len(self.windows))]
         threads = max(1, self.setup.threads or core.available_cores())
@@ -868,6 +861,15 @@ class WristModel:
         cache[law] = result
         return result
 
+    def _plan(self, w: Window, law: str, h: float, model) -> Plan:
+        """The plan of a window's run (the time-stepper at step ``h``, no ledger) with
+        ``model``, its sources starting at the window's measured angles; runs retune
+        its inertias and element parameters."""
+        layout = Layout(*(int(v) for v in model.dims[:6]))
+        scheme = Scheme("timestep", step=h, max_steps=int(w.duration / h) + 10)
+        return Plan(self.structure, model._replace(src_pos0=w.sigma0), layout, scheme,
+                    w.duration, np.zeros(layout.n_state))
+
     def _initial(self, w: Window, law: str, mass, Minv, par) -> np.ndarray:
         """Initial state of a window for one parameter set (quasi-static in the
         directions the measurements leave open)."""
@@ -969,19 +971,13 @@ class WristModel:
         def work(task):
             k, lo, hi = task
             w = self.windows[k]
-            engine = w.engines[law]
-            masses = np.array([compiled[r][0] for r in range(lo, hi)])
-            Minvs = np.array([compiled[r][1] for r in range(lo, hi)])
-            pars = np.array([compiled[r][2] for r in range(lo, hi)])
-            y0s = np.array([self._initial(w, law, *compiled[r]) for r in range(lo, hi)])
-            # the time-stepper's state vector has room for the accumulators
-            layout = Layout(*(int(v) for v in engine.model.dims[:6]))
-            y0s = np.hstack([y0s, np.zeros((hi - lo, layout.n_acc))])
-            src0s = np.repeat(w.sigma0[None], hi - lo, axis=0)
-            states, _, status, _, _, _ = core.run_batch(
-                "timestep", engine, masses, Minvs, pars, src0s, y0s, w.duration,
-                w.grids[h][0], h=h, max_steps=int(w.duration / h) + 10, threads=1)
-            signals = self._signals(w, states, h)
+            base = self._plan(w, law, h, w.engines[law].model)
+            plans = [base.retuned(y0=self._initial(w, law, *compiled[r]), mass=compiled[r][0],
+                                  Minv=compiled[r][1], par=compiled[r][2])
+                     for r in range(lo, hi)]
+            batch = run_batch(plans, w.grids[h][0], threads=1)
+            status = batch.status
+            signals = self._signals(w, batch.states, h)
             sets = np.flatnonzero((row_of >= lo) & (row_of < hi))
             outs[k][sets] = self._sample(w, signals[row_of[sets] - lo], delays[sets], h)
             return lo, hi, status

@@ -2,17 +2,17 @@
 
 from __future__ import annotations
 
-import math
 import time as _time
 from typing import Mapping
 
 import numpy as np
 
-from ..engine import STATUS_TEXT, Engine, compile_model, core
+from ..engine import STATUS_TEXT, compile_model, core
+from ..engine.plan import Plan, run_batch
 from ..errors import InputError
 from ..inputs import Input
 from ..network import Structure
-from .driver import _initial, check_arguments, choose_solver, prepare
+from .driver import check_arguments, choose_solver, prepare, sample_times
 from .options import InitialState, SimulationOptions
 from .result import BatchResult
 from .signals import state_names
@@ -57,38 +57,29 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
     if structures is not None and len(structures) != len(initials):
         raise InputError(f"simulate_batch: {len(structures)} structures for {len(initials)} runs")
     solver = choose_solver(structure, options)
-    base, layout, _ = prepare(structure, inputs, duration, options, InitialState())
-    engine = Engine(base)
+    plan = prepare(structure, inputs, duration, options, InitialState())
+    base, layout = plan.model, plan.layout
+    engine = plan.engine()
     u0 = engine.source_speeds(0.0)
-    runs = len(initials)
-    n_state = layout.n_state
-    # dopri integrates the state only: batch runs keep no ledger, and the engine
-    # then skips the elements that only the sources feel; the time-stepper's
-    # vector keeps room for the accumulators, which batch runs leave unbooked
-    y0s = np.zeros((runs, n_state if solver == "dopri" else n_state + layout.n_acc))
-    src0s = np.zeros((runs, layout.n_sources))
-    masses = np.repeat(base.mass[None], runs, axis=0)
-    Minvs = np.repeat(base.Minv[None], runs, axis=0)
-    pars = np.repeat(base.par[None], runs, axis=0)
+    plans, src0s = [], np.zeros((len(initials), layout.n_sources))
     for r, initial in enumerate(initials):
         struct_r = structure if structures is None else structures[r]
+        per_run = {}
         if structures is not None:
             m_r, layout_r = compile_model(struct_r, inputs, duration, friction=options.friction,
                                           friction_overrides=options.friction_overrides,
                                           slope_width=options.slope_width)
             _same_topology(base, layout, m_r, layout_r, r)
-            masses[r], Minvs[r], pars[r] = m_r.mass, m_r.Minv, m_r.par
-        x0, v0, sigma0, currents = _initial(struct_r, inputs, initial, u0)
-        y0s[r, :n_state] = np.concatenate([x0, v0, currents])
-        src0s[r] = sigma0
-    step = options.output_step
-    n_out = int(math.floor(duration / step + 1e-9)) + 1
-    t_out = np.arange(n_out) * step
+            per_run = {name: getattr(m_r, name) for name in _PER_RUN}
+        run_plan = Plan.starting(struct_r, base._replace(**per_run), layout, plan.scheme,
+                                 plan.duration, inputs, initial, u0)
+        src0s[r] = run_plan.model.src_pos0
+        plans.append(run_plan)
+    t_out = sample_times(duration, options.output_step)
     started = _time.perf_counter()
-    outs, y_end, status, t_stop, steps, flips = core.run_batch(
-        solver, engine, masses, Minvs, pars, src0s, y0s, duration, t_out, rtol=options.rtol,
-        atol=options.atol, h_max=options.max_step, max_steps=options.max_steps, h=options.step,
-        threads=threads)
+    batch = run_batch(plans, t_out, threads=threads)
+    outs, status, t_stop, steps, flips = (batch.states, batch.status, batch.stop_time,
+                                          batch.steps, batch.transitions)
     wall = _time.perf_counter() - started
     messages = [STATUS_TEXT[int(s)] if s == core.OK else
                 f"{STATUS_TEXT[int(s)]} at t = {t_stop[r]:.6g} s" for r, s in enumerate(status)]

@@ -9,8 +9,9 @@ from typing import Mapping
 
 import numpy as np
 
-from ..engine import STATUS_TEXT, Engine, compile_model, core
+from ..engine import STATUS_TEXT, core
 from ..engine.model import friction_laws_for
+from ..engine.plan import Plan
 from ..errors import InputError
 from ..inputs import Input, as_inputs
 from ..network import Structure
@@ -20,30 +21,6 @@ from .ledger import ledger
 from .options import InitialState, SimulationOptions
 from .result import Result
 from .signals import catalogue, collect, state_names
-
-
-def _initial(structure: Structure, inputs: Mapping[str, Input], initial: InitialState,
-             model_inputs_u0: np.ndarray):
-    angles = dict(initial.angles)
-    for src in structure.sources:
-        signal = inputs.get(src.channel)
-        if signal is not None and signal.is_position:
-            angles.setdefault(src.flange, signal.initial_angle())
-    if initial.q is not None:
-        if structure.pivot.flange is None:
-            if abs(initial.q - structure.pivot.fixed) > 1e-12:
-                raise InputError(f"initial q = {initial.q} m, but network {structure.name!r} has "
-                                 f"a fixed pivot at {structure.pivot.fixed} m")
-        else:
-            angles[structure.pivot.flange] = structure.pivot_angle_for(initial.q)
-    x0, sigma0 = structure.initial_positions(angles)
-    v0 = structure.initial_speeds(initial.speeds, model_inputs_u0)
-    motor_names = [m.name for m in structure.motors]
-    unknown = sorted(set(initial.currents) - set(motor_names))
-    if unknown:
-        raise InputError(f"initial current given for unknown motor(s) {', '.join(unknown)}")
-    currents = np.array([initial.currents.get(name, 0.0) for name in motor_names])
-    return x0, v0, sigma0, currents
 
 
 def check_arguments(structure, inputs, duration, options, initial):
@@ -94,19 +71,11 @@ def choose_solver(structure: Structure, options: SimulationOptions) -> str:
 
 
 def prepare(structure: Structure, inputs: Mapping[str, Input], duration: float,
-            options: SimulationOptions, initial: InitialState):
-    """Compile the model and build the initial state vector."""
-    if not (math.isfinite(duration) and duration > 0.0):
-        raise InputError(f"duration must be > 0 s, got {duration!r}")
-    options.validate()
-    model, layout = compile_model(structure, inputs, duration, friction=options.friction,
-                                  friction_overrides=options.friction_overrides,
-                                  slope_width=options.slope_width)
-    u0 = Engine(model).source_speeds(0.0)
-    x0, v0, sigma0, currents = _initial(structure, inputs, initial, u0)
-    model = model._replace(src_pos0=np.ascontiguousarray(sigma0, dtype=float))
-    y0 = np.concatenate([x0, v0, currents, np.zeros(layout.n_acc)])
-    return model, layout, y0
+            options: SimulationOptions, initial: InitialState) -> Plan:
+    """The plan of a run (`vsj.engine.plan.Plan`): the model compiled, its initial
+    state built and checked against the network."""
+    return Plan.compile(structure, inputs, duration, options, initial,
+                        choose_solver(structure, options))
 
 
 #: Memory the samples of one block may take while they are observed and named [bytes]:
@@ -176,16 +145,17 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
     sink = MemorySink() if sink is None else sink
     check_run_size(structure, duration, options, solver,
                    in_memory=getattr(sink, "keeps_samples", True), ports=ports)
-    model, layout, y0 = prepare(structure, inputs, duration, options, initial)
+    plan = prepare(structure, inputs, duration, options, initial)
+    layout = plan.layout
     t_out = sample_times(duration, options.output_step)
     n_out = len(t_out)
     table = catalogue(structure, ports=ports)
     sink.begin(table, t_out)
     watch = Watch(structure)
     started = _time.perf_counter()
-    engine = Engine(model)
+    engine = plan.engine()
     # the last sample may lie past the duration by the grid's round-off: the run reaches it
-    run = engine.start(solver, y0, max(duration, float(t_out[-1])), options)
+    run = plan.start(until=float(t_out[-1]))
     per_block = block_samples(structure, layout, ports)
     reached, status = 0, core.OK
     for start in range(0, n_out, per_block):
@@ -219,7 +189,7 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
 
     balance: dict = {}
     if status == core.OK:
-        balance = ledger(structure, engine, layout, y0, y_end, duration)
+        balance = ledger(structure, engine, layout, plan.y0, y_end, duration)
         problem = watch.judge(balance, options, solver, float(t_out[-1]))
         if problem is None:
             success, message = True, f"simulated {duration:g} s"

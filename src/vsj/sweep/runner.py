@@ -6,7 +6,7 @@ worker on another machine needs no files) and
 the chunk's values of the varied quantities. Each run is built exactly as
 ``vsj simulate`` builds it (the parameter set with the run's values, the
 network, the compiled model, the initial state), integrated by the batch kernel
-(`vsj.engine.core.run_batch`, one run per thread, results independent of the
+(`vsj.engine.plan.run_batch`, one run per thread, results independent of the
 thread count) and sampled at the kept samples only. So a run's numbers depend
 on nothing but its own values: not on the chunk, the worker or the scheduler.
 
@@ -21,17 +21,17 @@ import hashlib
 import math
 import pickle
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
 
 from ..engine import STATUS_TEXT, Engine, compile_model, core, observation_layout
+from ..engine.plan import Plan, Scheme, initial_state, run_batch
 from ..engine.retune import RETUNABLE, Slots, find_passthrough, retune
 from ..errors import InputError
 from ..params import Parameters, _relations
 from ..simulate import InitialState, choose_solver
-from ..simulate.driver import _initial
 from .metrics import Context, Evaluator, Expression
 from .spec import Q, SweepSpec, spec_of
 
@@ -193,7 +193,7 @@ class Prepared:
         base, layout = self._compile(structure)
         self.layout = layout
         self.base_model = base
-        self.base_group = _fixed_arrays(base)
+        self.scheme = Scheme.of(self.solver, case.options)
         self._shared: dict[bytes, _Compiled | None] = {}
         self.u0 = Engine(base).source_speeds(0.0)
         step = case.options.output_step
@@ -281,8 +281,8 @@ class Prepared:
         try:
             params = self.parameters_for(vector)
             shared = _compiled(self, params)
-            x0, v0, sigma0, currents = _initial(shared.structure, self.inputs,
-                                                self.case.initial, self.u0)
+            x0, v0, sigma0, currents = initial_state(shared.structure, self.inputs,
+                                                     self.case.initial, self.u0)
         except (InputError, ArithmeticError, ValueError, np.linalg.LinAlgError):
             return None
         return {**shared.model._asdict(), "x0": np.asarray(x0, dtype=float),
@@ -398,11 +398,7 @@ def prepared(job: Job) -> Prepared:
 @dataclass
 class _Run:
     params: Parameters
-    structure: object
-    model: object
-    y0: np.ndarray
-    sigma0: np.ndarray
-    group: bytes = field(default=b"")
+    plan: Plan
 
 
 @dataclass
@@ -411,17 +407,6 @@ class _Compiled:
 
     structure: object
     model: object
-    group: bytes
-
-
-def _fixed_arrays(model) -> bytes:
-    """What a batch shares: everything of the compiled model but mass, Minv, par."""
-    digest = hashlib.sha256()
-    for name in model._fields:
-        if name not in ("mass", "Minv", "par", "src_pos0"):
-            a = np.ascontiguousarray(getattr(model, name))
-            digest.update(name.encode() + str(a.shape).encode() + a.tobytes())
-    return digest.digest()
 
 
 def _compiled(p: Prepared, params: Parameters) -> _Compiled:
@@ -430,14 +415,14 @@ def _compiled(p: Prepared, params: Parameters) -> _Compiled:
     model, layout = p._compile(structure)
     if layout != p.layout:
         raise InputError("these values change the network's structure")
-    return _Compiled(structure, model, _fixed_arrays(model))
+    return _Compiled(structure, model)
 
 
 def _build(p: Prepared, values: np.ndarray) -> _Run:
     params = p.parameters_for(values)
     initial = p.initial_for(values, params)
     if params is p.base_params:
-        structure, model, group = p.structure, p.base_model, p.base_group
+        structure, model = p.structure, p.base_model
     else:
         shared = p.compiled_for(values)
         if shared is None:
@@ -449,12 +434,9 @@ def _build(p: Prepared, values: np.ndarray) -> _Run:
                 named = dict(zip(p.varied, values.tolist()))
                 arrays = retune(model._asdict(), p.passthrough, named)
                 model = model._replace(**{k: arrays[k] for k in RETUNABLE})
-        structure, group = shared.structure, shared.group
-    x0, v0, sigma0, currents = _initial(structure, p.inputs, initial, p.u0)
-    n_state = p.layout.n_state
-    y0 = np.zeros(n_state if p.solver == "dopri" else n_state + p.layout.n_acc)
-    y0[:n_state] = np.concatenate([x0, v0, currents])
-    return _Run(params, structure, model, y0, np.asarray(sigma0, dtype=float), group)
+        structure = shared.structure
+    return _Run(params, Plan.starting(structure, model, p.layout, p.scheme, p.duration,
+                                      p.inputs, initial, p.u0))
 
 
 def run_chunk(job: Job, start: int, values: np.ndarray, threads: int | None = None
@@ -477,30 +459,17 @@ def run_chunk(job: Job, start: int, values: np.ndarray, threads: int | None = No
             built[r] = _build(p, values[r])
         except InputError as exc:
             messages[r] = f"not built: {exc}"
-    groups: dict[bytes, list[int]] = {}
-    for r, run in built.items():
-        groups.setdefault(run.group, []).append(r)
-    o = p.options
-    kernel = 0.0
-    for members in groups.values():
-        first = built[members[0]]
-        engine = Engine(first.model._replace(src_pos0=first.sigma0))
-        began = time.perf_counter()
-        outs, _, st, t_stop, n_steps, flips = core.run_batch(
-            p.solver, engine, np.array([built[r].model.mass for r in members]),
-            np.array([built[r].model.Minv for r in members]),
-            np.array([built[r].model.par for r in members]),
-            np.array([built[r].sigma0 for r in members]),
-            np.array([built[r].y0 for r in members]), p.duration, p.t_out,
-            rtol=o.rtol, atol=o.atol, h_max=o.max_step, max_steps=o.max_steps, h=o.step,
-            threads=threads)
-        kernel += time.perf_counter() - began
-        for i, r in enumerate(members):
-            status[r] = st[i]
-            steps[r] = n_steps[i]
-            messages[r] = (STATUS_TEXT[int(st[i])] if st[i] == core.OK else
-                           f"{STATUS_TEXT[int(st[i])]} at t = {t_stop[i]:.6g} s")
-            _measure(p, built[r], outs[i], int(flips[i]), kept[r], metrics[r])
+    members = sorted(built)
+    began = time.perf_counter()
+    batch = run_batch([built[r].plan for r in members], p.t_out, threads=threads) \
+        if members else None
+    kernel = time.perf_counter() - began
+    for i, r in enumerate(members):
+        st = int(batch.status[i])
+        status[r], steps[r] = st, batch.steps[i]
+        messages[r] = (STATUS_TEXT[st] if st == core.OK else
+                       f"{STATUS_TEXT[st]} at t = {batch.stop_time[i]:.6g} s")
+        _measure(p, built[r], batch.states[i], int(batch.transitions[i]), kept[r], metrics[r])
     return ChunkResult(start, kept, metrics, status, messages, steps, kernel)
 
 
@@ -509,7 +478,7 @@ def _measure(p: Prepared, run: _Run, states: np.ndarray, transitions: int,
     """Fill one run's kept signals and metrics from its sampled states."""
     if not (p.keep or p.metrics):
         return
-    engine = Engine(run.model._replace(src_pos0=run.sigma0))
+    engine = run.plan.engine()
     if p.light:  # the same numbers observe writes in these columns, the rest left NaN
         cols = p.columns
         raw = np.empty((len(p.t_out), cols["u"].stop))

@@ -98,6 +98,11 @@ struct vsj_work {
     int64_t ny_max;
     double *K, *yt, *y1, *err, *r3, *r4, *r5, *y, *yo, *dy;
     dopri_state dopri;
+    /* the run vsj_begin started (run.c) */
+    vsj_scheme scheme;
+    int64_t run_ny, run_steps;
+    double run_end;
+    int run_status;
     /* stepper scratch */
     double *sy, *sk, *sacc;
     ts_work ts;

@@ -244,6 +244,36 @@ typedef struct vsj_samples {
     unsigned char *stuck;
 } vsj_samples;
 
+/* ---- one entry point for runs (run.c) ------------------------------------------ */
+
+/* The integration schemes. */
+enum vsj_method {
+    VSJ_METHOD_DOPRI = 0,   /* adaptive Dormand-Prince 5(4): smooth friction laws */
+    VSJ_METHOD_TIMESTEP = 1 /* the time-stepper: true stiction, rigid end stops, any law */
+};
+
+/* A scheme and its settings. */
+typedef struct vsj_scheme {
+    int method;              /* enum vsj_method */
+    double rtol, atol, h_max; /* dopri: tolerances and largest step [s] */
+    int64_t n_err;           /* dopri: leading components of y in the error norm */
+    double h;                /* time-stepper: the step [s] */
+    int64_t max_steps;       /* most steps of the whole run */
+    int ledger;              /* time-stepper: book the energy ledger into y's accumulators
+                              * (dopri integrates them when y carries them) */
+} vsj_scheme;
+
+/* Starts a run of `scheme` from y0 (ny values: the state, or the state and the
+ * ledger's accumulators, see vsj_n_acc) at time t0, to end at t_end. */
+int vsj_begin(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, const double *y0,
+              int64_t ny, double t0, double t_end);
+/* Samples the run at samples->t (increasing, after earlier calls' samples, none past
+ * t_until; NULL for none), and with `finish` integrates on to the run's end; y
+ * receives the state where the run stands. The steps do not depend on how the samples
+ * are split between calls. The report counts the run's steps so far. */
+vsj_report vsj_advance(const vsj_model *m, vsj_work *w, double *y, double t_until, int finish,
+                       const vsj_samples *samples);
+
 /* Fixed-step time-stepping with exact Coulomb stiction from t = 0 to
  * `duration` with step h (report section 4.1.3: true sticking). Springs' end
  * stops are unilateral constraints solved with the friction impulses (any
