@@ -37,84 +37,105 @@ class Block:
         return self.raw[:, self.columns[name]]
 
 
+#: Columns of `Engine.observe` that are the sampled state or the sources' angles and
+#: speeds (which `Engine.source_signals` gives without evaluating the model).
+LIGHT_COLUMNS = frozenset({"x", "v", "current", "sigma", "u"})
+
+
 @dataclass(frozen=True)
 class SignalSpec:
-    """A signal of a run: ``name``, SI ``unit``, ``description``, and ``values``, its
-    samples in a `Block`."""
+    """A signal of a run: ``name``, SI ``unit``, ``description``, ``values`` (its
+    samples in a `Block`) and ``reads``, the observation columns it is computed from
+    (``stuck``: the friction elements' stick states)."""
 
     name: str
     unit: str
     description: str
     values: Callable[[Block], np.ndarray]
+    reads: frozenset = frozenset()
+
+    @property
+    def light(self) -> bool:
+        """Whether the signal needs only the state and the sources (`LIGHT_COLUMNS`)."""
+        return self.reads <= LIGHT_COLUMNS
+
+    @property
+    def needs_impulses(self) -> bool:
+        """Whether the signal needs the time-stepper's stiction impulses, which only
+        single runs sample (batch runs do not)."""
+        return bool(self.reads & {"fr_f", "stuck"})
 
 
 def catalogue(structure: Structure, *, ports: bool) -> list[SignalSpec]:
     """Every signal a run of ``structure`` gives, in the order results list them."""
     table: list[SignalSpec] = []
 
-    def add(name, unit, description, values):
-        table.append(SignalSpec(name, unit, description, values))
+    def add(name, unit, description, values, *reads):
+        table.append(SignalSpec(name, unit, description, values, frozenset(reads)))
 
     named = {s.flange for s in structure.signals}
     probes = list(structure.signals) + [Signal(f, f) for f in structure.free if f not in named]
     for s in probes:
         rx, ru = structure.rows(s.flange)
         add(s.name, "rad", f"angle of flange {s.flange}",
-            lambda b, rx=rx, ru=ru: b.col("x") @ rx + b.col("sigma") @ ru)
+            lambda b, rx=rx, ru=ru: b.col("x") @ rx + b.col("sigma") @ ru, "sigma", "x")
         add(f"{s.name}.speed", "rad/s", f"speed of flange {s.flange}",
-            lambda b, rx=rx, ru=ru: b.col("v") @ rx + b.col("u") @ ru)
+            lambda b, rx=rx, ru=ru: b.col("v") @ rx + b.col("u") @ ru, "u", "v")
     if structure.pivot.flange is not None or structure.springs:
-        add("q", "m", "pivot position of the elastic elements", lambda b: b.col("q")[:, 0])
-        add("q.rate", "m/s", "rate of the pivot position", lambda b: b.col("qdot")[:, 0])
+        add("q", "m", "pivot position of the elastic elements", lambda b: b.col("q")[:, 0], "q")
+        add("q.rate", "m/s", "rate of the pivot position", lambda b: b.col("qdot")[:, 0], "qdot")
     for j, src in enumerate(structure.sources):
         add(f"source.{src.name}.speed", "rad/s", f"prescribed speed of source {src.name}",
-            lambda b, j=j: b.col("u")[:, j])
+            lambda b, j=j: b.col("u")[:, j], "u")
         add(f"source.{src.name}.torque", "N m", f"torque source {src.name} supplies",
-            lambda b, j=j: b.col("src_tau")[:, j])
+            lambda b, j=j: b.col("src_tau")[:, j], "src_tau")
         add(f"source.{src.name}.power", "W", f"power source {src.name} supplies",
-            lambda b, j=j: b.col("u")[:, j] * b.col("src_tau")[:, j])
+            lambda b, j=j: b.col("u")[:, j] * b.col("src_tau")[:, j], "src_tau", "u")
     for j, ld in enumerate(structure.loads):
         add(f"load.{ld.name}.torque", "N m", f"external torque {ld.name}",
-            lambda b, j=j: b.col("ld_tau")[:, j])
+            lambda b, j=j: b.col("ld_tau")[:, j], "ld_tau")
         add(f"load.{ld.name}.power", "W", f"power of external torque {ld.name}",
-            lambda b, j=j: b.col("ld_tau")[:, j] * b.col("ld_w")[:, j])
+            lambda b, j=j: b.col("ld_tau")[:, j] * b.col("ld_w")[:, j], "ld_tau", "ld_w")
     for j, mo in enumerate(structure.motors):
         add(f"motor.{mo.name}.current", "A", f"armature current of motor {mo.name}",
-            lambda b, j=j: b.col("current")[:, j])
+            lambda b, j=j: b.col("current")[:, j], "current")
         add(f"motor.{mo.name}.voltage", "V", f"armature voltage of motor {mo.name}",
-            lambda b, j=j: b.col("mo_V")[:, j])
+            lambda b, j=j: b.col("mo_V")[:, j], "mo_V")
         add(f"motor.{mo.name}.speed", "rad/s", f"rotor speed of motor {mo.name}",
-            lambda b, j=j: b.col("mo_w")[:, j])
+            lambda b, j=j: b.col("mo_w")[:, j], "mo_w")
         add(f"motor.{mo.name}.power", "W", f"electric power into motor {mo.name}",
-            lambda b, j=j: b.col("mo_V")[:, j] * b.col("current")[:, j])
+            lambda b, j=j: b.col("mo_V")[:, j] * b.col("current")[:, j], "current", "mo_V")
     for e, fr in enumerate(structure.frictions):
         add(f"friction.{fr.name}.slip", "rad/s", f"slip speed of friction element {fr.name}",
-            lambda b, e=e: b.col("fr_s")[:, e])
+            lambda b, e=e: b.col("fr_s")[:, e], "fr_s")
         # the resistive torque: the one exception to the port convention (vsj.ports)
         add(f"friction.{fr.name}.torque", "N m",
-            f"resistive torque of friction element {fr.name}", lambda b, e=e: b.col("fr_f")[:, e])
+            f"resistive torque of friction element {fr.name}",
+            lambda b, e=e: b.col("fr_f")[:, e], "fr_f")
         add(f"friction.{fr.name}.power", "W", f"power friction element {fr.name} delivers "
-            "(never positive)", lambda b, e=e: -b.col("fr_f")[:, e] * b.col("fr_s")[:, e])
+            "(never positive)", lambda b, e=e: -b.col("fr_f")[:, e] * b.col("fr_s")[:, e],
+            "fr_f", "fr_s")
         add(f"friction.{fr.name}.stuck", "1", f"1 while friction element {fr.name} holds",
-            lambda b, e=e: b.stuck[:, e].astype(float))
+            lambda b, e=e: b.stuck[:, e].astype(float), "stuck")
     for k, sp in enumerate(structure.springs):
         add(f"spring.{sp.name}.deflection", "rad", f"deflection of spring {sp.name}",
-            lambda b, k=k: b.col("sp_d")[:, k])
+            lambda b, k=k: b.col("sp_d")[:, k], "sp_d")
         add(f"spring.{sp.name}.torque", "N m", f"torque of spring {sp.name}",
-            lambda b, k=k: b.col("sp_tau")[:, k])
+            lambda b, k=k: b.col("sp_tau")[:, k], "sp_tau")
         add(f"spring.{sp.name}.stiffness", "N m/rad", f"local stiffness of spring {sp.name}",
-            lambda b, k=k: b.col("sp_k")[:, k])
+            lambda b, k=k: b.col("sp_k")[:, k], "sp_k")
         add(f"spring.{sp.name}.energy", "J", f"energy stored in spring {sp.name}",
-            lambda b, k=k: b.col("sp_V")[:, k])
+            lambda b, k=k: b.col("sp_V")[:, k], "sp_V")
         add(f"spring.{sp.name}.power", "W", f"power spring {sp.name} delivers",
-            lambda b, k=k: b.col("sp_tau")[:, k] * b.col("sp_dd")[:, k])
+            lambda b, k=k: b.col("sp_tau")[:, k] * b.col("sp_dd")[:, k], "sp_dd", "sp_tau")
     if ports:
         flows = PortFlows(structure)
         for r, name, a in flows.connections:
             add(f"port.{name}.torque", "N m", f"torque through connection {name}",
-                lambda b, r=r: flows.torque(b)[:, r])
+                lambda b, r=r: flows.torque(b)[:, r], *PortFlows.TORQUE_READS)
             add(f"port.{name}.power", "W", f"power through connection {name}",
-                lambda b, r=r, a=a: flows.torque(b)[:, r] * flows.speed(b)[:, a])
+                lambda b, r=r, a=a: flows.torque(b)[:, r] * flows.speed(b)[:, a],
+                *PortFlows.TORQUE_READS, *PortFlows.SPEED_READS)
     return table
 
 
@@ -143,6 +164,10 @@ class PortFlows:
     row). A connection ``a -- b`` transmits ``nu`` into flange ``a``; its
     power is ``nu * omega_a``.
     """
+
+    #: observation columns `torque` and `speed` read
+    TORQUE_READS = ("a", "ud", "fr_f", "sp_tau", "ld_tau", "current")
+    SPEED_READS = ("v", "u")
 
     def __init__(self, structure: Structure):
         self.structure = structure

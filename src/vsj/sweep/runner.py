@@ -20,7 +20,7 @@ from __future__ import annotations
 import hashlib
 import math
 import pickle
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from functools import cached_property
 
@@ -32,6 +32,7 @@ from ..engine.retune import RETUNABLE, Slots, find_passthrough, retune
 from ..errors import InputError
 from ..params import Parameters, _relations
 from ..simulate import InitialState, choose_solver
+from ..simulate.signals import Block, catalogue
 from .metrics import Context, Evaluator, Expression
 from .spec import Q, SweepSpec, spec_of
 
@@ -94,80 +95,6 @@ class _Memo:
         return self._pieces[t_end]
 
 
-def signal_recipes(structure, layout) -> dict[str, tuple[str, Callable]]:
-    """Each signal `vsj.simulate.collect` names (ports aside), with its unit and how it is
-    computed from `Engine.observe`'s columns; the same formulas, so the same bits.
-    `LIGHT_COLUMNS` says which of them need only the state and the sources."""
-    cols = observation_layout(layout)
-    out: dict[str, tuple[str, Callable]] = {}
-
-    def col(name, j):
-        return lambda raw: raw[:, cols[name]][:, j]
-
-    named = {s.flange for s in structure.signals}
-    from ..network import Signal
-
-    probes = list(structure.signals) + [Signal(f, f) for f in structure.free if f not in named]
-    for s in probes:
-        rx, ru = structure.rows(s.flange)
-        out[s.name] = ("rad", lambda raw, rx=rx, ru=ru:
-                       raw[:, cols["x"]] @ rx + raw[:, cols["sigma"]] @ ru)
-        out[f"{s.name}.speed"] = ("rad/s", lambda raw, rx=rx, ru=ru:
-                                  raw[:, cols["v"]] @ rx + raw[:, cols["u"]] @ ru)
-    if structure.pivot.flange is not None or structure.springs:
-        out["q"] = ("m", col("q", 0))
-        out["q.rate"] = ("m/s", col("qdot", 0))
-    for j, src in enumerate(structure.sources):
-        out[f"source.{src.name}.speed"] = ("rad/s", col("u", j))
-        out[f"source.{src.name}.torque"] = ("N m", col("src_tau", j))
-        out[f"source.{src.name}.power"] = ("W", lambda raw, j=j:
-                                           raw[:, cols["u"]][:, j] * raw[:, cols["src_tau"]][:, j])
-    for j, ld in enumerate(structure.loads):
-        out[f"load.{ld.name}.torque"] = ("N m", col("ld_tau", j))
-        out[f"load.{ld.name}.power"] = ("W", lambda raw, j=j:
-                                        raw[:, cols["ld_tau"]][:, j] * raw[:, cols["ld_w"]][:, j])
-    for j, mo in enumerate(structure.motors):
-        out[f"motor.{mo.name}.current"] = ("A", col("current", j))
-        out[f"motor.{mo.name}.voltage"] = ("V", col("mo_V", j))
-        out[f"motor.{mo.name}.speed"] = ("rad/s", col("mo_w", j))
-        out[f"motor.{mo.name}.power"] = ("W", lambda raw, j=j:
-                                         raw[:, cols["mo_V"]][:, j] * raw[:, cols["current"]][:, j])
-    for e, fr in enumerate(structure.frictions):
-        out[f"friction.{fr.name}.slip"] = ("rad/s", col("fr_s", e))
-        out[f"friction.{fr.name}.torque"] = ("N m", col("fr_f", e))
-        out[f"friction.{fr.name}.power"] = ("W", lambda raw, e=e:
-                                            -raw[:, cols["fr_f"]][:, e] * raw[:, cols["fr_s"]][:, e])
-    for k, sp in enumerate(structure.springs):
-        out[f"spring.{sp.name}.deflection"] = ("rad", col("sp_d", k))
-        out[f"spring.{sp.name}.torque"] = ("N m", col("sp_tau", k))
-        out[f"spring.{sp.name}.stiffness"] = ("N m/rad", col("sp_k", k))
-        out[f"spring.{sp.name}.energy"] = ("J", col("sp_V", k))
-        out[f"spring.{sp.name}.power"] = ("W", lambda raw, k=k:
-                                          raw[:, cols["sp_tau"]][:, k] * raw[:, cols["sp_dd"]][:, k])
-    return out
-
-
-#: Columns of `Engine.observe` that are the sampled state or the sources' angles and
-#: speeds (which `Engine.source_signals` gives without evaluating the model).
-LIGHT_COLUMNS = ("x", "v", "current", "sigma", "u")
-
-
-def _light(name: str, structure) -> bool:
-    """Whether the recipe of signal ``name`` reads `LIGHT_COLUMNS` only."""
-    if name.startswith("source.") and name.endswith(".speed"):
-        return True
-    if name.startswith("motor.") and name.endswith(".current"):
-        return True
-    probes = {s.name for s in structure.signals} | set(structure.free)
-    return name in probes or (name.endswith(".speed") and name[:-len(".speed")] in probes)
-
-
-#: Signals a batch run of the time-stepper cannot give: they need the stiction
-#: impulses, which only single runs (`vsj simulate`) sample.
-def _needs_impulses(name: str) -> bool:
-    return name.startswith("friction.") and name.endswith((".torque", ".power", ".stuck"))
-
-
 class Prepared:
     """A `Job` made ready in one process: scenario, base model, signals, metrics."""
 
@@ -205,10 +132,13 @@ class Prepared:
                              f"multiple of the scenario's output_step ({step:g} s)")
         self.stride = round(ratio)
         self.t_out = np.arange(0, n_out, self.stride) * step
-        self.recipes = signal_recipes(structure, layout)
-        if self.solver == "timestep":
-            self.recipes = {k: v for k, v in self.recipes.items() if not _needs_impulses(k)}
-        units = {k: u for k, (u, _) in self.recipes.items()}
+        # the signals of `vsj simulate` (ports aside), less those a batch run of the
+        # time-stepper cannot give (the stiction impulses are sampled by single runs only)
+        table = catalogue(structure, ports=False)
+        single_only = {spec.name for spec in table
+                       if self.solver == "timestep" and spec.needs_impulses}
+        self.recipes = {spec.name: spec for spec in table if spec.name not in single_only}
+        units = {k: spec.unit for k, spec in self.recipes.items()}
         parameters = set(params.values)
         self.derived: dict[str, Expression] = {}
         for name, text in spec.signals.items():
@@ -224,7 +154,7 @@ class Prepared:
         for i, name in enumerate(spec.keep):
             if name not in names:
                 why = (" (the time-stepper's batch runs do not sample the stiction impulses; "
-                       "keep it with vsj simulate)" if _needs_impulses(name) else "")
+                       "keep it with vsj simulate)" if name in single_only else "")
                 raise InputError(f"{spec.origin}: output.keep[{i}] = {name!r}: not a signal of "
                                  f"this scenario or of [signals]{why}")
         self.keep = list(spec.keep)
@@ -237,7 +167,7 @@ class Prepared:
                 if name in self.derived:
                     todo += self.derived[name].signals
         #: whether every signal the runs need is the state or a source (no observe)
-        self.light = all(_light(n, structure) for n in needed if n in self.recipes)
+        self.light = all(self.recipes[n].light for n in needed if n in self.recipes)
         self.columns = observation_layout(layout)
 
     def _compile(self, structure):
@@ -487,15 +417,17 @@ def _measure(p: Prepared, run: _Run, states: np.ndarray, transitions: int,
         raw[:, cols["a"]] = np.nan
         raw[:, cols["sigma"]], raw[:, cols["u"]] = engine.source_signals(p.t_out)
     else:
-        nf = p.layout.n_frictions
-        raw = engine.observe(p.t_out, states, np.zeros((len(p.t_out), nf)))
+        raw = engine.observe(p.t_out, states, np.zeros((len(p.t_out), p.layout.n_frictions)))
+    # batch runs sample no stick states: friction.*.stuck is 0 (dopri) or not offered
+    block = Block(raw=raw, stuck=np.zeros((len(p.t_out), p.layout.n_frictions), dtype=bool),
+                  columns=p.columns, cache={})
     cache: dict[str, np.ndarray] = {}
     values = run.params.values
 
     def signal(name: str) -> np.ndarray:
         if name not in cache:
             if name in p.recipes:
-                cache[name] = np.ascontiguousarray(p.recipes[name][1](raw))
+                cache[name] = np.ascontiguousarray(p.recipes[name].values(block))
             else:
                 cache[name] = np.broadcast_to(p.derived[name](context), p.t_out.shape)
         return cache[name]
