@@ -23,7 +23,8 @@
  *     with W = D H^-1 D^T the Delassus matrix of the elements' slip rows and
  *     q their slips without Coulomb friction. It is solved exactly: last
  *     step's stick/slip pattern is checked first (cheap, and it holds on most
- *     steps), an active-set method takes over when it does not. An element
+ *     steps), an active-set method takes over when it does not (impulses.c,
+ *     with the small dense solves of linalg.c). An element
  *     with s_e = 0 holds exactly (no creep), and which elements hold is decided
  *     jointly through the gears and the differential.
  *
@@ -38,466 +39,18 @@
  * linearisation.
  */
 #include <math.h>
-#include <stdlib.h>
 #include <string.h>
 
 #include "internal.h"
 
 /* slip speed [rad/s] below which an element counts as stuck */
 #define STUCK_SPEED 1e-10
-/* impulse solver: absolute and relative (to the largest free slip) tolerance [rad/s] */
-#define IMPULSE_ABS 1e-14
-#define IMPULSE_REL 1e-12
-#define IMPULSE_MAX_ITER 500
-/* relative Tikhonov term that makes the impulse problem strictly convex (polished away) */
-#define IMPULSE_REG 1e-9
 /* relative change of the step matrix below which its factor is reused */
 #define H_REUSE 1e-12
 /* relative difference below which two friction rows count as parallel */
 #define PARALLEL 1e-12
 /* two step lengths within this fraction of h are the same step (round-off of t0 + k h) */
 #define STEP_SAME 1e-9
-
-static double dmax(double a, double b) { return a > b ? a : b; }
-static double dmin(double a, double b) { return a < b ? a : b; }
-
-/* ---- small dense linear algebra (leading k x k blocks of n x n arrays) ----- */
-
-static int cholesky(const double *H, double *L, int64_t k, int64_t n, int floor) {
-    int64_t i, j, r;
-    for (i = 0; i < k; i++)
-        for (j = 0; j <= i; j++) {
-            double acc = H[n * i + j];
-            for (r = 0; r < j; r++)
-                acc -= L[n * i + r] * L[n * j + r];
-            if (i == j) {
-                if (acc <= 0.0) {
-                    if (!floor)
-                        return 0;
-                    acc = 1e-300;
-                }
-                L[n * i + i] = sqrt(acc);
-            } else {
-                L[n * i + j] = acc / L[n * j + j];
-            }
-        }
-    return 1;
-}
-
-static void forward(const double *L, const double *b, double *out, int64_t k, int64_t n) {
-    int64_t i, r;
-    for (i = 0; i < k; i++) {
-        double acc = b[i];
-        for (r = 0; r < i; r++)
-            acc -= L[n * i + r] * out[r];
-        out[i] = acc / L[n * i + i];
-    }
-}
-
-/* L^T out = b; out may be b */
-static void backward(const double *L, const double *b, double *out, int64_t k, int64_t n) {
-    int64_t i, r;
-    for (i = k - 1; i >= 0; i--) {
-        double acc = b[i];
-        for (r = i + 1; r < k; r++)
-            acc -= L[n * r + i] * out[r];
-        out[i] = acc / L[n * i + i];
-    }
-}
-
-static void solve(const double *L, const double *b, double *out, int64_t n) {
-    forward(L, b, out, n, n);
-    backward(L, out, out, n, n);
-}
-
-/* ---- the impulse problem (YT: n x m, one column L^-1 d_e per unknown) ------- */
-
-typedef struct impulses {
-    const double *YT; /* row i of the n x m problem starts at YT + ld * i (ld >= m) */
-    int64_t n, m, ld;
-    double *mask, *G, *Lg, *t, *c, *d, *g, *z, *Gc, *K, *memo;
-} impulses;
-
-/* z = YT p */
-static void project(const impulses *im, const double *p, double *z) {
-    int64_t i, e, m = im->m;
-    for (i = 0; i < im->n; i++) {
-        double acc = 0.0;
-        const double *row = im->YT + im->ld * i;
-        for (e = 0; e < m; e++)
-            acc += row[e] * p[e];
-        z[i] = acc;
-    }
-}
-
-/* G = YT diag(mask) YT^T + ridge I and t = YT (mask * vec) */
-static void gram(const impulses *im, const double *vec, double *G, double *t, double ridge) {
-    int64_t i, j, e, n = im->n, m = im->m, ld = im->ld;
-    const double *YT = im->YT, *mask = im->mask;
-    for (i = 0; i < n; i++) {
-        double acc_t = 0.0;
-        for (e = 0; e < m; e++)
-            acc_t += YT[ld * i + e] * mask[e] * vec[e];
-        t[i] = acc_t;
-        for (j = 0; j <= i; j++) {
-            double acc = 0.0;
-            for (e = 0; e < m; e++)
-                acc += YT[ld * i + e] * mask[e] * YT[ld * j + e];
-            G[n * i + j] = acc;
-            G[n * j + i] = acc;
-        }
-        G[n * i + i] += ridge;
-    }
-}
-
-/* s = q - YT^T z (s may be q) */
-static void slips(const impulses *im, const double *q, const double *z, double *s) {
-    int64_t i, e, m = im->m;
-    for (e = 0; e < m; e++)
-        s[e] = q[e];
-    for (i = 0; i < im->n; i++) {
-        double zi = z[i];
-        const double *row = im->YT + im->ld * i;
-        for (e = 0; e < m; e++)
-            s[e] -= row[e] * zi;
-    }
-}
-
-/* Classify the warm start: impulses at (this step's) bound keep their sign,
- * the others are free (stuck); uninvolved unknowns get state 2. Fills mask (1
- * for free); returns the number free, and the largest free slip in *scale. */
-static int64_t snap(const impulses *im, const double *q, const double *lo, const double *hi,
-                    double *p, int64_t *state, const unsigned char *active, double *scale) {
-    int64_t e, n_free = 0;
-    double sc = 0.0;
-    for (e = 0; e < im->m; e++) {
-        im->mask[e] = 0.0;
-        if (active[e] && hi[e] > lo[e]) {
-            sc = dmax(sc, fabs(q[e]));
-            /* the bounds vary in their last bits from step to step (the step length
-             * does): an impulse at last step's bound is at this step's bound
-             * (lo <= 0 < hi, hi possibly infinite) */
-            if (p[e] >= hi[e] * (1.0 - 1e-9)) {
-                p[e] = hi[e];
-                state[e] = 1;
-            } else if (p[e] <= lo[e] * (1.0 - 1e-9)) {
-                p[e] = lo[e];
-                state[e] = -1;
-            } else {
-                state[e] = 0;
-                im->mask[e] = 1.0;
-                n_free++;
-            }
-        } else {
-            p[e] = 0.0;
-            state[e] = 2;
-        }
-    }
-    *scale = sc;
-    return n_free;
-}
-
-/* Minimum-norm impulses of the stuck (free) unknowns that cancel their slips
- * `slip`: d = Y_F G^-2 Y_F^T s_F with G = Y_F^T Y_F (n x n solves; a tiny
- * ridge where stuck rows are parallel). Writes d (zero off the free set). */
-static void stuck_impulses(impulses *im, const double *slip) {
-    int64_t i, e, n = im->n, m = im->m;
-    double trace = 0.0;
-    gram(im, slip, im->G, im->t, 0.0);
-    for (i = 0; i < n; i++)
-        trace += im->G[n * i + i];
-    for (i = 0; i < n; i++)
-        im->G[n * i + i] += 1e-13 * trace;
-    cholesky(im->G, im->Lg, n, n, 1);
-    solve(im->Lg, im->t, im->c, n);
-    solve(im->Lg, im->c, im->t, n);
-    for (e = 0; e < m; e++)
-        im->d[e] = 0.0;
-    for (i = 0; i < n; i++) {
-        double ti = im->t[i];
-        const double *row = im->YT + im->ld * i;
-        for (e = 0; e < m; e++)
-            im->d[e] += row[e] * ti * im->mask[e];
-    }
-}
-
-/* Gc = Y_F Y_F^T and K = (Gc + ridge I)^-2 for the stuck set in mask: K Y_F s_F
- * are the coefficients of the minimum-norm impulses that cancel the stuck
- * unknowns' slips s_F. The explicit K loses accuracy when stuck rows are
- * nearly parallel; the fast path may use it because its result is checked,
- * while the active set's final polish solves with the factor. */
-static void stuck_map(impulses *im) {
-    int64_t i, j, n = im->n;
-    double trace = 0.0;
-    gram(im, im->mask, im->Gc, im->t, 0.0);
-    for (i = 0; i < n; i++)
-        trace += im->Gc[n * i + i];
-    for (i = 0; i < n; i++) {
-        for (j = 0; j < n; j++)
-            im->K[n * i + j] = im->Gc[n * i + j];
-        im->K[n * i + i] += 1e-13 * trace;
-    }
-    cholesky(im->K, im->Lg, n, n, 1);
-    for (j = 0; j < n; j++) {
-        for (i = 0; i < n; i++)
-            im->t[i] = i == j ? 1.0 : 0.0;
-        solve(im->Lg, im->t, im->c, n);
-        solve(im->Lg, im->c, im->t, n);
-        for (i = 0; i < n; i++)
-            im->K[n * i + j] = im->t[i];
-    }
-}
-
-/* Fast path: does last step's stick/slip pattern still hold? Bound impulses at
- * their caps, the stuck unknowns' impulses the minimum-norm ones that make
- * their slips exactly zero; returns 1 if every condition holds (p is then the
- * solution). With z_B = Y_B p_B the stuck impulses are Y_F^T c with
- * c = K (Y_F q_F - Gc z_B), and they add Gc c to z. Gc and K change only with
- * the stuck set or YT and are kept between calls (memo). */
-static int same_pattern(impulses *im, const double *q, const double *lo, const double *hi,
-                        double *p, int64_t *state, const unsigned char *active) {
-    int64_t e, i, j, n = im->n, m = im->m, n_free;
-    double scale, tol;
-    int holds = 1;
-    n_free = snap(im, q, lo, hi, p, state, active, &scale);
-    tol = IMPULSE_ABS + IMPULSE_REL * scale;
-    for (e = 0; e < m; e++)
-        im->d[e] = p[e] * (1.0 - im->mask[e]);
-    project(im, im->d, im->z); /* z_B */
-    if (n_free > 0) {
-        int known = im->memo[m] > 0.0, fits = 1;
-        for (e = 0; e < m; e++)
-            known = known && im->memo[e] == im->mask[e];
-        if (!known) {
-            stuck_map(im);
-            for (e = 0; e < m; e++)
-                im->memo[e] = im->mask[e];
-            im->memo[m] = 1.0;
-        }
-        for (e = 0; e < m; e++)
-            im->d[e] = q[e] * im->mask[e];
-        project(im, im->d, im->t);
-        for (i = 0; i < n; i++) {
-            double acc = im->t[i];
-            for (j = 0; j < n; j++)
-                acc -= im->Gc[n * i + j] * im->z[j];
-            im->t[i] = acc; /* Y_F s_F, s the slips under the bound impulses alone */
-        }
-        for (i = 0; i < n; i++) {
-            double acc = 0.0;
-            for (j = 0; j < n; j++)
-                acc += im->K[n * i + j] * im->t[j];
-            im->c[i] = acc;
-        }
-        for (e = 0; e < m; e++)
-            im->d[e] = 0.0;
-        for (i = 0; i < n; i++) {
-            double ci = im->c[i];
-            const double *row = im->YT + im->ld * i;
-            for (e = 0; e < m; e++)
-                im->d[e] += row[e] * ci;
-        }
-        for (e = 0; e < m; e++)
-            if (im->mask[e] > 0.0) {
-                fits = fits && im->d[e] >= lo[e] && im->d[e] <= hi[e];
-                p[e] = im->d[e];
-            }
-        if (!fits)
-            return 0;
-        for (i = 0; i < n; i++) {
-            double acc = im->z[i];
-            for (j = 0; j < n; j++)
-                acc += im->Gc[n * i + j] * im->c[j];
-            im->z[i] = acc;
-        }
-    }
-    slips(im, q, im->z, im->g);
-    for (e = 0; e < m; e++) {
-        int64_t st = state[e];
-        if (st == 0)
-            holds = holds && fabs(im->g[e]) <= tol;
-        else if (st != 2)
-            holds = holds && im->g[e] * (double)st >= -tol;
-    }
-    return holds;
-}
-
-/* The general method, from the warm start in p:
- * 1. the box problem min 1/2 p^T (W + eps I) p - q.p with a tiny
- *    eps = 1e-9 max W_ee is strictly convex; a primal active-set method (free
- *    unknowns stuck, the others at a bound) solves it in finitely many
- *    steps, each an n x n solve by Woodbury's identity;
- * 2. polish: the stuck unknowns' remaining slips (of order eps p) are removed
- *    by the minimum-norm correction of their impulses. */
-static int active_set(impulses *im, const double *q, const double *lo, const double *hi,
-                      double *p, int64_t *state, const unsigned char *active,
-                      int64_t *iterations) {
-    int64_t n = im->n, m = im->m, e, i, it, n_free;
-    double scale, w_max = 0.0, eps, tol;
-    int converged = 0, at_optimum = 0;
-    snap(im, q, lo, hi, p, state, active, &scale);
-    for (e = 0; e < m; e++)
-        if (state[e] != 2) {
-            double norm = 0.0;
-            for (i = 0; i < n; i++)
-                norm += im->YT[im->ld * i + e] * im->YT[im->ld * i + e];
-            w_max = dmax(w_max, norm);
-        }
-    *iterations = 0;
-    if (w_max == 0.0) {
-        project(im, p, im->z);
-        return 1;
-    }
-    eps = IMPULSE_REG * w_max;
-    tol = IMPULSE_ABS + IMPULSE_REL * scale;
-    for (it = 0; it < IMPULSE_MAX_ITER; it++) {
-        double worst;
-        int64_t release;
-        *iterations = it + 1;
-        /* gradient of 1/2 p^T (W + eps I) p - q.p */
-        project(im, p, im->z);
-        slips(im, q, im->z, im->g);
-        n_free = 0;
-        for (e = 0; e < m; e++) {
-            int free_ = state[e] == 0;
-            im->g[e] = eps * p[e] - im->g[e];
-            im->mask[e] = free_ ? 1.0 : 0.0;
-            n_free += free_;
-        }
-        if (n_free > 0 && !at_optimum) {
-            /* Newton step on the free set, d = -(eps I + Y_F Y_F^T)^-1 g_F by
-             * Woodbury's identity (an n x n solve), then a ratio test at the caps */
-            double alpha = 1.0;
-            int64_t block = -1;
-            gram(im, im->g, im->G, im->t, eps);
-            cholesky(im->G, im->Lg, n, n, 1);
-            solve(im->Lg, im->t, im->c, n);
-            slips(im, im->g, im->c, im->d); /* d = g - Y c, scaled below */
-            for (e = 0; e < m; e++) {
-                double de, a;
-                if (state[e] != 0)
-                    continue;
-                de = -im->d[e] / eps;
-                im->d[e] = de;
-                if (de > 0.0 && p[e] + de > hi[e])
-                    a = (hi[e] - p[e]) / de;
-                else if (de < 0.0 && p[e] + de < lo[e])
-                    a = (lo[e] - p[e]) / de;
-                else
-                    continue;
-                if (a < alpha) {
-                    alpha = a;
-                    block = e;
-                }
-            }
-            for (e = 0; e < m; e++)
-                if (state[e] == 0)
-                    p[e] = dmin(hi[e], dmax(lo[e], p[e] + alpha * im->d[e]));
-            if (block >= 0) {
-                p[block] = im->d[block] > 0.0 ? hi[block] : lo[block];
-                state[block] = im->d[block] > 0.0 ? 1 : -1;
-            } else {
-                at_optimum = 1;
-            }
-            continue;
-        }
-        at_optimum = 0;
-        worst = tol;
-        release = -1;
-        for (e = 0; e < m; e++) {
-            int64_t st = state[e];
-            if ((st == 1 || st == -1) && im->g[e] * (double)st > worst) {
-                worst = im->g[e] * (double)st;
-                release = e;
-            }
-        }
-        if (release < 0) {
-            converged = 1;
-            break;
-        }
-        state[release] = 0;
-    }
-    if (!converged)
-        return 0;
-    /* polish: remove the regularisation's creep from the stuck unknowns */
-    n_free = 0;
-    for (e = 0; e < m; e++) {
-        int free_ = state[e] == 0;
-        im->mask[e] = free_ ? 1.0 : 0.0;
-        n_free += free_;
-    }
-    if (n_free > 0) {
-        project(im, p, im->z);
-        slips(im, q, im->z, im->g);
-        stuck_impulses(im, im->g);
-        for (e = 0; e < m; e++)
-            if (state[e] == 0)
-                p[e] = dmin(hi[e], dmax(lo[e], p[e] + im->d[e]));
-    }
-    project(im, p, im->z);
-    return 1;
-}
-
-/* Exact Coulomb impulses: slips s = q - Y Y^T p with |p_e| <= cap_e. state
- * (-1, 0 stuck, +1; 2 not involved) and p carry the previous step's solution
- * as a warm start; im->z holds YT p on return. */
-static int solve_impulses(impulses *im, const double *q, const double *lo, const double *hi,
-                          double *p, int64_t *state, const unsigned char *active,
-                          int64_t *iterations) {
-    *iterations = 0;
-    if (same_pattern(im, q, lo, hi, p, state, active))
-        return 1;
-    return active_set(im, q, lo, hi, p, state, active, iterations);
-}
-
-int vsj_solve_impulses(int64_t n, int64_t m, const double *YT, int64_t count, const double *qs,
-                       const double *cap, const unsigned char *active, double *ps,
-                       int64_t *states, int64_t *iterations) {
-    impulses im;
-    double *block, *p, *lo, *hi;
-    int64_t *state, k;
-    if (n < 0 || m < 0 || count < 0)
-        return VSJ_BAD_ARGUMENT;
-    block = (double *)calloc((size_t)(5 * n * n + 4 * n + 7 * m + 2), sizeof(double));
-    state = (int64_t *)calloc((size_t)(m + 1), sizeof(int64_t));
-    if (!block || !state) {
-        free(block);
-        free(state);
-        return VSJ_NO_MEMORY;
-    }
-    im.YT = YT;
-    im.n = n;
-    im.m = m;
-    im.ld = m;
-    im.G = block;
-    im.Lg = im.G + n * n;
-    im.Gc = im.Lg + n * n;
-    im.K = im.Gc + n * n;
-    im.t = im.K + n * n;
-    im.c = im.t + n;
-    im.z = im.c + n;
-    im.mask = im.z + n;
-    im.d = im.mask + m;
-    im.g = im.d + m;
-    im.memo = im.g + m; /* m + 1 */
-    p = im.memo + m + 1;
-    lo = p + m;
-    hi = lo + m;
-    for (k = 0; k < m; k++) {
-        lo[k] = -cap[k];
-        hi[k] = cap[k];
-    }
-    for (k = 0; k < count; k++) {
-        int64_t it;
-        int ok = solve_impulses(&im, qs + m * k, lo, hi, p, state, active, &it);
-        iterations[k] = ok ? it : -1;
-        memcpy(ps + m * k, p, (size_t)m * sizeof(double));
-        memcpy(states + m * k, state, (size_t)m * sizeof(int64_t));
-    }
-    free(block);
-    free(state);
-    return VSJ_OK;
-}
 
 /* ---- the armature circuit over one step -------------------------------------- */
 
@@ -571,12 +124,12 @@ static double parallel(const ts_work *t, int64_t cols, int64_t n, int64_t s, int
     for (i = 0; i < n; i++) {
         dot += t->DxT[cols * i + e] * t->DxT[cols * i + g];
         norm += t->DxT[cols * i + g] * t->DxT[cols * i + g];
-        big = dmax(big, fabs(t->DxT[cols * i + e]));
+        big = vsj__dmax(big, fabs(t->DxT[cols * i + e]));
     }
     for (j = 0; j < s; j++) {
         dot += t->DuT[cols * j + e] * t->DuT[cols * j + g];
         norm += t->DuT[cols * j + g] * t->DuT[cols * j + g];
-        big = dmax(big, fabs(t->DuT[cols * j + e]));
+        big = vsj__dmax(big, fabs(t->DuT[cols * j + e]));
     }
     if (norm == 0.0)
         return 0.0;
@@ -1103,20 +656,20 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
          * factored, that factor and YlT are reused */
         scale_h = 0.0;
         for (i = 0; i < n * n; i++)
-            scale_h = dmax(scale_h, fabs(t->H_last[i]));
+            scale_h = vsj__dmax(scale_h, fabs(t->H_last[i]));
         same = t->factored;
         for (i = 0; i < n * n; i++)
             same = same && fabs(t->H[i] - t->H_last[i]) <= H_REUSE * scale_h;
         if (n > 0 && !same) {
             memcpy(t->H_last, t->H, (size_t)(n * n) * sizeof(double));
-            if (!cholesky(t->H, t->Lc, n, n, 0)) {
+            if (!vsj__cholesky(t->H, t->Lc, n, n, 0)) {
                 status = VSJ_NOT_FINITE;
                 break;
             }
             for (a = 0; a < mt; a++) {
                 for (i = 0; i < n; i++)
                     t->drow[i] = t->DxA[mt * i + a];
-                forward(t->Lc, t->drow, t->col, n, n); /* L^-1 d_e: W = Y Y^T */
+                vsj__forward(t->Lc, t->drow, t->col, n, n); /* L^-1 d_e: W = Y Y^T */
                 for (i = 0; i < n; i++)
                     t->YlT[mt * i + a] = t->col[i];
             }
@@ -1125,7 +678,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
             t->hs_prev = NAN; /* the compliance rows below are written afresh */
         }
         if (n > 0)
-            solve(t->Lc, t->r, t->vfree, n);
+            vsj__solve(t->Lc, t->r, t->vfree, n);
         /* a compliant stop of stiffness k adds 2 / (h^2 k) to the Delassus matrix's
          * diagonal: a row of its own in YlT, so that W = Y Y^T still */
         /* step lengths t1 - tnow differ by round-off from step to step: only a
@@ -1181,7 +734,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                 for (c = 0; c < t->nc; c++)
                     full = full || t->involved[na + c];
                 use_problem(w, &im, full);
-                if (!solve_impulses(&im, t->qv, t->lo, t->hi, t->p, t->state, t->involved,
+                if (!vsj__solve_impulses(&im, t->qv, t->lo, t->hi, t->p, t->state, t->involved,
                                     &iterations)) {
                     status = VSJ_FRICTION_SOLVER;
                     break;
@@ -1221,7 +774,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
             if (status != VSJ_OK)
                 break;
             /* the impulses change the speeds by H^-1 D^T p = L^-T (YlT p) */
-            backward(t->Lc, t->z, t->v1, n, n);
+            vsj__backward(t->Lc, t->z, t->v1, n, n);
             for (i = 0; i < n; i++)
                 t->v1[i] = t->vfree[i] - t->v1[i];
         } else {
@@ -1324,8 +877,8 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                 if (side > 0.0 && isfinite(t->ckstop[c])) { /* once per spring */
                     double d0 = vsj__xdot(m, rr, t->x) + vsj__udotv(m, rr, t->sg0);
                     double d1 = vsj__xdot(m, rr, t->x1) + vsj__udotv(m, rr, t->sg1);
-                    double e0 = dmax(fabs(d0) - t->cstop[c], 0.0);
-                    double e1 = dmax(fabs(d1) - t->cstop[c], 0.0);
+                    double e0 = vsj__dmax(fabs(d0) - t->cstop[c], 0.0);
+                    double e1 = vsj__dmax(fabs(d1) - t->cstop[c], 0.0);
                     y[a_stop + k] -= 0.5 * t->ckstop[c] * (e1 * e1 - e0 * e0);
                 }
             }
