@@ -162,6 +162,12 @@ VSJ_INTERNAL int vsj__solve_impulses(impulses *im, const double *q, const double
                                      const double *hi, double *p, int64_t *state,
                                      const unsigned char *active, int64_t *iterations);
 
+/* The time-stepper's energy ledger (ledger.c): one step's work and losses, from the
+ * step's quantities in t, added to the accumulators `acc` (vsj_n_acc of them); hs is
+ * the step's length, q_end the pivot position at its end. */
+VSJ_INTERNAL void vsj__ts_book(const vsj_model *m, ts_work *t, double *acc, double hs,
+                               double q_end);
+
 #define VSJ_PI 3.14159265358979323846
 
 static inline double vsj__dmax(double a, double b) { return a > b ? a : b; }
