@@ -31,7 +31,7 @@ EPS = np.finfo(float).eps
 #: update (its torque is linear in the deflection over a step), so with it nothing else
 #: is left, whatever the stop.
 LEDGER_ROUNDOFF_PER_STEP = 1e-15
-#: The impulse solver's absolute tolerance on a slip speed [rad/s] (engine/c/timestep.c).
+#: The impulse solver's absolute tolerance on a slip speed [rad/s] (engine/c/impulses.c).
 IMPULSE_ABS = 1e-14
 
 

@@ -24,7 +24,7 @@ from test_motor import LEDGER_ROUNDOFF_PER_STEP
 
 EPS = np.finfo(float).eps
 #: The impulse solver's absolute tolerance on a stuck element's slip [rad/s]
-#: (timestep.c's IMPULSE_ABS; the relative one, IMPULSE_REL, is exported).
+#: (impulses.c's IMPULSE_ABS; the relative one, IMPULSE_REL, is exported).
 IMPULSE_ABS = 1e-14
 #: Root-finding tolerance [s] of the analytic Coulomb solution's transition times.
 REF_XTOL = 1e-13

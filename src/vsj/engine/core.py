@@ -38,7 +38,7 @@ STATUS_TEXT = {code: _core.status_text(code) for code in range(8)}
 #: Friction elements whose slip is below this speed [rad/s] count as stuck (c/timestep.c).
 STUCK_SPEED = 1e-10
 #: The time-stepper decides each stick/slip impulse to this fraction of the largest
-#: free slip of its step (c/timestep.c).
+#: free slip of its step (c/impulses.c).
 IMPULSE_REL = 1e-12
 
 

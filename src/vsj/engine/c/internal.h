@@ -136,7 +136,47 @@ VSJ_INTERNAL double vsj__spring(int64_t law, const double *p, double phi, double
  * rigid); 0 if the law has none. */
 VSJ_INTERNAL int vsj__stop(int64_t law, const double *p, double *angle, double *stiffness);
 
+/* small dense linear algebra (linalg.c), on the leading k x k block of a row-major
+ * n x n array: the Cholesky factor L of H (0 if H is not positive definite; with
+ * `floor` a pivot at or below zero is replaced by a tiny positive one instead),
+ * L out = b, L^T out = b (out may be b), and H out = b with both (k = n) */
+VSJ_INTERNAL int vsj__cholesky(const double *H, double *L, int64_t k, int64_t n, int floor);
+VSJ_INTERNAL void vsj__forward(const double *L, const double *b, double *out, int64_t k,
+                               int64_t n);
+VSJ_INTERNAL void vsj__backward(const double *L, const double *b, double *out, int64_t k,
+                                int64_t n);
+VSJ_INTERNAL void vsj__solve(const double *L, const double *b, double *out, int64_t n);
+
+/* The joint Coulomb impulse problem (impulses.c): YT is n x m, one column L^-1 d_e
+ * per unknown, so that the Delassus matrix is W = Y Y^T; the other arrays are its
+ * scratch (mask, d, g: m; memo: m + 1; t, c, z: n; G, Lg, Gc, K: n x n). */
+typedef struct impulses {
+    const double *YT; /* row i of the n x m problem starts at YT + ld * i (ld >= m) */
+    int64_t n, m, ld;
+    double *mask, *G, *Lg, *t, *c, *d, *g, *z, *Gc, *K, *memo;
+} impulses;
+
+/* Exact impulses for slips s = q - W p, lo <= p <= hi: p at hi where s > 0, at lo
+ * where s < 0, between where s = 0. state (-1, +1 at a bound, 0 stuck, 2 not
+ * involved: unknowns with active[e] == 0) and p carry the previous solution as a
+ * warm start. Returns 0 if the active-set method did not converge; im->z holds
+ * Y^T p on return, *iterations the active-set iterations (0: the last pattern held).
+ * im->memo keeps the stuck set's matrices between calls: set memo[m] = 0 when YT or
+ * the problem changes. */
+VSJ_INTERNAL int vsj__solve_impulses(impulses *im, const double *q, const double *lo,
+                                     const double *hi, double *p, int64_t *state,
+                                     const unsigned char *active, int64_t *iterations);
+
+/* The time-stepper's energy ledger (ledger.c): one step's work and losses, from the
+ * step's quantities in t, added to the accumulators `acc` (vsj_n_acc of them); hs is
+ * the step's length, q_end the pivot position at its end. */
+VSJ_INTERNAL void vsj__ts_book(const vsj_model *m, ts_work *t, double *acc, double hs,
+                               double q_end);
+
 #define VSJ_PI 3.14159265358979323846
+
+static inline double vsj__dmax(double a, double b) { return a > b ? a : b; }
+static inline double vsj__dmin(double a, double b) { return a < b ? a : b; }
 
 static inline const double *vsj__row(const vsj_model *m, int64_t r) {
     return m->par + r * VSJ_NPAR;

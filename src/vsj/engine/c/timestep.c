@@ -23,7 +23,8 @@
  *     with W = D H^-1 D^T the Delassus matrix of the elements' slip rows and
  *     q their slips without Coulomb friction. It is solved exactly: last
  *     step's stick/slip pattern is checked first (cheap, and it holds on most
- *     steps), an active-set method takes over when it does not. An element
+ *     steps), an active-set method takes over when it does not (impulses.c,
+ *     with the small dense solves of linalg.c). An element
  *     with s_e = 0 holds exactly (no creep), and which elements hold is decided
  *     jointly through the gears and the differential.
  *
@@ -34,470 +35,22 @@
  * (the contact conditions leave that split open).
  *
  * Every force's work is booked against the mid-step speed, the speed the
- * scheme moves with, so the energy ledger closes up to the spring
+ * scheme moves with, so the energy ledger (ledger.c) closes up to the spring
  * linearisation.
  */
 #include <math.h>
-#include <stdlib.h>
 #include <string.h>
 
 #include "internal.h"
 
 /* slip speed [rad/s] below which an element counts as stuck */
 #define STUCK_SPEED 1e-10
-/* impulse solver: absolute and relative (to the largest free slip) tolerance [rad/s] */
-#define IMPULSE_ABS 1e-14
-#define IMPULSE_REL 1e-12
-#define IMPULSE_MAX_ITER 500
-/* relative Tikhonov term that makes the impulse problem strictly convex (polished away) */
-#define IMPULSE_REG 1e-9
 /* relative change of the step matrix below which its factor is reused */
 #define H_REUSE 1e-12
 /* relative difference below which two friction rows count as parallel */
 #define PARALLEL 1e-12
 /* two step lengths within this fraction of h are the same step (round-off of t0 + k h) */
 #define STEP_SAME 1e-9
-
-static double dmax(double a, double b) { return a > b ? a : b; }
-static double dmin(double a, double b) { return a < b ? a : b; }
-
-/* ---- small dense linear algebra (leading k x k blocks of n x n arrays) ----- */
-
-static int cholesky(const double *H, double *L, int64_t k, int64_t n, int floor) {
-    int64_t i, j, r;
-    for (i = 0; i < k; i++)
-        for (j = 0; j <= i; j++) {
-            double acc = H[n * i + j];
-            for (r = 0; r < j; r++)
-                acc -= L[n * i + r] * L[n * j + r];
-            if (i == j) {
-                if (acc <= 0.0) {
-                    if (!floor)
-                        return 0;
-                    acc = 1e-300;
-                }
-                L[n * i + i] = sqrt(acc);
-            } else {
-                L[n * i + j] = acc / L[n * j + j];
-            }
-        }
-    return 1;
-}
-
-static void forward(const double *L, const double *b, double *out, int64_t k, int64_t n) {
-    int64_t i, r;
-    for (i = 0; i < k; i++) {
-        double acc = b[i];
-        for (r = 0; r < i; r++)
-            acc -= L[n * i + r] * out[r];
-        out[i] = acc / L[n * i + i];
-    }
-}
-
-/* L^T out = b; out may be b */
-static void backward(const double *L, const double *b, double *out, int64_t k, int64_t n) {
-    int64_t i, r;
-    for (i = k - 1; i >= 0; i--) {
-        double acc = b[i];
-        for (r = i + 1; r < k; r++)
-            acc -= L[n * r + i] * out[r];
-        out[i] = acc / L[n * i + i];
-    }
-}
-
-static void solve(const double *L, const double *b, double *out, int64_t n) {
-    forward(L, b, out, n, n);
-    backward(L, out, out, n, n);
-}
-
-/* ---- the impulse problem (YT: n x m, one column L^-1 d_e per unknown) ------- */
-
-typedef struct impulses {
-    const double *YT; /* row i of the n x m problem starts at YT + ld * i (ld >= m) */
-    int64_t n, m, ld;
-    double *mask, *G, *Lg, *t, *c, *d, *g, *z, *Gc, *K, *memo;
-} impulses;
-
-/* z = YT p */
-static void project(const impulses *im, const double *p, double *z) {
-    int64_t i, e, m = im->m;
-    for (i = 0; i < im->n; i++) {
-        double acc = 0.0;
-        const double *row = im->YT + im->ld * i;
-        for (e = 0; e < m; e++)
-            acc += row[e] * p[e];
-        z[i] = acc;
-    }
-}
-
-/* G = YT diag(mask) YT^T + ridge I and t = YT (mask * vec) */
-static void gram(const impulses *im, const double *vec, double *G, double *t, double ridge) {
-    int64_t i, j, e, n = im->n, m = im->m, ld = im->ld;
-    const double *YT = im->YT, *mask = im->mask;
-    for (i = 0; i < n; i++) {
-        double acc_t = 0.0;
-        for (e = 0; e < m; e++)
-            acc_t += YT[ld * i + e] * mask[e] * vec[e];
-        t[i] = acc_t;
-        for (j = 0; j <= i; j++) {
-            double acc = 0.0;
-            for (e = 0; e < m; e++)
-                acc += YT[ld * i + e] * mask[e] * YT[ld * j + e];
-            G[n * i + j] = acc;
-            G[n * j + i] = acc;
-        }
-        G[n * i + i] += ridge;
-    }
-}
-
-/* s = q - YT^T z (s may be q) */
-static void slips(const impulses *im, const double *q, const double *z, double *s) {
-    int64_t i, e, m = im->m;
-    for (e = 0; e < m; e++)
-        s[e] = q[e];
-    for (i = 0; i < im->n; i++) {
-        double zi = z[i];
-        const double *row = im->YT + im->ld * i;
-        for (e = 0; e < m; e++)
-            s[e] -= row[e] * zi;
-    }
-}
-
-/* Classify the warm start: impulses at (this step's) bound keep their sign,
- * the others are free (stuck); uninvolved unknowns get state 2. Fills mask (1
- * for free); returns the number free, and the largest free slip in *scale. */
-static int64_t snap(const impulses *im, const double *q, const double *lo, const double *hi,
-                    double *p, int64_t *state, const unsigned char *active, double *scale) {
-    int64_t e, n_free = 0;
-    double sc = 0.0;
-    for (e = 0; e < im->m; e++) {
-        im->mask[e] = 0.0;
-        if (active[e] && hi[e] > lo[e]) {
-            sc = dmax(sc, fabs(q[e]));
-            /* the bounds vary in their last bits from step to step (the step length
-             * does): an impulse at last step's bound is at this step's bound
-             * (lo <= 0 < hi, hi possibly infinite) */
-            if (p[e] >= hi[e] * (1.0 - 1e-9)) {
-                p[e] = hi[e];
-                state[e] = 1;
-            } else if (p[e] <= lo[e] * (1.0 - 1e-9)) {
-                p[e] = lo[e];
-                state[e] = -1;
-            } else {
-                state[e] = 0;
-                im->mask[e] = 1.0;
-                n_free++;
-            }
-        } else {
-            p[e] = 0.0;
-            state[e] = 2;
-        }
-    }
-    *scale = sc;
-    return n_free;
-}
-
-/* Minimum-norm impulses of the stuck (free) unknowns that cancel their slips
- * `slip`: d = Y_F G^-2 Y_F^T s_F with G = Y_F^T Y_F (n x n solves; a tiny
- * ridge where stuck rows are parallel). Writes d (zero off the free set). */
-static void stuck_impulses(impulses *im, const double *slip) {
-    int64_t i, e, n = im->n, m = im->m;
-    double trace = 0.0;
-    gram(im, slip, im->G, im->t, 0.0);
-    for (i = 0; i < n; i++)
-        trace += im->G[n * i + i];
-    for (i = 0; i < n; i++)
-        im->G[n * i + i] += 1e-13 * trace;
-    cholesky(im->G, im->Lg, n, n, 1);
-    solve(im->Lg, im->t, im->c, n);
-    solve(im->Lg, im->c, im->t, n);
-    for (e = 0; e < m; e++)
-        im->d[e] = 0.0;
-    for (i = 0; i < n; i++) {
-        double ti = im->t[i];
-        const double *row = im->YT + im->ld * i;
-        for (e = 0; e < m; e++)
-            im->d[e] += row[e] * ti * im->mask[e];
-    }
-}
-
-/* Gc = Y_F Y_F^T and K = (Gc + ridge I)^-2 for the stuck set in mask: K Y_F s_F
- * are the coefficients of the minimum-norm impulses that cancel the stuck
- * unknowns' slips s_F. The explicit K loses accuracy when stuck rows are
- * nearly parallel; the fast path may use it because its result is checked,
- * while the active set's final polish solves with the factor. */
-static void stuck_map(impulses *im) {
-    int64_t i, j, n = im->n;
-    double trace = 0.0;
-    gram(im, im->mask, im->Gc, im->t, 0.0);
-    for (i = 0; i < n; i++)
-        trace += im->Gc[n * i + i];
-    for (i = 0; i < n; i++) {
-        for (j = 0; j < n; j++)
-            im->K[n * i + j] = im->Gc[n * i + j];
-        im->K[n * i + i] += 1e-13 * trace;
-    }
-    cholesky(im->K, im->Lg, n, n, 1);
-    for (j = 0; j < n; j++) {
-        for (i = 0; i < n; i++)
-            im->t[i] = i == j ? 1.0 : 0.0;
-        solve(im->Lg, im->t, im->c, n);
-        solve(im->Lg, im->c, im->t, n);
-        for (i = 0; i < n; i++)
-            im->K[n * i + j] = im->t[i];
-    }
-}
-
-/* Fast path: does last step's stick/slip pattern still hold? Bound impulses at
- * their caps, the stuck unknowns' impulses the minimum-norm ones that make
- * their slips exactly zero; returns 1 if every condition holds (p is then the
- * solution). With z_B = Y_B p_B the stuck impulses are Y_F^T c with
- * c = K (Y_F q_F - Gc z_B), and they add Gc c to z. Gc and K change only with
- * the stuck set or YT and are kept between calls (memo). */
-static int same_pattern(impulses *im, const double *q, const double *lo, const double *hi,
-                        double *p, int64_t *state, const unsigned char *active) {
-    int64_t e, i, j, n = im->n, m = im->m, n_free;
-    double scale, tol;
-    int holds = 1;
-    n_free = snap(im, q, lo, hi, p, state, active, &scale);
-    tol = IMPULSE_ABS + IMPULSE_REL * scale;
-    for (e = 0; e < m; e++)
-        im->d[e] = p[e] * (1.0 - im->mask[e]);
-    project(im, im->d, im->z); /* z_B */
-    if (n_free > 0) {
-        int known = im->memo[m] > 0.0, fits = 1;
-        for (e = 0; e < m; e++)
-            known = known && im->memo[e] == im->mask[e];
-        if (!known) {
-            stuck_map(im);
-            for (e = 0; e < m; e++)
-                im->memo[e] = im->mask[e];
-            im->memo[m] = 1.0;
-        }
-        for (e = 0; e < m; e++)
-            im->d[e] = q[e] * im->mask[e];
-        project(im, im->d, im->t);
-        for (i = 0; i < n; i++) {
-            double acc = im->t[i];
-            for (j = 0; j < n; j++)
-                acc -= im->Gc[n * i + j] * im->z[j];
-            im->t[i] = acc; /* Y_F s_F, s the slips under the bound impulses alone */
-        }
-        for (i = 0; i < n; i++) {
-            double acc = 0.0;
-            for (j = 0; j < n; j++)
-                acc += im->K[n * i + j] * im->t[j];
-            im->c[i] = acc;
-        }
-        for (e = 0; e < m; e++)
-            im->d[e] = 0.0;
-        for (i = 0; i < n; i++) {
-            double ci = im->c[i];
-            const double *row = im->YT + im->ld * i;
-            for (e = 0; e < m; e++)
-                im->d[e] += row[e] * ci;
-        }
-        for (e = 0; e < m; e++)
-            if (im->mask[e] > 0.0) {
-                fits = fits && im->d[e] >= lo[e] && im->d[e] <= hi[e];
-                p[e] = im->d[e];
-            }
-        if (!fits)
-            return 0;
-        for (i = 0; i < n; i++) {
-            double acc = im->z[i];
-            for (j = 0; j < n; j++)
-                acc += im->Gc[n * i + j] * im->c[j];
-            im->z[i] = acc;
-        }
-    }
-    slips(im, q, im->z, im->g);
-    for (e = 0; e < m; e++) {
-        int64_t st = state[e];
-        if (st == 0)
-            holds = holds && fabs(im->g[e]) <= tol;
-        else if (st != 2)
-            holds = holds && im->g[e] * (double)st >= -tol;
-    }
-    return holds;
-}
-
-/* The general method, from the warm start in p:
- * 1. the box problem min 1/2 p^T (W + eps I) p - q.p with a tiny
- *    eps = 1e-9 max W_ee is strictly convex; a primal active-set method (free
- *    unknowns stuck, the others at a bound) solves it in finitely many
- *    steps, each an n x n solve by Woodbury's identity;
- * 2. polish: the stuck unknowns' remaining slips (of order eps p) are removed
- *    by the minimum-norm correction of their impulses. */
-static int active_set(impulses *im, const double *q, const double *lo, const double *hi,
-                      double *p, int64_t *state, const unsigned char *active,
-                      int64_t *iterations) {
-    int64_t n = im->n, m = im->m, e, i, it, n_free;
-    double scale, w_max = 0.0, eps, tol;
-    int converged = 0, at_optimum = 0;
-    snap(im, q, lo, hi, p, state, active, &scale);
-    for (e = 0; e < m; e++)
-        if (state[e] != 2) {
-            double norm = 0.0;
-            for (i = 0; i < n; i++)
-                norm += im->YT[im->ld * i + e] * im->YT[im->ld * i + e];
-            w_max = dmax(w_max, norm);
-        }
-    *iterations = 0;
-    if (w_max == 0.0) {
-        project(im, p, im->z);
-        return 1;
-    }
-    eps = IMPULSE_REG * w_max;
-    tol = IMPULSE_ABS + IMPULSE_REL * scale;
-    for (it = 0; it < IMPULSE_MAX_ITER; it++) {
-        double worst;
-        int64_t release;
-        *iterations = it + 1;
-        /* gradient of 1/2 p^T (W + eps I) p - q.p */
-        project(im, p, im->z);
-        slips(im, q, im->z, im->g);
-        n_free = 0;
-        for (e = 0; e < m; e++) {
-            int free_ = state[e] == 0;
-            im->g[e] = eps * p[e] - im->g[e];
-            im->mask[e] = free_ ? 1.0 : 0.0;
-            n_free += free_;
-        }
-        if (n_free > 0 && !at_optimum) {
-            /* Newton step on the free set, d = -(eps I + Y_F Y_F^T)^-1 g_F by
-             * Woodbury's identity (an n x n solve), then a ratio test at the caps */
-            double alpha = 1.0;
-            int64_t block = -1;
-            gram(im, im->g, im->G, im->t, eps);
-            cholesky(im->G, im->Lg, n, n, 1);
-            solve(im->Lg, im->t, im->c, n);
-            slips(im, im->g, im->c, im->d); /* d = g - Y c, scaled below */
-            for (e = 0; e < m; e++) {
-                double de, a;
-                if (state[e] != 0)
-                    continue;
-                de = -im->d[e] / eps;
-                im->d[e] = de;
-                if (de > 0.0 && p[e] + de > hi[e])
-                    a = (hi[e] - p[e]) / de;
-                else if (de < 0.0 && p[e] + de < lo[e])
-                    a = (lo[e] - p[e]) / de;
-                else
-                    continue;
-                if (a < alpha) {
-                    alpha = a;
-                    block = e;
-                }
-            }
-            for (e = 0; e < m; e++)
-                if (state[e] == 0)
-                    p[e] = dmin(hi[e], dmax(lo[e], p[e] + alpha * im->d[e]));
-            if (block >= 0) {
-                p[block] = im->d[block] > 0.0 ? hi[block] : lo[block];
-                state[block] = im->d[block] > 0.0 ? 1 : -1;
-            } else {
-                at_optimum = 1;
-            }
-            continue;
-        }
-        at_optimum = 0;
-        worst = tol;
-        release = -1;
-        for (e = 0; e < m; e++) {
-            int64_t st = state[e];
-            if ((st == 1 || st == -1) && im->g[e] * (double)st > worst) {
-                worst = im->g[e] * (double)st;
-                release = e;
-            }
-        }
-        if (release < 0) {
-            converged = 1;
-            break;
-        }
-        state[release] = 0;
-    }
-    if (!converged)
-        return 0;
-    /* polish: remove the regularisation's creep from the stuck unknowns */
-    n_free = 0;
-    for (e = 0; e < m; e++) {
-        int free_ = state[e] == 0;
-        im->mask[e] = free_ ? 1.0 : 0.0;
-        n_free += free_;
-    }
-    if (n_free > 0) {
-        project(im, p, im->z);
-        slips(im, q, im->z, im->g);
-        stuck_impulses(im, im->g);
-        for (e = 0; e < m; e++)
-            if (state[e] == 0)
-                p[e] = dmin(hi[e], dmax(lo[e], p[e] + im->d[e]));
-    }
-    project(im, p, im->z);
-    return 1;
-}
-
-/* Exact Coulomb impulses: slips s = q - Y Y^T p with |p_e| <= cap_e. state
- * (-1, 0 stuck, +1; 2 not involved) and p carry the previous step's solution
- * as a warm start; im->z holds YT p on return. */
-static int solve_impulses(impulses *im, const double *q, const double *lo, const double *hi,
-                          double *p, int64_t *state, const unsigned char *active,
-                          int64_t *iterations) {
-    *iterations = 0;
-    if (same_pattern(im, q, lo, hi, p, state, active))
-        return 1;
-    return active_set(im, q, lo, hi, p, state, active, iterations);
-}
-
-int vsj_solve_impulses(int64_t n, int64_t m, const double *YT, int64_t count, const double *qs,
-                       const double *cap, const unsigned char *active, double *ps,
-                       int64_t *states, int64_t *iterations) {
-    impulses im;
-    double *block, *p, *lo, *hi;
-    int64_t *state, k;
-    if (n < 0 || m < 0 || count < 0)
-        return VSJ_BAD_ARGUMENT;
-    block = (double *)calloc((size_t)(5 * n * n + 4 * n + 7 * m + 2), sizeof(double));
-    state = (int64_t *)calloc((size_t)(m + 1), sizeof(int64_t));
-    if (!block || !state) {
-        free(block);
-        free(state);
-        return VSJ_NO_MEMORY;
-    }
-    im.YT = YT;
-    im.n = n;
-    im.m = m;
-    im.ld = m;
-    im.G = block;
-    im.Lg = im.G + n * n;
-    im.Gc = im.Lg + n * n;
-    im.K = im.Gc + n * n;
-    im.t = im.K + n * n;
-    im.c = im.t + n;
-    im.z = im.c + n;
-    im.mask = im.z + n;
-    im.d = im.mask + m;
-    im.g = im.d + m;
-    im.memo = im.g + m; /* m + 1 */
-    p = im.memo + m + 1;
-    lo = p + m;
-    hi = lo + m;
-    for (k = 0; k < m; k++) {
-        lo[k] = -cap[k];
-        hi[k] = cap[k];
-    }
-    for (k = 0; k < count; k++) {
-        int64_t it;
-        int ok = solve_impulses(&im, qs + m * k, lo, hi, p, state, active, &it);
-        iterations[k] = ok ? it : -1;
-        memcpy(ps + m * k, p, (size_t)m * sizeof(double));
-        memcpy(states + m * k, state, (size_t)m * sizeof(int64_t));
-    }
-    free(block);
-    free(state);
-    return VSJ_OK;
-}
 
 /* ---- the armature circuit over one step -------------------------------------- */
 
@@ -571,12 +124,12 @@ static double parallel(const ts_work *t, int64_t cols, int64_t n, int64_t s, int
     for (i = 0; i < n; i++) {
         dot += t->DxT[cols * i + e] * t->DxT[cols * i + g];
         norm += t->DxT[cols * i + g] * t->DxT[cols * i + g];
-        big = dmax(big, fabs(t->DxT[cols * i + e]));
+        big = vsj__dmax(big, fabs(t->DxT[cols * i + e]));
     }
     for (j = 0; j < s; j++) {
         dot += t->DuT[cols * j + e] * t->DuT[cols * j + g];
         norm += t->DuT[cols * j + g] * t->DuT[cols * j + g];
-        big = dmax(big, fabs(t->DuT[cols * j + e]));
+        big = vsj__dmax(big, fabs(t->DuT[cols * j + e]));
     }
     if (norm == 0.0)
         return 0.0;
@@ -622,31 +175,17 @@ static void share_levels(ts_work *t, int64_t nf) {
     }
 }
 
-int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
-    ts_work *t = &w->ts;
-    int64_t n, s, nf, nk, nl, nm, cols, e, i, j, c, k, a, rr, mt, na = 0;
-    int64_t r_load, r_piv;
-    if (!vsj__fits(m, w))
-        return VSJ_BAD_ARGUMENT;
-    n = m->n;
-    s = m->n_sources;
-    nf = m->n_frictions;
-    nk = m->n_springs;
-    nl = m->n_loads;
-    nm = m->n_motors;
-    cols = nf + nk;
-    /* Coulomb impulses act on free coordinates (active); stiction elements that
-     * only sources drive just follow their slip (driven) */
+/* Coulomb impulses act on free coordinates (active); stiction elements that only
+ * sources drive just follow their slip (driven). Every element row is stored densely,
+ * one coordinate per row (DxT, DuT), so that the loops over elements are vector
+ * loops. */
+static void dense_rows(const vsj_model *m, ts_work *t) {
+    int64_t n = m->n, s = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs, e, k;
     for (e = 0; e < nf; e++) {
         int stick = m->code[e] == VSJ_STICTION;
         t->active[e] = stick && m->xp[e + 1] > m->xp[e];
         t->driven[e] = stick && !t->active[e];
     }
-    /* elements whose smooth part is linear (viscous, and stiction's viscous
-     * part) are summed once: their share of the step matrix is h Bx and of the
-     * right-hand side -h Bu u1 (a damper's weighted by theta = 1/2, the other
-     * half taken at the step's start). Element rows are stored densely, one
-     * coordinate per row, so that the loops over elements are vector loops. */
     memset(t->Bx, 0, (size_t)(n * n) * sizeof(double));
     memset(t->Bu, 0, (size_t)(n * s) * sizeof(double));
     memset(t->DxT, 0, (size_t)(n * cols) * sizeof(double));
@@ -657,6 +196,15 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
         for (k = m->up[e]; k < m->up[e + 1]; k++)
             t->DuT[cols * m->uc[k] + e] = m->uv[k];
     }
+}
+
+/* Elements whose smooth part is linear (viscous, and stiction's viscous part) are
+ * summed once: their share of the step matrix is h Bx and of the right-hand side
+ * -h Bu u1 (a damper's weighted by theta = 1/2, the other half taken at the step's
+ * start). */
+static void linear_parts(const vsj_model *m, ts_work *t) {
+    int64_t n = m->n, s = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs;
+    int64_t e, i, j, c;
     t->n_damper = 0;
     for (e = 0; e < nf; e++) {
         t->linear[e] = m->code[e] == VSJ_STICTION || m->code[e] == VSJ_VISCOUS;
@@ -676,8 +224,13 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
             }
         }
     }
-    /* groups of parallel active elements: one impulse unknown each (slot), shared
-     * in proportion to the elements' levels (share) */
+}
+
+/* Groups of parallel active elements: one impulse unknown each (slot), shared in
+ * proportion to the elements' levels (share). Sets na, the number of groups. */
+static void friction_groups(const vsj_model *m, ts_work *t) {
+    int64_t n = m->n, s = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs;
+    int64_t e, a, na = 0;
     for (e = 0; e < nf; e++) {
         t->slot[e] = -1;
         t->ratio[e] = 0.0;
@@ -699,13 +252,19 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
         }
     }
     t->na = na;
-    /* end stops: a spring whose law has one, and whose deflection the free
-     * coordinates move, gets two unilateral constraints (|d| <= stop), appended
-     * to the impulse unknowns with bounds [0, inf); a compliant stop adds its
-     * compliance as a row of its own to YlT (one more row of the problem) */
+}
+
+/* End stops: a spring whose law has one, and whose deflection the free coordinates
+ * move, gets two unilateral constraints (|d| <= stop), appended to the impulse
+ * unknowns with bounds [0, inf); a compliant stop adds its compliance as a row of its
+ * own to YlT (one more row of the problem). Then every unknown's rows, a stop's with
+ * its side's sign (DxA, DuA). */
+static void end_stops(const vsj_model *m, ts_work *t) {
+    int64_t n = m->n, s = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs;
+    int64_t na = t->na, k, rr, a, i, j, mt;
     t->nc = 0;
     t->ncomp = 0;
-    for (k = 0; k < nk; k++) {
+    for (k = 0; k < m->n_springs; k++) {
         double angle, stiffness, side;
         rr = nf + k;
         t->has_stop[k] = vsj__stop(m->code[rr], vsj__row(m, rr), &angle, &stiffness)
@@ -731,14 +290,18 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
             t->DuA[mt * j + a] = side * t->DuT[cols * j + from];
         t->involved[a] = a < na; /* end stops: decided step by step */
     }
+}
+
+/* The elements' Coulomb levels at rest, and the index lists: smooth parts that are
+ * not linear; elements whose stick phases are counted. */
+static void levels_and_lists(const vsj_model *m, ts_work *t) {
+    int64_t e, nf = m->n_frictions;
     t->any_varying = 0;
     for (e = 0; e < nf; e++) {
         t->lev[e] = t->levs[e] = coulomb_level(m, e);
         t->any_varying = t->any_varying || ((t->active[e] || t->driven[e]) && vsj__varying(m, e));
     }
     share_levels(t, nf);
-    /* index lists: smooth parts that are not linear; elements whose stick phases
-     * are counted */
     t->n_nonlinear = 0;
     t->n_watched = 0;
     for (e = 0; e < nf; e++) {
@@ -747,13 +310,16 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
         if (t->active[e] || t->driven[e])
             t->watched[t->n_watched++] = e;
     }
-    /* at mid-step only the loads, the motor voltages and the pivot's sources are
-     * read; a load or voltage constant in time keeps its value from t = 0. At
-     * step end only the sources' channels are read. */
-    r_load = nf + nk;
-    r_piv = m->n_rows - 1;
+}
+
+/* At mid-step only the loads, the motor voltages and the pivot's sources are read; a
+ * load or voltage constant in time keeps its value from t = 0. At step end only the
+ * sources' channels are read. */
+static void channel_lists(const vsj_model *m, ts_work *t) {
+    int64_t nf = m->n_frictions, r_load = nf + m->n_springs, r_piv = m->n_rows - 1;
+    int64_t rr, e, k, c, j;
     memset(t->wanted, 0, (size_t)m->n_channels);
-    for (rr = r_load; rr < r_load + nl + nm; rr++) {
+    for (rr = r_load; rr < r_load + m->n_loads + m->n_motors; rr++) {
         int64_t ch = m->code[rr], p0 = m->first[ch];
         const double *cf = m->coef + 4 * p0;
         int steady = m->count[ch] == 1 && cf[1] == 0.0 && cf[2] == 0.0 && cf[3] == 0.0;
@@ -772,28 +338,30 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
         if (t->wanted[c])
             t->mid_ch[t->n_mid_ch++] = c;
     memset(t->wanted, 0, (size_t)m->n_channels);
-    for (j = 0; j < s; j++)
+    for (j = 0; j < m->n_sources; j++)
         t->wanted[m->src_ch[j]] = 1;
     t->n_end_ch = 0;
     for (c = 0; c < m->n_channels; c++)
         if (t->wanted[c])
             t->end_ch[t->n_end_ch++] = c;
-    /* history */
-    {
-        int64_t nr = n + 2 * nk, mu = nf + 2 * nk;
-        memset(t->H_last, 0, (size_t)(n * n) * sizeof(double));
-        memset(t->YlT, 0, (size_t)(nr * mu) * sizeof(double));
-        memset(t->qv, 0, (size_t)mu * sizeof(double));
-        memset(t->lo, 0, (size_t)mu * sizeof(double));
-        memset(t->hi, 0, (size_t)mu * sizeof(double));
-        memset(t->p, 0, (size_t)mu * sizeof(double));
-        memset(t->mask, 0, (size_t)mu * sizeof(double));
-        memset(t->memo, 0, (size_t)(mu + 1) * sizeof(double));
-        memset(t->Gc, 0, (size_t)(nr * nr) * sizeof(double));
-        memset(t->Kc, 0, (size_t)(nr * nr) * sizeof(double));
-        for (a = 0; a < mu; a++)
-            t->state[a] = 0;
-    }
+}
+
+/* No stick/slip history: no impulses, no factor, no counts. */
+static void clear_history(const vsj_model *m, ts_work *t) {
+    int64_t n = m->n, nk = m->n_springs, nf = m->n_frictions;
+    int64_t nr = n + 2 * nk, mu = nf + 2 * nk, a, e;
+    memset(t->H_last, 0, (size_t)(n * n) * sizeof(double));
+    memset(t->YlT, 0, (size_t)(nr * mu) * sizeof(double));
+    memset(t->qv, 0, (size_t)mu * sizeof(double));
+    memset(t->lo, 0, (size_t)mu * sizeof(double));
+    memset(t->hi, 0, (size_t)mu * sizeof(double));
+    memset(t->p, 0, (size_t)mu * sizeof(double));
+    memset(t->mask, 0, (size_t)mu * sizeof(double));
+    memset(t->memo, 0, (size_t)(mu + 1) * sizeof(double));
+    memset(t->Gc, 0, (size_t)(nr * nr) * sizeof(double));
+    memset(t->Kc, 0, (size_t)(nr * nr) * sizeof(double));
+    for (a = 0; a < mu; a++)
+        t->state[a] = 0;
     for (e = 0; e < nf; e++) {
         t->held[e] = 0;
         t->transitions[e] = 0;
@@ -801,6 +369,19 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
     t->hs_prev = NAN;
     t->rl_h = NAN; /* the armature steps follow the parameters */
     t->factored = 0;
+}
+
+int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
+    ts_work *t = &w->ts;
+    if (!vsj__fits(m, w))
+        return VSJ_BAD_ARGUMENT;
+    dense_rows(m, t);
+    linear_parts(m, t);
+    friction_groups(m, t);
+    end_stops(m, t);
+    levels_and_lists(m, t);
+    channel_lists(m, t);
+    clear_history(m, t);
     t->prepared = 1;
     t->for_par = m->par;
     t->for_rows = m->xv;
@@ -836,7 +417,6 @@ static void outer(const vsj_model *m, int64_t r, double *H, double scale) {
             H[n * m->xc[a] + m->xc[b]] += scale * m->xv[a] * m->xv[b];
 }
 
-/* Whether the time-stepper's analysis in w was made for m (its arrays). */
 /* The memo (the stuck set's matrices) holds for the problem it was made for
  * and the YlT it was made with: forget it when either changes. */
 static void forget_memo(ts_work *t) {
@@ -844,6 +424,8 @@ static void forget_memo(ts_work *t) {
     t->memo[t->na + t->nc] = 0.0;
 }
 
+/* The problem posed with the end stops (full) or without them (impulses_of); without,
+ * the stops' unknowns take no impulse and are out of it. */
 static void use_problem(vsj_work *w, impulses *im, int full) {
     ts_work *t = &w->ts;
     int64_t a;
@@ -859,6 +441,7 @@ static void use_problem(vsj_work *w, impulses *im, int full) {
         }
 }
 
+/* Whether the time-stepper's analysis in w was made for m (its arrays). */
 static int prepared_for(const vsj_model *m, const vsj_work *w) {
     const ts_work *t = &w->ts;
     return t->prepared && t->for_par == m->par && t->for_rows == m->xv && t->for_mass == m->mass;
@@ -909,16 +492,487 @@ static void sample(const vsj_model *m, const vsj_work *w, const vsj_samples *smp
         }
 }
 
+/* ---- one step, from tnow to t1 = tnow + hs ----------------------------------- */
+
+/* Levels that follow a normal force, a table or a peak: each element's at its slip of
+ * the step's start, and its static one (mid-step inputs). */
+static void step_levels(const vsj_model *m, vsj_work *w) {
+    ts_work *t = &w->ts;
+    int64_t e, nf = m->n_frictions;
+    for (e = 0; e < nf; e++)
+        if ((t->active[e] || t->driven[e]) && vsj__varying(m, e)) {
+            t->levs[e] = coulomb_level(m, e) * vsj__normal(m, w, e, 0.0, 1);
+            t->lev[e] = fabs(t->slip[e]) <= STUCK_SPEED
+                            ? t->levs[e]
+                            : coulomb_level(m, e) * vsj__normal(m, w, e, t->slip[e], 0);
+        }
+    share_levels(t, nf);
+}
+
+/* The step's inputs: at mid-step the loads, voltages and normal forces, and the pivot
+ * position at the midpoint x + hs/2 v (kept while its angle stays); at the step's end
+ * the sources' speeds u1 and angles sg1. Held inputs (the step function) may change
+ * from call to call: all of their channels are read. */
+static void step_inputs(const vsj_model *m, vsj_work *w, double tnow, double t1, double hs) {
+    ts_work *t = &w->ts;
+    int64_t i, j, c, ld, mo, r_load = m->n_frictions + m->n_springs;
+    double angle;
+    if (w->held)
+        for (c = 0; c < m->n_channels; c++)
+            vsj__eval_channel(m, w, c, tnow + 0.5 * hs);
+    else
+        for (i = 0; i < t->n_mid_ch; i++)
+            vsj__eval_channel(m, w, t->mid_ch[i], tnow + 0.5 * hs);
+    for (i = 0; i < t->n_mid_src; i++)
+        vsj__eval_source(m, w, t->mid_src[i]);
+    if (t->any_varying)
+        step_levels(m, w);
+    for (ld = 0; ld < m->n_loads; ld++)
+        t->ldm[ld] = w->chan[3 * m->code[r_load + ld]];
+    for (mo = 0; mo < m->n_motors; mo++)
+        t->vm[mo] = w->chan[3 * m->code[r_load + m->n_loads + mo]];
+    for (i = 0; i < m->n; i++)
+        t->x1[i] = t->x[i] + 0.5 * hs * t->v[i];
+    angle = vsj__pivot_angle(m, w, t->x1);
+    if (angle != t->angle_mid) {
+        t->angle_mid = angle;
+        t->q_mid = vsj__pivot_at(m, w, angle);
+    }
+    for (i = 0; i < t->n_end_ch; i++)
+        vsj__eval_channel(m, w, t->end_ch[i], t1);
+    for (j = 0; j < m->n_sources; j++) {
+        vsj__eval_source(m, w, j);
+        t->u1[j] = w->srcw[SRCW * j + U];
+        t->sg1[j] = w->srcw[SRCW * j + SG];
+    }
+}
+
+/* H v1 = r, its inertia and linear friction: H = M + hs Bx, r = M v - M_su (u1 - u0)
+ * - hs Bu u1. */
+static void assemble_inertia(const vsj_model *m, ts_work *t, double hs) {
+    int64_t n = m->n, s_n = m->n_sources, i, j, c;
+    for (i = 0; i < n; i++) {
+        double total = 0.0;
+        for (c = 0; c < n; c++) {
+            t->H[n * i + c] = m->mass[(n + s_n) * i + c] + hs * t->Bx[n * i + c];
+            total += m->mass[(n + s_n) * i + c] * t->v[c];
+        }
+        for (j = 0; j < s_n; j++)
+            total -= m->mass[(n + s_n) * i + n + j] * (t->u1[j] - t->u0[j])
+                     + hs * t->Bu[s_n * i + j] * t->u1[j];
+        t->r[i] = total;
+    }
+}
+
+/* The springs, by the trapezoidal rule linearised about the step's start with the
+ * law's stiffness (the end stops are constraints of the impulse problem). */
+static void assemble_springs(const vsj_model *m, vsj_work *w, double hs) {
+    ts_work *t = &w->ts;
+    int64_t n = m->n, s_n = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs;
+    int64_t i, j, c, k, rr;
+    for (k = 0; k < m->n_springs; k++) {
+        double d0 = 0.0, rate = 0.0, dsig = 0.0, kap, en, dvq, tau, c_k;
+        rr = nf + k;
+        for (i = 0; i < n; i++) {
+            d0 += t->DxT[cols * i + rr] * t->x[i];
+            rate += t->DxT[cols * i + rr] * t->v[i];
+        }
+        for (j = 0; j < s_n; j++) {
+            d0 += t->DuT[cols * j + rr] * t->sg0[j];
+            dsig += t->DuT[cols * j + rr] * (t->sg1[j] - t->sg0[j]);
+        }
+        tau = vsj__spring(m->code[rr], vsj__row(m, rr), d0, t->q_mid, &kap, &en, &dvq,
+                          w->spcache + 4 * k, !t->has_stop[k]);
+        c_k = tau - 0.5 * kap * dsig - 0.25 * kap * hs * rate;
+        t->sp_c[k] = c_k;
+        t->sp_kap[k] = kap;
+        for (i = 0; i < n; i++) {
+            double di = t->DxT[cols * i + rr];
+            t->r[i] += hs * c_k * di;
+            for (c = 0; c < n; c++)
+                t->H[n * i + c] += 0.25 * hs * hs * kap * di * t->DxT[cols * c + rr];
+        }
+    }
+}
+
+/* Friction's smooth parts: the dampers' half at the step's start, the non-linear laws
+ * linearised about the start's slip (implicit Euler); then the loads' torques. */
+static void assemble_friction(const vsj_model *m, vsj_work *w, double hs) {
+    ts_work *t = &w->ts;
+    int64_t i, e, ld, r_load = m->n_frictions + m->n_springs;
+    memcpy(t->s0, t->slip, (size_t)m->n_frictions * sizeof(double));
+    for (i = 0; i < t->n_damper; i++) {
+        e = t->damper[i];
+        vsj__xadd(m, e, t->r, -hs * (1.0 - t->theta[e]) * vsj__row(m, e)[0] * t->s0[e]);
+    }
+    for (i = 0; i < t->n_nonlinear; i++) {
+        const double *p;
+        double se, fe, dfe, cnst;
+        e = t->nonlinear[i];
+        p = vsj__row(m, e);
+        se = t->slip[e];
+        fe = vsj__friction(m->code[e], p[0],
+                           vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, se, 0) : p[1],
+                           p[2], p[3], se, &dfe);
+        t->f0[e] = fe;
+        t->df0[e] = dfe;
+        cnst = fe - dfe * se + dfe * vsj__udotv(m, e, t->u1);
+        vsj__xadd(m, e, t->r, -hs * cnst);
+        outer(m, e, t->H, hs * dfe);
+    }
+    for (ld = 0; ld < m->n_loads; ld++)
+        vsj__xadd(m, r_load + ld, t->r, hs * t->ldm[ld]);
+}
+
+/* The motors' torque impulse k Q, with Q the step's charge (armature_steps) at the
+ * mid-step rotor speed (om0 + om1)/2, om1 = d.v1 + (source part at u1): linear in v1,
+ * so it joins the step matrix as a damping k^2 gain / 2. */
+static void assemble_motors(const vsj_model *m, ts_work *t, double hs, double h) {
+    int64_t mo, rr, r_mot = m->n_frictions + m->n_springs + m->n_loads;
+    armature_steps(m, t, hs, h);
+    for (mo = 0; mo < m->n_motors; mo++) {
+        double kt, gain, om0, cnst;
+        rr = r_mot + mo;
+        kt = vsj__row(m, rr)[2];
+        gain = t->rl_gain[mo];
+        om0 = vsj__xdot(m, rr, t->v) + vsj__udotv(m, rr, t->u0);
+        t->om0[mo] = om0;
+        cnst = kt * (gain * (t->vm[mo] - 0.5 * kt * (om0 + vsj__udotv(m, rr, t->u1)))
+                     + t->cur[mo] * t->rl_decay[mo]);
+        vsj__xadd(m, rr, t->r, cnst);
+        outer(m, rr, t->H, 0.5 * kt * kt * gain);
+    }
+}
+
+/* H v1 = r: inertia, springs (trapezoidal), smooth friction, loads, motors. */
+static void assemble_step(const vsj_model *m, vsj_work *w, double hs, double h) {
+    assemble_inertia(m, &w->ts, hs);
+    assemble_springs(m, w, hs);
+    assemble_friction(m, w, hs);
+    assemble_motors(m, &w->ts, hs, h);
+}
+
+/* The speeds without Coulomb impulses, vfree = H^-1 r, and the impulse problem's rows
+ * YlT = L^-1 D^T. H changes only with non-linear springs, smooth friction slopes or a
+ * moving pivot; while it stays within round-off of the matrix last factored, that
+ * factor and YlT are reused. VSJ_NOT_FINITE if H is not positive definite. */
+static int factor_step(const vsj_model *m, ts_work *t, double hs, double h) {
+    int64_t n = m->n, na = t->na, mt = na + t->nc, i, a, c;
+    double scale_h = 0.0;
+    int same;
+    for (i = 0; i < n * n; i++)
+        scale_h = vsj__dmax(scale_h, fabs(t->H_last[i]));
+    same = t->factored;
+    for (i = 0; i < n * n; i++)
+        same = same && fabs(t->H[i] - t->H_last[i]) <= H_REUSE * scale_h;
+    if (n > 0 && !same) {
+        memcpy(t->H_last, t->H, (size_t)(n * n) * sizeof(double));
+        if (!vsj__cholesky(t->H, t->Lc, n, n, 0))
+            return VSJ_NOT_FINITE;
+        for (a = 0; a < mt; a++) {
+            for (i = 0; i < n; i++)
+                t->drow[i] = t->DxA[mt * i + a];
+            vsj__forward(t->Lc, t->drow, t->col, n, n); /* L^-1 d_e: W = Y Y^T */
+            for (i = 0; i < n; i++)
+                t->YlT[mt * i + a] = t->col[i];
+        }
+        forget_memo(t); /* it was made with the old YlT */
+        t->factored = 1;
+        t->hs_prev = NAN; /* the compliance rows below are written afresh */
+    }
+    if (n > 0)
+        vsj__solve(t->Lc, t->r, t->vfree, n);
+    /* a compliant stop of stiffness k adds 2 / (h^2 k) to the Delassus matrix's
+     * diagonal: a row of its own in YlT, so that W = Y Y^T still */
+    /* step lengths t1 - tnow differ by round-off from step to step: only a
+     * real change (the last, shortened step) rewrites the rows and drops the
+     * solver's memo */
+    if (t->ncomp > 0 && !(fabs(hs - t->hs_prev) <= STEP_SAME * h)) {
+        memset(t->YlT + mt * n, 0, (size_t)(t->ncomp * mt) * sizeof(double));
+        for (c = 0; c < t->nc; c++)
+            if (t->ccomp[c] >= 0)
+                t->YlT[mt * (n + t->ccomp[c]) + na + c] = sqrt(2.0 / (hs * hs * t->ckstop[c]));
+        forget_memo(t);
+        t->hs_prev = hs;
+    }
+    return VSJ_OK;
+}
+
+/* The impulse problem's free slips qv and bounds: the friction groups' Coulomb
+ * impulses, and each end stop's bound on its end speed. A stop is in the problem if
+ * the free motion would pass it, or it pushed last step; the others are checked
+ * after the solve. */
+static void impulse_bounds(const vsj_model *m, ts_work *t, double hs) {
+    int64_t n = m->n, s_n = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs;
+    int64_t na = t->na, mt = na + t->nc, a, c, i, j, rr;
+    double d0 = 0.0, rate0 = 0.0;
+    for (a = 0; a < na; a++) {
+        t->lo[a] = -hs * t->level[a];
+        t->hi[a] = hs * t->level[a];
+    }
+    element_slips(t->DxA, t->DuA, mt, mt, t->vfree, n, t->u1, s_n, t->qv);
+    for (c = 0; c < t->nc; c++) {
+        /* |d| <= stop at the step's end: with d1 = d0 + h/2 (d0' + d1') the
+         * end speed side d1' may be at most cb (the trapezoidal position update) */
+        double side = t->csign[c];
+        if (c == 0 || t->cspring[c] != t->cspring[c - 1]) { /* a spring's two sides */
+            d0 = rate0 = 0.0;
+            rr = nf + t->cspring[c];
+            for (i = 0; i < n; i++) {
+                d0 += t->DxT[cols * i + rr] * t->x[i];
+                rate0 += t->DxT[cols * i + rr] * t->v[i];
+            }
+            for (j = 0; j < s_n; j++) {
+                d0 += t->DuT[cols * j + rr] * t->sg0[j];
+                rate0 += t->DuT[cols * j + rr] * t->u0[j];
+            }
+        }
+        t->cb[c] = 2.0 / hs * (t->cstop[c] - side * d0) - side * rate0;
+        a = na + c;
+        t->qv[a] -= t->cb[c];
+        t->lo[a] = 0.0;
+        t->hi[a] = INFINITY;
+        t->involved[a] = t->qv[a] > 0.0 || t->p[a] > 0.0;
+    }
+}
+
+/* End stops left out of the problem that its impulses drove into their stop: put in.
+ * Returns whether any was. */
+static int stops_reached(ts_work *t, const impulses *im) {
+    int64_t na = t->na, mt = na + t->nc, a, c, i;
+    int added = 0;
+    for (c = 0; c < t->nc; c++) {
+        double slip;
+        a = na + c;
+        if (t->involved[a])
+            continue;
+        slip = t->qv[a];
+        for (i = 0; i < im->n; i++)
+            slip -= t->YlT[mt * i + a] * t->z[i];
+        if (slip > 0.0) {
+            t->involved[a] = 1;
+            added = 1;
+        }
+    }
+    return added;
+}
+
+/* A group that slipped at the step's start and comes to rest or turns within it meets
+ * its static level there (MSL's peak): its bounds become that level. Returns whether
+ * any group's did. */
+static int peaks_met(ts_work *t, const impulses *im, double hs) {
+    int64_t na = t->na, mt = na + t->nc, a, i;
+    int added = 0;
+    for (a = 0; a < na; a++) {
+        double s0 = t->slip[t->lead[a]], s1 = t->qv[a];
+        if (!(t->hold[a] > t->level[a]) || fabs(s0) <= STUCK_SPEED)
+            continue;
+        for (i = 0; i < im->n; i++)
+            s1 -= t->YlT[mt * i + a] * t->z[i];
+        if (fabs(s1) <= STUCK_SPEED || (s1 > 0.0) != (s0 > 0.0)) {
+            t->lo[a] = -hs * t->hold[a];
+            t->hi[a] = hs * t->hold[a];
+            added = 1;
+        }
+    }
+    return added;
+}
+
+/* The end speeds v1: vfree less what the Coulomb impulses of the stiction elements and
+ * the end stops' impulses, decided all together, take. The problem is solved again
+ * while the solution drives an end stop left out into its stop (at most once per
+ * stop) and, once, with the static levels of groups that come to rest. */
+static int impulse_step(const vsj_model *m, vsj_work *w, double hs) {
+    ts_work *t = &w->ts;
+    impulses im;
+    int64_t n = m->n, na = t->na, c, i, pass, iterations;
+    if (na + t->nc == 0) {
+        memcpy(t->v1, t->vfree, (size_t)n * sizeof(double));
+        return VSJ_OK;
+    }
+    impulse_bounds(m, t, hs);
+    for (pass = 0;; pass++) {
+        int added, full = 0;
+        for (c = 0; c < t->nc; c++)
+            full = full || t->involved[na + c];
+        use_problem(w, &im, full);
+        if (!vsj__solve_impulses(&im, t->qv, t->lo, t->hi, t->p, t->state, t->involved,
+                                 &iterations))
+            return VSJ_FRICTION_SOLVER;
+        added = stops_reached(t, &im);
+        if (pass == 0)
+            added = peaks_met(t, &im, hs) || added;
+        if (!added || pass > t->nc)
+            break;
+    }
+    /* the impulses change the speeds by H^-1 D^T p = L^-T (YlT p) */
+    vsj__backward(t->Lc, t->z, t->v1, n, n);
+    for (i = 0; i < n; i++)
+        t->v1[i] = t->vfree[i] - t->v1[i];
+    return VSJ_OK;
+}
+
+/* The step's end: positions by the trapezoidal rule, and the motors' armature
+ * currents, charge and Joule heat over the step (armature_steps) with the mid-step
+ * back-EMF. */
+static void step_end(const vsj_model *m, ts_work *t, double hs) {
+    int64_t i, mo, rr, r_mot = m->n_frictions + m->n_springs + m->n_loads;
+    for (i = 0; i < m->n; i++)
+        t->x1[i] = t->x[i] + 0.5 * hs * (t->v[i] + t->v1[i]);
+    for (mo = 0; mo < m->n_motors; mo++) {
+        const double *p;
+        double R, kt, emf, i_inf, c;
+        rr = r_mot + mo;
+        p = vsj__row(m, rr);
+        R = p[0];
+        kt = p[2];
+        emf = t->vm[mo] - 0.5 * kt * (t->om0[mo] + vsj__xdot(m, rr, t->v1)
+                                       + vsj__udotv(m, rr, t->u1));
+        i_inf = emf / R;
+        c = t->cur[mo] - i_inf;
+        t->i1[mo] = i_inf + c * t->rl_e[mo];
+        t->charge[mo] = t->rl_gain[mo] * emf + t->cur[mo] * t->rl_decay[mo];
+        t->heat[mo] = R * (i_inf * i_inf * t->rl_h + 2.0 * i_inf * c * t->rl_decay[mo]
+                           + c * c * t->rl_half[mo]);
+    }
+}
+
+/* The elements' slips at the step's end and, where `forces` (the ledger and the
+ * samples want them), each friction element's torque as the step took it: its smooth
+ * part plus its share of the group's Coulomb impulse (a driven element: its level
+ * against its slip). The sources' mid-step speeds and torques are set up for the
+ * booking. */
+static void element_forces(const vsj_model *m, ts_work *t, double hs, int forces) {
+    int64_t e, j, nf = m->n_frictions, s_n = m->n_sources;
+    for (j = 0; j < s_n; j++) {
+        t->um[j] = 0.5 * (t->u0[j] + t->u1[j]);
+        t->srcF[j] = 0.0;
+    }
+    element_slips(t->DxT, t->DuT, nf + m->n_springs, nf, t->v1, m->n, t->u1, s_n, t->slip);
+    if (forces) {
+        double inv_hs = 1.0 / hs;
+        for (e = 0; e < nf; e++) {
+            double s1 = t->slip[e], fe;
+            fe = t->linear[e] ? vsj__row(m, e)[0]
+                                    * (t->theta[e] * s1 + (1.0 - t->theta[e]) * t->s0[e])
+                              : t->f0[e] + t->df0[e] * (s1 - t->s0[e]);
+            if (t->active[e])
+                fe += t->share[e] * t->p[t->slot[e]] * inv_hs;
+            else if (t->driven[e] && s1 != 0.0)
+                fe += t->lev[e] * (s1 > 0.0 ? 1.0 : -1.0);
+            t->force[e] = fe;
+        }
+    }
+}
+
+/* The pivot position at the step's end, where the ledger or the call's last step
+ * wants it (a pivot held still costs no sine); else the start's. */
+static double pivot_end(const vsj_model *m, vsj_work *w, int wanted) {
+    ts_work *t = &w->ts;
+    double q_end = t->q_prev;
+    if (wanted && vsj__row(m, m->n_rows - 1)[2] > 0.0) {
+        double angle_end = vsj__pivot_angle(m, w, t->x1);
+        if (angle_end != t->angle_prev)
+            q_end = vsj__pivot_at(m, w, angle_end);
+        t->angle_prev = angle_end;
+    }
+    return q_end;
+}
+
+/* The step's end becomes the start of the next: state, time (on the grid origin +
+ * k h, or off it after a shortened step), pivot, and the stick phases counted. */
+static void advance_state(const vsj_model *m, vsj_work *w, double t1, int on_grid,
+                          double q_end) {
+    ts_work *t = &w->ts;
+    int64_t i, e, n = m->n, s_n = m->n_sources;
+    memcpy(t->x, t->x1, (size_t)n * sizeof(double));
+    memcpy(t->v, t->v1, (size_t)n * sizeof(double));
+    memcpy(t->cur, t->i1, (size_t)m->n_motors * sizeof(double));
+    memcpy(t->u0, t->u1, (size_t)s_n * sizeof(double));
+    memcpy(t->sg0, t->sg1, (size_t)s_n * sizeof(double));
+    t->t = t1;
+    if (on_grid) {
+        t->k++;
+    } else { /* off the grid: the next call's grid starts here */
+        t->origin = t1;
+        t->k = 0;
+    }
+    t->q_prev = q_end;
+    for (i = 0; i < t->n_watched; i++) {
+        e = t->watched[i];
+        if (holding(m, w, e)) {
+            t->held[e]++;
+            if (t->held[e] == 2)
+                t->transitions[e]++;
+        } else {
+            if (t->held[e] >= 2)
+                t->transitions[e]++;
+            t->held[e] = 0;
+        }
+    }
+}
+
+/* The state into y (angles, speeds, currents); 0 if an angle or speed is not finite
+ * (the currents are then left). */
+static int put_state(const vsj_model *m, const ts_work *t, double *y) {
+    int64_t i, mo, n = m->n;
+    int finite_ = 1;
+    for (i = 0; i < n; i++) {
+        y[i] = t->x[i];
+        y[n + i] = t->v[i];
+        finite_ = finite_ && isfinite(t->x[i]) && isfinite(t->v[i]);
+    }
+    if (!finite_)
+        return 0;
+    for (mo = 0; mo < m->n_motors; mo++)
+        y[2 * n + mo] = t->cur[mo];
+    return 1;
+}
+
+/* One step from tnow to t1, the ledger booked into acc (NULL: none); `forces`: the
+ * elements' torques are wanted (the ledger's, or a sample's), `last`: the call's last
+ * step. Returns the status. */
+static int one_step(const vsj_model *m, vsj_work *w, double tnow, double t1, double h,
+                    int on_grid, int last, double *acc, int forces) {
+    ts_work *t = &w->ts;
+    double hs = t1 - tnow, q_end;
+    int status;
+    step_inputs(m, w, tnow, t1, hs);
+    assemble_step(m, w, hs, h);
+    status = factor_step(m, t, hs, h);
+    if (status == VSJ_OK)
+        status = impulse_step(m, w, hs);
+    if (status != VSJ_OK)
+        return status;
+    step_end(m, t, hs);
+    element_forces(m, t, hs, forces || acc);
+    q_end = pivot_end(m, w, acc || last); /* at t1, for the ledger */
+    if (acc)
+        vsj__ts_book(m, t, acc, hs, q_end);
+    advance_state(m, w, t1, on_grid, q_end);
+    return VSJ_OK;
+}
+
+/* ---- the run ----------------------------------------------------------------- */
+
+/* The steps from t->t to t_end: steps end on the grid origin + k h (the first time
+ * plus whole steps), so that a run advanced in several calls takes the very steps of
+ * one advanced at once; a call whose end lies off the grid ends with one shortened
+ * step. *whole receives the number on the grid. */
+static int64_t count_steps(const ts_work *t, double t_end, double h, int64_t *whole) {
+    double k_end = floor((t_end - t->origin) / h + 1e-9);
+    *whole = (int64_t)k_end - t->k;
+    if (*whole < 0)
+        *whole = 0;
+    return *whole + (t_end - (t->origin + k_end * h) > 1e-9 * h ? 1 : 0);
+}
+
 vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_end, double h,
                           int64_t max_steps, int ledger, const vsj_samples *smp) {
     ts_work *t = &w->ts;
     vsj_report rep;
-    impulses im;
-    int64_t n, s_n, nf, nk, nl, nm, na, cols, r_load, r_mot, n_state, a_src, a_load, a_elec;
-    int64_t a_fric, a_res, a_spr, a_piv, a_stop, n_out, n_col, i_out = 0, steps_total, step, i;
-    int64_t whole;
-    int64_t j, c, e, k, mo, ld, rr, a, mt, iterations;
-    int moving_pivot, status = VSJ_OK;
+    int64_t n_state, n_acc, n_out, n_col, i_out = 0, steps_total, step, whole, i;
+    int status = VSJ_OK;
     double t0 = t->t, tnow = t0;
     rep.status = VSJ_OK;
     rep.t = t0;
@@ -928,49 +982,17 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
         rep.status = VSJ_BAD_ARGUMENT;
         return rep;
     }
-    n = m->n;
-    s_n = m->n_sources;
-    nf = m->n_frictions;
-    nk = m->n_springs;
-    nl = m->n_loads;
-    nm = m->n_motors;
-    na = t->na;
-    mt = na + t->nc;
-    cols = nf + nk;
-    im = impulses_of(w, 1);
-    r_load = nf + nk;
-    r_mot = r_load + nl;
-    moving_pivot = vsj__row(m, m->n_rows - 1)[2] > 0.0;
-    n_state = 2 * n + nm;
-    a_src = n_state;
-    a_load = a_src + s_n;
-    a_elec = a_load + nl;
-    a_fric = a_elec + nm;
-    a_res = a_fric + nf;
-    a_spr = a_res + nm;
-    a_piv = a_spr + nk;
-    a_stop = a_piv + nk;
+    n_state = 2 * m->n + m->n_motors;
+    n_acc = ledger ? vsj_n_acc(m) : 0;
     n_out = smp ? smp->n : 0;
-    n_col = smp ? (smp->out_cols < n_state + (ledger ? vsj_n_acc(m) : 0)
-                       ? smp->out_cols
-                       : n_state + (ledger ? vsj_n_acc(m) : 0))
-                : 0;
+    n_col = smp ? (smp->out_cols < n_state + n_acc ? smp->out_cols : n_state + n_acc) : 0;
     /* at least one step (shortened) when t_end > t0; the count is compared as a
      * double first, so that an absurd one cannot overflow the conversion */
     if (!((t_end - t0) / h - 1e-9 <= (double)max_steps)) {
         rep.status = VSJ_TOO_MANY_STEPS;
         return rep;
     }
-    /* steps end on the grid origin + k h (the first time plus whole steps), so that a
-     * run advanced in several calls takes the very steps of one advanced at once; a
-     * call whose end lies off the grid ends with one shortened step */
-    {
-        double k_end = floor((t_end - t->origin) / h + 1e-9);
-        whole = (int64_t)k_end - t->k;
-        if (whole < 0)
-            whole = 0;
-        steps_total = whole + (t_end - (t->origin + k_end * h) > 1e-9 * h ? 1 : 0);
-    }
+    steps_total = count_steps(t, t_end, h, &whole);
     if (w->status != VSJ_OK) {
         status = w->status;
         steps_total = 0;
@@ -984,426 +1006,29 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
     }
     for (step = 0; step < steps_total; step++) {
         double t1 = step < whole ? t->origin + (double)(t->k + 1) * h : t_end;
-        double hs = t1 - tnow, angle, scale_h, q_end;
-        int same, finite_, sample_now;
-        /* mid-step inputs (loads, voltages) and pivot position; held inputs
-         * (the step function) may change from call to call: all of them */
-        if (w->held)
-            for (c = 0; c < m->n_channels; c++)
-                vsj__eval_channel(m, w, c, tnow + 0.5 * hs);
-        else
-            for (i = 0; i < t->n_mid_ch; i++)
-                vsj__eval_channel(m, w, t->mid_ch[i], tnow + 0.5 * hs);
-        for (i = 0; i < t->n_mid_src; i++)
-            vsj__eval_source(m, w, t->mid_src[i]);
-        if (t->any_varying) { /* levels that follow a normal force, a table or a peak */
-            for (e = 0; e < nf; e++)
-                if ((t->active[e] || t->driven[e]) && vsj__varying(m, e)) {
-                    t->levs[e] = coulomb_level(m, e) * vsj__normal(m, w, e, 0.0, 1);
-                    t->lev[e] = fabs(t->slip[e]) <= STUCK_SPEED
-                                    ? t->levs[e]
-                                    : coulomb_level(m, e) * vsj__normal(m, w, e, t->slip[e], 0);
-                }
-            share_levels(t, nf);
-        }
-        for (ld = 0; ld < nl; ld++)
-            t->ldm[ld] = w->chan[3 * m->code[r_load + ld]];
-        for (mo = 0; mo < nm; mo++)
-            t->vm[mo] = w->chan[3 * m->code[r_mot + mo]];
-        for (i = 0; i < n; i++)
-            t->x1[i] = t->x[i] + 0.5 * hs * t->v[i];
-        angle = vsj__pivot_angle(m, w, t->x1);
-        if (angle != t->angle_mid) {
-            t->angle_mid = angle;
-            t->q_mid = vsj__pivot_at(m, w, angle);
-        }
-        for (i = 0; i < t->n_end_ch; i++)
-            vsj__eval_channel(m, w, t->end_ch[i], t1);
-        for (j = 0; j < s_n; j++) {
-            vsj__eval_source(m, w, j);
-            t->u1[j] = w->srcw[SRCW * j + U];
-            t->sg1[j] = w->srcw[SRCW * j + SG];
-        }
-
-        /* H v1 = r: inertia, springs (trapezoidal), smooth friction, motors */
-        for (i = 0; i < n; i++) {
-            double total = 0.0;
-            for (c = 0; c < n; c++) {
-                t->H[n * i + c] = m->mass[(n + s_n) * i + c] + hs * t->Bx[n * i + c];
-                total += m->mass[(n + s_n) * i + c] * t->v[c];
-            }
-            for (j = 0; j < s_n; j++)
-                total -= m->mass[(n + s_n) * i + n + j] * (t->u1[j] - t->u0[j])
-                         + hs * t->Bu[s_n * i + j] * t->u1[j];
-            t->r[i] = total;
-        }
-        for (k = 0; k < nk; k++) {
-            double d0 = 0.0, rate = 0.0, dsig = 0.0, kap, en, dvq, tau, c_k;
-            rr = nf + k;
-            for (i = 0; i < n; i++) {
-                d0 += t->DxT[cols * i + rr] * t->x[i];
-                rate += t->DxT[cols * i + rr] * t->v[i];
-            }
-            for (j = 0; j < s_n; j++) {
-                d0 += t->DuT[cols * j + rr] * t->sg0[j];
-                dsig += t->DuT[cols * j + rr] * (t->sg1[j] - t->sg0[j]);
-            }
-            tau = vsj__spring(m->code[rr], vsj__row(m, rr), d0, t->q_mid, &kap, &en, &dvq,
-                              w->spcache + 4 * k, !t->has_stop[k]);
-            c_k = tau - 0.5 * kap * dsig - 0.25 * kap * hs * rate;
-            t->sp_c[k] = c_k;
-            t->sp_kap[k] = kap;
-            for (i = 0; i < n; i++) {
-                double di = t->DxT[cols * i + rr];
-                t->r[i] += hs * c_k * di;
-                for (c = 0; c < n; c++)
-                    t->H[n * i + c] += 0.25 * hs * hs * kap * di * t->DxT[cols * c + rr];
-            }
-        }
-        memcpy(t->s0, t->slip, (size_t)nf * sizeof(double));
-        for (i = 0; i < t->n_damper; i++) {
-            e = t->damper[i];
-            vsj__xadd(m, e, t->r, -hs * (1.0 - t->theta[e]) * vsj__row(m, e)[0] * t->s0[e]);
-        }
-        for (i = 0; i < t->n_nonlinear; i++) {
-            const double *p;
-            double se, fe, dfe, cnst;
-            e = t->nonlinear[i];
-            p = vsj__row(m, e);
-            se = t->slip[e];
-            fe = vsj__friction(m->code[e], p[0],
-                               vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, se, 0) : p[1],
-                               p[2], p[3], se, &dfe);
-            t->f0[e] = fe;
-            t->df0[e] = dfe;
-            cnst = fe - dfe * se + dfe * vsj__udotv(m, e, t->u1);
-            vsj__xadd(m, e, t->r, -hs * cnst);
-            outer(m, e, t->H, hs * dfe);
-        }
-        for (ld = 0; ld < nl; ld++)
-            vsj__xadd(m, r_load + ld, t->r, hs * t->ldm[ld]);
-        /* the motors' torque impulse k Q, with Q the step's charge (armature_steps) at
-         * the mid-step rotor speed (om0 + om1)/2, om1 = d.v1 + (source part at u1):
-         * linear in v1, so it joins the step matrix as a damping k^2 gain / 2 */
-        armature_steps(m, t, hs, h);
-        for (mo = 0; mo < nm; mo++) {
-            double kt, gain, om0, cnst;
-            rr = r_mot + mo;
-            kt = vsj__row(m, rr)[2];
-            gain = t->rl_gain[mo];
-            om0 = vsj__xdot(m, rr, t->v) + vsj__udotv(m, rr, t->u0);
-            t->om0[mo] = om0;
-            cnst = kt * (gain * (t->vm[mo] - 0.5 * kt * (om0 + vsj__udotv(m, rr, t->u1)))
-                         + t->cur[mo] * t->rl_decay[mo]);
-            vsj__xadd(m, rr, t->r, cnst);
-            outer(m, rr, t->H, 0.5 * kt * kt * gain);
-        }
-        /* H changes only with non-linear springs, smooth friction slopes or a
-         * moving pivot; while it stays within round-off of the matrix last
-         * factored, that factor and YlT are reused */
-        scale_h = 0.0;
-        for (i = 0; i < n * n; i++)
-            scale_h = dmax(scale_h, fabs(t->H_last[i]));
-        same = t->factored;
-        for (i = 0; i < n * n; i++)
-            same = same && fabs(t->H[i] - t->H_last[i]) <= H_REUSE * scale_h;
-        if (n > 0 && !same) {
-            memcpy(t->H_last, t->H, (size_t)(n * n) * sizeof(double));
-            if (!cholesky(t->H, t->Lc, n, n, 0)) {
-                status = VSJ_NOT_FINITE;
-                break;
-            }
-            for (a = 0; a < mt; a++) {
-                for (i = 0; i < n; i++)
-                    t->drow[i] = t->DxA[mt * i + a];
-                forward(t->Lc, t->drow, t->col, n, n); /* L^-1 d_e: W = Y Y^T */
-                for (i = 0; i < n; i++)
-                    t->YlT[mt * i + a] = t->col[i];
-            }
-            forget_memo(t); /* it was made with the old YlT */
-            t->factored = 1;
-            t->hs_prev = NAN; /* the compliance rows below are written afresh */
-        }
-        if (n > 0)
-            solve(t->Lc, t->r, t->vfree, n);
-        /* a compliant stop of stiffness k adds 2 / (h^2 k) to the Delassus matrix's
-         * diagonal: a row of its own in YlT, so that W = Y Y^T still */
-        /* step lengths t1 - tnow differ by round-off from step to step: only a
-         * real change (the last, shortened step) rewrites the rows and drops the
-         * solver's memo */
-        if (t->ncomp > 0 && !(fabs(hs - t->hs_prev) <= STEP_SAME * h)) {
-            memset(t->YlT + mt * n, 0, (size_t)(t->ncomp * mt) * sizeof(double));
-            for (c = 0; c < t->nc; c++)
-                if (t->ccomp[c] >= 0)
-                    t->YlT[mt * (n + t->ccomp[c]) + na + c] =
-                        sqrt(2.0 / (hs * hs * t->ckstop[c]));
-            forget_memo(t);
-            t->hs_prev = hs;
-        }
-
-        /* Coulomb impulses of the stiction elements and the end stops' impulses,
-         * all together */
-        if (mt > 0) {
-            int pass;
-            for (a = 0; a < na; a++) {
-                t->lo[a] = -hs * t->level[a];
-                t->hi[a] = hs * t->level[a];
-            }
-            element_slips(t->DxA, t->DuA, mt, mt, t->vfree, n, t->u1, s_n, t->qv);
-            double d0 = 0.0, rate0 = 0.0;
-            for (c = 0; c < t->nc; c++) {
-                /* |d| <= stop at the step's end: with d1 = d0 + h/2 (d0' + d1') the
-                 * end speed side d1' may be at most cb (the trapezoidal position update) */
-                double side = t->csign[c];
-                if (c == 0 || t->cspring[c] != t->cspring[c - 1]) { /* a spring's two sides */
-                    d0 = rate0 = 0.0;
-                    rr = nf + t->cspring[c];
-                    for (i = 0; i < n; i++) {
-                        d0 += t->DxT[cols * i + rr] * t->x[i];
-                        rate0 += t->DxT[cols * i + rr] * t->v[i];
-                    }
-                    for (j = 0; j < s_n; j++) {
-                        d0 += t->DuT[cols * j + rr] * t->sg0[j];
-                        rate0 += t->DuT[cols * j + rr] * t->u0[j];
-                    }
-                }
-                t->cb[c] = 2.0 / hs * (t->cstop[c] - side * d0) - side * rate0;
-                a = na + c;
-                t->qv[a] -= t->cb[c];
-                t->lo[a] = 0.0;
-                t->hi[a] = INFINITY;
-                /* in the problem if the free motion would pass the stop, or the stop
-                 * pushed last step; the others are checked after the solve */
-                t->involved[a] = t->qv[a] > 0.0 || t->p[a] > 0.0;
-            }
-            for (pass = 0;; pass++) {
-                int added = 0, full = 0;
-                for (c = 0; c < t->nc; c++)
-                    full = full || t->involved[na + c];
-                use_problem(w, &im, full);
-                if (!solve_impulses(&im, t->qv, t->lo, t->hi, t->p, t->state, t->involved,
-                                    &iterations)) {
-                    status = VSJ_FRICTION_SOLVER;
-                    break;
-                }
-                for (c = 0; c < t->nc; c++) {
-                    double slip;
-                    a = na + c;
-                    if (t->involved[a])
-                        continue;
-                    slip = t->qv[a];
-                    for (i = 0; i < im.n; i++)
-                        slip -= t->YlT[mt * i + a] * t->z[i];
-                    if (slip > 0.0) { /* the impulses drove it into its stop */
-                        t->involved[a] = 1;
-                        added = 1;
-                    }
-                }
-                /* a group that slipped at the step's start and comes to rest or
-                 * turns within it meets its static level there (MSL's peak): it
-                 * is solved again with that level, once */
-                if (pass == 0)
-                    for (a = 0; a < na; a++) {
-                        double s0 = t->slip[t->lead[a]], s1 = t->qv[a];
-                        if (!(t->hold[a] > t->level[a]) || fabs(s0) <= STUCK_SPEED)
-                            continue;
-                        for (i = 0; i < im.n; i++)
-                            s1 -= t->YlT[mt * i + a] * t->z[i];
-                        if (fabs(s1) <= STUCK_SPEED || (s1 > 0.0) != (s0 > 0.0)) {
-                            t->lo[a] = -hs * t->hold[a];
-                            t->hi[a] = hs * t->hold[a];
-                            added = 1;
-                        }
-                    }
-                if (!added || pass > t->nc)
-                    break;
-            }
-            if (status != VSJ_OK)
-                break;
-            /* the impulses change the speeds by H^-1 D^T p = L^-T (YlT p) */
-            backward(t->Lc, t->z, t->v1, n, n);
-            for (i = 0; i < n; i++)
-                t->v1[i] = t->vfree[i] - t->v1[i];
-        } else {
-            memcpy(t->v1, t->vfree, (size_t)n * sizeof(double));
-        }
-        for (i = 0; i < n; i++)
-            t->x1[i] = t->x[i] + 0.5 * hs * (t->v[i] + t->v1[i]);
-        for (mo = 0; mo < nm; mo++) {
-            const double *p;
-            double R, kt, emf, i_inf, c;
-            rr = r_mot + mo;
-            p = vsj__row(m, rr);
-            R = p[0];
-            kt = p[2];
-            emf = t->vm[mo] - 0.5 * kt * (t->om0[mo] + vsj__xdot(m, rr, t->v1)
-                                           + vsj__udotv(m, rr, t->u1));
-            i_inf = emf / R;
-            c = t->cur[mo] - i_inf;
-            t->i1[mo] = i_inf + c * t->rl_e[mo];
-            t->charge[mo] = t->rl_gain[mo] * emf + t->cur[mo] * t->rl_decay[mo];
-            t->heat[mo] = R * (i_inf * i_inf * t->rl_h + 2.0 * i_inf * c * t->rl_decay[mo]
-                               + c * c * t->rl_half[mo]);
-        }
-
-        /* energy bookkeeping against mid-step speeds */
-        for (j = 0; j < s_n; j++) {
-            t->um[j] = 0.5 * (t->u0[j] + t->u1[j]);
-            t->srcF[j] = 0.0;
-        }
-        element_slips(t->DxT, t->DuT, cols, nf, t->v1, n, t->u1, s_n, t->slip);
         /* the elements' torques are wanted by the ledger and at the samples only */
-        sample_now = i_out < n_out && smp->t[i_out] <= t1 + 0.5 * h;
-        if (ledger || sample_now) {
-            double inv_hs = 1.0 / hs;
-            for (e = 0; e < nf; e++) {
-                double s1 = t->slip[e], fe;
-                fe = t->linear[e] ? vsj__row(m, e)[0]
-                                        * (t->theta[e] * s1 + (1.0 - t->theta[e]) * t->s0[e])
-                                  : t->f0[e] + t->df0[e] * (s1 - t->s0[e]);
-                if (t->active[e])
-                    fe += t->share[e] * t->p[t->slot[e]] * inv_hs;
-                else if (t->driven[e] && s1 != 0.0)
-                    fe += t->lev[e] * (s1 > 0.0 ? 1.0 : -1.0);
-                t->force[e] = fe;
-                if (ledger) {
-                    y[a_fric + e] += hs * fe * 0.5 * (t->s0[e] + s1);
-                    vsj__uaddv(m, e, t->srcF, -fe);
-                }
-            }
-        }
-        q_end = t->q_prev;
-        if (moving_pivot && (ledger || step == steps_total - 1)) { /* at t1, for the ledger */
-            double angle_end = vsj__pivot_angle(m, w, t->x1);
-            if (angle_end != t->angle_prev) /* a pivot held still costs no sine */
-                q_end = vsj__pivot_at(m, w, angle_end);
-            t->angle_prev = angle_end;
-        }
-        if (ledger) { /* springs, loads, motors and sources */
-            for (k = 0; k < nk; k++) {
-                double tau_avg, dd;
-                rr = nf + k;
-                tau_avg = t->sp_c[k] - 0.25 * t->sp_kap[k] * hs * vsj__xdot(m, rr, t->v1);
-                dd = (vsj__xdot(m, rr, t->x1) - vsj__xdot(m, rr, t->x)
-                      + vsj__udotv(m, rr, t->sg1) - vsj__udotv(m, rr, t->sg0));
-                y[a_spr + k] += tau_avg * dd;
-                vsj__uaddv(m, rr, t->srcF, tau_avg);
-                if (q_end != t->q_prev) {
-                    double d1 = vsj__xdot(m, rr, t->x1) + vsj__udotv(m, rr, t->sg1);
-                    double st_, e1, e0, dq_;
-                    vsj__spring(m->code[rr], vsj__row(m, rr), d1, q_end, &st_, &e1, &dq_, NULL,
-                                1);
-                    vsj__spring(m->code[rr], vsj__row(m, rr), d1, t->q_prev, &st_, &e0, &dq_,
-                                NULL, 1);
-                    y[a_piv + k] += e1 - e0;
-                }
-            }
-            /* end stops: the work their impulses take from the mechanism (booked
-             * against the mid-step speed, as every force), less the change of the
-             * energy a compliant stop stores, is what they dissipate: at impacts,
-             * and by the implicit step */
-            for (c = 0; c < t->nc; c++) {
-                double side = t->csign[c], push = t->p[na + c], rate0 = 0.0, rate1 = 0.0;
-                double work;
-                k = t->cspring[c];
-                rr = nf + k;
-                if (push != 0.0) { /* a stop that pushed this step */
-                    for (i = 0; i < n; i++) {
-                        rate0 += t->DxT[cols * i + rr] * t->v[i];
-                        rate1 += t->DxT[cols * i + rr] * t->v1[i];
-                    }
-                    for (j = 0; j < s_n; j++) {
-                        rate0 += t->DuT[cols * j + rr] * t->u0[j];
-                        rate1 += t->DuT[cols * j + rr] * t->u1[j];
-                    }
-                    work = push * side * 0.5 * (rate0 + rate1);
-                    y[a_stop + k] += work;
-                    y[a_spr + k] -= work;
-                    vsj__uaddv(m, rr, t->srcF, -side * push / hs);
-                }
-                if (side > 0.0 && isfinite(t->ckstop[c])) { /* once per spring */
-                    double d0 = vsj__xdot(m, rr, t->x) + vsj__udotv(m, rr, t->sg0);
-                    double d1 = vsj__xdot(m, rr, t->x1) + vsj__udotv(m, rr, t->sg1);
-                    double e0 = dmax(fabs(d0) - t->cstop[c], 0.0);
-                    double e1 = dmax(fabs(d1) - t->cstop[c], 0.0);
-                    y[a_stop + k] -= 0.5 * t->ckstop[c] * (e1 * e1 - e0 * e0);
-                }
-            }
-            for (ld = 0; ld < nl; ld++) {
-                double omega;
-                rr = r_load + ld;
-                omega = 0.5 * (vsj__xdot(m, rr, t->v) + vsj__xdot(m, rr, t->v1));
-                omega += vsj__udotv(m, rr, t->um);
-                y[a_load + ld] += hs * t->ldm[ld] * omega;
-                vsj__uaddv(m, rr, t->srcF, t->ldm[ld]);
-            }
-            for (mo = 0; mo < nm; mo++) { /* exact over the step: supply V Q, heat R int i^2 */
-                rr = r_mot + mo;
-                y[a_elec + mo] += t->vm[mo] * t->charge[mo];
-                y[a_res + mo] += t->heat[mo];
-                vsj__uaddv(m, rr, t->srcF, vsj__row(m, rr)[2] * t->charge[mo] / hs);
-            }
-            for (j = 0; j < s_n; j++) {
-                double impulse = -hs * t->srcF[j];
-                for (i = 0; i < n; i++)
-                    impulse += m->mass[(n + s_n) * (n + j) + i] * (t->v1[i] - t->v[i]);
-                for (c = 0; c < s_n; c++)
-                    impulse += m->mass[(n + s_n) * (n + j) + n + c] * (t->u1[c] - t->u0[c]);
-                y[a_src + j] += t->um[j] * impulse;
-            }
-        }
-
-        /* advance */
-        memcpy(t->x, t->x1, (size_t)n * sizeof(double));
-        memcpy(t->v, t->v1, (size_t)n * sizeof(double));
-        memcpy(t->cur, t->i1, (size_t)nm * sizeof(double));
-        memcpy(t->u0, t->u1, (size_t)s_n * sizeof(double));
-        memcpy(t->sg0, t->sg1, (size_t)s_n * sizeof(double));
+        int sample_now = i_out < n_out && smp->t[i_out] <= t1 + 0.5 * h;
+        status = one_step(m, w, tnow, t1, h, step < whole, step == steps_total - 1,
+                          ledger ? y + n_state : NULL, sample_now);
+        if (status != VSJ_OK)
+            break;
         tnow = t1;
-        t->t = t1;
-        if (step < whole) {
-            t->k++;
-        } else { /* off the grid: the next call's grid starts here */
-            t->origin = t1;
-            t->k = 0;
-        }
-        t->q_prev = q_end;
-        for (i = 0; i < t->n_watched; i++) {
-            e = t->watched[i];
-            if (holding(m, w, e)) {
-                t->held[e]++;
-                if (t->held[e] == 2)
-                    t->transitions[e]++;
-            } else {
-                if (t->held[e] >= 2)
-                    t->transitions[e]++;
-                t->held[e] = 0;
-            }
-        }
         rep.steps = step + 1;
         if (w->status != VSJ_OK) {
             status = w->status;
             break;
         }
-        finite_ = 1;
-        for (i = 0; i < n; i++) {
-            y[i] = t->x[i];
-            y[n + i] = t->v[i];
-            finite_ = finite_ && isfinite(t->x[i]) && isfinite(t->v[i]);
-        }
-        if (!finite_) {
+        if (!put_state(m, t, y)) {
             status = VSJ_NOT_FINITE;
             break;
         }
-        for (mo = 0; mo < nm; mo++)
-            y[2 * n + mo] = t->cur[mo];
         while (i_out < n_out && smp->t[i_out] <= tnow + 0.5 * h) {
             sample(m, w, smp, i_out, y, n_col);
             i_out++;
         }
     }
     if (status == VSJ_OK && ledger) /* the energy accumulators too */
-        for (i = n_state; i < n_state + vsj_n_acc(m); i++)
+        for (i = n_state; i < n_state + n_acc; i++)
             if (!isfinite(y[i]))
                 status = VSJ_NOT_FINITE;
     rep.status = status;
@@ -1444,7 +1069,7 @@ int64_t vsj_ts_stuck(const vsj_model *m, const vsj_work *w, unsigned char *stuck
     return count;
 }
 
-/* ---- the history, as bytes ------------------------------------------------- */
+/* ---- the history, as bytes --------------------------------------------------- */
 
 typedef struct span {
     void *data;
