@@ -357,9 +357,8 @@ def _columns(x: float, kb: float, names, w_sun, w_ring):
     for name in names:
         unit = {k: 0.0 for k in LINEAR}
         unit[name] = 1.0
-        gear = PlanetaryGearModule.from_values(
-            "pg", {"sun_teeth": x, "ring_teeth": 1.0, "mesh_sharpness": kb,
-                   **{LINEAR[k][0]: v for k, v in unit.items()}})
+        gear = PlanetaryGearModule("pg", sun_teeth=x, ring_teeth=1.0, mesh_sharpness=kb,
+                                   **{LINEAR[k][0]: v for k, v in unit.items()})
         # bearing stiction slides at the Coulomb level k pi/2 (fig 4.8); the mesh
         # friction is the smooth arctan law (eq 3.17) the curves' shape comes from
         law = "stiction" if name in STICTION else "arctan"
