@@ -27,9 +27,10 @@ import inspect
 from dataclasses import dataclass
 from typing import Iterable, Mapping
 
+from ..errors import InputError
 from ..friction import DEFAULT_SHARPNESS
 from ..network import Component
-from ..params import SCHEMA, Parameters, Spec
+from ..params import RELATIONS, SCHEMA, Parameters, Spec
 from ..units import from_si
 
 #: The default of a keyword that has none: the caller must give it.
@@ -61,8 +62,9 @@ class Field:
         return (self.key,)
 
     def take(self, component: str, value):
-        """``value`` in SI if the entry allows it (or it is the default), else a
-        `ValueError` naming ``component``, the keyword, the range and the key."""
+        """``value`` in SI if the entry allows it (or it is the default), else an
+        `InputError` naming ``component``, the keyword, the value, the range and the
+        key."""
         if value is None and self.default is None:
             return None
         return self._check(component, self.name, self.key, value)
@@ -73,13 +75,13 @@ class Field:
         try:
             number = float(value)
         except (TypeError, ValueError):
-            raise ValueError(f"{component}: {label} must be a number, got {value!r} "
+            raise InputError(f"{component}: {label} must be a number, got {value!r} "
                              f"({key})") from None
         section, name = key.split(".", 1)
         spec = SCHEMA[section][name]
         why = spec.check(number)
         if why:
-            raise ValueError(f"{component}: {label} {why}, got {number!r} "
+            raise InputError(f"{component}: {label} {why}, got {number!r} "
                              f"({key}: {spec.description})")
         return number
 
@@ -126,7 +128,7 @@ class Row(Field):
         except TypeError:
             entries = ()
         if len(entries) != len(self.row):
-            raise ValueError(f"{component}: {self.name} must be the {len(self.row)} values "
+            raise InputError(f"{component}: {self.name} must be the {len(self.row)} values "
                              f"{', '.join(self.row)} (SI), got {value!r}")
         return tuple(self._check(component, f"{self.name} {name}", key, entry)
                      for name, key, entry in zip(self.row, self.keys, entries))
@@ -163,23 +165,24 @@ def _entry(spec: Spec) -> str:
     return f"{spec.description} [{unit}], {spec.allowed(unit)}"
 
 
-def section(name: str, *, keys: Iterable[str] | None = None,
+def section(name: str, *, skip: Iterable[str] = (),
             rename: Mapping[str, str] | None = None,
             defaults: Mapping[str, object] | None = None) -> tuple[Field, ...]:
-    """The fields of a component taken from section ``name`` of `SCHEMA`.
+    """The fields of a component taken from section ``name`` of `SCHEMA`: every entry,
+    in the schema's order, so that a new entry is a new keyword without more code.
 
-    ``keys``: which entries (default: all, in the schema's order). ``rename``:
-    keyword for an entry whose component name differs from the file's
-    (``{"series_damping": "damping"}``). ``defaults``: value of a keyword left
-    out (by keyword); without one the entry's own file default (`Spec.default`)
-    applies, and without that the keyword is required.
+    ``skip``: entries the component does not take as keywords of their own (another
+    DOF's, or those a `Row` holds). ``rename``: keyword for an entry whose name in the
+    component differs from the file's (``{"series_damping": "damping"}``).
+    ``defaults``: value of a keyword left out (by keyword); without one the entry's
+    own file default (`Spec.default`) applies, and without that it is required.
     """
     if name not in SCHEMA:
         raise KeyError(f"no parameter section {name!r}")
     specs = SCHEMA[name]
-    keys = tuple(specs if keys is None else keys)
-    rename, defaults = dict(rename or {}), dict(defaults or {})
-    for what, given, known in (("key", keys, specs), ("renamed key", rename, keys)):
+    skip, rename, defaults = set(skip), dict(rename or {}), dict(defaults or {})
+    keys = [key for key in specs if key not in skip]
+    for what, given, known in (("skipped key", skip, specs), ("renamed key", rename, keys)):
         unknown = sorted(set(given) - set(known))
         if unknown:
             raise KeyError(f"[{name}] has no {what} {', '.join(unknown)}")
@@ -215,6 +218,14 @@ class SchemaComponent(Component):
         names = [f.name for f in cls.fields]
         if len(set(names)) != len(names):
             raise TypeError(f"{cls.__name__}: a keyword taken twice in {names}")
+        # rows are alternative laws' parameter vectors and may share an entry (the end
+        # stop); a keyword of its own must be the only one to take its entry
+        keys = [f.key for f in cls.fields if not isinstance(f, Row)]
+        rows = {key for f in cls.fields if isinstance(f, Row) for key in f.keys}
+        twice = sorted({key for key in keys if keys.count(key) > 1 or key in rows})
+        if twice:
+            raise TypeError(f"{cls.__name__}: schema entries {', '.join(twice)} are taken by "
+                            f"more than one keyword")
         own = cls.__dict__.get("__init__")
         if own is None:  # inherit the parent's options under a signature of this class's own
             parent = cls.__mro__[1]
@@ -264,16 +275,39 @@ class SchemaComponent(Component):
                             f"{', '.join(missing)}")
         for field in self.fields:
             setattr(self, field.name, field.take(name, values.get(field.name, field.default)))
+        self.check_relations()
+
+    def check_relations(self) -> None:
+        """Check each of `vsj.params.RELATIONS` whose entries are all fields of this
+        component (a pivot range within the mechanism's reach), as a parameter file is
+        checked; a relation with a value still None (not yet derived) waits for the
+        subclass to call this again. Raises `InputError` naming the component, the
+        relation and the keywords' values."""
+        by_key = {f.key: f for f in self.fields if not isinstance(f, Row)}
+        for relation in RELATIONS:
+            fields = [by_key.get(key) for key, _ in relation.terms]
+            if None in fields or any(getattr(self, f.name) is None for f in fields):
+                continue
+            values = {f.key: getattr(self, f.name) for f in fields}
+            if not relation.holds(values):
+                shown = ", ".join(f"{f.name} = {values[f.key]!r}" for f in fields)
+                raise InputError(f"{self.name}: {relation.text} ({shown})")
 
     @classmethod
     def from_parameters(cls, name: str, params: Parameters, *,
                         keys: Mapping[str, str] | None = None, **options) -> "SchemaComponent":
         """This component with every field read from ``params``; ``keys`` reads a field
         from another entry of the same kind (``{"compliance":
-        "transmission.series_compliance_2"}``), ``options`` are the other keywords."""
+        "transmission.series_compliance_2"}``). ``options`` are the other keywords, and
+        a field given among them takes that value instead of the set's (``q_min=None``:
+        the pivot's whole reach)."""
         keys = dict(keys or {})
         unknown = sorted(set(keys) - {f.name for f in cls.fields})
         if unknown:
             raise ValueError(f"{cls.__name__} has no field(s) {', '.join(unknown)}")
+        both = sorted(set(keys) & set(options))
+        if both:
+            raise ValueError(f"{cls.__name__}: {', '.join(both)} given both as a value and "
+                             f"as an entry to read")
         values = {f.name: f.read(params, keys.get(f.name)) for f in cls.fields}
-        return cls(name, **values, **options)
+        return cls(name, **{**values, **options})

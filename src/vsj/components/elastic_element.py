@@ -48,7 +48,7 @@ class ElasticElement(SchemaComponent):
     ports = ("ring",)
     fields = (Row("geometry", "elastic_element", default=None, row=GEOMETRY_FIELDS),
               Row("exponential", "elastic_element", default=None, row=EXPONENTIAL_FIELDS),
-              *section("elastic_element", keys=("lever_viscous", "lever_stiction"),
+              *section("elastic_element", skip=GEOMETRY_FIELDS + EXPONENTIAL_FIELDS,
                        rename={"lever_viscous": "friction_viscous",
                                "lever_stiction": "friction_stiction"},
                        defaults={"friction_viscous": 0.0, "friction_stiction": 0.0}),

@@ -34,9 +34,7 @@ class PivotMechanism(SchemaComponent):
             self.q_min = -self.amplitude
         if self.q_max is None:
             self.q_max = self.amplitude
-        if not -self.amplitude <= self.q_min < self.q_max <= self.amplitude:
-            raise ValueError(f"{name}: the pivot range [{self.q_min}, {self.q_max}] m must be "
-                             f"increasing and within the reach +-{self.amplitude} m")
+        self.check_relations()  # the range and the reach, as a parameter file's
 
     def carrier_angle(self, q: float) -> float:
         """Carrier angle [rad] that places the pivot at ``q`` [m] (principal branch)."""

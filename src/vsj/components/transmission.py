@@ -25,8 +25,7 @@ class Transmission(SchemaComponent):
     law's sharpness and peak. By default a rigid, lossless 1:1 coupling."""
 
     ports = ("input", "output")
-    fields = section("transmission", keys=("ratio", "viscous", "stiction", "series_compliance_1",
-                                           "series_damping"),
+    fields = section("transmission", skip=("series_compliance_2",),
                      rename={"series_compliance_1": "compliance", "series_damping": "damping"},
                      defaults={"ratio": 1.0, "viscous": 0.0, "stiction": 0.0,
                                "compliance": 0.0, "damping": 0.0}) + FRICTION
