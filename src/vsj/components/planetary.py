@@ -45,13 +45,11 @@ atan(k_b1 w / x)`` or ``(2 k_1 / x) atan(k_b1 w / x)`` (eq 3.29).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Constraint, Parts
-from ._fields import SchemaComponent, section
+from ._fields import Field, SchemaComponent, section
 from .basic import Bearing, Inertia, SlipFriction
 
 #: Relations of eq 3.27 between the sun mesh's friction constants (k_1, k_b1) and the
@@ -69,11 +67,9 @@ class IdealPlanetary(Component):
 
     def __init__(self, name: str, sun_teeth: float, ring_teeth: float):
         super().__init__(name)
-        for label, value in (("sun", sun_teeth), ("ring", ring_teeth)):
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name}: {label} tooth count must be > 0, got {value!r}")
-        self.sun_teeth = float(sun_teeth)
-        self.ring_teeth = float(ring_teeth)
+        # the tooth counts' bounds are those of their [planetary] entries
+        self.sun_teeth = Field("sun_teeth", "planetary.sun_teeth").take(name, sun_teeth)
+        self.ring_teeth = Field("ring_teeth", "planetary.ring_teeth").take(name, ring_teeth)
 
     @property
     def r_RC(self) -> float:
