@@ -250,9 +250,8 @@ def test_loops_show_low_and_high_velocity(data_figures):
 
 
 def _mesh_only(relation, sun_teeth=16.0, ring_teeth=50.0, k1=0.00125, kb1=10.0, **bearings):
-    return PlanetaryGearModule.from_values(
-        "pg", {"sun_teeth": sun_teeth, "ring_teeth": ring_teeth, "mesh_stiction": k1,
-               "mesh_sharpness": kb1, **bearings}, mesh_relation=relation)
+    return PlanetaryGearModule("pg", sun_teeth=sun_teeth, ring_teeth=ring_teeth, mesh_stiction=k1,
+                               mesh_sharpness=kb1, mesh_relation=relation, **bearings)
 
 
 @pytest.mark.parametrize("sun_teeth,ring_teeth", [(16, 50), (20, 80), (30, 60)])

@@ -80,6 +80,32 @@ class Spec:
     def _show(self, value: float) -> str:
         return format_quantity(value, self.display)
 
+    def allowed(self, unit: str | None = None) -> str:
+        """The values `check` accepts, in words: ``"> 0 ohm"``, ``"finite, nonzero"``;
+        bounds in the display unit, or as SI values labelled ``unit`` if given."""
+        def show(value: float) -> str:
+            if unit is None:
+                return self._show(value)
+            return f"{value:g}" if unit == "1" else f"{value:g} {unit}"
+
+        words = []
+        if self.minimum is not None:
+            words.append(f"{'>' if self.strict else '>='} {show(self.minimum)}")
+        if self.maximum is not None:
+            words.append(f"<= {show(self.maximum)}")
+        if not words:
+            words.append("finite")
+        if self.nonzero:
+            words.append("nonzero")
+        if self.infinite:
+            words.append("or inf (rigid)")
+        return ", ".join(words)
+
+    def same_kind(self, other: "Spec") -> bool:
+        """Whether ``other`` has this spec's unit and bounds (descriptions may differ)."""
+        return (dataclasses.replace(self, description="", default=None)
+                == dataclasses.replace(other, description="", default=None))
+
     def require(self, name: str, value: float) -> float:
         """``value`` as a float if this spec allows it, else `ValueError` naming ``name``
         (what a component checks when it is built without a parameter file)."""

@@ -98,47 +98,41 @@ def exponential(params: Parameters) -> tuple[float, ...]:
 
 def elastic_element(name: str, params: Parameters, model: str,
                     linear_stiffness: float | None = None) -> ElasticElement:
-    ee = params.elastic_element
-    return ElasticElement(name, model=model, geometry=geometry(params),
-                          exponential=exponential(params), stiffness=linear_stiffness,
-                          friction_viscous=ee.lever_viscous, friction_stiction=ee.lever_stiction,
-                          friction_sharpness=params.friction.arctan_sharpness,
-                          friction_peak=params.friction.peak)
+    """The elastic element of a parameter set (``[elastic_element]`` and the friction
+    law's sharpness and peak) with elastic ``model``."""
+    return ElasticElement.from_parameters(name, params, model=model, stiffness=linear_stiffness)
 
 
 def planetary(name: str, params: Parameters, *,
               mesh_relation: str = "printed") -> PlanetaryGearModule:
-    """The planetary module of a parameter set (its ``[planetary]`` section as named
-    there; bearings take the set's arctan sharpness and breakaway peak)."""
-    return PlanetaryGearModule.from_values(
-        name, params.values_of("planetary"), bearing_sharpness=params.friction.arctan_sharpness,
-        peak=params.friction.peak, mesh_relation=mesh_relation)
+    """The planetary module of a parameter set (``[planetary]``; bearings take the set's
+    arctan sharpness, every element its breakaway peak)."""
+    return PlanetaryGearModule.from_parameters(name, params, mesh_relation=mesh_relation)
 
 
 def motor(name: str, params: Parameters, drive: str, channel: str):
-    """A motor port: velocity source or DC motor with gearhead."""
+    """A motor port: velocity source or DC motor with gearhead (``[motor]``)."""
     if drive == "velocity":
         return VelocitySource(name, channel=f"motor_{channel}")
-    return DCMotor(name, channel=f"voltage_{channel}", **params.values_of("motor"))
+    return DCMotor.from_parameters(name, params, channel=f"voltage_{channel}")
 
 
 def build_wrist(params: Parameters, options: WristOptions | None = None) -> Network:
-    """The wrist network for a parameter set."""
+    """The wrist network for a parameter set.
+
+    Each part reads its own section (`SchemaComponent.from_parameters`); the
+    only mapping here is the one the wrist adds: DOF ``i``'s transmission takes
+    ``transmission.series_compliance_<i>``."""
     options = options or WristOptions()
     options.validate()
     net = Network("wrist")
-    tr = params.transmission
-    sharp, peak = params.friction.arctan_sharpness, params.friction.peak
-    # components take their parameters under the names of the file's sections
-    net.add(Differential("diff", sharpness=sharp, peak=peak, **params.values_of("differential")))
+    net.add(Differential.from_parameters("diff", params))
     for i in (1, 2):
         net.add(motor(f"motor_{i}", params, options.motors, str(i)),
                 planetary(f"pg_{i}", params, mesh_relation=options.mesh_relation),
                 elastic_element(f"vsm_{i}", params, options.elastic, options.linear_stiffness),
-                Transmission(f"tr_{i}", ratio=tr.ratio, viscous=tr.viscous, stiction=tr.stiction,
-                             sharpness=sharp, peak=peak,
-                             compliance=params[f"transmission.series_compliance_{i}"],
-                             damping=tr.series_damping))
+                Transmission.from_parameters(
+                    f"tr_{i}", params, keys={"compliance": f"transmission.series_compliance_{i}"}))
         net.connect(f"motor_{i}.flange", f"pg_{i}.sun")
         net.connect(f"pg_{i}.ring", f"vsm_{i}.ring")
         net.connect(f"pg_{i}.carrier", f"tr_{i}.input")
@@ -152,7 +146,7 @@ def build_wrist(params: Parameters, options: WristOptions | None = None) -> Netw
         net.add(FixedPivot("pivot", options.fixed_q))
     else:
         net.add(motor("motor_s", params, options.pivot_drive, "s"),
-                PivotMechanism("pivot", sharpness=sharp, peak=peak, **params.values_of("pivot")))
+                PivotMechanism.from_parameters("pivot", params))
         net.connect("motor_s.flange", "pivot.input")
     for name, flange, text in [
         ("theta_x", "diff.theta_x", "end-effector angle about x"),

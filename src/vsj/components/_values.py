@@ -1,29 +1,24 @@
-"""Checks of component arguments, by the kinds of quantity `vsj.params` declares.
+"""Checks of the basic elements' arguments, by the kinds of quantity `vsj.params`
+declares.
 
-A component's bounds are not written here: each argument is checked against
-its kind (`vsj.params.INERTIA`, `VISCOUS`, ...) or, where the component takes
-a parameter file's own names, against that parameter's schema entry, so a
-bound is declared once and holds for files and for code alike.
+A bound is not written here: each argument of a basic element (`Inertia`,
+`Bearing`, ...) is checked against its kind (`vsj.params.INERTIA`, `VISCOUS`,
+...). The parts of the wrist take their parameters from the schema itself
+(`vsj.components._fields`), so a bound is declared once and holds for files and
+for code alike.
 """
 
 from __future__ import annotations
 
 import math
 
-from ..params import PEAK, SCHEMA, STICTION, Spec
+from ..params import PEAK, STICTION, Spec
 
 
 def _check(name: str, kind: Spec, value: float) -> float:
     """``value`` as a float, refused with a `ValueError` naming ``name`` unless ``kind``
     allows it."""
     return kind.require(name, value)
-
-
-def _section(component: str, section: str, **values: float) -> dict[str, float]:
-    """Arguments named as in the parameter file's ``[section]``, each checked against
-    its schema entry."""
-    return {key: SCHEMA[section][key].require(f"{component}: {key}", value)
-            for key, value in values.items()}
 
 
 def _stiction(name: str, stiction: float, coulomb: float | None) -> float:

@@ -14,30 +14,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..friction import DEFAULT_SHARPNESS
-from ..network import Component, Constraint, Friction, Parts
-from ..params import SHARPNESS
-from ._values import _check, _peak, _section
+from ..network import Constraint, Friction, Parts
+from ._fields import FRICTION, SchemaComponent, section
 
 #: The kinematic map of eq 3.31: (theta_x, theta_y) = MAP @ (psi_1, psi_2).
 MAP = np.array([[0.5, 0.5], [0.5, -0.5]])
 
 
-class Differential(Component):
-    """The differential with end-effector inertias and its own friction."""
+class Differential(SchemaComponent):
+    """The differential with end-effector inertias and its own friction: the
+    ``[differential]`` section of a parameter file and the ``[friction]`` law's
+    sharpness and peak (everything zero by default: the ideal differential)."""
 
     ports = ("input_1", "input_2", "theta_x", "theta_y")
-
-    def __init__(self, name: str, *, inertia_x: float = 0.0, inertia_y: float = 0.0,
-                 viscous: float = 0.0, stiction: float = 0.0, sharpness: float = DEFAULT_SHARPNESS,
-                 peak: float = 1.0):
-        super().__init__(name)
-        self.peak = _peak(name, peak)
-        for key, value in _section(name, "differential", inertia_x=inertia_x,
-                                   inertia_y=inertia_y, viscous=viscous,
-                                   stiction=stiction).items():
-            setattr(self, key, value)
-        self.sharpness = _check(f"{name}: sharpness", SHARPNESS, sharpness)
+    fields = section("differential", defaults={"inertia_x": 0.0, "inertia_y": 0.0,
+                                               "viscous": 0.0, "stiction": 0.0}) + FRICTION
 
     @staticmethod
     def speeds(input_speeds):

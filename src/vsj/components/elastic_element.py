@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..friction import DEFAULT_SHARPNESS
-from ..network import Component, Friction, Parts, Spring
+from ..network import Friction, Parts, Spring
 from ..springs import (
     EXPONENTIAL,
     EXPONENTIAL_FIELDS,
@@ -22,20 +22,23 @@ from ..springs import (
     coil_pretension,
     evaluate,
 )
-from ._values import _peak
+from ._fields import Row, SchemaComponent, section
 
 
-class ElasticElement(Component):
+class ElasticElement(SchemaComponent):
     """One elastic element of the VSM, acting on the ring flange of its planetary.
 
     ``model`` is ``"geometric"``, ``"geometric-report"`` (eq 3.8) or
-    ``"exponential"`` (eq 4.5), or ``"linear"`` (a constant ``stiffness``, for
-    twin tests). ``geometry`` holds `GEOMETRY_FIELDS` (SI), ``exponential`` the
-    `EXPONENTIAL_FIELDS`. The lever and pivot friction that gives the
-    velocity-independent hysteresis of fig 4.10-4.12 acts on the ring speed
-    (``friction_stiction``, Coulomb level ``k pi/2``; ``friction_viscous``).
-    The pivot position comes from the network's pivot mechanism; the element
-    never pushes it back (section 3.1: non-backdrivable).
+    ``"exponential"`` (eq 4.5), or ``"linear"`` (a constant ``stiffness``
+    [N m/rad] >= 0, for twin tests). ``geometry`` holds the geometric models'
+    row (`GEOMETRY_FIELDS`), ``exponential`` the exponential model's
+    (`EXPONENTIAL_FIELDS`); the model in use needs its row. The lever and pivot
+    friction that gives the velocity-independent hysteresis of fig 4.10-4.12
+    acts on the ring speed (``friction_stiction``, Coulomb level ``k pi/2``;
+    ``friction_viscous``). The pivot position comes from the network's pivot
+    mechanism; the element never pushes it back (section 3.1: non-backdrivable).
+    All of these are the ``[elastic_element]`` section of a parameter file and the
+    ``[friction]`` law's sharpness and peak.
 
     ``initial_tension`` [N] gives the springs a coil pretension (potential
     model only, static curves only: see the module docstring and
@@ -43,32 +46,38 @@ class ElasticElement(Component):
     """
 
     ports = ("ring",)
+    fields = (Row("geometry", "elastic_element", default=None, row=GEOMETRY_FIELDS),
+              Row("exponential", "elastic_element", default=None, row=EXPONENTIAL_FIELDS),
+              *section("elastic_element", skip=GEOMETRY_FIELDS + EXPONENTIAL_FIELDS,
+                       rename={"lever_viscous": "friction_viscous",
+                               "lever_stiction": "friction_stiction"},
+                       defaults={"friction_viscous": 0.0, "friction_stiction": 0.0}),
+              *section("friction", rename={"arctan_sharpness": "friction_sharpness",
+                                           "peak": "friction_peak"},
+                       defaults={"friction_sharpness": DEFAULT_SHARPNESS}))
 
-    def __init__(self, name: str, *, model: str, geometry=None, exponential=None,
-                 stiffness: float | None = None, friction_viscous: float = 0.0,
-                 friction_stiction: float = 0.0, friction_sharpness: float = DEFAULT_SHARPNESS,
-                 friction_peak: float = 1.0, initial_tension: float = 0.0):
-        super().__init__(name)
-        self.friction_peak = _peak(name, friction_peak)
+    def __init__(self, name: str, *, model: str, stiffness: float | None = None,
+                 initial_tension: float = 0.0, **values):
+        super().__init__(name, **values)
         if model not in MODELS:
             raise ValueError(f"{name}: unknown elastic model {model!r}; choose one of "
                              f"{', '.join(MODELS)}")
         self.model = model
         self.law = MODELS[model]
         if self.law in (GEOMETRIC, GEOMETRIC_REPORT):
-            values = [float(v) for v in (geometry or ())]
-            if len(values) != len(GEOMETRY_FIELDS):
+            if self.geometry is None:
                 raise ValueError(f"{name}: geometric model needs {', '.join(GEOMETRY_FIELDS)}")
+            row = list(self.geometry)
         elif self.law == EXPONENTIAL:
-            values = [float(v) for v in (exponential or ())]
-            if len(values) != len(EXPONENTIAL_FIELDS):
+            if self.exponential is None:
                 raise ValueError(f"{name}: exponential model needs "
                                  f"{', '.join(EXPONENTIAL_FIELDS)}")
+            row = list(self.exponential)
         else:
             if stiffness is None or not stiffness >= 0.0:
                 raise ValueError(f"{name}: linear model needs a stiffness >= 0")
-            values = [float(stiffness)]
-        self.parameters = tuple(values + [0.0] * (N_PARAMETERS - len(values)))
+            row = [float(stiffness)]
+        self.parameters = tuple(row + [0.0] * (N_PARAMETERS - len(row)))
         if not (np.isfinite(initial_tension) and initial_tension >= 0.0):
             raise ValueError(f"{name}: initial_tension must be finite and >= 0 N, got "
                              f"{initial_tension!r}")
@@ -76,9 +85,6 @@ class ElasticElement(Component):
             raise ValueError(f"{name}: initial_tension (coil pretension) is an option of the "
                              f"'geometric' model only, not of {model!r}")
         self.initial_tension = float(initial_tension)
-        self.friction_viscous = float(friction_viscous)
-        self.friction_stiction = float(friction_stiction)
-        self.friction_sharpness = float(friction_sharpness)
 
     def torque(self, phi, q: float):
         """Torque [N m] this element applies to the ring at deflections ``phi``

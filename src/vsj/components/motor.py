@@ -12,28 +12,21 @@ from __future__ import annotations
 
 import math
 
-from ..network import Component, Constraint, Friction, Motor, Parts
-from ._values import _section
+from ..network import Constraint, Friction, Motor, Parts
+from ._fields import SchemaComponent, section
 
 
-class DCMotor(Component):
-    """Brushed DC motor with gearhead; ``voltage_limit`` [V] is its rating."""
+class DCMotor(SchemaComponent):
+    """Brushed DC motor with gearhead, the ``[motor]`` section of a parameter file;
+    ``channel`` (default: the motor's name) carries its voltage [V]. Left out,
+    ``voltage_limit`` is ``inf``: no rating, any voltage."""
 
     ports = ("flange",)
+    fields = section("motor", defaults={"gear_ratio": 1.0, "viscous": 0.0,
+                                        "voltage_limit": math.inf})
 
-    def __init__(self, name: str, *, resistance: float, inductance: float,
-                 torque_constant: float, rotor_inertia: float, gear_ratio: float = 1.0,
-                 viscous: float = 0.0, channel: str | None = None,
-                 voltage_limit: float = math.inf):
-        super().__init__(name)
-        values = _section(name, "motor", resistance=resistance, inductance=inductance,
-                          torque_constant=torque_constant, rotor_inertia=rotor_inertia,
-                          gear_ratio=gear_ratio, viscous=viscous)
-        if voltage_limit != math.inf:  # no rating: any voltage
-            values.update(_section(name, "motor", voltage_limit=voltage_limit))
-        self.voltage_limit = float(voltage_limit)
-        for key, value in values.items():
-            setattr(self, key, value)
+    def __init__(self, name: str, *, channel: str | None = None, **values: float):
+        super().__init__(name, **values)
         self.channel = channel or name
 
     def parts(self) -> Parts:

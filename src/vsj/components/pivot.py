@@ -15,31 +15,26 @@ from __future__ import annotations
 
 import math
 
-from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Constraint, Friction, Parts, Pivot
-from ..params import SHARPNESS
-from ._values import _check, _peak, _section
+from ._fields import FRICTION, SchemaComponent, section
 
 
-class PivotMechanism(Component):
-    """Motor flange ``input`` to pivot carrier; publishes the pivot position."""
+class PivotMechanism(SchemaComponent):
+    """Motor flange ``input`` to pivot carrier; publishes the pivot position. Its
+    parameters are the ``[pivot]`` section of a parameter file and the ``[friction]``
+    law's sharpness and peak; ``q_min`` and ``q_max`` left out are the whole reach."""
 
     ports = ("input",)
+    fields = section("pivot", defaults={"inertia": 0.0, "viscous": 0.0, "stiction": 0.0,
+                                        "q_min": None, "q_max": None}) + FRICTION
 
-    def __init__(self, name: str, *, ratio: float, amplitude: float, inertia: float = 0.0,
-                 viscous: float = 0.0, stiction: float = 0.0, sharpness: float = DEFAULT_SHARPNESS,
-                 peak: float = 1.0, q_min: float | None = None, q_max: float | None = None):
-        super().__init__(name)
-        self.peak = _peak(name, peak)
-        for key, value in _section(name, "pivot", ratio=ratio, amplitude=amplitude,
-                                   inertia=inertia, viscous=viscous, stiction=stiction).items():
-            setattr(self, key, value)
-        self.sharpness = _check(f"{name}: sharpness", SHARPNESS, sharpness)
-        self.q_min = -self.amplitude if q_min is None else float(q_min)
-        self.q_max = self.amplitude if q_max is None else float(q_max)
-        if not -self.amplitude <= self.q_min < self.q_max <= self.amplitude:
-            raise ValueError(f"{name}: the pivot range [{self.q_min}, {self.q_max}] m must be "
-                             f"increasing and within the reach +-{self.amplitude} m")
+    def __init__(self, name: str, **values: float):
+        super().__init__(name, **values)
+        if self.q_min is None:
+            self.q_min = -self.amplitude
+        if self.q_max is None:
+            self.q_max = self.amplitude
+        self.check_relations()  # the range and the reach, as a parameter file's
 
     def carrier_angle(self, q: float) -> float:
         """Carrier angle [rad] that places the pivot at ``q`` [m] (principal branch)."""

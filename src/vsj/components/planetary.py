@@ -45,13 +45,11 @@ atan(k_b1 w / x)`` or ``(2 k_1 / x) atan(k_b1 w / x)`` (eq 3.29).
 
 from __future__ import annotations
 
-import math
-from typing import Mapping
-
 import numpy as np
 
 from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Constraint, Parts
+from ._fields import Field, SchemaComponent, section
 from .basic import Bearing, Inertia, SlipFriction
 
 #: Relations of eq 3.27 between the sun mesh's friction constants (k_1, k_b1) and the
@@ -69,11 +67,9 @@ class IdealPlanetary(Component):
 
     def __init__(self, name: str, sun_teeth: float, ring_teeth: float):
         super().__init__(name)
-        for label, value in (("sun", sun_teeth), ("ring", ring_teeth)):
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name}: {label} tooth count must be > 0, got {value!r}")
-        self.sun_teeth = float(sun_teeth)
-        self.ring_teeth = float(ring_teeth)
+        # the tooth counts' bounds are those of their [planetary] entries
+        self.sun_teeth = Field("sun_teeth", "planetary.sun_teeth").take(name, sun_teeth)
+        self.ring_teeth = Field("ring_teeth", "planetary.ring_teeth").take(name, ring_teeth)
 
     @property
     def r_RC(self) -> float:
@@ -105,77 +101,52 @@ class IdealPlanetary(Component):
                      priority={c: 1})
 
 
-#: The module's named values (as in the ``[planetary]`` section of a parameter file):
-#: the flange and the part each one sets.
+#: The flanges of the module, each with an inertia and a bearing.
 PORTS = ("sun", "ring", "carrier")
 
 
-class PlanetaryGearModule(Component):
+class PlanetaryGearModule(SchemaComponent):
     """A planetary gear set with inertias, mesh friction and bearing friction, built
     by composition (fig 3.10): the `IdealPlanetary`, an `Inertia` and a `Bearing`
     on each of sun, ring and carrier, and the sun mesh's `SlipFriction`; the ring
     mesh follows from the sun mesh by eq 3.27 (``mesh_relation``, see the module
-    docstring). ``inertia`` and ``bearings`` are keyed by port; a port left out
-    has none. `from_values` builds it from a parameter section's names.
+    docstring). Its parameters are the ``[planetary]`` section of a parameter file
+    (only the tooth counts are required: a part left out is absent) and the
+    ``[friction]`` law's sharpness for the bearings (``bearing_sharpness``; left
+    out, the mesh's) and breakaway ``peak`` for every element.
     """
 
     ports = PORTS
+    fields = section("planetary", defaults={
+        "sun_inertia": 0.0, "ring_inertia": 0.0, "carrier_inertia": 0.0,
+        "sun_bearing_viscous": 0.0, "sun_bearing_stiction": 0.0,
+        "ring_bearing_viscous": 0.0, "ring_bearing_stiction": 0.0,
+        "carrier_bearing_viscous": 0.0, "carrier_bearing_stiction": 0.0,
+        "mesh_stiction": 0.0, "mesh_sharpness": DEFAULT_SHARPNESS,
+    }) + section("friction", rename={"arctan_sharpness": "bearing_sharpness"},
+                 defaults={"bearing_sharpness": None})
 
-    def __init__(self, name: str, *, sun_teeth: float, ring_teeth: float,
-                 inertia: Mapping[str, float] | None = None,
-                 bearings: Mapping[str, Bearing] | None = None,
-                 mesh: SlipFriction | None = None, mesh_relation: str = "printed"):
-        super().__init__(name)
-        self.gears = IdealPlanetary("gears", sun_teeth, ring_teeth)
+    def __init__(self, name: str, *, mesh_relation: str = "printed", **values: float):
+        super().__init__(name, **values)
+        self.gears = IdealPlanetary("gears", self.sun_teeth, self.ring_teeth)
         if mesh_relation not in MESH_RELATIONS:
             raise ValueError(f"{name}: mesh_relation must be one of "
                              f"{', '.join(MESH_RELATIONS)}, got {mesh_relation!r}")
         self.mesh_relation = mesh_relation
-        for what, given in (("inertia", inertia or {}), ("bearings", bearings or {})):
-            unknown = sorted(set(given) - set(PORTS))
-            if unknown:
-                raise ValueError(f"{name}: {what} keyed by unknown port(s) "
-                                 f"{', '.join(unknown)}; ports: {', '.join(PORTS)}")
-        self.inertias = {port: Inertia(f"{port}_inertia", value)
-                         for port, value in (inertia or {}).items()}
-        self.bearings = dict(bearings or {})
-        self.mesh = mesh if mesh is not None else SlipFriction("mesh_sun")
-
-    @classmethod
-    def from_values(cls, name: str, values: Mapping[str, float], *,
-                    bearing_sharpness: float | None = None, peak: float = 1.0,
-                    mesh_relation: str = "printed") -> "PlanetaryGearModule":
-        """The module from values named as in a parameter file's ``[planetary]``
-        section (``sun_teeth``, ``ring_inertia``, ``carrier_bearing_stiction``,
-        ``mesh_sharpness``, ...; absent ones are zero, teeth are required).
-        Bearings take ``bearing_sharpness`` (default: the mesh's)."""
-        known = {"sun_teeth", "ring_teeth", "mesh_stiction", "mesh_sharpness"} | {
-            f"{port}_{what}" for port in PORTS
-            for what in ("inertia", "bearing_viscous", "bearing_stiction")}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"{name}: unknown planetary value(s) {', '.join(unknown)}; "
-                             f"known: {', '.join(sorted(known))}")
-        mesh_sharpness = values.get("mesh_sharpness", DEFAULT_SHARPNESS)
-        sharp = mesh_sharpness if bearing_sharpness is None else bearing_sharpness
-        return cls(
-            name, sun_teeth=values["sun_teeth"], ring_teeth=values["ring_teeth"],
-            inertia={port: values.get(f"{port}_inertia", 0.0) for port in PORTS},
-            bearings={port: Bearing(f"bearing_{port}",
-                                    viscous=values.get(f"{port}_bearing_viscous", 0.0),
-                                    stiction=values.get(f"{port}_bearing_stiction", 0.0),
-                                    sharpness=sharp, peak=peak) for port in PORTS},
-            mesh=SlipFriction("mesh_sun", stiction=values.get("mesh_stiction", 0.0),
-                              sharpness=mesh_sharpness, peak=peak),
-            mesh_relation=mesh_relation)
-
-    @property
-    def sun_teeth(self) -> float:
-        return self.gears.sun_teeth
-
-    @property
-    def ring_teeth(self) -> float:
-        return self.gears.ring_teeth
+        inertia = {"sun": self.sun_inertia, "ring": self.ring_inertia,
+                   "carrier": self.carrier_inertia}
+        viscous = {"sun": self.sun_bearing_viscous, "ring": self.ring_bearing_viscous,
+                   "carrier": self.carrier_bearing_viscous}
+        stiction = {"sun": self.sun_bearing_stiction, "ring": self.ring_bearing_stiction,
+                    "carrier": self.carrier_bearing_stiction}
+        sharpness = (self.mesh_sharpness if self.bearing_sharpness is None
+                     else self.bearing_sharpness)
+        self.inertias = {port: Inertia(f"{port}_inertia", inertia[port]) for port in PORTS}
+        self.bearings = {port: Bearing(f"bearing_{port}", viscous=viscous[port],
+                                       stiction=stiction[port], sharpness=sharpness,
+                                       peak=self.peak) for port in PORTS}
+        self.mesh = SlipFriction("mesh_sun", stiction=self.mesh_stiction,
+                                 sharpness=self.mesh_sharpness, peak=self.peak)
 
     @property
     def tooth_ratio(self) -> float:

@@ -13,33 +13,22 @@ is the torque it applies to the output: the torque transmitted.
 
 from __future__ import annotations
 
-import math
-
-from ..friction import DEFAULT_SHARPNESS
-from ..network import Component, Constraint, Friction, Parts, Spring
-from ..params import COMPLIANCE, SHARPNESS, STICTION, VISCOUS
+from ..network import Constraint, Friction, Parts, Spring
 from ..springs import LINEAR, N_PARAMETERS
-from ._values import _check, _peak
+from ._fields import FRICTION, SchemaComponent, section
 
 
-class Transmission(Component):
-    """Carrier-side ``input`` to differential-side ``output``."""
+class Transmission(SchemaComponent):
+    """Carrier-side ``input`` to differential-side ``output``: the ``[transmission]``
+    section of a parameter file, whose series compliance of DOF 1 it takes as
+    ``compliance`` (the wrist reads DOF 2's for ``tr_2``), and the ``[friction]``
+    law's sharpness and peak. By default a rigid, lossless 1:1 coupling."""
 
     ports = ("input", "output")
-
-    def __init__(self, name: str, *, ratio: float = 1.0, viscous: float = 0.0,
-                 stiction: float = 0.0, sharpness: float = DEFAULT_SHARPNESS,
-                 compliance: float = 0.0, damping: float = 0.0, peak: float = 1.0):
-        super().__init__(name)
-        self.peak = _peak(name, peak)
-        if not (math.isfinite(ratio) and ratio != 0.0):
-            raise ValueError(f"{name}: ratio must be finite and nonzero, got {ratio!r}")
-        self.ratio = float(ratio)
-        self.viscous = _check(f"{name}: viscous", VISCOUS, viscous)
-        self.stiction = _check(f"{name}: stiction", STICTION, stiction)
-        self.sharpness = _check(f"{name}: sharpness", SHARPNESS, sharpness)
-        self.compliance = _check(f"{name}: compliance", COMPLIANCE, compliance)
-        self.damping = _check(f"{name}: damping", VISCOUS, damping)
+    fields = section("transmission", skip=("series_compliance_2",),
+                     rename={"series_compliance_1": "compliance", "series_damping": "damping"},
+                     defaults={"ratio": 1.0, "viscous": 0.0, "stiction": 0.0,
+                               "compliance": 0.0, "damping": 0.0}) + FRICTION
 
     def parts(self) -> Parts:
         a, b = self.port("input"), self.port("output")

@@ -106,10 +106,9 @@ def _stiffness_change(params, q_from: float, q_to: float) -> dict:
 
     pv, mo = params.pivot, params.motor
     net = Network("pivot-drive")
+    # the whole reach, not the set's pivot range: the drive runs on past q_to
     net.add(motor("motor_s", params, "dc", "s"),
-            PivotMechanism("pivot", ratio=pv.ratio, amplitude=pv.amplitude, inertia=pv.inertia,
-                           viscous=pv.viscous, stiction=pv.stiction,
-                           sharpness=params.friction.arctan_sharpness))
+            PivotMechanism.from_parameters("pivot", params, q_min=None, q_max=None))
     net.connect("motor_s.flange", "pivot.input")
     structure = net.assemble()
     start = math.asin(q_from / pv.amplitude)

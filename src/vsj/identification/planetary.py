@@ -54,18 +54,19 @@ from scipy.optimize import least_squares, linprog, nnls
 
 from ..components.planetary import PlanetaryGearModule
 from ..errors import InputError
+from ..params import SCHEMA
 from .friction import Estimate, FrictionFit
 
-#: Linear coefficients, their parameter-file keys and units.
-LINEAR = {
-    "b_C": ("carrier_bearing_viscous", "N m s/rad"),
-    "b_R": ("ring_bearing_viscous", "N m s/rad"),
-    "b_S": ("sun_bearing_viscous", "N m s/rad"),
-    "k_1": ("mesh_stiction", "N m"),
-    "k_C": ("carrier_bearing_stiction", "N m"),
-    "k_R": ("ring_bearing_stiction", "N m"),
-    "k_S": ("sun_bearing_stiction", "N m"),
-}
+#: Linear coefficients, their ``[planetary]`` keys and units (the entries' own).
+LINEAR = {symbol: (key, SCHEMA["planetary"][key].display) for symbol, key in {
+    "b_C": "carrier_bearing_viscous",
+    "b_R": "ring_bearing_viscous",
+    "b_S": "sun_bearing_viscous",
+    "k_1": "mesh_stiction",
+    "k_C": "carrier_bearing_stiction",
+    "k_R": "ring_bearing_stiction",
+    "k_S": "sun_bearing_stiction",
+}.items()}
 STICTION = ("k_C", "k_R", "k_S")
 #: The only coefficient whose column depends on the mesh sharpness k_b1: the mesh's
 #: arctan stiction. Viscous columns are b s, and bearing stiction slides at its Coulomb
@@ -357,9 +358,8 @@ def _columns(x: float, kb: float, names, w_sun, w_ring):
     for name in names:
         unit = {k: 0.0 for k in LINEAR}
         unit[name] = 1.0
-        gear = PlanetaryGearModule.from_values(
-            "pg", {"sun_teeth": x, "ring_teeth": 1.0, "mesh_sharpness": kb,
-                   **{LINEAR[k][0]: v for k, v in unit.items()}})
+        gear = PlanetaryGearModule("pg", sun_teeth=x, ring_teeth=1.0, mesh_sharpness=kb,
+                                   **{LINEAR[k][0]: v for k, v in unit.items()})
         # bearing stiction slides at the Coulomb level k pi/2 (fig 4.8); the mesh
         # friction is the smooth arctan law (eq 3.17) the curves' shape comes from
         law = "stiction" if name in STICTION else "arctan"
@@ -532,7 +532,8 @@ def fit_structure(sun: FrictionFit, ring: FrictionFit, structure: str, *,
                 undetermined.append(name)
     combinations = _combinations(set(blind) | set(same_curves), x)
     t = stats.t.ppf(0.975, dof)
-    units = {**{n: LINEAR[n][1] for n in LINEAR}, "x": "1", "k_b1": "s/rad"}
+    units = {**{n: LINEAR[n][1] for n in LINEAR}, "x": "1",
+             "k_b1": SCHEMA["planetary"]["mesh_sharpness"].display}
     params = [Estimate(n, float(v), units[n], float(e),
                        (float(v - t * e), float(v + t * e))) for n, v, e in
               zip(full_names, theta, err)]
