@@ -11,6 +11,9 @@ from setuptools.command.build_ext import build_ext
 
 ENGINE = Path("src/vsj/engine")
 SOURCES = ["src/vsj/_core.c"] + sorted(str(p) for p in (ENGINE / "c").glob("*.c"))
+#: Warnings on for gcc and clang (the engine and its binding build without any);
+#: VSJ_WERROR=1 makes them errors (tests/test_c_source.py builds that way).
+WARNINGS = ["-Wall", "-Wextra"] + (["-Werror"] if os.environ.get("VSJ_WERROR") == "1" else [])
 
 
 class BuildOnEveryCore(build_ext):
@@ -18,6 +21,8 @@ class BuildOnEveryCore(build_ext):
     itself runs only separate extensions in parallel)."""
 
     def build_extension(self, ext):
+        if self.compiler.compiler_type == "unix":
+            ext.extra_compile_args = WARNINGS + list(ext.extra_compile_args or [])
         compile_all = self.compiler.compile
 
         def compile_each(sources, *args, **kwargs):

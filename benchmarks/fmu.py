@@ -12,7 +12,7 @@ speeds are the scenario's mean speeds over each step, held.
 * C: a small driver, compiled here, loads the FMU's ``.so`` with ``dlopen`` and
   calls ``fmi2SetReal`` and ``fmi2DoStep`` 10 000 times; in the same process and
   in interleaved rounds it steps the FMU's model file (``resources/model.json``,
-  read by ``vsj_load_model``) with the C core's ``vsj_step_period`` on the same
+  read by ``vsj_load_model``) with the C core's ``vsj_step`` on the same
   inputs, without and with its energy ledger. The first ratio is the FMI layer's
   overhead (target: within 1.5x); the FMU keeps the ledger (its power outputs and
   the check of the run's ledger at fmi2Terminate), so the second ratio is the
@@ -46,7 +46,7 @@ C_ROUNDS = 25
 TARGET = 1.5
 
 DRIVER = r"""
-/* FMU from C (dlopen, fmi2DoStep) against vsj_step_period on the same inputs. */
+/* FMU from C (dlopen, fmi2DoStep) against vsj_step on the same inputs. */
 #include <dlfcn.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -150,7 +150,7 @@ int main(int argc, char **argv) {
     }
     vsj_work *work = vsj_work_new(&loaded->model);
     int64_t ns = vsj_step_state_size(&loaded->model);
-    double *s = (double *)malloc((size_t)ns * sizeof(double)), setting[3] = {loaded->step, 0, 0};
+    double *s = (double *)malloc((size_t)ns * sizeof(double));
     acc = (double *)malloc((size_t)(vsj_n_acc(&loaded->model) + 1) * sizeof(double));
     if (!work || !s || !acc || vsj_ts_prepare(&loaded->model, work) != VSJ_OK)
         return 2;
@@ -176,8 +176,8 @@ int main(int argc, char **argv) {
         vsj_ts_prepare(&loaded->model, work);
         t0 = now();
         for (k = 0; k < steps; k++)
-            if (vsj_step_period(&loaded->model, work, s, u + 5 * k, h, VSJ_STEP_TIMESTEP,
-                                setting, NULL) != VSJ_OK)
+            if (vsj_step(&loaded->model, work, &loaded->scheme, s, u + 5 * k, h, NULL)
+                != VSJ_OK)
                 return 3;
         dt = now() - t0;
         check_core = 0.0;
@@ -189,8 +189,8 @@ int main(int argc, char **argv) {
         vsj_ts_prepare(&loaded->model, work);
         t0 = now();
         for (k = 0; k < steps; k++)
-            if (vsj_step_period(&loaded->model, work, s, u + 5 * k, h, VSJ_STEP_TIMESTEP,
-                                setting, acc) != VSJ_OK)
+            if (vsj_step(&loaded->model, work, &loaded->scheme, s, u + 5 * k, h, acc)
+                != VSJ_OK)
                 return 3;
         dt = now() - t0;
         if (dt < ledger_best)
@@ -284,7 +284,7 @@ def main() -> int:
         per_fmu, per_core, per_ledger, theta_fmu, theta_core = map(float, done.stdout.split())
         ratio = per_fmu / per_core
         print(f"from C, per 1 ms step: FMU fmi2SetReal + fmi2DoStep {per_fmu * 1e6:.2f} us, "
-              f"C core vsj_step_period {per_core * 1e6:.2f} us ({per_ledger * 1e6:.2f} us with "
+              f"C core vsj_step {per_core * 1e6:.2f} us ({per_ledger * 1e6:.2f} us with "
               f"its energy ledger); ratio FMU / core {ratio:.2f}x "
               f"({'within' if ratio <= TARGET else 'ABOVE'} the {TARGET}x target), FMU / core "
               f"with ledger {per_fmu / per_ledger:.2f}x; theta_x at 10 s: FMU {theta_fmu:.9g} "

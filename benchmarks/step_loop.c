@@ -64,18 +64,12 @@ int main(int argc, char **argv) {
         double start;
         int status = VSJ_OK;
         memcpy(state, w->initial_state, (size_t)size * sizeof(double));
-        if (w->solver == 2)
-            vsj_ts_prepare(&w->model, work);
+        if (w->scheme.method == VSJ_METHOD_TIMESTEP)
+            vsj_ts_prepare(&w->model, work); /* each round from a cleared stick history */
         start = now();
         for (k = 0; k < rows && status == VSJ_OK; k++) {
             const double *u = U + k * w->n_inputs;
-            if (w->solver == 0)
-                status = vsj_step_dopri(&w->model, work, state, u, w->period, w->rtol, w->atol,
-                                        1000000);
-            else if (w->solver == 1)
-                status = vsj_step_rk4(&w->model, work, state, u, w->period, w->substeps);
-            else
-                status = vsj_step_timestep(&w->model, work, state, u, w->period, w->step);
+            status = vsj_step(&w->model, work, &w->scheme, state, u, w->period, NULL);
         }
         if (status != VSJ_OK) {
             fprintf(stderr, "step_loop: %s\n", vsj_status_text(status));

@@ -87,14 +87,22 @@ def test_a_step_longer_than_the_period_takes_one_shortened_step(params):
     assert np.max(np.abs(after[:4] - state[:4])) > 0.0
 
 
-def test_a_work_prepared_for_another_model_is_refused(model):
-    a, b = Engine(model), Engine(model)
-    _core.ts_prepare(a.c, a.work)
+def test_a_work_prepared_for_another_model_is_prepared_again(model):
+    """The time-stepper analyses a model (friction groups, end stops) in its work; a
+    held period on a work analysed for another model of the same sizes analyses this
+    one first, so the step equals one on a fresh work, bit for bit."""
+    heavier = model._replace(mass=model.mass * 2.0, Minv=model.Minv / 2.0)
+    a, b = Engine(model), Engine(heavier)
     state = np.zeros(int(2 * model.dims[0] + model.dims[5] + model.dims[1]))
-    inputs = np.zeros(int(model.dims[6]))
-    assert _core.run(a.c, a.work, state, _held(model, 1), 1e-3, held=inputs)[0] == 0
-    # the same sizes, another model: its friction groups and end stops were not analysed
-    assert _core.run(b.c, a.work, state, _held(model, 1), 1e-3, held=inputs)[0] == 6
+    state[0] = 0.01
+    inputs = np.full(int(model.dims[6]), 0.2)
+    first = state.copy()
+    assert _core.run(a.c, a.work, first, _held(model, 1), 1e-3, held=inputs)[0] == 0
+    reused, fresh = state.copy(), state.copy()
+    assert _core.run(b.c, a.work, reused, _held(model, 1), 1e-3, held=inputs)[0] == 0
+    assert _core.run(b.c, b.work, fresh, _held(model, 1), 1e-3, held=inputs)[0] == 0
+    assert np.array_equal(reused, fresh)
+    assert not np.array_equal(reused, first)  # the heavier model moved otherwise
 
 
 def test_observation_times_must_be_finite(model):

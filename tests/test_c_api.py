@@ -19,6 +19,7 @@ import pytest
 from vsj import export
 from vsj.cli import main
 from vsj.engine.core import IMPULSE_REL
+from vsj.engine.plan import METHODS
 from vsj.inputs import Constant
 from vsj.simulate import InitialState, SimulationOptions, simulate
 from vsj.wrist import build_wrist
@@ -155,7 +156,7 @@ def test_export_model_command_writes_what_the_library_reads(step_wrist, tmp_path
     assert main(["export-model", "--out", str(path), "--motor-model", "dc",
                  "--friction", "stiction", "--q=-1cm"]) == 0
     data = path.read_bytes()
-    assert data[:4] == b"VSJP" and struct.unpack("<q", data[16:24])[0] == 2  # time-stepper
+    assert data[:4] == b"VSJP" and struct.unpack("<q", data[16:24])[0] == METHODS["timestep"]
     for name in (b"motor_s", b"tau_x", b"tau_y", b"voltage_1", b"voltage_2"):
         assert name in data
     header, data = run_example(step_wrist, path, 20, [0.0, 0.0, 0.0, 3.0, -3.0], tmp_path)

@@ -103,3 +103,23 @@ def test_no_function_of_the_engine_or_binding_is_longer_than_the_limit():
                       for name, first, last in found if last - first + 1 > MAX_LINES]
     assert not offenders, (f"functions longer than {MAX_LINES} lines (split them):\n  "
                            + "\n  ".join(offenders))
+
+
+def test_the_engine_and_its_binding_build_without_a_warning(tmp_path):
+    """The extension as setup.py builds it, with -Wall -Wextra made errors (VSJ_WERROR):
+    a warning in any engine file or in the binding fails the build."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    copy = tmp_path / "copy"
+    shutil.copytree(ROOT / "src", copy / "src",
+                    ignore=shutil.ignore_patterns("*.so", "__pycache__", "*.egg-info"))
+    for name in ("setup.py", "pyproject.toml", "README.md"):
+        shutil.copy(ROOT / name, copy / name)
+    done = subprocess.run([sys.executable, "setup.py", "build_ext", "--inplace", "--force"],
+                          cwd=copy, env={**os.environ, "VSJ_WERROR": "1"},
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert "-Wextra" in done.stdout + done.stderr  # the flags reached the compiler

@@ -101,7 +101,7 @@ ring_inertia = { value = "6.47e-5 kg", source = "an inertia in kg" }
 `vsj.no_such_module`, `Result.no_such_method()`, `ElasticElement(..., no_such_keyword=1)`,
 `src/vsj/no_such_file.py`, `engine/c/no_such_file.c`, `no_such_file.py`,
 `vsj_no_such_function`; but `Result.to_xarray()`, `vsj.wrist.build_wrist`,
-`engine/c/laws.c` and `vsj_step_timestep` exist.
+`engine/c/laws.c` and `vsj_step` exist.
 
 ![a figure](docs/no-such-figure.png)
 """

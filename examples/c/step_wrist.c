@@ -88,8 +88,6 @@ int main(int argc, char **argv) {
     }
     memcpy(state, wrist->initial_state,
            (size_t)vsj_step_state_size(&wrist->model) * sizeof(double));
-    if (wrist->solver == 2)
-        vsj_ts_prepare(&wrist->model, work); /* the time-stepper keeps stick/slip history */
 
     printf("time [s]");
     for (k = 0; k < wrist->n_outputs; k++)
@@ -98,15 +96,8 @@ int main(int argc, char **argv) {
     print_row(wrist, 0.0, state);
     for (p = 0; p < periods && status == VSJ_OK; p++) {
         read_inputs(input_file, inputs, wrist->n_inputs); /* else: hold the last ones */
-        if (wrist->solver == 0)
-            status = vsj_step_dopri(&wrist->model, work, state, inputs, wrist->period,
-                                    wrist->rtol, wrist->atol, 1000000);
-        else if (wrist->solver == 1)
-            status = vsj_step_rk4(&wrist->model, work, state, inputs, wrist->period,
-                                  wrist->substeps);
-        else
-            status = vsj_step_timestep(&wrist->model, work, state, inputs, wrist->period,
-                                       wrist->step);
+        status = vsj_step(&wrist->model, work, &wrist->scheme, state, inputs, wrist->period,
+                          NULL);
         if (status == VSJ_OK)
             print_row(wrist, (double)(p + 1) * wrist->period, state);
     }

@@ -474,15 +474,16 @@ static int step_args(ModelObject *model, PyObject *os, PyObject *ou, arg *s, arg
 
 /* A scheme from its tuple (method, rtol, atol, h_max, n_err, h, max_steps, ledger,
  * substeps); method 0 dopri, 1 time-stepper, 2 rk4 (a held period only). */
-static int scheme_of(PyObject *o, vsj_scheme *sc, long long *substeps) {
-    long long method, n_err, max_steps;
+static int scheme_of(PyObject *o, vsj_scheme *sc) {
+    long long method, n_err, max_steps, substeps;
     int ledger;
     if (!PyArg_ParseTuple(o, "LdddLdLpL:scheme", &method, &sc->rtol, &sc->atol, &sc->h_max,
-                          &n_err, &sc->h, &max_steps, &ledger, substeps))
+                          &n_err, &sc->h, &max_steps, &ledger, &substeps))
         return -1;
-    if (method < 0 || method > 2 || !(sc->rtol > 0.0) || !(sc->atol > 0.0) || !(sc->h_max > 0.0)
-        || !(isfinite(sc->h) && sc->h > 0.0) || max_steps < 1 || n_err < 0 || *substeps < 1
-        || *substeps > VSJ_MAX_PERIOD_STEPS) {
+    if ((method != VSJ_METHOD_DOPRI && method != VSJ_METHOD_TIMESTEP && method != VSJ_METHOD_RK4)
+        || !(sc->rtol > 0.0) || !(sc->atol > 0.0) || !(sc->h_max > 0.0)
+        || !(isfinite(sc->h) && sc->h > 0.0) || max_steps < 1 || n_err < 0 || substeps < 1
+        || substeps > VSJ_MAX_PERIOD_STEPS) {
         PyErr_SetString(PyExc_ValueError, "scheme: method 0, 1 or 2; rtol, atol, h_max and h "
                                           "> 0; max_steps and substeps >= 1; n_err >= 0");
         return -1;
@@ -491,15 +492,17 @@ static int scheme_of(PyObject *o, vsj_scheme *sc, long long *substeps) {
     sc->n_err = n_err;
     sc->max_steps = max_steps;
     sc->ledger = ledger;
+    sc->substeps = substeps;
     return 0;
 }
 
 /* A held period of the step function: y is its state [x, p, i, sigma] (vsj.h). */
 static PyObject *held_period(ModelObject *model, WorkObject *work, PyObject *oy, PyObject *oheld,
-                             const vsj_scheme *sc, long long substeps, double dt) {
+                             const vsj_scheme *sc, double dt) {
     arg s, u;
     int status;
-    if (!(isfinite(dt) && dt > 0.0) || (sc->method == 1 && !(dt / sc->h <= VSJ_MAX_PERIOD_STEPS))) {
+    if (!(isfinite(dt) && dt > 0.0)
+        || (sc->method == VSJ_METHOD_TIMESTEP && !(dt / sc->h <= VSJ_MAX_PERIOD_STEPS))) {
         PyErr_Format(PyExc_ValueError, "run: a held period needs dt > 0 and at most %d steps",
                      VSJ_MAX_PERIOD_STEPS);
         return NULL;
@@ -511,16 +514,8 @@ static PyObject *held_period(ModelObject *model, WorkObject *work, PyObject *oy,
         release(&u);
         return NULL;
     }
-    if (sc->method == 0)
-        status = vsj_step_dopri(&model->m, work->w, (double *)s.view.buf,
-                                (const double *)u.view.buf, dt, sc->rtol, sc->atol,
-                                sc->max_steps);
-    else if (sc->method == 2)
-        status = vsj_step_rk4(&model->m, work->w, (double *)s.view.buf,
-                              (const double *)u.view.buf, dt, substeps);
-    else
-        status = vsj_step_timestep(&model->m, work->w, (double *)s.view.buf,
-                                   (const double *)u.view.buf, dt, sc->h);
+    status = vsj_step(&model->m, work->w, sc, (double *)s.view.buf,
+                      (const double *)u.view.buf, dt, NULL);
     give_back(work);
     release(&s);
     release(&u);
@@ -545,7 +540,6 @@ static PyObject *py_run(PyObject *mod, PyObject *args, PyObject *kwds) {
     int finish = 0, status = VSJ_OK;
     double until;
     vsj_scheme sc;
-    long long substeps;
     arg y;
     ts_args a;
     Py_ssize_t ny, state, full;
@@ -555,11 +549,11 @@ static PyObject *py_run(PyObject *mod, PyObject *args, PyObject *kwds) {
                                      &model, &WorkType, &work, &oy, &oscheme, &until, &obegin,
                                      &finish, &ot, &oout, &oc, &os, &oheld))
         return NULL;
-    if (scheme_of(oscheme, &sc, &substeps) < 0)
+    if (scheme_of(oscheme, &sc) < 0)
         return NULL;
     if (oheld != Py_None)
-        return held_period(model, work, oy, oheld, &sc, substeps, until);
-    if (sc.method == 2) {
+        return held_period(model, work, oy, oheld, &sc, until);
+    if (sc.method == VSJ_METHOD_RK4) {
         PyErr_SetString(PyExc_ValueError, "run: rk4 steps held periods only");
         return NULL;
     }
@@ -578,8 +572,9 @@ static PyObject *py_run(PyObject *mod, PyObject *args, PyObject *kwds) {
         return NULL;
     }
     memset(&a, 0, sizeof a);
-    if (ot != Py_None && ts_samples(&a, &model->m, ot, oout, oc, os, sc.method == 1 ? sc.h : 0.0)
-                             < 0) {
+    if (ot != Py_None
+        && ts_samples(&a, &model->m, ot, oout, oc, os,
+                      sc.method == VSJ_METHOD_TIMESTEP ? sc.h : 0.0) < 0) {
         ts_release(&a);
         release(&y);
         return NULL;
@@ -603,7 +598,7 @@ static PyObject *py_run(PyObject *mod, PyObject *args, PyObject *kwds) {
             release(&y);
             return NULL;
         }
-        if (sc.method == 0 && sc.n_err > ny)
+        if (sc.method == VSJ_METHOD_DOPRI && sc.n_err > ny)
             sc.n_err = ny;
         status = vsj_begin(&model->m, work->w, &sc, (const double *)y.view.buf, ny, t0, t_end);
         if (status != VSJ_OK) {

@@ -23,15 +23,14 @@ from . import __version__
 from .params import Parameters
 from .simulate import InitialState, SimulationOptions
 from .engine.model import ARRAYS
+from .engine.plan import METHODS as SCHEME_CODES
 from .stepper import METHODS, Stepper
 from .wrist import WristOptions
 
 FORMAT = "vsj-model"
 VERSION = 3
 #: The program file's format version (engine/c/load.c reads this one only).
-PROGRAM_VERSION = 1
-#: The step functions' codes in the program file.
-METHOD_CODES = {"dopri": 0, "rk4": 1, "timestep": 2}
+PROGRAM_VERSION = 2
 
 #: The engine arrays, in the order of ``vsj_model`` (c/vsj_layout.h).
 ENGINE_ARRAYS = ARRAYS
@@ -101,7 +100,7 @@ def program_bytes(document: dict, stepper: Stepper) -> bytes:
     state, the output rows, the stepper's model in its binary form, a checksum."""
     solver = document["solver"]
     parts = [b"VSJP", struct.pack("<IQ", PROGRAM_VERSION, 0),
-             struct.pack("<qddddq", METHOD_CODES[solver["method"]], solver["period"],
+             struct.pack("<qddddq", SCHEME_CODES[solver["method"]], solver["period"],
                          solver["rtol"], solver["atol"], solver["step"], solver["substeps"]),
              struct.pack("<q", len(document["inputs"]))]
     parts += [_name(i["name"]) for i in document["inputs"]]

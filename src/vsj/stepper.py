@@ -50,8 +50,8 @@ call to the next, so calls must follow one another in time.
 Cost per call: `benchmarks/step_cost.py` (run by `make bench`) prints it,
 from Python and from C, against one `simulate` call of the same period.
 
-From C: the same step is ``vsj_step_dopri`` (``vsj_step_rk4``,
-``vsj_step_timestep``) of the engine's public header ``vsj/engine/c/vsj.h``;
+From C: the same step is ``vsj_step`` (with a ``vsj_scheme``) of the engine's public
+header ``vsj/engine/c/vsj.h``;
 ``examples/c/step_wrist.c`` loads a wrist exported by ``vsj export-model`` and
 steps it.
 

@@ -162,13 +162,13 @@ typedef struct {
     double into_stop, diverged, ledger_tolerance;
     vsj_work *work;
     int64_t ns, ni, nacc;
-    double *s, *inputs, *ledger, setting[3];
+    double *s, *inputs, *ledger;
     double *speeds; /* scratch: n generalised speeds */
     double *schur;  /* n_sources^2: M_ss - M_sf Minv M_fs, the sources' own inertia */
     double *energy; /* scratch: two sets of stored energies (3 + n_springs each) */
     record_layout at;
     double *record;
-    int method;
+    vsj_scheme scheme; /* the model file's scheme (dopri or the time-stepper) */
     int64_t rows[5];
     unsigned char *stuck;
     double time, power_in, power_dissipated, stop_time;
@@ -574,7 +574,7 @@ static fmi2Status rebuild(fmu *f) {
     char why[512];
     if (!assemble(f, why, sizeof why))
         return fail(f, "%s", why);
-    if (f->method == VSJ_STEP_TIMESTEP && vsj_ts_prepare(&f->model, f->work) != VSJ_OK)
+    if (f->scheme.method == VSJ_METHOD_TIMESTEP && vsj_ts_prepare(&f->model, f->work) != VSJ_OK)
         return fail(f, "the time-stepper cannot be prepared for these parameters%s", "");
     f->rebuild = 0;
     return fmi2OK;
@@ -810,14 +810,8 @@ static const char *not_a_wrist(fmu *f) {
     }
     if (f->model.n_springs != 2 || !find_pivot(f))
         return "the model file is not a wrist (two springs and one pivot drive)";
-    f->method = f->loaded->solver;
-    if (f->method == VSJ_STEP_DOPRI) {
-        f->setting[0] = f->loaded->rtol;
-        f->setting[1] = f->loaded->atol;
-        f->setting[2] = 1e7;
-    } else if (f->method == VSJ_STEP_TIMESTEP) {
-        f->setting[0] = f->loaded->step;
-    } else {
+    f->scheme = f->loaded->scheme;
+    if (f->scheme.method != VSJ_METHOD_DOPRI && f->scheme.method != VSJ_METHOD_TIMESTEP) {
         return "the model file's solver must be dopri or the time-stepper";
     }
     return NULL;
@@ -1260,7 +1254,7 @@ fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
         if (vr[k] != VR_STUCK)
             return fail(f, "fmi2GetInteger: the only Integer is n_stuck (value reference 0)%s",
                         "");
-        value[k] = f->method == VSJ_STEP_TIMESTEP && f->mode == STEPPING
+        value[k] = f->scheme.method == VSJ_METHOD_TIMESTEP && f->mode == STEPPING
                        ? (fmi2Integer)vsj_ts_stuck(&f->model, f->work, f->stuck)
                        : 0;
     }
@@ -1417,8 +1411,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
     }
     if (f->rebuild && rebuild(f) != fmi2OK)
         return fmi2Error;
-    status = vsj_step_period(&f->model, f->work, f->s, f->inputs, h, f->method, f->setting,
-                             f->ledger);
+    status = vsj_step(&f->model, f->work, &f->scheme, f->s, f->inputs, h, f->ledger);
     if (status != VSJ_OK) {
         snprintf(text, sizeof text, "at t = %.9g s: %s", f->time, vsj_status_text(status));
         f->mode = FAILED;
@@ -1551,7 +1544,7 @@ static void take(const fmu *f, snapshot *st) {
     memcpy(st->inputs, f->inputs, (size_t)f->ni * sizeof(double));
     memcpy(st->values, f->values, (size_t)f->n_parameters * sizeof(double));
     memcpy(st->record, f->record, (size_t)f->at.size * sizeof(double));
-    if (f->method == VSJ_STEP_TIMESTEP)
+    if (f->scheme.method == VSJ_METHOD_TIMESTEP)
         vsj_ts_save(&f->model, f->work, st->history);
 }
 
@@ -1570,7 +1563,7 @@ static fmi2Status give(fmu *f, const snapshot *st) {
     memcpy(f->s, st->s, (size_t)f->ns * sizeof(double));
     memcpy(f->inputs, st->inputs, (size_t)f->ni * sizeof(double));
     memcpy(f->record, st->record, (size_t)f->at.size * sizeof(double));
-    if (f->method == VSJ_STEP_TIMESTEP)
+    if (f->scheme.method == VSJ_METHOD_TIMESTEP)
         vsj_ts_restore(&f->model, f->work, st->history);
     return fmi2OK;
 }

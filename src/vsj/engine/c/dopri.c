@@ -71,7 +71,7 @@ static void sample_step(const vsj_work *w, const dopri_state *d, const double *t
     }
 }
 
-int vsj_dopri_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t ny, double t0,
+int vsj__dopri_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t ny, double t0,
                     double t_end, double rtol, double atol, double h_max, int64_t max_steps,
                     int64_t n_err) {
     dopri_state *d = &w->dopri;
@@ -199,7 +199,7 @@ static int attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
     return 1;
 }
 
-vsj_report vsj_dopri_advance(const vsj_model *m, vsj_work *w, const double *t_out,
+vsj_report vsj__dopri_advance(const vsj_model *m, vsj_work *w, const double *t_out,
                              int64_t n_out, double *out, int64_t out_cols, int finish,
                              double *y_now) {
     dopri_state *d = &w->dopri;
@@ -235,16 +235,14 @@ vsj_report vsj_dopri_advance(const vsj_model *m, vsj_work *w, const double *t_ou
     return report_of(d);
 }
 
-vsj_report vsj_dopri(const vsj_model *m, vsj_work *w, double *y0, int64_t ny, double t0,
-                     double t_end, const double *t_out, int64_t n_out, double rtol, double atol,
-                     double h_max, int64_t max_steps, int64_t n_err, double *out,
-                     int64_t out_cols) {
-    if (vsj_dopri_begin(m, w, y0, ny, t0, t_end, rtol, atol, h_max, max_steps, n_err)
+vsj_report vsj__dopri(const vsj_model *m, vsj_work *w, double *y, int64_t ny, double t0,
+                      double t_end, double rtol, double atol, int64_t max_steps, int64_t n_err) {
+    if (vsj__dopri_begin(m, w, y, ny, t0, t_end, rtol, atol, INFINITY, max_steps, n_err)
         != VSJ_OK) {
         vsj_report r = report_of(&w->dopri);
         if (r.status != VSJ_BAD_ARGUMENT)
-            memcpy(y0, w->y, (size_t)ny * sizeof(double));
+            memcpy(y, w->y, (size_t)ny * sizeof(double));
         return r;
     }
-    return vsj_dopri_advance(m, w, t_out, n_out, out, out_cols, 1, y0);
+    return vsj__dopri_advance(m, w, NULL, 0, NULL, 0, 1, y);
 }

@@ -24,7 +24,7 @@ typedef struct ts_work {
     int64_t n_nonlinear, n_watched, n_mid_ch, n_mid_src, n_end_ch;
     int factored;          /* H_last and its factor are valid */
     double t;              /* time reached */
-    double origin;         /* steps end at origin + k h (vsj_ts_advance) */
+    double origin;         /* steps end at origin + k h (vsj__ts_advance) */
     int64_t k;
     double q_prev;         /* pivot position at t */
     double angle_prev;     /* pivot mechanism's angle at t */
@@ -123,6 +123,31 @@ VSJ_INTERNAL void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double 
 
 /* Whether a spring of m has a rigid end stop (only the time-stepper can run it). */
 VSJ_INTERNAL int vsj__rigid_stop(const vsj_model *m);
+
+/* The schemes behind vsj_begin/vsj_advance and vsj_step (dopri.c, timestep.c).
+ * Dormand-Prince 5(4), resumable: begin sets the initial state (ny values) at t0 and
+ * the settings; each advance writes the samples at t_out (increasing, after those of
+ * earlier calls, not beyond t_end), stepping as far as they need and, with `finish`,
+ * on to t_end; y_now (may be NULL) receives the state where it stands. The steps do
+ * not depend on how the samples are split between calls. n_err leading components
+ * enter the error norm. vsj__dopri is begin and a finishing advance in one. */
+VSJ_INTERNAL int vsj__dopri_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t ny,
+                                  double t0, double t_end, double rtol, double atol,
+                                  double h_max, int64_t max_steps, int64_t n_err);
+VSJ_INTERNAL vsj_report vsj__dopri_advance(const vsj_model *m, vsj_work *w, const double *t_out,
+                                           int64_t n_out, double *out, int64_t out_cols,
+                                           int finish, double *y_now);
+VSJ_INTERNAL vsj_report vsj__dopri(const vsj_model *m, vsj_work *w, double *y, int64_t ny,
+                                   double t0, double t_end, double rtol, double atol,
+                                   int64_t max_steps, int64_t n_err);
+/* The time-stepper, resumable: begin sets the state at t0 (the work prepared for m,
+ * vsj_ts_prepare); advance steps to t_end (the last step shortened to land on it),
+ * booking the ledger into y's accumulators with `ledger`. */
+VSJ_INTERNAL int vsj__ts_prepared_for(const vsj_model *m, const vsj_work *w);
+VSJ_INTERNAL int vsj__ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0);
+VSJ_INTERNAL vsj_report vsj__ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_end,
+                                        double h, int64_t max_steps, int ledger,
+                                        const vsj_samples *samples);
 
 /* laws (laws.c) */
 /* A spring law (vsj_spring_law); `cache` (4 doubles, or NULL) keeps the

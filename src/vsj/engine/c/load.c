@@ -2,7 +2,7 @@
  *
  * A program file is little-endian binary, every field 8 bytes:
  *   "VSJP", format version (uint32), 0 (uint64): 16 bytes
- *   method (0 dopri, 1 rk4, 2 time-stepper), period, rtol, atol, step, substeps
+ *   method (enum vsj_method), period, rtol, atol, step, substeps
  *   inputs: count, then per input its name (length, UTF-8 bytes padded to 8)
  *   the initial stepper state: count, values
  *   outputs: count, then per output its name, then the rows (count x state values)
@@ -12,13 +12,14 @@
  * of text is involved, so the locale of a host program cannot change a number.
  */
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "internal.h"
 
-enum { PROGRAM_VERSION = 1, MAX_NAME = 4096 };
+enum { PROGRAM_VERSION = 2, MAX_NAME = 4096 };
 
 typedef struct reader {
     const unsigned char *data;
@@ -153,25 +154,35 @@ static char **names(reader *r, int64_t n) {
 
 /* The program's fields, then its model. */
 static void read_program(reader *r, vsj_loaded *l) {
-    int64_t method, state, blob;
+    int64_t method, state, blob, substeps;
+    double rtol, atol, step;
     char inner[256];
     take8(r, &method);
     l->period = real(r);
-    l->rtol = real(r);
-    l->atol = real(r);
-    l->step = real(r);
-    take8(r, &l->substeps);
+    rtol = real(r);
+    atol = real(r);
+    step = real(r);
+    take8(r, &substeps);
     if (r->failed)
         return;
     /* the period always, and the settings of its method */
-    if (method < 0 || method > 2 || !(l->period > 0.0 && l->period < 1e9)
-        || (method == 0 && !(l->rtol > 0.0 && l->atol > 0.0 && l->rtol < 1.0))
-        || (method == 1 && (l->substeps < 1 || l->substeps > VSJ_MAX_PERIOD_STEPS))
-        || (method == 2 && !(l->step > 0.0 && l->step <= l->period))) {
+    if (!(l->period > 0.0 && l->period < 1e9)
+        || (method == VSJ_METHOD_DOPRI && !(rtol > 0.0 && atol > 0.0 && rtol < 1.0))
+        || (method == VSJ_METHOD_RK4 && (substeps < 1 || substeps > VSJ_MAX_PERIOD_STEPS))
+        || (method == VSJ_METHOD_TIMESTEP && !(step > 0.0 && step <= l->period))
+        || (method != VSJ_METHOD_DOPRI && method != VSJ_METHOD_RK4
+            && method != VSJ_METHOD_TIMESTEP)) {
         rfail(r, "its solver settings are out of range");
         return;
     }
-    l->solver = (int)method;
+    memset(&l->scheme, 0, sizeof l->scheme);
+    l->scheme.method = (int)method;
+    l->scheme.rtol = rtol;
+    l->scheme.atol = atol;
+    l->scheme.h_max = INFINITY;
+    l->scheme.h = step;
+    l->scheme.substeps = substeps;
+    l->scheme.max_steps = VSJ_MAX_PERIOD_STEPS; /* dopri: the most steps one period takes */
     l->n_inputs = count(r, 1 << 20, "inputs");
     l->input_names = names(r, l->n_inputs);
     state = count(r, 1 << 24, "the state's size");

@@ -23,7 +23,7 @@ int vsj_begin(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, const d
     w->run_steps = 0;
     w->run_status = VSJ_BAD_ARGUMENT;
     if (scheme->method == VSJ_METHOD_DOPRI) {
-        status = vsj_dopri_begin(m, w, y0, ny, t0, t_end, scheme->rtol, scheme->atol,
+        status = vsj__dopri_begin(m, w, y0, ny, t0, t_end, scheme->rtol, scheme->atol,
                                  scheme->h_max, scheme->max_steps, scheme->n_err);
     } else if (scheme->method == VSJ_METHOD_TIMESTEP) {
         if (!(scheme->h > 0.0) || ny < vsj_n_state(m)
@@ -31,7 +31,7 @@ int vsj_begin(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, const d
             return VSJ_BAD_ARGUMENT;
         status = vsj_ts_prepare(m, w);
         if (status == VSJ_OK)
-            status = vsj_ts_begin(m, w, y0, t0);
+            status = vsj__ts_begin(m, w, y0, t0);
         if (status == VSJ_PIVOT_RANGE) /* reported by the advance, at its time */
             status = VSJ_OK;
     } else {
@@ -54,11 +54,11 @@ vsj_report vsj_advance(const vsj_model *m, vsj_work *w, double *y, double t_unti
     if (w->run_status != VSJ_OK)
         return rep;
     if (sc->method == VSJ_METHOD_DOPRI) {
-        rep = vsj_dopri_advance(m, w, samples ? samples->t : NULL, samples ? samples->n : 0,
+        rep = vsj__dopri_advance(m, w, samples ? samples->t : NULL, samples ? samples->n : 0,
                                 samples ? samples->out : NULL, samples ? samples->out_cols : 0,
                                 finish, y);
     } else {
-        rep = vsj_ts_advance(m, w, y, finish ? w->run_end : t_until, sc->h,
+        rep = vsj__ts_advance(m, w, y, finish ? w->run_end : t_until, sc->h,
                              sc->max_steps - w->run_steps, sc->ledger, samples);
         w->run_steps += rep.steps;
         rep.steps = w->run_steps;

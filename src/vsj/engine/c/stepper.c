@@ -86,16 +86,15 @@ double vsj_step_pivot_position(const vsj_model *m, const double *s) {
     return p[2] * p[0] * sin(angle) + (1.0 - p[2]) * p[1];
 }
 
-int vsj_step_dopri(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
-                   double rtol, double atol, int64_t max_steps) {
+static int step_dopri(const vsj_model *m, vsj_work *w, double *s, const double *inputs,
+                      double dt, double rtol, double atol, int64_t max_steps) {
     int64_t ny = vsj_n_state(m);
     vsj_report rep;
     if (!vsj__fits(m, w) || !(dt > 0.0))
         return VSJ_BAD_ARGUMENT;
     hold(m, w, s, inputs);
     to_engine(m, s, inputs, w->sy);
-    rep = vsj_dopri(m, w, w->sy, ny, 0.0, dt, NULL, 0, rtol, atol, INFINITY, max_steps, ny, NULL,
-                    0);
+    rep = vsj__dopri(m, w, w->sy, ny, 0.0, dt, rtol, atol, max_steps, ny);
     w->held = NULL;
     if (rep.status == VSJ_OK)
         from_engine(m, w->sy, inputs, dt, s);
@@ -105,8 +104,8 @@ int vsj_step_dopri(const vsj_model *m, vsj_work *w, double *s, const double *inp
 static const double RK4_C[4] = {0.0, 0.5, 0.5, 1.0};
 static const double RK4_W[4] = {1.0 / 6.0, 2.0 / 6.0, 2.0 / 6.0, 1.0 / 6.0};
 
-int vsj_step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
-                 int64_t substeps) {
+static int step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
+                    int64_t substeps) {
     int64_t ny = vsj_n_state(m), sub, stage, i;
     double *y = w->sy, *k = w->sk, *acc = w->sacc, *yt = w->yt, h;
     int status;
@@ -147,8 +146,8 @@ int vsj_step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *input
     return status;
 }
 
-int vsj_step_timestep(const vsj_model *m, vsj_work *w, double *s, const double *inputs,
-                      double dt, double h) {
+static int step_timestep(const vsj_model *m, vsj_work *w, double *s, const double *inputs,
+                         double dt, double h) {
     int64_t steps;
     vsj_report rep;
     int status;
@@ -157,8 +156,8 @@ int vsj_step_timestep(const vsj_model *m, vsj_work *w, double *s, const double *
     steps = (int64_t)ceil(dt / h - 1e-9);
     hold(m, w, s, inputs);
     to_engine(m, s, inputs, w->sy);
-    status = vsj_ts_begin(m, w, w->sy, 0.0);
-    rep = vsj_ts_advance(m, w, w->sy, dt, h, steps, 0, NULL);
+    status = vsj__ts_begin(m, w, w->sy, 0.0);
+    rep = vsj__ts_advance(m, w, w->sy, dt, h, steps, 0, NULL);
     w->held = NULL;
     if (status == VSJ_OK)
         status = rep.status;
@@ -193,47 +192,24 @@ int vsj_step_rate(const vsj_model *m, vsj_work *w, const double *s, const double
     return status;
 }
 
-int vsj_step_period(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
-                    int method, const double setting[3], double *ledger) {
-    int64_t nstate = vsj_n_state(m), nacc = vsj_n_acc(m), ny = nstate + (ledger ? nacc : 0);
+/* One period with the energy ledger over it (dopri and the time-stepper). */
+static int step_ledger(const vsj_model *m, vsj_work *w, const vsj_scheme *sc, double *s,
+                       const double *inputs, double dt, double *ledger) {
+    int64_t nstate = vsj_n_state(m), nacc = vsj_n_acc(m), ny = nstate + nacc;
     int status;
-    if (!ledger) {
-        if (method == VSJ_STEP_DOPRI)
-            return vsj_step_dopri(m, w, s, inputs, dt, setting[0], setting[1],
-                                  (int64_t)setting[2]);
-        if (method == VSJ_STEP_RK4)
-            return vsj_step_rk4(m, w, s, inputs, dt, (int64_t)setting[0]);
-        if (method == VSJ_STEP_TIMESTEP)
-            return vsj_step_timestep(m, w, s, inputs, dt, setting[0]);
-        return VSJ_BAD_ARGUMENT;
-    }
-    if (!vsj__fits(m, w) || !(dt > 0.0))
-        return VSJ_BAD_ARGUMENT;
+    vsj_report rep;
     hold(m, w, s, inputs);
     to_engine(m, s, inputs, w->sy);
     memset(w->sy + nstate, 0, (size_t)nacc * sizeof(double));
-    if (method == VSJ_STEP_DOPRI) {
-        vsj_report rep;
-        if (!(setting[2] >= 1.0))
-            status = VSJ_BAD_ARGUMENT;
-        else {
-            rep = vsj_dopri(m, w, w->sy, ny, 0.0, dt, NULL, 0, setting[0], setting[1], INFINITY,
-                            (int64_t)setting[2], nstate, NULL, 0);
-            status = rep.status;
-        }
-    } else if (method == VSJ_STEP_TIMESTEP) {
-        double h = setting[0];
-        if (!(h > 0.0) || !(dt / h <= VSJ_MAX_PERIOD_STEPS))
-            status = VSJ_BAD_ARGUMENT;
-        else {
-            vsj_report rep;
-            status = vsj_ts_begin(m, w, w->sy, 0.0);
-            rep = vsj_ts_advance(m, w, w->sy, dt, h, (int64_t)ceil(dt / h - 1e-9), 1, NULL);
-            if (status == VSJ_OK)
-                status = rep.status;
-        }
+    if (sc->method == VSJ_METHOD_DOPRI) {
+        rep = vsj__dopri(m, w, w->sy, ny, 0.0, dt, sc->rtol, sc->atol, sc->max_steps, nstate);
+        status = rep.status;
     } else {
-        status = VSJ_BAD_ARGUMENT; /* rk4 keeps no ledger */
+        status = vsj__ts_begin(m, w, w->sy, 0.0);
+        rep = vsj__ts_advance(m, w, w->sy, dt, sc->h, (int64_t)ceil(dt / sc->h - 1e-9), 1,
+                              NULL);
+        if (status == VSJ_OK)
+            status = rep.status;
     }
     w->held = NULL;
     if (status == VSJ_OK) {
@@ -241,4 +217,30 @@ int vsj_step_period(const vsj_model *m, vsj_work *w, double *s, const double *in
         from_engine(m, w->sy, inputs, dt, s);
     }
     return status;
+}
+
+int vsj_step(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, double *s,
+             const double *inputs, double dt, double *ledger) {
+    int method;
+    if (!scheme || !s || !inputs || !vsj__fits(m, w) || !(dt > 0.0))
+        return VSJ_BAD_ARGUMENT;
+    method = scheme->method;
+    if (method == VSJ_METHOD_TIMESTEP) {
+        if (!(scheme->h > 0.0) || !(dt / scheme->h <= VSJ_MAX_PERIOD_STEPS))
+            return VSJ_BAD_ARGUMENT;
+        if (!vsj__ts_prepared_for(m, w) && vsj_ts_prepare(m, w) != VSJ_OK)
+            return VSJ_BAD_ARGUMENT;
+    } else if (method == VSJ_METHOD_DOPRI) {
+        if (!(scheme->max_steps >= 1))
+            return VSJ_BAD_ARGUMENT;
+    } else if (method != VSJ_METHOD_RK4 || ledger) { /* rk4 keeps no ledger */
+        return VSJ_BAD_ARGUMENT;
+    }
+    if (ledger)
+        return step_ledger(m, w, scheme, s, inputs, dt, ledger);
+    if (method == VSJ_METHOD_DOPRI)
+        return step_dopri(m, w, s, inputs, dt, scheme->rtol, scheme->atol, scheme->max_steps);
+    if (method == VSJ_METHOD_RK4)
+        return step_rk4(m, w, s, inputs, dt, scheme->substeps);
+    return step_timestep(m, w, s, inputs, dt, scheme->h);
 }

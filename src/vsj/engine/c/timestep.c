@@ -442,15 +442,15 @@ static void use_problem(vsj_work *w, impulses *im, int full) {
 }
 
 /* Whether the time-stepper's analysis in w was made for m (its arrays). */
-static int prepared_for(const vsj_model *m, const vsj_work *w) {
+int vsj__ts_prepared_for(const vsj_model *m, const vsj_work *w) {
     const ts_work *t = &w->ts;
     return t->prepared && t->for_par == m->par && t->for_rows == m->xv && t->for_mass == m->mass;
 }
 
-int vsj_ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
+int vsj__ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
     ts_work *t = &w->ts;
     int64_t n, nm, j;
-    if (!vsj__fits(m, w) || !prepared_for(m, w))
+    if (!vsj__fits(m, w) || !vsj__ts_prepared_for(m, w))
         return VSJ_BAD_ARGUMENT;
     n = m->n;
     nm = m->n_motors;
@@ -967,7 +967,7 @@ static int64_t count_steps(const ts_work *t, double t_end, double h, int64_t *wh
     return *whole + (t_end - (t->origin + k_end * h) > 1e-9 * h ? 1 : 0);
 }
 
-vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_end, double h,
+vsj_report vsj__ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_end, double h,
                           int64_t max_steps, int ledger, const vsj_samples *smp) {
     ts_work *t = &w->ts;
     vsj_report rep;
@@ -978,7 +978,7 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
     rep.t = t0;
     rep.steps = 0;
     rep.rejected = 0;
-    if (!vsj__fits(m, w) || !prepared_for(m, w) || !(h > 0.0) || !(t_end >= t0)) {
+    if (!vsj__fits(m, w) || !vsj__ts_prepared_for(m, w) || !(h > 0.0) || !(t_end >= t0)) {
         rep.status = VSJ_BAD_ARGUMENT;
         return rep;
     }
@@ -1033,24 +1033,6 @@ vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_e
                 status = VSJ_NOT_FINITE;
     rep.status = status;
     rep.t = tnow;
-    return rep;
-}
-
-vsj_report vsj_timestep(const vsj_model *m, vsj_work *w, double *y, double duration, double h,
-                        int64_t max_steps, int ledger, const vsj_samples *samples,
-                        int64_t *transitions) {
-    vsj_report rep;
-    int status = vsj_ts_prepare(m, w);
-    rep.status = status;
-    rep.t = 0.0;
-    rep.steps = 0;
-    rep.rejected = 0;
-    if (status != VSJ_OK)
-        return rep;
-    vsj_ts_begin(m, w, y, 0.0); /* a pivot out of range is reported by the advance */
-    rep = vsj_ts_advance(m, w, y, duration, h, max_steps, ledger, samples);
-    if (transitions)
-        vsj_ts_transitions(w, transitions);
     return rep;
 }
 

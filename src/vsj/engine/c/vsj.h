@@ -207,31 +207,6 @@ typedef struct vsj_report {
     int64_t rejected;    /* adaptive solver: rejected steps */
 } vsj_report;
 
-/* Adaptive Dormand-Prince 5(4) from t0 to t_end (smooth friction laws; not for
- * a model with a rigid end stop, which is a constraint of the time-stepper).
- * y (ny values, see vsj_derivatives) is the initial state and receives the
- * final one (the last good one on failure). The leading out_cols components
- * are written to out (n_out rows) at each time of t_out (increasing). n_err
- * leading components enter the error norm. */
-vsj_report vsj_dopri(const vsj_model *m, vsj_work *w, double *y, int64_t ny, double t0,
-                     double t_end, const double *t_out, int64_t n_out, double rtol, double atol,
-                     double h_max, int64_t max_steps, int64_t n_err, double *out,
-                     int64_t out_cols);
-
-/* The same integration, resumable: vsj_dopri_begin sets the initial state (ny values)
- * at t0 and the settings; each vsj_dopri_advance writes the samples at the times of
- * t_out (increasing, after those of earlier calls, not beyond t_end), stepping as far
- * as they need and, with `finish`, on to t_end. The steps taken do not depend on how
- * the samples are split between calls, so a run sampled in blocks equals one sampled
- * at once, bit for bit. y_now (ny values, may be NULL) receives the state where the
- * integration stands; the report counts the steps since vsj_dopri_begin. */
-int vsj_dopri_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t ny, double t0,
-                    double t_end, double rtol, double atol, double h_max, int64_t max_steps,
-                    int64_t n_err);
-vsj_report vsj_dopri_advance(const vsj_model *m, vsj_work *w, const double *t_out,
-                             int64_t n_out, double *out, int64_t out_cols, int finish,
-                             double *y_now);
-
 /* Sampling of the time-stepper: state rows (out_cols leading components) and,
  * if `coulomb` is not NULL, the Coulomb torque of each friction element and
  * whether it held (rows of n_frictions). */
@@ -248,8 +223,9 @@ typedef struct vsj_samples {
 
 /* The integration schemes. */
 enum vsj_method {
-    VSJ_METHOD_DOPRI = 0,   /* adaptive Dormand-Prince 5(4): smooth friction laws */
-    VSJ_METHOD_TIMESTEP = 1 /* the time-stepper: true stiction, rigid end stops, any law */
+    VSJ_METHOD_DOPRI = 0,    /* adaptive Dormand-Prince 5(4): smooth friction laws */
+    VSJ_METHOD_TIMESTEP = 1, /* the time-stepper: true stiction, rigid end stops, any law */
+    VSJ_METHOD_RK4 = 2       /* classical Runge-Kutta, fixed substeps: held periods only */
 };
 
 /* A scheme and its settings. */
@@ -261,9 +237,10 @@ typedef struct vsj_scheme {
     int64_t max_steps;       /* most steps of the whole run */
     int ledger;              /* time-stepper: book the energy ledger into y's accumulators
                               * (dopri integrates them when y carries them) */
+    int64_t substeps;        /* rk4: steps per held period */
 } vsj_scheme;
 
-/* Starts a run of `scheme` from y0 (ny values: the state, or the state and the
+/* Starts a run of `scheme` (dopri or the time-stepper) from y0 (ny values: the state, or the state and the
  * ledger's accumulators, see vsj_n_acc) at time t0, to end at t_end. */
 int vsj_begin(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, const double *y0,
               int64_t ny, double t0, double t_end);
@@ -274,27 +251,13 @@ int vsj_begin(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, const d
 vsj_report vsj_advance(const vsj_model *m, vsj_work *w, double *y, double t_until, int finish,
                        const vsj_samples *samples);
 
-/* Fixed-step time-stepping with exact Coulomb stiction from t = 0 to
- * `duration` with step h (report section 4.1.3: true sticking). Springs' end
- * stops are unilateral constraints solved with the friction impulses (any
- * stiffness, rigid included), so a stiff stop cannot destabilise a step. y holds
- * 2n + n_motors state values and, with `ledger`, the vsj_n_acc accumulators
- * after them; it receives the final state. transitions (n_frictions, may be
- * NULL) receives the number of starts and ends of stick phases per element. */
-vsj_report vsj_timestep(const vsj_model *m, vsj_work *w, double *y, double duration, double h,
-                        int64_t max_steps, int ledger, const vsj_samples *samples,
-                        int64_t *transitions);
-
-/* The time-stepper, resumable: vsj_ts_prepare analyses the model (call it
- * again when its parameters change) and clears the stick/slip history;
- * vsj_ts_begin sets the state at time t0; vsj_ts_advance steps to t_end (the
- * last step shortened to land on it). */
+/* The time-stepper's analysis of a model (report section 4.1.3: true sticking; end
+ * stops are unilateral constraints solved with the friction impulses): vsj_begin and
+ * vsj_step make it for a work that has none for this model; call it again after
+ * changing a model's parameters in place. It clears the stick/slip history. */
 int vsj_ts_prepare(const vsj_model *m, vsj_work *w);
-int vsj_ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0);
-vsj_report vsj_ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_end, double h,
-                          int64_t max_steps, int ledger, const vsj_samples *samples);
 /* Per element: the stick-phase transitions counted since vsj_ts_prepare, and
- * whether it holds now (after vsj_ts_advance). Arrays of n_frictions. */
+ * whether it holds now. Arrays of n_frictions. */
 void vsj_ts_transitions(const vsj_work *w, int64_t *transitions);
 int64_t vsj_ts_stuck(const vsj_model *m, const vsj_work *w, unsigned char *stuck);
 /* The time-stepper's whole history (state, warm start, stick counters) as
@@ -326,26 +289,13 @@ int64_t vsj_step_state_size(const vsj_model *m);
 /* The most steps (rk4 substeps, time-stepper steps) one call may take. */
 #define VSJ_MAX_PERIOD_STEPS 10000000
 
-/* Advance s in place by dt with adaptive DOPRI5 (unchanged on failure). */
-int vsj_step_dopri(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
-                   double rtol, double atol, int64_t max_steps);
-/* Advance s in place by dt with `substeps` classical Runge-Kutta steps (as
- * vsj_dopri: no rigid end stops). */
-int vsj_step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
-                 int64_t substeps);
-/* Advance s in place by dt with the time-stepper at step h (true stiction);
- * vsj_ts_prepare must have been called for this model (VSJ_BAD_ARGUMENT if the
- * work was prepared for another). The stick/slip history is kept in the work
- * from one call to the next. */
-int vsj_step_timestep(const vsj_model *m, vsj_work *w, double *s, const double *inputs,
-                      double dt, double h);
-/* One period with any of the three methods (setting: rtol, atol, max_steps for
- * dopri; substeps for rk4; h for the time-stepper) and, if `ledger` is not
- * NULL (dopri and the time-stepper), the energy ledger over the period:
- * vsj_n_acc values, each accumulator's change (see vsj_n_acc). */
-enum vsj_step_method { VSJ_STEP_DOPRI = 0, VSJ_STEP_RK4 = 1, VSJ_STEP_TIMESTEP = 2 };
-int vsj_step_period(const vsj_model *m, vsj_work *w, double *s, const double *inputs, double dt,
-                    int method, const double setting[3], double *ledger);
+/* Advance s in place by one period dt with `inputs` held, by `scheme`: dopri (rtol,
+ * atol, max_steps), rk4 (substeps; no rigid end stops, no ledger) or the time-stepper
+ * (h; its stick/slip history is kept in the work from one period to the next). If
+ * `ledger` is not NULL it receives the energy ledger over the period (vsj_n_acc
+ * values, each accumulator's change). s is unchanged on failure. */
+int vsj_step(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, double *s,
+             const double *inputs, double dt, double *ledger);
 /* ds/dt at s for held inputs (the source speeds' derivatives drop out). */
 int vsj_step_rate(const vsj_model *m, vsj_work *w, const double *s, const double *inputs,
                   double *ds);
@@ -367,10 +317,8 @@ typedef struct vsj_loaded {
     int64_t n_outputs;
     char **output_names;
     double *output_rows;        /* n_outputs * vsj_step_state_size */
-    int solver;                 /* 0: dopri, 1: rk4, 2: time-stepper */
+    vsj_scheme scheme;          /* the scheme it was exported with (for vsj_step) */
     double period;              /* the control period it was exported for [s] */
-    double rtol, atol, step;    /* dopri tolerances, time-stepper step [s] */
-    int64_t substeps;           /* rk4 */
     vsj_model *owned;           /* the memory of `model`'s arrays */
 } vsj_loaded;
 
