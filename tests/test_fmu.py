@@ -34,6 +34,7 @@ from vsj import fmu, params, scenario
 from vsj.engine.core import IMPULSE_REL
 from vsj.inputs import Constant, Hold
 from vsj.simulate import InitialState, SimulationOptions, simulate
+from vsj.simulate.signals import catalogue
 from vsj.wrist import WristOptions, build_wrist
 
 H = 1e-3
@@ -142,6 +143,13 @@ def test_fmpy_validates_the_fmu_and_the_binary_exports_every_fmi2_function(wrist
     assert variables["transmission.stiction"].variability == "tunable"
     assert variables["transmission.stiction"].unit == "N.m"
     assert variables["theta_x"].causality == "output" and variables["theta_x"].unit == "rad"
+    # the outputs that are signals of a run say what the run's signal table says
+    table = {s.name: s for s in catalogue(build_wrist(params.default()).assemble(),
+                                          ports=False)}
+    for name, signal in fmu.OUTPUTS:
+        if signal is not None:
+            assert variables[name].description == table[signal].description, name
+            assert variables[name].unit == table[signal].unit.replace(" ", "."), name  # FMI's
     assert variables["pivot_q0"].start == str(Q0) or float(variables["pivot_q0"].start) == Q0
     assert {"planetary.sun_teeth", "transmission.ratio"} <= set(info["constant"])
     for name in ("sources/vsj_fmu.c", "sources/timestep.c", "sources/buildDescription.xml",

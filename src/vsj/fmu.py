@@ -64,29 +64,38 @@ from .errors import InputError
 from .params import RELATIONS, SCHEMA, Parameters
 from .params import default as default_params
 from .simulate import DIVERGED, INTO_STOP, InitialState, SimulationOptions
+from .simulate.signals import SignalSpec, catalogue
 from .springs import EXPONENTIAL, EXPONENTIAL_FIELDS, GEOMETRIC, GEOMETRIC_REPORT, GEOMETRY_FIELDS
 from .wrist import WristOptions
 
 MODEL_IDENTIFIER = "vsj_wrist"
 #: value references (see vsj/fmi/vsj_fmu.c)
 VR_OUTPUT, VR_Q0, VR_PARAMETER = 10, 99, 100
-OUTPUTS = [  # name, unit, description; in the order of the C `enum output`
-    ("theta_x", "rad", "end-effector angle about x"),
-    ("theta_y", "rad", "end-effector angle about y"),
-    ("deflection_1", "rad", "deflection of elastic element 1 (its ring against its lever)"),
-    ("deflection_2", "rad", "deflection of elastic element 2"),
-    ("q", "m", "pivot position of the variable stiffness mechanism"),
-    ("motor_1_angle", "rad", "angle of primary motor 1 (after its gearhead)"),
-    ("motor_2_angle", "rad", "angle of primary motor 2"),
-    ("motor_s_angle", "rad", "angle of the stiffness (pivot) motor"),
-    ("motor_1_speed", "rad/s", "speed of primary motor 1"),
-    ("motor_2_speed", "rad/s", "speed of primary motor 2"),
-    ("motor_s_speed", "rad/s", "speed of the stiffness motor"),
-    ("power_in", "W", ("mean power delivered by the motors and the external torques over the "
-                       "last communication step")),
-    ("power_dissipated", "W", ("mean power dissipated by friction, armature resistance and "
-                               "end stops over the last communication step")),
+#: The FMU's outputs, in the order of the C `enum output`: FMI name and the signal of
+#: the wrist's table (`vsj.simulate.signals.catalogue`) it is, whose unit and
+#: description it takes; the two mean powers are the FMU's own (`OWN_OUTPUTS`).
+OUTPUTS = [
+    ("theta_x", "theta_x"),
+    ("theta_y", "theta_y"),
+    ("deflection_1", "spring.vsm_1.deflection"),
+    ("deflection_2", "spring.vsm_2.deflection"),
+    ("q", "q"),
+    ("motor_1_angle", "motor_1"),
+    ("motor_2_angle", "motor_2"),
+    ("motor_s_angle", "motor_s"),
+    ("motor_1_speed", "motor_1.speed"),
+    ("motor_2_speed", "motor_2.speed"),
+    ("motor_s_speed", "motor_s.speed"),
+    ("power_in", None),
+    ("power_dissipated", None),
 ]
+#: Unit and description of the outputs that are not signals of a run.
+OWN_OUTPUTS = {
+    "power_in": ("W", "mean power delivered by the motors and the external torques over the "
+                      "last communication step"),
+    "power_dissipated": ("W", "mean power dissipated by friction, armature resistance and end "
+                              "stops over the last communication step"),
+}
 #: an affine map must reproduce the arrays to this fraction of their largest entry
 AFFINE_TOLERANCE = 1e-9
 SOURCES_C = ("vsj_fmu.c", "fmi2.h")
@@ -226,7 +235,7 @@ def _display(si_unit: str) -> str:
 
 def model_description(document: dict, tunables: list[Tunable], params: Parameters,
                       q0: float, q_range: tuple[float, float], guid: str, step: float,
-                      description: str) -> str:
+                      description: str, signals: dict[str, SignalSpec]) -> str:
     units: dict[str, str] = {}  # FMI unit name -> the same in pint's notation
     variables = []
 
@@ -256,7 +265,9 @@ def model_description(document: dict, tunables: list[Tunable], params: Parameter
                 "tau_y": "external torque on the end-effector about y"}.get(
             entry["name"], f"command of {entry['name']} (held over each communication step)")
         real(entry["name"], vr, "input", "continuous", unit, what, start=0.0)
-    for k, (name, unit, text) in enumerate(OUTPUTS):
+    for k, (name, signal) in enumerate(OUTPUTS):
+        unit, text = ((signals[signal].unit.replace(" ", "*"), signals[signal].description)
+                      if signal else OWN_OUTPUTS[name])
         real(name, VR_OUTPUT + k, "output", "continuous", unit, text)
     real("pivot_q0", VR_Q0, "parameter", "fixed", "m",
          "initial pivot position q of the variable stiffness mechanism", start=q0,
@@ -438,8 +449,9 @@ def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None =
         (root / "resources").mkdir()
         (root / "sources").mkdir()
         (root / "documentation").mkdir()
+        signals = {spec.name: spec for spec in catalogue(stepper.structure, ports=False)}
         (root / "modelDescription.xml").write_text(model_description(
-            document, tunables, params, q0, q_range, guid, step, description))
+            document, tunables, params, q0, q_range, guid, step, description, signals))
         (root / "resources" / "model.vsjm").write_bytes(program)
         (root / "resources" / "fmu.txt").write_text(map_text(guid, body))
         for path in _source_paths():

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import _core
 from .errors import InputError
 
 VISCOUS = 0
@@ -77,8 +78,6 @@ def torque(law: str, speeds, *, viscous=0.0, stiction=0.0, sharpness=1.0, width=
     Coulomb torque ``k pi/2 sign(s)`` is added to the viscous part (at ``s = 0``
     the torque is whatever holds the element and is not a function of speed).
     """
-    from . import _core
-
     code = law_code(law)
     shape = np.shape(np.atleast_1d(speeds))
     s = np.ascontiguousarray(np.asarray(speeds, dtype=float).ravel())

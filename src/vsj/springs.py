@@ -58,6 +58,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import _core
+
 LINEAR = 0
 EXPONENTIAL = 1
 GEOMETRIC = 2
@@ -98,8 +100,6 @@ def _row(p) -> np.ndarray:
 def extensions(phi: float, q: float, p) -> tuple[float, float]:
     """Extensions ``l - s0`` [m] of springs a and b (negative: slack); ``p`` the
     geometric parameter row."""
-    from . import _core
-
     return _core.spring_extensions(_row(p), float(phi), float(q))
 
 
@@ -115,8 +115,6 @@ def geometry(phi: float, q: float, p) -> tuple[float, ...]:
     dT_phi/dphi)`` where the first four belong to the potential model and
     ``T_phi`` is eq 3.8 (the report's reaction torque, applied to the ring as
     ``-T_phi``)."""
-    from . import _core
-
     return _core.spring_geometry(_row(p), float(phi), float(q))
 
 
@@ -126,8 +124,6 @@ def evaluate(law: int, par, phi, q: float):
     direction), the stiffness ``-dtorque/dphi``, the stored energy ``V`` and
     ``dV/dq`` (the force the springs put on the pivot is ``-dV/dq``). A
     non-finite result means the geometry broke down (``q + R <= 0``)."""
-    from . import _core
-
     phis = np.ascontiguousarray(np.atleast_1d(np.asarray(phi, dtype=float)).ravel())
     out = np.empty((phis.shape[0], 4))
     _core.spring_law(int(law), _row(par), phis, float(q), out)

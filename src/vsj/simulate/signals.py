@@ -77,9 +77,10 @@ def catalogue(structure: Structure, *, ports: bool) -> list[SignalSpec]:
     probes = list(structure.signals) + [Signal(f, f) for f in structure.free if f not in named]
     for s in probes:
         rx, ru = structure.rows(s.flange)
-        add(s.name, "rad", f"angle of flange {s.flange}",
+        what = f"{s.description} (flange {s.flange})" if s.description else f"flange {s.flange}"
+        add(s.name, "rad", f"angle: {what}",
             lambda b, rx=rx, ru=ru: b.col("x") @ rx + b.col("sigma") @ ru, "sigma", "x")
-        add(f"{s.name}.speed", "rad/s", f"speed of flange {s.flange}",
+        add(f"{s.name}.speed", "rad/s", f"speed: {what}",
             lambda b, rx=rx, ru=ru: b.col("v") @ rx + b.col("u") @ ru, "u", "v")
     if structure.pivot.flange is not None or structure.springs:
         add("q", "m", "pivot position of the elastic elements", lambda b: b.col("q")[:, 0], "q")
