@@ -11,7 +11,7 @@ speeds are the scenario's mean speeds over each step, held.
   same scenario (the baseline a vsj user has).
 * C: a small driver, compiled here, loads the FMU's ``.so`` with ``dlopen`` and
   calls ``fmi2SetReal`` and ``fmi2DoStep`` 10 000 times; in the same process and
-  in interleaved rounds it steps the FMU's model file (``resources/model.json``,
+  in interleaved rounds it steps the FMU's model file (``resources/model.vsjm``,
   read by ``vsj_load_model``) with the C core's ``vsj_step`` on the same
   inputs, without and with its energy ledger. The first ratio is the FMI layer's
   overhead (target: within 1.5x); the FMU keeps the ledger (its power outputs and
@@ -98,7 +98,7 @@ static void *symbol(void *lib, const char *name) {
 }
 
 int main(int argc, char **argv) {
-    /* so, resources URI, model.json, inputs file, steps, rounds, GUID */
+    /* so, resources URI, model.vsjm, inputs file, steps, rounds, GUID */
     void *lib;
     FILE *f;
     long steps, rounds, k, r, i;
@@ -274,7 +274,7 @@ def main() -> int:
                        check=True)
         done = subprocess.run([str(exe), str(unzipped / "binaries" / "linux64" / "vsj_wrist.so"),
                                (unzipped / "resources").as_uri(),
-                               str(unzipped / "resources" / "model.json"),
+                               str(unzipped / "resources" / "model.vsjm"),
                                str(root / "inputs.bin"), str(steps), str(C_ROUNDS),
                                read_model_description(str(path)).guid],
                               capture_output=True, text=True, check=False)
