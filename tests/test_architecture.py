@@ -124,3 +124,29 @@ def test_every_page_is_made_by_vsj_pages():
                     if p.name != "pages.py" and ("<html" in (text := p.read_text()).lower()
                                                  or "<!doctype" in text.lower()))
     assert shells == [], f"pages with their own HTML shell: {shells}"
+
+
+def test_each_law_is_one_line_of_the_engines_table():
+    """The friction and spring laws' codes and names come from engine/c/vsj_layout.h's
+    tables (through `vsj._core.LAYOUT`): Python declares none of its own, and the engine
+    evaluates every law of its tables and refuses a code past them."""
+    import numpy as np
+
+    from vsj import _core, friction, springs
+
+    assert tuple(friction.LAWS) == _core.LAYOUT["friction_laws"]
+    assert tuple(springs.MODELS) == _core.LAYOUT["spring_laws"]
+    assert list(friction.LAWS.values()) == list(range(len(friction.LAWS)))
+    for law in friction.LAWS:
+        torque = friction.torque(law, np.array([-0.3, 0.2]), viscous=0.01, stiction=0.02,
+                                 sharpness=10.0, width=0.1)
+        assert np.all(np.isfinite(torque)) and torque[0] < 0 < torque[1], law
+    out = np.empty((1, 4))
+    for code in springs.MODELS.values():
+        _core.spring_law(code, np.full(9, 0.01) + np.eye(9)[6], np.array([0.01]), 0.0, out)
+    import pytest
+
+    with pytest.raises(ValueError, match="unknown friction law"):
+        _core.friction_torque(len(friction.LAWS), 0.0, 0.0, 1.0, 1.0, np.zeros(1), np.zeros(1))
+    with pytest.raises(ValueError, match="unknown spring law"):
+        _core.spring_law(len(springs.MODELS), np.zeros(9), np.zeros(1), 0.0, out)

@@ -273,14 +273,32 @@ static PyTypeObject ModelType = {
     .tp_new = model_new,
 };
 
-/* The layout, for Python: {"sizes": (names...), "arrays": ((name, kind, doc), ...)}
- * with kind "float64" or "int64". */
+#define LAW_NAME(NAME, name, description) name,
+static const char *const FRICTION_LAW_NAMES[] = {VSJ_FRICTION_LAWS(LAW_NAME)};
+static const char *const SPRING_LAW_NAMES[] = {VSJ_SPRING_LAWS(LAW_NAME)};
+
+/* The names of a table of laws, in the order of their codes. */
+static PyObject *law_names(const char *const *names, int count) {
+    PyObject *out = PyTuple_New(count);
+    int i;
+    for (i = 0; out && i < count; i++)
+        PyTuple_SET_ITEM(out, i, PyUnicode_FromString(names[i]));
+    return out;
+}
+
+/* The layout, for Python: {"sizes": (names...), "arrays": ((name, kind, doc), ...),
+ * "friction_laws": (names...), "spring_laws": (names...)} with kind "float64" or
+ * "int64" and each law's code its index. */
 static PyObject *layout_object(void) {
     PyObject *sizes = PyTuple_New(N_SIZES), *arrays = PyTuple_New(N_ARRAYS), *out;
+    PyObject *friction = law_names(FRICTION_LAW_NAMES, VSJ_N_FRICTION_LAWS);
+    PyObject *spring = law_names(SPRING_LAW_NAMES, VSJ_N_SPRING_LAWS);
     int i;
-    if (!sizes || !arrays) {
+    if (!sizes || !arrays || !friction || !spring) {
         Py_XDECREF(sizes);
         Py_XDECREF(arrays);
+        Py_XDECREF(friction);
+        Py_XDECREF(spring);
         return NULL;
     }
     for (i = 0; i < N_SIZES; i++)
@@ -290,7 +308,8 @@ static PyObject *layout_object(void) {
                                                   ARRAY_KINDS[i] == VSJ_REAL ? "float64"
                                                                              : "int64",
                                                   ARRAY_DOCS[i]));
-    out = Py_BuildValue("{sNsN}", "sizes", sizes, "arrays", arrays);
+    out = Py_BuildValue("{sNsNsNsN}", "sizes", sizes, "arrays", arrays, "friction_laws",
+                        friction, "spring_laws", spring);
     return out;
 }
 
@@ -1008,7 +1027,7 @@ static PyObject *py_spring_law(PyObject *mod, PyObject *args) {
     (void)mod;
     if (!PyArg_ParseTuple(args, "iOOdO:spring_law", &law, &opar, &ophi, &q, &oout))
         return NULL;
-    if (law < VSJ_LINEAR || law > VSJ_GEOMETRIC_REPORT) {
+    if (law < VSJ_LINEAR || law >= VSJ_N_SPRING_LAWS) {
         PyErr_Format(PyExc_ValueError, "unknown spring law %d", law);
         return NULL;
     }
@@ -1059,7 +1078,7 @@ static PyObject *py_friction_torque(PyObject *mod, PyObject *args) {
     (void)mod;
     if (!PyArg_ParseTuple(args, "iddddOO:friction_torque", &law, &b, &k, &kb, &w, &os, &oout))
         return NULL;
-    if (law < VSJ_VISCOUS || law > VSJ_STICTION) {
+    if (law < VSJ_VISCOUS || law >= VSJ_N_FRICTION_LAWS) {
         PyErr_Format(PyExc_ValueError, "unknown friction law %d", law);
         return NULL;
     }

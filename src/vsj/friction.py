@@ -36,14 +36,11 @@ import numpy as np
 from . import _core
 from .errors import InputError
 
-VISCOUS = 0
-ARCTAN = 1
-SIGN = 2
-SLOPE = 3
-STICTION = 4
-
-LAWS = {"viscous": VISCOUS, "arctan": ARCTAN, "sign": SIGN, "slope": SLOPE, "stiction": STICTION}
+#: The friction laws by name, with their engine codes (engine/c/vsj_layout.h's table).
+LAWS = {name: code for code, name in enumerate(_core.LAYOUT["friction_laws"])}
 LAW_NAMES = {code: name for name, code in LAWS.items()}
+VISCOUS, ARCTAN, SIGN, SLOPE, STICTION = (LAWS[n] for n in ("viscous", "arctan", "sign",
+                                                             "slope", "stiction"))
 
 #: Arctan sharpness k_b [s/rad] of an element built without one (a component used
 #: outside a parameter set; the wrist takes friction.arctan_sharpness from its set).

@@ -60,13 +60,11 @@ import numpy as np
 
 from . import _core
 
-LINEAR = 0
-EXPONENTIAL = 1
-GEOMETRIC = 2
-GEOMETRIC_REPORT = 3
-
-MODELS = {"linear": LINEAR, "exponential": EXPONENTIAL, "geometric": GEOMETRIC,
-          "geometric-report": GEOMETRIC_REPORT}
+#: The spring laws (models) by name, with their engine codes (engine/c/vsj_layout.h's
+#: table).
+MODELS = {name: code for code, name in enumerate(_core.LAYOUT["spring_laws"])}
+LINEAR, EXPONENTIAL, GEOMETRIC, GEOMETRIC_REPORT = (
+    MODELS[n] for n in ("linear", "exponential", "geometric", "geometric-report"))
 MODEL_NAMES = {code: name for name, code in MODELS.items()}
 
 #: Length of every law's parameter row (unused trailing entries are zero).

@@ -199,7 +199,7 @@ double vsj__spring(int64_t law, const double *p, double phi, double q, double *s
 }
 
 int vsj_spring_law(int law, const double par[VSJ_NPAR], double phi, double q, double out[4]) {
-    if (law < VSJ_LINEAR || law > VSJ_GEOMETRIC_REPORT)
+    if (law < VSJ_LINEAR || law >= VSJ_N_SPRING_LAWS)
         return VSJ_BAD_ARGUMENT;
     out[0] = vsj__spring(law, par, phi, q, &out[1], &out[2], &out[3], NULL, 1);
     return VSJ_OK;

@@ -142,7 +142,7 @@ int vsj_check_model(const vsj_model *m, char *message, size_t size) {
     for (r = 0; r < f; r++) {
         const double *p = m->par + VSJ_NPAR * r;
         double first = p[VSJ_F_TABLE], count = p[VSJ_F_ROWS], ch = p[VSJ_F_CHANNEL];
-        if (m->code[r] < VSJ_VISCOUS || m->code[r] > VSJ_STICTION)
+        if (m->code[r] < VSJ_VISCOUS || m->code[r] >= VSJ_N_FRICTION_LAWS)
             return fail(message, size, "model: friction row %lld has unknown law %lld",
                         (long long)r, (long long)m->code[r]);
         if (m->code[r] == VSJ_SLOPE && !(p[VSJ_F_WIDTH] > 0.0))
@@ -171,7 +171,7 @@ int vsj_check_model(const vsj_model *m, char *message, size_t size) {
         }
     }
     for (r = f; r < f + k; r++)
-        if (m->code[r] < VSJ_LINEAR || m->code[r] > VSJ_GEOMETRIC_REPORT)
+        if (m->code[r] < VSJ_LINEAR || m->code[r] >= VSJ_N_SPRING_LAWS)
             return fail(message, size, "model: spring row %lld has unknown law %lld",
                         (long long)r, (long long)m->code[r]);
     for (r = f + k; r < f + k + nl + nm; r++)

@@ -58,22 +58,11 @@ enum vsj_status {
     VSJ_NO_MEMORY = 7
 };
 
-/* Friction laws (vsj.friction): the resistive torque f(s) of a relative speed s. */
-enum vsj_friction_law {
-    VSJ_VISCOUS = 0,  /* b s */
-    VSJ_ARCTAN = 1,   /* b s + k atan(k_b s), report eq 3.17 */
-    VSJ_SIGN = 2,     /* b s + k pi/2 sign(s), eq 3.18 */
-    VSJ_SLOPE = 3,    /* b s + k pi/2 clip(s / w, -1, 1), fig 4.8 */
-    VSJ_STICTION = 4  /* b s plus a Coulomb impulse decided by the time-stepper */
-};
-
-/* Spring laws (vsj.springs). */
-enum vsj_spring_law {
-    VSJ_LINEAR = 0,           /* par: k */
-    VSJ_EXPONENTIAL = 1,      /* par: a1, a2, a3, phi_stop, k_stop (eq 4.5) */
-    VSJ_GEOMETRIC = 2,        /* par: R, L, W, x0, y0, s0, k, phi_stop, k_stop: -dV/dphi */
-    VSJ_GEOMETRIC_REPORT = 3  /* same parameters, the ring torque of eq 3.8 */
-};
+/* Friction laws (vsj.friction): the resistive torque f(s) of a relative speed s; and
+ * spring laws (vsj.springs). Each is one line of vsj_layout.h's tables. */
+#define VSJ_LAW_CODE(NAME, name, description) VSJ_##NAME,
+enum vsj_friction_law { VSJ_FRICTION_LAWS(VSJ_LAW_CODE) VSJ_N_FRICTION_LAWS };
+enum vsj_spring_law { VSJ_SPRING_LAWS(VSJ_LAW_CODE) VSJ_N_SPRING_LAWS };
 
 /* The compiled form of an assembled network: its sizes and arrays, each declared
  * once in vsj_layout.h (VSJ_SIZES, VSJ_ARRAYS), which says what each holds. Every

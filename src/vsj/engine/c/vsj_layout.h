@@ -56,6 +56,23 @@
       "period) and its integral over one period")                                              \
     X(table, VSJ_REAL, 2 * M->n_table, "friction tables: rows of (slip speed, coefficient)")
 
+/* The laws, each one line, its code its place in the table (from 0):
+ * X(NAME, name, description); the enums vsj_friction_law and vsj_spring_law (vsj.h)
+ * and the names Python gives them (vsj.friction.LAWS, vsj.springs) follow from it.
+ * A law's evaluation is in laws.c. */
+#define VSJ_FRICTION_LAWS(X)                                                            \
+    X(VISCOUS, "viscous", "b s")                                                        \
+    X(ARCTAN, "arctan", "b s + k atan(k_b s), report eq 3.17")                          \
+    X(SIGN, "sign", "b s + k pi/2 sign(s), eq 3.18")                                    \
+    X(SLOPE, "slope", "b s + k pi/2 clip(s / w, -1, 1), fig 4.8")                       \
+    X(STICTION, "stiction", "b s plus a Coulomb impulse decided by the time-stepper")
+
+#define VSJ_SPRING_LAWS(X)                                                              \
+    X(LINEAR, "linear", "par: k")                                                       \
+    X(EXPONENTIAL, "exponential", "par: a1, a2, a3, phi_stop, k_stop (eq 4.5)")         \
+    X(GEOMETRIC, "geometric", "par: R, L, W, x0, y0, s0, k, phi_stop, k_stop: -dV/dphi") \
+    X(GEOMETRIC_REPORT, "geometric-report", "same parameters, the ring torque of eq 3.8")
+
 #define VSJ_REAL 0
 #define VSJ_INT 1
 
