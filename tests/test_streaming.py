@@ -18,6 +18,7 @@ import xarray as xr
 
 from vsj import scenario as scenarios
 from vsj.cli import main
+from vsj.errors import InputError
 from vsj.output import verify, write_cases, write_trajectory
 from vsj.simulate import driver
 
@@ -181,3 +182,21 @@ def test_a_killed_long_simulation_leaves_nothing_and_reruns_identically(tmp_path
         assert (out / "trajectory.nc").read_bytes() == expected
         assert verify(out) == []
         assert not [p.name for p in out.iterdir() if p.name.startswith(".")]
+
+
+def test_the_memory_guard_reads_the_control_groups_limit(tmp_path, monkeypatch):
+    """A control group's limit less its use bounds what a run may take: with 64 MiB left
+    in the group, a run whose samples need more is refused up front, naming the limit;
+    an unlimited group ("max", cgroup v2's word) leaves the decision to the others."""
+    limit, usage = tmp_path / "memory.max", tmp_path / "memory.current"
+    limit.write_text(f"{2 ** 31}\n")
+    usage.write_text(f"{2 ** 31 - 2 ** 26}\n")
+    monkeypatch.setattr(driver, "CGROUP_FILES", ((str(limit), str(usage)),))
+    left, what = driver.available_memory()
+    assert what == "the control group's memory limit" and left == 2 ** 26
+    text = SHORT_SCENARIO.replace('duration = "0.3 s"', 'duration = "300 s"').replace(
+        'output_step = "10 ms"', 'output_step = "1 ms"')
+    with pytest.raises(InputError, match="control group's memory limit"):
+        scenarios.run(str(_scenario(tmp_path, text, "long.toml")))
+    limit.write_text("max\n")
+    assert driver.available_memory()[1] != "the control group's memory limit"

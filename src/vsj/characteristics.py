@@ -19,6 +19,9 @@ from .springs import (GEOMETRIC, GEOMETRIC_REPORT, N_PARAMETERS, end_stop, evalu
 
 #: Deflection grid resolution used to search curves [rad].
 GRID = 2e-3
+#: Absolute tolerance [rad] of the deflections found by root finding (`brentq`'s xtol:
+#: the root it returns lies within XTOL plus 4 ulp of it).
+XTOL = 1e-9
 
 
 def torque_curve(law: int, par, q: float, phi) -> np.ndarray:
@@ -66,7 +69,7 @@ def pretension_loss(par, q: float, limit: float | None = None) -> float:
     if below.size == 0:
         return math.inf
     i = int(below[0])
-    return brentq(lambda p: min(spring_extensions(par, q, p)), phis[i - 1], phis[i], xtol=1e-9)
+    return brentq(lambda p: min(spring_extensions(par, q, p)), phis[i - 1], phis[i], xtol=XTOL)
 
 
 def deflection_under(law: int, par, q: float, torque: float,
@@ -86,7 +89,7 @@ def deflection_under(law: int, par, q: float, torque: float,
     if i == 0:
         return 0.0
     return brentq(lambda p: torque_curve(law, par, q, [p])[0] - torque, phis[i - 1], phis[i],
-                  xtol=1e-9)
+                  xtol=XTOL)
 
 
 def nonlinearity(law: int, par, q: float, max_torque: float = 1.0,

@@ -226,6 +226,13 @@ def _read_number(path: str) -> float | None:
     return None if text in ("", "max") else float(text)
 
 
+#: Where a control group says its memory limit and use: (limit, usage) files of
+#: cgroup v2, then v1; the first pair that reads is taken.
+CGROUP_FILES = (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+                ("/sys/fs/cgroup/memory/memory.limit_in_bytes",
+                 "/sys/fs/cgroup/memory/memory.usage_in_bytes"))
+
+
 def available_memory() -> tuple[float, str]:
     """Bytes this process can still take, and what limits it: the least of the
     machine's available memory (MemAvailable), the address-space limit (RLIMIT_AS,
@@ -251,9 +258,7 @@ def available_memory() -> tuple[float, str]:
             limits.append((soft - mapped, "the address-space limit (ulimit -v)"))
     except (ImportError, OSError, ValueError):
         pass
-    for limit, usage in (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
-                         ("/sys/fs/cgroup/memory/memory.limit_in_bytes",
-                          "/sys/fs/cgroup/memory/memory.usage_in_bytes")):
+    for limit, usage in CGROUP_FILES:
         top, used = _read_number(limit), _read_number(usage)
         if top is not None and used is not None and top < 2 ** 60:
             limits.append((top - used, "the control group's memory limit"))
