@@ -20,6 +20,8 @@ def _params(path: str | None):
 
 
 def cmd_params(args) -> int:
+    """``vsj params``: print a parameter set (value, unit, description, source per key), or
+    with ``--check`` validate a file. Returns the exit code (0)."""
     params = _params(args.check or args.file)
     if args.check:
         print(f"{args.check}: ok ({len(params.values)} parameters, hash {params.hash()[:12]})")
@@ -35,6 +37,9 @@ def cmd_params(args) -> int:
 
 
 def cmd_simulate(args) -> int:
+    """``vsj simulate``: run every case of a scenario and write trajectory.nc and meta.json
+    (trajectory.csv, trajectory.png on request) as one result set. Returns the exit code:
+    0, or 1 if a case failed."""
     from .. import scenario as scenarios
     from ..output import (ResultSet, TrajectoryFile, atomic_write, parameters_record,
                           trajectory_bytes, write_meta, write_trajectory_csv)
@@ -101,6 +106,8 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_scenarios(args) -> int:
+    """``vsj scenarios``: list the built-in scenarios with their descriptions. Returns the
+    exit code (0)."""
     from .. import scenario as scenarios
 
     for name in scenarios.builtin_names():
@@ -110,6 +117,8 @@ def cmd_scenarios(args) -> int:
 
 
 def cmd_reproduce(args) -> int:
+    """``vsj reproduce``: regenerate the report's figures, report.html and results.json.
+    Returns the exit code: 0, or 1 if a figure failed."""
     import time
 
     from ..reproduce import run
@@ -132,6 +141,8 @@ def cmd_reproduce(args) -> int:
 
 
 def cmd_verify(args) -> int:
+    """``vsj verify``: check an output directory (result sets or a sweep) against its
+    manifest. Returns the exit code: 0 if complete, 1 if not."""
     from ..output import MANIFEST, read_manifest, verify
     from ..sweep import store
 
@@ -162,6 +173,9 @@ def cmd_verify(args) -> int:
 
 
 def cmd_msl(args) -> int:
+    """``vsj msl``: rebuild a Modelica Standard Library example, simulate it with the
+    time-stepper and compare it with the MSL reference result. Returns the exit code: 0,
+    or 1 if it leaves the reference's tube or stick/slip intervals."""
     from dataclasses import asdict
 
     from .. import msl
@@ -203,6 +217,8 @@ def cmd_msl(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``vsj`` command with all its subcommands; each subcommand
+    sets ``func`` to the function that runs it."""
     from .. import __version__
 
     parser = argparse.ArgumentParser(
@@ -266,6 +282,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``vsj`` command with ``argv`` (default: the process's arguments). Returns the
+    exit code: 0 success, 1 a simulation or fit failed, 2 bad input, 130 interrupted."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

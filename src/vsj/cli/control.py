@@ -72,6 +72,9 @@ def _add_wrist_arguments(p, elastic_models, drives, *, pivot_drive: bool = False
 
 
 def cmd_linearize(args) -> int:
+    """``vsj linearize``: the wrist linearised about an operating point, printed (or as
+    JSON) and optionally saved to .json or .npz. Returns the exit code: 0 (bad input
+    raises `InputError`, which `main` turns into 2)."""
     from .. import linear
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
@@ -119,6 +122,9 @@ def cmd_linearize(args) -> int:
 
 
 def cmd_datasheet(args) -> int:
+    """``vsj datasheet``: compute the wrist's datasheet and write it as HTML and JSON in one
+    result set. Returns the exit code: 0 (bad input raises `InputError`, which `main`
+    turns into 2)."""
     from .. import datasheet
     from ..output import ResultSet
 
@@ -135,6 +141,10 @@ def cmd_datasheet(args) -> int:
 
 
 def cmd_export_model(args) -> int:
+    """``vsj export-model``: write the wrist, with a parameter set and model options, as a
+    JSON model file that the C library loads (``vsj_load_model``) and steps one control
+    period at a time. Returns the exit code: 0 (bad input raises `InputError`, which
+    `main` turns into 2)."""
     from .. import export
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
     from ..simulate import InitialState, SimulationOptions
@@ -162,6 +172,9 @@ def cmd_export_model(args) -> int:
 
 
 def cmd_fmu(args) -> int:
+    """``vsj fmu``: build an FMI 2.0 co-simulation FMU of the wrist and/or write an FMI
+    cross-check folder. Returns the exit code: 0 (bad input raises `InputError`, which
+    `main` turns into 2)."""
     from .. import fmu
     from ..output import check_output_file, write_errors
 

@@ -75,6 +75,9 @@ def _results(out: Path | None, kind: str, **options):
 
 
 def cmd_synth_friction(args) -> int:
+    """``vsj synth friction``: write a synthetic torque-velocity curve of the planetary
+    bench (labelled synthetic). Returns the exit code: 0 (bad input raises `InputError`,
+    which `main` turns into 2)."""
     from .. import measurements, synth
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
@@ -132,6 +135,9 @@ def _out(args) -> Path | None:
 
 
 def cmd_fit_friction(args) -> int:
+    """``vsj fit friction``: fit ``T = c1 w + c2 atan(c3 w)`` (report eq 4.2) to one curve,
+    with JSON and a figure. Returns the exit code: 0 (bad input raises `InputError`,
+    which `main` turns into 2)."""
     from .. import measurements
     from ..identification.friction import fit_curve
     from ..identification.plots import friction_figure
@@ -188,6 +194,9 @@ def _check_write_params(args) -> None:
 
 
 def cmd_fit_planetary(args) -> int:
+    """``vsj fit planetary``: the planetary module's parameters from the fixed-sun and
+    fixed-ring curves, optionally written to a parameter file. Returns the exit code: 0,
+    or 1 if no model explains the curves or the written file does not reproduce them."""
     from .. import measurements
     from ..identification.friction import fit_curve
     from ..identification.planetary import fit_planetary
@@ -301,6 +310,9 @@ def _write_planetary_params(args, result) -> float:
 
 
 def cmd_fit_stiffness(args) -> int:
+    """``vsj fit stiffness``: stiffness K per torque-deflection curve and K(q) (report eq
+    4.5) over the curves, optionally the spring geometry calibrated to them. Returns the
+    exit code: 0 (bad input raises `InputError`, which `main` turns into 2)."""
     from .. import characteristics as ch
     from .. import measurements
     from ..identification.plots import geometry_figure, stiffness_figure
@@ -443,6 +455,9 @@ def _setup_file(path) -> dict:
 
 
 def cmd_fit_wrist(args) -> int:
+    """``vsj fit wrist``: the assembled wrist's free parameters from logs of its signals by
+    output error, with standard errors, validation and a report. Returns the exit code: 0
+    (bad input raises `InputError`, which `main` turns into 2)."""
     from .. import measurements
     from ..identification import wrist_report
     from ..identification.wrist import fit_wrist
@@ -514,6 +529,9 @@ def cmd_fit_wrist(args) -> int:
 
 
 def cmd_synth_wrist(args) -> int:
+    """``vsj synth wrist``: a synthetic log of the wrist running an experiment file
+    (labelled synthetic). Returns the exit code: 0 (bad input raises `InputError`, which
+    `main` turns into 2)."""
     from .. import measurements, synth
     from ..identification import wrist_experiment
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
@@ -528,6 +546,9 @@ def cmd_synth_wrist(args) -> int:
 
 
 def cmd_excite(args) -> int:
+    """``vsj excite``: design a D-optimal excitation for the named parameters within the
+    motors' limits and write it as an experiment file. Returns the exit code: 0 (bad
+    input raises `InputError`, which `main` turns into 2)."""
     from ..identification import wrist_experiment
     from ..identification.wrist_model import check_free
     from ..output import SMALL_OUTPUT_BYTES, atomic_write, check_output_file, write_errors

@@ -8,6 +8,9 @@ from pathlib import Path
 
 
 def cmd_sweep(args) -> int:
+    """``vsj sweep``: run a sweep file and write its store, metrics and plots. Returns the
+    exit code: 0 (failed runs are reported, not fatal), 1 if the sweep is unfinished, 130
+    if interrupted."""
     from .. import sweep
     from ..errors import InputError
 
