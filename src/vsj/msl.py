@@ -33,6 +33,7 @@ from . import compare
 from .components import Brake, Clutch, Inertia, SpringDamper, TorqueSource
 from .inputs import Constant, Input, Sine, Step
 from .network import Network, Structure
+from .plots import pyplot, save
 from .simulate import InitialState, Result, SimulationOptions, simulate
 
 
@@ -203,8 +204,6 @@ def figure(example: Example, result: Result, reference: Mapping[str, np.ndarray]
     """One panel per compared signal (the reference, its tube and vsj's samples)
     and one for the stick phases of every friction element, against the
     reference's modes."""
-    from .plots import pyplot, save
-
     plt = pyplot()
     names = list(example.signals)
     fig, axes = plt.subplots(len(names) + 1, 1, figsize=(9, 1.9 * (len(names) + 1) + 0.6),

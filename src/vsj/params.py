@@ -42,6 +42,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Mapping
 
+import tomli_w
+
 from .errors import InputError, read_text
 from .units import format_quantity, to_si
 
@@ -301,8 +303,6 @@ class Parameters:
         """The set as a parameter file (values in their display units, each with the
         fewest digits, 10 at least, that read back as the same number: a file written
         from an identified set gives the set itself)."""
-        import tomli_w
-
         doc: dict = {"meta": dict(self.meta)} if self.meta else {}
         for section, specs in SCHEMA.items():
             doc[section] = {}

@@ -64,16 +64,10 @@ from .errors import InputError, read_text
 from .friction import law_code
 from .inputs import Constant, Input, Position, Sine, Step, Table, circle
 from .network import Network, Structure
-from .params import Parameters
-from .simulate import (
-    InitialState,
-    Result,
-    SimulationOptions,
-    check_run_size,
-    choose_solver,
-    prepare,
-    simulate,
-)
+from .params import Parameters, default
+from .progress import progress as bar
+from .simulate import (InitialState, Result, SimulationOptions, check_run_size, choose_solver,
+                       prepare, simulate)
 from .units import to_si
 from .wrist import DRIVES, ELASTIC_MODELS, WristOptions, build_wrist
 
@@ -547,9 +541,6 @@ def run(scenario: Scenario | str, params: Parameters | None = None, *,
     and powers to the results; ``progress`` shows a bar on stderr. A failed
     run is returned with ``result.success`` False: the caller decides.
     """
-    from .params import default
-    from .progress import progress as bar
-
     scen = load(scenario) if isinstance(scenario, str) else scenario
     params = default() if params is None else params
     prepared = [prepare_case(scen, case, params) for case in scen.cases]

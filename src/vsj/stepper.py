@@ -61,11 +61,10 @@ A `Stepper` holds one work: use one `Stepper` per thread.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Mapping, Sequence
 
 import numpy as np
-
-from dataclasses import replace
 
 from . import _core
 from .engine import OK, STATUS_TEXT
@@ -76,6 +75,7 @@ from .errors import InputError, SimulationError
 from .inputs import Constant
 from .network import Structure
 from .simulate import InitialState, SimulationOptions, prepare
+from .wrist import build_wrist
 
 METHODS = ("dopri", "rk4", "timestep")
 
@@ -166,8 +166,6 @@ class Stepper:
     @classmethod
     def wrist(cls, params, wrist_options=None, period: float = 1e-3, **kwargs) -> "Stepper":
         """A stepper of the whole wrist (`vsj.wrist.build_wrist`)."""
-        from .wrist import build_wrist
-
         return cls(build_wrist(params, wrist_options).assemble(), period, **kwargs)
 
     # -- sizes and names ----------------------------------------------------------------

@@ -25,10 +25,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import __version__
+from .benches import elastic_bench, planetary_bench
 from .errors import InputError
 from .inputs import Position, Sine, Table
+from .measurements import LIMITS
 from .params import Parameters
 from .scenario import staircase
+from .simulate import SimulationOptions, simulate
+from .wrist import WristOptions, build_wrist, elastic_element
 
 #: The report's fitted constants (c1 [N m s/rad], c2 [N m], c3 [s/rad]).
 REPORT_CONSTANTS = {
@@ -77,8 +81,6 @@ def _check_artefacts(noise: float, seed: int, **fractions: float) -> None:
 def _check_constants(constants) -> None:
     """`InputError` unless (c1, c2, c3) make a friction curve: c1, c2 >= 0, not both zero,
     c3 > 0, and torques a bench file can hold over the test's speeds."""
-    from .measurements import LIMITS
-
     if len(constants) != 3:
         raise InputError(f"constants: expected c1, c2, c3, got {len(constants)} values")
     for name, value, unit, low in zip(("c1", "c2", "c3"), constants,
@@ -172,9 +174,6 @@ def friction(*, fixed: str, constants: tuple[float, float, float] | None = None,
 
 
 def _bench_friction(params: Parameters, fixed: str, t, speed_signal):
-    from .benches import planetary_bench
-    from .simulate import SimulationOptions, simulate
-
     structure = planetary_bench(params, fixed=fixed).assemble()
     # the report's final module model (fig 4.7): arctan mesh friction, bearings that stick
     options = SimulationOptions(friction="arctan", friction_overrides=BEARINGS_STICK,
@@ -204,9 +203,6 @@ def stiffness(*, q: float, params: Parameters, noise: float = 0.01, play: float 
     almost constant torque.
     """
     from . import characteristics as ch
-    from .benches import elastic_bench
-    from .simulate import SimulationOptions, simulate
-    from .wrist import elastic_element
 
     lo, hi = params.pivot.q_min, params.pivot.q_max
     if not lo <= q <= hi:
@@ -267,9 +263,6 @@ def wrist_run(experiment, params: Parameters):
     """The noiseless run of ``experiment`` with ``params`` (true stiction, at the
     experiment's step) up to `run_end`: the `vsj.simulate` result every synthetic wrist
     log samples. The inputs follow the experiment's signals past its duration."""
-    from .simulate import SimulationOptions, simulate
-    from .wrist import WristOptions, build_wrist
-
     e = experiment
     end = run_end(e)
     options = WristOptions(motors=e.motors, elastic=e.elastic)

@@ -8,14 +8,19 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
+from dataclasses import asdict
 from pathlib import Path
 
+from .. import __version__, params
 from ..errors import InputError, SimulationError
+from ..progress import progress
+from ..simulate import catalogue, sample_times
+from ..units import to_si
+from . import control, fit, sweep
 
 
 def _params(path: str | None):
-    from .. import params
-
     return params.load(path)
 
 
@@ -43,8 +48,6 @@ def cmd_simulate(args) -> int:
     from .. import scenario as scenarios
     from ..output import (ResultSet, TrajectoryFile, atomic_write, parameters_record,
                           trajectory_bytes, write_meta, write_trajectory_csv)
-    from ..progress import progress
-    from ..simulate import catalogue, sample_times
 
     params = _params(args.params)
     scen = scenarios.load(args.scenario)
@@ -119,8 +122,6 @@ def cmd_scenarios(args) -> int:
 def cmd_reproduce(args) -> int:
     """``vsj reproduce``: regenerate the report's figures, report.html and results.json.
     Returns the exit code: 0, or 1 if a figure failed."""
-    import time
-
     from ..reproduce import run
 
     params = _params(args.params)
@@ -176,11 +177,8 @@ def cmd_msl(args) -> int:
     """``vsj msl``: rebuild a Modelica Standard Library example, simulate it with the
     time-stepper and compare it with the MSL reference result. Returns the exit code: 0,
     or 1 if it leaves the reference's tube or stick/slip intervals."""
-    from dataclasses import asdict
-
     from .. import msl
     from ..output import ResultSet, cases_dataset, write_dataset, write_meta
-    from ..units import to_si
 
     if args.example not in msl.EXAMPLES:
         raise InputError(f"msl: unknown example {args.example!r}; allowed: "
@@ -219,8 +217,6 @@ def cmd_msl(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``vsj`` command with all its subcommands; each subcommand
     sets ``func`` to the function that runs it."""
-    from .. import __version__
-
     parser = argparse.ArgumentParser(
         prog="vsj", description="Model, simulate and characterise the 2-DOF variable "
                                 "stiffness joint.")
@@ -272,8 +268,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", default="msl", help="output directory (default msl)")
     p.add_argument("--no-plot", action="store_true", help="skip the PNG")
     p.set_defaults(func=cmd_msl)
-
-    from . import control, fit, sweep
 
     fit.register(sub)
     control.register(sub)

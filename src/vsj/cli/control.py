@@ -17,18 +17,21 @@ import math
 import sys
 from pathlib import Path
 
+from .. import params
 from ..errors import InputError, SimulationError
+from ..friction import LAWS
+from ..friction import LINEAR_TREATMENTS as FRICTION_TREATMENTS
+from ..simulate import InitialState, SimulationOptions
+from ..stepper import METHODS
+from ..units import to_si
+from ..wrist import DRIVES, ELASTIC_MODELS, WristOptions
 
 
 def _params(path: str | None):
-    from .. import params
-
     return params.load(path)
 
 
 def _quantity(text: str, unit: str, option: str) -> float:
-    from ..units import to_si
-
     value = to_si(text, unit, where=f"option {option}")
     if not math.isfinite(value):
         raise InputError(f"option {option}: {text!r} is not finite")
@@ -46,8 +49,6 @@ def _names(text: str | None) -> list[str] | None:
 
 def _wrist_options(args):
     """WristOptions from the options `_add_wrist_arguments` adds."""
-    from ..wrist import WristOptions
-
     options = WristOptions(elastic=args.elastic, motors=args.motor_model,
                            pivot_drive=getattr(args, "pivot_drive", "velocity"),
                            linear_stiffness=(_quantity(args.linear_stiffness, "N*m",
@@ -147,7 +148,6 @@ def cmd_export_model(args) -> int:
     `main` turns into 2)."""
     from .. import export
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
-    from ..simulate import InitialState, SimulationOptions
 
     check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES, force=args.force)
     params = _params(args.params)
@@ -222,9 +222,6 @@ def cmd_fmu(args) -> int:
 def register(sub) -> None:
     """Add ``linearize``, ``datasheet`` and ``export-model`` to the ``vsj`` command's
     subparsers."""
-    from ..friction import LINEAR_TREATMENTS as FRICTION_TREATMENTS
-    from ..wrist import DRIVES, ELASTIC_MODELS
-
     p = sub.add_parser(
         "linearize", help="linear state-space model of the wrist around an operating point",
         description="Linearise the wrist at a pivot position, motor positions and a static "
@@ -269,9 +266,6 @@ def register(sub) -> None:
                    choices=[m for m in ELASTIC_MODELS if m != "linear"],
                    help="elastic element model (default geometric)")
     p.set_defaults(func=cmd_datasheet)
-
-    from ..friction import LAWS
-    from ..stepper import METHODS
 
     p = sub.add_parser(
         "export-model", help="write the wrist as a model file for the C engine (vsj.h)",

@@ -7,13 +7,22 @@ standard output (messages go to standard error), so it can be piped.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import json
 import math
 import sys
+import tomllib
 from pathlib import Path
 
-from ..errors import InputError
+import numpy as np
+
+from .. import __version__, params
+from ..errors import InputError, read_text
+from ..params import SCHEMA
+from ..springs import GEOMETRIC, GEOMETRY_FIELDS
+from ..units import to_si
+from ..wrist import WristOptions, geometry
 
 
 def _force(parser) -> None:
@@ -25,8 +34,6 @@ def _force(parser) -> None:
 
 def _at_least_one(text: str) -> int:
     """A whole number >= 1 (argparse type): a count of starts or threads."""
-    import argparse
-
     try:
         value = int(text)
     except ValueError:
@@ -47,8 +54,6 @@ def _floats(text: str, count: int, what: str) -> tuple[float, ...]:
 
 
 def _params(path):
-    from .. import params
-
     return params.load(path)
 
 
@@ -179,7 +184,6 @@ def _write_params(path: str, overrides: dict, base: str | None) -> None:
 
     params = _params(base)
     identified = params.with_overrides(overrides, origin=str(path))
-    from .. import __version__
 
     with write_errors("--write-params", path), atomic_write(Path(path)) as handle:
         handle.write(f"# parameter set written by vsj {__version__}\n" + identified.to_toml())
@@ -294,8 +298,6 @@ def _write_planetary_params(args, result) -> float:
     """Write the set with the fit's planetary parameters; run the bench forward with the
     file as written and return its largest deviation from the fitted curves, relative to
     their largest torque."""
-    import numpy as np
-
     from ..identification.planetary import bench_curves
 
     base = _params(args.params)
@@ -319,7 +321,6 @@ def cmd_fit_stiffness(args) -> int:
     from ..identification.stiffness import fit_stiffness
     from ..output import write_meta
     from ..plots import save
-    from ..springs import GEOMETRIC, GEOMETRY_FIELDS
 
     data = [measurements.read(f, required=("deflection", "torque")) for f in args.files]
     if args.write_params and len(data) < 4 and not args.calibrate_geometry:
@@ -333,7 +334,6 @@ def cmd_fit_stiffness(args) -> int:
         record = fit.to_json()
         if args.calibrate_geometry:
             from ..identification.geometry import calibrate_to_curves
-            from ..wrist import geometry
 
             start = dict(zip(GEOMETRY_FIELDS, geometry(_params(args.params))))
             calibration = calibrate_to_curves(fit.curves, start)
@@ -398,10 +398,6 @@ def cmd_fit_stiffness(args) -> int:
 
 
 def _row(dims: dict, start: dict):
-    import numpy as np
-
-    from ..springs import GEOMETRY_FIELDS
-
     return np.array([dims.get(k, start.get(k)) for k in GEOMETRY_FIELDS])
 
 
@@ -411,9 +407,6 @@ def _row(dims: dict, start: dict):
 def _free(items) -> tuple[tuple[str, ...], dict]:
     """``--free NAME`` or ``NAME=LOW,HIGH`` (bounds in the parameter's display unit, as
     `vsj params` shows it) -> names and SI bounds."""
-    from ..params import SCHEMA
-    from ..units import to_si
-
     names, bounds = [], {}
     for item in items:
         name, _, rest = item.partition("=")
@@ -435,10 +428,6 @@ def _free(items) -> tuple[tuple[str, ...], dict]:
 def _setup_file(path) -> dict:
     """A small TOML with any of: inputs, outputs, free (lists of names), window, lead
     (seconds as text with units)."""
-    import tomllib
-
-    from ..errors import read_text
-
     try:
         doc = tomllib.loads(read_text(path, "fit set-up file"))
     except tomllib.TOMLDecodeError as exc:
@@ -462,8 +451,6 @@ def cmd_fit_wrist(args) -> int:
     from ..identification import wrist_report
     from ..identification.wrist import fit_wrist
     from ..identification.wrist_model import Setup, all_known_columns, check_free
-    from ..units import to_si
-    from ..wrist import WristOptions
 
     setup_doc = _setup_file(args.setup) if args.setup else {}
     free_items = list(args.free or []) + list(setup_doc.get("free", []))
@@ -552,7 +539,6 @@ def cmd_excite(args) -> int:
     from ..identification import wrist_experiment
     from ..identification.wrist_model import check_free
     from ..output import SMALL_OUTPUT_BYTES, atomic_write, check_output_file, write_errors
-    from ..units import to_si
 
     names, _ = _free(args.free)
     params = _params(args.params)

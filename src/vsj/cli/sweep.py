@@ -6,13 +6,14 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ..errors import InputError
+
 
 def cmd_sweep(args) -> int:
     """``vsj sweep``: run a sweep file and write its store, metrics and plots. Returns the
     exit code: 0 (failed runs are reported, not fatal), 1 if the sweep is unfinished, 130
     if interrupted."""
     from .. import sweep
-    from ..errors import InputError
 
     if args.chunk is not None and args.chunk < 1:
         raise InputError(f"--chunk {args.chunk}: must be a whole number >= 1")

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import friction
 from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Constraint, Parts
 from ._fields import Field, SchemaComponent, section
@@ -192,8 +193,6 @@ class PlanetaryGearModule(SchemaComponent):
         equal-force relation ``c2 = 2 k_1`` (fixed sun) and ``2 k_1 / x`` (fixed
         ring).
         """
-        from .. import friction
-
         w = np.atleast_1d(np.asarray(carrier_speed, dtype=float))
         x = self.tooth_ratio
         if fixed == "sun":

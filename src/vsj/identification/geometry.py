@@ -35,7 +35,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import differential_evolution
+from scipy.optimize import differential_evolution, least_squares
 
 from .. import characteristics as ch
 from ..springs import GEOMETRIC, GEOMETRY_FIELDS
@@ -190,8 +190,6 @@ def calibrate_to_curves(curves, start: dict) -> CurveCalibration:
     proportion to its torque range, so soft and stiff settings weigh alike),
     starting from ``start`` (for example the bundled estimate).
     """
-    from scipy.optimize import least_squares
-
     if len(curves) < 2:
         raise ValueError("the geometry needs curves at two or more pivot positions")
     data = []

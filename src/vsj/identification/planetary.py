@@ -52,9 +52,12 @@ import numpy as np
 from scipy import stats
 from scipy.optimize import least_squares, linprog, nnls
 
+from ..benches import planetary_bench
 from ..components.planetary import PlanetaryGearModule
 from ..errors import InputError
+from ..inputs import Constant
 from ..params import SCHEMA
+from ..simulate import SimulationOptions, simulate
 from .friction import Estimate, FrictionFit
 
 #: Linear coefficients, their ``[planetary]`` keys and units (the entries' own).
@@ -330,10 +333,6 @@ def bench_curves(params, velocities) -> dict[str, np.ndarray]:
     carrier takes the speed in the first step, and from then on every element slides and
     the drive holds the sum of their torques, which is read after the second step.
     """
-    from ..benches import planetary_bench
-    from ..inputs import Constant
-    from ..simulate import SimulationOptions, simulate
-
     options = SimulationOptions(friction=BENCH_FRICTION, friction_overrides=BENCH_OVERRIDES,
                                 solver="timestep")
     out = {}

@@ -34,7 +34,8 @@ from scipy.optimize import least_squares
 
 from ..errors import InputError, SimulationError
 from ..measurements import LIMITS, Measurement
-from .friction import Estimate
+from ..units import to_si
+from .friction import Estimate, estimates
 
 #: Bands of |phi| whose local stiffness is within this fraction of the innermost
 #: band's belong to the linear regime.
@@ -126,7 +127,6 @@ def pivot_of(m: Measurement) -> float:
     if text is None:
         raise InputError(f"{m.path}: no pivot position; add a 'pivot [cm]' column or a "
                          "comment line '# pivot: 1.4 cm'")
-    from ..units import to_si
 
     where = f"{m.path}, comment 'pivot: {text}'"
     q = to_si(text, "m", where=where)
@@ -288,7 +288,6 @@ def fit_exponential(q, K) -> ExponentialFit:
     result = least_squares(residual, [a1, a2, a3], x_scale="jac")
     if not result.success:
         raise SimulationError(f"the fit of K(q) did not converge ({result.message})")
-    from .friction import estimates
 
     dof = len(q) - 3
     est = estimates(result, ["a1", "a2", "a3"], ["N m/rad", "1/m", "N m/rad"], max(dof, 1))

@@ -76,6 +76,7 @@ from scipy.optimize import least_squares
 from ..errors import InputError, SimulationError
 from ..measurements import Measurement
 from ..params import SCHEMA, Parameters
+from ..units import format_quantity
 from .wrist_model import Setup, WristModel
 
 #: Relative standard error above which a direction of the parameters is not determined.
@@ -215,8 +216,6 @@ class WristFit:
     def overrides(self, files: str) -> dict:
         """Parameter-file overrides of the determined estimates, ``source`` saying where
         they come from (what ``--write-params`` writes)."""
-        from ..units import format_quantity
-
         out = {}
         for e in self.estimates:
             if e.status == "determined":

@@ -36,9 +36,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+import tomli_w
 
+from .. import synth
 from ..errors import InputError, read_text
+from ..measurements import Measurement
 from ..units import format_quantity, to_si
+from .wrist_model import Setup, WristModel
 
 #: Motor signals rise smoothly (quintic smoothstep) over this time [s] from rest.
 FADE = 0.5
@@ -117,8 +121,6 @@ class Experiment:
         return out
 
     def to_toml(self) -> str:
-        import tomli_w
-
         s = self.sensors
         doc = {"experiment": {"description": self.description,
                               "duration": format_quantity(self.duration, "s", digits=10),
@@ -414,8 +416,6 @@ def within_limits(experiment: Experiment, params, limits: MotorLimits):
     needed (to `LIMIT_RESOLUTION`) for every motor to stay within ``limits`` (speed,
     torque, voltage), or None when no scale found does (the external torques or
     friction alone load a motor beyond its limit)."""
-    from .. import synth
-
     def attempt(factor):
         e = experiment if factor == 1.0 else scaled_motors(experiment, factor)
         run = synth.wrist_run(e, params)
@@ -445,10 +445,7 @@ def predicted(experiment: Experiment, params, free, *, threads=None, run=None):
     Fisher information in relative parameter units: the batch Jacobian of a noiseless
     synthetic log (true stiction, windows restarted as the fit restarts them) weighted
     by the sensors' noise. ``run``: `vsj.synth.wrist_run` of the experiment, if at hand."""
-    from .. import synth
-    from ..measurements import Measurement
     from .wrist import FINAL, _Problem
-    from .wrist_model import Setup, WristModel
 
     quiet = replace(experiment.sensors, encoder_counts=2 ** 40, angle_noise=0.0,
                     current_noise=0.0, current_offset=0.0, torque_noise=0.0, q_noise=0.0,

@@ -68,6 +68,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .. import params as params_module
 from ..engine import Engine, compile_model, core
 from ..engine.model import Layout
 from ..engine.plan import Plan, Scheme, run_batch
@@ -161,8 +162,6 @@ def known_columns(structure) -> dict[str, str]:
 
 def all_known_columns() -> dict[str, str]:
     """Columns of a wrist log under either motor model (for reading before choosing)."""
-    from .. import params as params_module
-
     base = params_module.default()
     out = {}
     for motors in ("velocity", "dc"):

@@ -12,6 +12,8 @@ import io
 import math
 
 from .. import __version__
+from ..output import atomic_write, write_meta
+from ..pages import STYLE as _CSS
 from ..plots import MAX_POINTS, pyplot
 
 
@@ -58,8 +60,6 @@ def _png(fig) -> bytes:
 def html_page(fit, figures: dict[str, bytes]) -> str:
     """One self-contained page: estimates, identifiability, correlations, starts, fit
     quality and the figures."""
-    from ..pages import STYLE as _CSS
-
     esc = html.escape
     rows = []
     for e in fit.estimates:
@@ -149,8 +149,6 @@ def _uncertainty(fit) -> list[str]:
 def write(fit, results) -> list[str]:
     """Write ``wrist-fit.json``, ``wrist-fit.html`` and the figures into an open
     `vsj.output.ResultSet`; returns the file names."""
-    from ..output import atomic_write, write_meta
-
     figures = {}
     names = []
     for kind in fit.traces:

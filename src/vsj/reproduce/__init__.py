@@ -23,24 +23,16 @@ import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .. import pages
+from .. import __version__, pages
+from ..errors import InputError
+from ..output import ResultSet, _jsonable, atomic_write
 from ..params import Parameters
-from .base import (
-    AGREEMENT,
-    BY_CONSTRUCTION,
-    CALIBRATION,
-    CATEGORIES,
-    CONSISTENCY,
-    INPUT,
-    LIMIT,
-    PREDICTION,
-    ROUND_TRIP,
-    VARIANT,
-    Context,
-    Figure,
-    Row,
-    statement_verdict,
-)
+from ..plots import save
+from ..progress import progress
+from . import data_figures, model_figures
+from .base import (AGREEMENT, BY_CONSTRUCTION, CALIBRATION, CATEGORIES, CONSISTENCY, INPUT,
+                   LIMIT, PREDICTION, ROUND_TRIP, VARIANT, Context, Figure, Row,
+                   statement_verdict)
 
 #: The report's table 4.1 (section 4.3): parameter key -> (symbol, value, unit).
 TABLE_4_1 = {
@@ -67,8 +59,6 @@ def _order(name: str) -> tuple:
 
 def figures() -> dict:
     """Figure name -> function, in the report's order."""
-    from . import data_figures, model_figures
-
     table = {**model_figures.FIGURES, **data_figures.FIGURES}
     return dict(sorted(table.items(), key=lambda kv: _order(kv[0])))
 
@@ -208,11 +198,6 @@ def run(out: Path, params: Parameters, *, reduced: bool = False, only=None,
     """Regenerate the figures (all, or the names in ``only``) into ``out``, replacing the
     previous reproduction there as a unit (`vsj.output.ResultSet`); the directory is
     checked before any figure is made."""
-    from ..errors import InputError
-    from ..output import ResultSet, _jsonable, atomic_write
-    from ..plots import save
-    from ..progress import progress
-
     table = figures()
     names = list(table) if not only else list(only)
     unknown = [n for n in names if n not in table]
@@ -391,8 +376,6 @@ def _summary(result: Reproduction) -> str:
 
 
 def render_html(result: Reproduction, params: Parameters) -> str:
-    from .. import __version__
-
     parts = [f"<p>vsj {html.escape(__version__)}, parameter set "
              f"'{html.escape(str(params.meta.get('name', params.origin)))}' (hash "
              f"{params.hash()[:12]}){' — reduced setting' if result.reduced else ''}. "

@@ -36,21 +36,13 @@ from .. import characteristics as ch
 from .. import synth
 from ..identification import friction as fr
 from ..identification.planetary import fit_planetary
+from ..identification.stiffness import StiffnessFit
 from ..identification.stiffness import fit_curve as fit_loop
+from ..identification.stiffness import fit_exponential
 from ..measurements import Measurement
 from ..wrist import elastic_element, planetary
-from .base import (
-    BY_CONSTRUCTION,
-    CALIBRATION,
-    CONSISTENCY,
-    NOT_STATED,
-    ROUND_TRIP,
-    VARIANT,
-    Context,
-    Drawing,
-    Figure,
-    Row,
-)
+from .base import (BY_CONSTRUCTION, CALIBRATION, CONSISTENCY, NOT_STATED, ROUND_TRIP, VARIANT,
+                   Context, Drawing, Figure, Row)
 
 NOTE_SYNTH = ("synthetic: regenerated from the report's constants with noise and ripple, "
               "then fitted; the difference is the toolchain's recovery error")
@@ -509,8 +501,6 @@ def fig_4_13(ctx):
     ``a1``, ``a2``, ``a3`` and ``K``) and ``geometric_K`` [N m/rad]; ``measured``,
     the report's three values (``q`` [m], ``K`` [N m/rad]).
     """
-    from ..identification.stiffness import StiffnessFit, fit_exponential
-
     params = ctx.params
     qs = K_Q_REDUCED if ctx.reduced else K_Q
     curves = [_loop_for(ctx, q) for q in qs]

@@ -18,6 +18,9 @@ import math
 
 import numpy as np
 
+from ..pages import STYLE  # one look for vsj's pages
+from .sampling import MORRIS_LEVELS
+
 #: Confidence level of the intervals SALib's bootstrap gives.
 CONFIDENCE = 0.95
 #: Bootstrap resamples for the intervals.
@@ -43,8 +46,6 @@ def sensitivity(method: str, problem: dict, unit: np.ndarray, y: np.ndarray,
                 "S1_conf": r["S1_conf"].tolist(), "ST": r["ST"].tolist(),
                 "ST_conf": r["ST_conf"].tolist()}
     from SALib.analyze import morris
-
-    from .sampling import MORRIS_LEVELS
 
     levels = (unit * MORRIS_LEVELS - 0.5) / (MORRIS_LEVELS - 1)  # back to SALib's grid
     r = morris.analyze(problem, levels, y, num_resamples=RESAMPLES, conf_level=CONFIDENCE,
@@ -157,8 +158,6 @@ def page(title: str, facts: list[tuple[str, str]], stats: list[list], figures: d
          method: str | None, rows: list[list], failures: list[tuple[int, str]]) -> str:
     """``summary.html``: facts, a table of each metric's statistics, the sensitivity
     table, the figures (embedded), the failed runs."""
-    from ..pages import STYLE  # one look for vsj's pages
-
     esc = html.escape
     parts = [(f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{esc(title)}</title>"
               f"<style>{STYLE}</style></head><body>"), f"<h1>{esc(title)}</h1>", "<table>"]

@@ -21,6 +21,7 @@ import warnings
 
 import numpy as np
 
+from ..errors import InputError
 from .spec import Covariance, Distribution, SweepSpec
 
 #: Morris grid levels (SALib's default is 4).
@@ -104,8 +105,6 @@ def covariance_draws(cov: Covariance, samples: int, seed: int) -> np.ndarray:
         filled += len(take)
         tries += len(batch)
         if tries > 1000 * samples + 10_000:
-            from ..errors import InputError
-
             raise InputError(f"{cov.origin}: fewer than 1 in 1000 draws of the covariance "
                              "fall inside the parameters' allowed ranges; check the values")
     return out

@@ -17,12 +17,13 @@ bounded and an interruption loses only those. Close what it returns to stop.
 
 from __future__ import annotations
 
+import multiprocessing
 from collections.abc import Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from ..engine.core import available_cores
 from ..errors import InputError
 from .runner import ChunkResult, Job, run_chunk
-
 
 #: Imported once by the fork server the workers are forked from (see the module).
 PRELOAD = ["vsj.sweep._worker"]
@@ -52,8 +53,6 @@ def _local(job, chunks, workers):
         for index, start, values in chunks:
             yield index, run_chunk(job, start, values, threads=cores)
         return
-    import multiprocessing
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     # a fork server imports the runner once and forks each worker from it: no fork of
     # this (threaded) process, and no worker importing everything anew

@@ -57,12 +57,15 @@ import json
 import math
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+
+import numpy as np
 
 from ..errors import InputError, read_text
 from ..params import SCHEMA, Spec
-from ..units import to_si
+from ..units import format_quantity, to_si
+from .metrics import KINDS
 
 TOP_KEYS = {"sweep", "vary", "covariance", "signals", "metrics", "output"}
 SWEEP_KEYS = {"scenario", "case", "params", "duration", "seed", "samples", "design", "method"}
@@ -307,8 +310,6 @@ def within_pivot_range(spec: SweepSpec, q_min: float, q_max: float) -> SweepSpec
     """``spec`` with q's values checked against, and its distribution truncated to, the
     pivot range [q_min, q_max] (m) of the parameter set the sweep runs with: a grid,
     list or distribution outside it is refused before any run (`InputError`)."""
-    from dataclasses import replace
-
     cov = spec.covariance
     if cov is not None and Q in cov.names:
         j = cov.names.index(Q)
@@ -327,8 +328,6 @@ def within_pivot_range(spec: SweepSpec, q_min: float, q_max: float) -> SweepSpec
 
 
 def _show(value: float, spec: Spec) -> str:
-    from ..units import format_quantity
-
     return format_quantity(value, spec.display) if math.isfinite(value) else \
         ("-inf" if value < 0 else "inf")
 
@@ -369,7 +368,6 @@ def read_covariance(path: Path, where: str) -> Covariance:
             all(isinstance(r, list) and len(r) == n for r in matrix)):
         raise InputError(f"{path}: covariance: expected a {n} x {n} list of lists (one row "
                          "per name)")
-    import numpy as np
 
     try:
         cov = np.array(matrix, dtype=float)
@@ -384,8 +382,6 @@ def read_covariance(path: Path, where: str) -> Covariance:
 
 
 def _metric(name: str, entry, origin: str) -> Metric:
-    from .metrics import KINDS
-
     where = _where(origin, "metrics", name)
     if isinstance(entry, str):
         return Metric(name, "expression", {"expression": entry}, where)
@@ -541,8 +537,6 @@ def run_count(spec: SweepSpec) -> int:
 
 def with_method(spec: SweepSpec, method: str | None) -> SweepSpec:
     """``spec`` with the command line's ``--method`` (which wins over the file's)."""
-    from dataclasses import replace
-
     if method is None or method == spec.method:
         return spec
     out = replace(spec, method=method)

@@ -44,8 +44,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import __version__
 from ..errors import InputError, read_bytes
-from ..output import OUTPUTS, OutputError, atomic_write, file_record
+from ..output import OUTPUTS, PLOT_BYTES, OutputError, atomic_write, file_record
+from ..params import SCHEMA
 
 ZARR = "sweep.zarr"
 MANIFEST = "sweep.json"
@@ -329,8 +331,6 @@ def inputs(job, spec) -> dict:
     scenario's text, the parameter set as resolved (every value after ``extends``, SI)
     and the covariance as read (names, means, matrix), the resolved values themselves
     (to name the ones that changed), and the vsj version."""
-    from .. import __version__
-
     params = job.params
     cov = spec.covariance
     return {
@@ -399,8 +399,6 @@ def check_resume(directory: Path, record: dict, expected: dict, *, job=None,
 
 
 def _si(text, key: str) -> str:
-    from ..params import SCHEMA
-
     if text is None:
         return "absent"
     section, _, name = key.partition(".")
@@ -607,8 +605,6 @@ def estimate(runs: int, chunks: int, samples: int, kept: int, metrics: int,
     store's numbers uncompressed (zstd never grows them beyond its headers), the
     manifest written twice over (atomic replacement), metrics.csv, the page and (with
     ``figures``) the figures."""
-    from ..output import PLOT_BYTES
-
     numbers = runs * (8 * samples * kept + 8 * metrics + 16)
     manifest = 2 * (chunks * 256 + runs * MESSAGE_BYTES)
     table = runs * (CSV_VALUE_BYTES * (3 + varied + metrics) + MESSAGE_BYTES)
