@@ -146,6 +146,7 @@ def spline_pieces(t, y) -> Pieces:
         middle = (h[1] * secant[0] + h[0] * secant[1]) / (h[0] + h[1])
         m = np.array([2.0 * secant[0] - middle, middle, 2.0 * secant[1] - middle])
     else:
+        # lazy: import vsj needs no SciPy; only cubic splines do
         from scipy.linalg import solve_banded
 
         n = len(t)

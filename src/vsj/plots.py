@@ -32,6 +32,7 @@ MAIN_SIGNALS = {
 def figure(**options):
     """A matplotlib `Figure` outside pyplot (no pyplot import, no figure registry to
     close it from; `save` writes it through the Agg canvas)."""
+    # lazy: matplotlib is heavy; imported when a figure is drawn
     from matplotlib.figure import Figure
 
     return Figure(**options)
@@ -39,9 +40,10 @@ def figure(**options):
 
 def pyplot():
     """matplotlib's pyplot on the off-screen Agg backend (imported on first use)."""
-    import matplotlib
+    import matplotlib  # lazy: matplotlib is heavy; imported when a figure is drawn
 
     matplotlib.use("Agg")
+    # lazy: matplotlib is heavy; imported when a figure is drawn
     import matplotlib.pyplot as plt
 
     return plt

@@ -352,7 +352,7 @@ class Stepper:
 
     def discretize(self, state, inputs) -> tuple[np.ndarray, np.ndarray]:
         """Discrete-time Jacobians ``(F, G)`` of one period (zero-order hold of `jacobian`)."""
-        from scipy.linalg import expm
+        from scipy.linalg import expm  # lazy: heavy; only discretize() needs it
 
         jx, ju = self.jacobian(state, inputs)
         ns, ni = jx.shape[0], ju.shape[1]

@@ -155,6 +155,7 @@ def friction(*, fixed: str, constants: tuple[float, float, float] | None = None,
                  f"ripple (rms {ripple_fraction:g} of it, mirrored with the direction, fig 4.6)")
     comments = _header(f"{fixed}-fixed friction curve ({form})", how, seed, artefacts)
     if form == "points":
+        # lazy: scipy.optimize; only rippled friction
         from .identification.friction import plateaus
 
         speeds, torques = [], []
@@ -202,7 +203,7 @@ def stiffness(*, q: float, params: Parameters, noise: float = 0.01, play: float 
     elsewhere: report fig 4.12) lets the deflection pass through a band at
     almost constant torque.
     """
-    from . import characteristics as ch
+    from . import characteristics as ch  # lazy: scipy.optimize; only stiffness curves
 
     lo, hi = params.pivot.q_min, params.pivot.q_max
     if not lo <= q <= hi:

@@ -45,6 +45,7 @@ def cmd_simulate(args) -> int:
     """``vsj simulate``: run every case of a scenario and write trajectory.nc and meta.json
     (trajectory.csv, trajectory.png on request) as one result set. Returns the exit code:
     0, or 1 if a case failed."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import scenario as scenarios
     from ..output import (ResultSet, TrajectoryFile, atomic_write, parameters_record,
                           trajectory_bytes, write_meta, write_trajectory_csv)
@@ -83,7 +84,7 @@ def cmd_simulate(args) -> int:
             if args.csv:
                 write_trajectory_csv(results.path("trajectory.csv"), trajectory)
             if args.plot:
-                from ..plots import trajectory_file_figure
+                from ..plots import trajectory_file_figure  # lazy: only --plot draws
 
                 trajectory_file_figure(trajectory, scen.cases[0].network,
                                        results.path("trajectory.png"),
@@ -111,6 +112,7 @@ def cmd_simulate(args) -> int:
 def cmd_scenarios(args) -> int:
     """``vsj scenarios``: list the built-in scenarios with their descriptions. Returns the
     exit code (0)."""
+    # lazy: only this command needs it, and every vsj command imports vsj.cli
     from .. import scenario as scenarios
 
     for name in scenarios.builtin_names():
@@ -122,6 +124,7 @@ def cmd_scenarios(args) -> int:
 def cmd_reproduce(args) -> int:
     """``vsj reproduce``: regenerate the report's figures, report.html and results.json.
     Returns the exit code: 0, or 1 if a figure failed."""
+    # lazy: only this command needs it, and every vsj command imports vsj.cli
     from ..reproduce import run
 
     params = _params(args.params)
@@ -144,6 +147,7 @@ def cmd_reproduce(args) -> int:
 def cmd_verify(args) -> int:
     """``vsj verify``: check an output directory (result sets or a sweep) against its
     manifest. Returns the exit code: 0 if complete, 1 if not."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from ..output import MANIFEST, read_manifest, verify
     from ..sweep import store
 
@@ -177,6 +181,7 @@ def cmd_msl(args) -> int:
     """``vsj msl``: rebuild a Modelica Standard Library example, simulate it with the
     time-stepper and compare it with the MSL reference result. Returns the exit code: 0,
     or 1 if it leaves the reference's tube or stick/slip intervals."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import msl
     from ..output import ResultSet, cases_dataset, write_dataset, write_meta
 

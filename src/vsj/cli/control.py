@@ -76,8 +76,9 @@ def cmd_linearize(args) -> int:
     """``vsj linearize``: the wrist linearised about an operating point, printed (or as
     JSON) and optionally saved to .json or .npz. Returns the exit code: 0 (bad input
     raises `InputError`, which `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import linear
-    from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
+    from ..output import SMALL_OUTPUT_BYTES, _jsonable, check_output_file, write_errors
 
     if args.out is not None and Path(args.out).suffix not in (".json", ".npz"):
         raise InputError(f"--out {args.out}: a linear model is written to a .json or .npz file")
@@ -97,8 +98,6 @@ def cmd_linearize(args) -> int:
         with write_errors("--out", args.out):
             linear.save(model, Path(args.out))
     if args.json:
-        from ..output import _jsonable
-
         print(json.dumps(_jsonable(linear.to_dict(model)), indent=1))
         return 0
     print(model.describe())
@@ -126,6 +125,7 @@ def cmd_datasheet(args) -> int:
     """``vsj datasheet``: compute the wrist's datasheet and write it as HTML and JSON in one
     result set. Returns the exit code: 0 (bad input raises `InputError`, which `main`
     turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import datasheet
     from ..output import ResultSet
 
@@ -146,6 +146,7 @@ def cmd_export_model(args) -> int:
     JSON model file that the C library loads (``vsj_load_model``) and steps one control
     period at a time. Returns the exit code: 0 (bad input raises `InputError`, which
     `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import export
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
@@ -175,6 +176,7 @@ def cmd_fmu(args) -> int:
     """``vsj fmu``: build an FMI 2.0 co-simulation FMU of the wrist and/or write an FMI
     cross-check folder. Returns the exit code: 0 (bad input raises `InputError`, which
     `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import fmu
     from ..output import check_output_file, write_errors
 

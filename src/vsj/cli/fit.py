@@ -64,7 +64,7 @@ def _say(args, text: str) -> None:
 
 def _print_json(args, record: dict) -> None:
     if args.json:
-        from ..output import _jsonable
+        from ..output import _jsonable  # lazy: not every command writes files (vsj.output)
 
         print(json.dumps(_jsonable(record), indent=2))
 
@@ -72,6 +72,7 @@ def _print_json(args, record: dict) -> None:
 def _results(out: Path | None, kind: str, **options):
     """The `vsj.output.ResultSet` of ``--out DIR`` (entering it checks the directory, so
     enter it before the work), or, without ``--out``, a context that gives None."""
+    # lazy: not every command writes files (vsj.output)
     from ..output import SMALL_OUTPUT_BYTES, ResultSet
 
     if out is None:
@@ -83,6 +84,7 @@ def cmd_synth_friction(args) -> int:
     """``vsj synth friction``: write a synthetic torque-velocity curve of the planetary
     bench (labelled synthetic). Returns the exit code: 0 (bad input raises `InputError`,
     which `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import measurements, synth
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
@@ -105,6 +107,7 @@ def cmd_synth_friction(args) -> int:
 def cmd_synth_stiffness(args) -> int:
     """One curve per pivot position: into a directory as one result set, or, for a single
     curve, into a ``.csv`` file."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import measurements, synth
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
@@ -143,6 +146,7 @@ def cmd_fit_friction(args) -> int:
     """``vsj fit friction``: fit ``T = c1 w + c2 atan(c3 w)`` (report eq 4.2) to one curve,
     with JSON and a figure. Returns the exit code: 0 (bad input raises `InputError`,
     which `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import measurements
     from ..identification.friction import fit_curve
     from ..identification.plots import friction_figure
@@ -180,6 +184,7 @@ def cmd_fit_friction(args) -> int:
 
 
 def _write_params(path: str, overrides: dict, base: str | None) -> None:
+    # lazy: not every command writes files (vsj.output)
     from ..output import atomic_write, write_errors
 
     params = _params(base)
@@ -190,6 +195,7 @@ def _write_params(path: str, overrides: dict, base: str | None) -> None:
 
 
 def _check_write_params(args) -> None:
+    # lazy: not every command writes files (vsj.output)
     from ..output import SMALL_OUTPUT_BYTES, check_output_file
 
     if args.write_params:
@@ -201,6 +207,7 @@ def cmd_fit_planetary(args) -> int:
     """``vsj fit planetary``: the planetary module's parameters from the fixed-sun and
     fixed-ring curves, optionally written to a parameter file. Returns the exit code: 0,
     or 1 if no model explains the curves or the written file does not reproduce them."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import measurements
     from ..identification.friction import fit_curve
     from ..identification.planetary import fit_planetary
@@ -298,6 +305,7 @@ def _write_planetary_params(args, result) -> float:
     """Write the set with the fit's planetary parameters; run the bench forward with the
     file as written and return its largest deviation from the fitted curves, relative to
     their largest torque."""
+    # lazy: scipy.optimize, for the fits only
     from ..identification.planetary import bench_curves
 
     base = _params(args.params)
@@ -315,8 +323,10 @@ def cmd_fit_stiffness(args) -> int:
     """``vsj fit stiffness``: stiffness K per torque-deflection curve and K(q) (report eq
     4.5) over the curves, optionally the spring geometry calibrated to them. Returns the
     exit code: 0 (bad input raises `InputError`, which `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import characteristics as ch
     from .. import measurements
+    from ..identification.geometry import calibrate_to_curves
     from ..identification.plots import geometry_figure, stiffness_figure
     from ..identification.stiffness import fit_stiffness
     from ..output import write_meta
@@ -333,8 +343,6 @@ def cmd_fit_stiffness(args) -> int:
         fit = fit_stiffness(data)
         record = fit.to_json()
         if args.calibrate_geometry:
-            from ..identification.geometry import calibrate_to_curves
-
             start = dict(zip(GEOMETRY_FIELDS, geometry(_params(args.params))))
             calibration = calibrate_to_curves(fit.curves, start)
             record["geometry"] = calibration.to_json()
@@ -447,6 +455,7 @@ def cmd_fit_wrist(args) -> int:
     """``vsj fit wrist``: the assembled wrist's free parameters from logs of its signals by
     output error, with standard errors, validation and a report. Returns the exit code: 0
     (bad input raises `InputError`, which `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import measurements
     from ..identification import wrist_report
     from ..identification.wrist import fit_wrist
@@ -519,6 +528,7 @@ def cmd_synth_wrist(args) -> int:
     """``vsj synth wrist``: a synthetic log of the wrist running an experiment file
     (labelled synthetic). Returns the exit code: 0 (bad input raises `InputError`, which
     `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import measurements, synth
     from ..identification import wrist_experiment
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
@@ -536,6 +546,7 @@ def cmd_excite(args) -> int:
     """``vsj excite``: design a D-optimal excitation for the named parameters within the
     motors' limits and write it as an experiment file. Returns the exit code: 0 (bad
     input raises `InputError`, which `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from ..identification import wrist_experiment
     from ..identification.wrist_model import check_free
     from ..output import SMALL_OUTPUT_BYTES, atomic_write, check_output_file, write_errors

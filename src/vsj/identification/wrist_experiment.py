@@ -445,6 +445,7 @@ def predicted(experiment: Experiment, params, free, *, threads=None, run=None):
     Fisher information in relative parameter units: the batch Jacobian of a noiseless
     synthetic log (true stiction, windows restarted as the fit restarts them) weighted
     by the sensors' noise. ``run``: `vsj.synth.wrist_run` of the experiment, if at hand."""
+    # lazy: scipy.optimize; synth wrist loads experiments without it
     from .wrist import FINAL, _Problem
 
     quiet = replace(experiment.sensors, encoder_counts=2 ** 40, angle_noise=0.0,

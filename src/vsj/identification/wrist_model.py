@@ -551,6 +551,7 @@ class WristModel:
         noise excursion starts or stops early), an error the compared signals'
         noise does not describe. The start states and the compared samples are the
         log's own."""
+        # lazy: heavy; only logs with a measured torque input are smoothed
         from scipy.signal import savgol_filter
 
         values = np.asarray(values, dtype=float).reshape(-1)
@@ -621,6 +622,7 @@ class WristModel:
         and white torque noise fed to the model moves it where the real wrist was not
         moved. The noise within the wrist's own band stays; `perturbed_residuals`
         measures what it does."""
+        # lazy: heavy; only logs with a measured torque input are smoothed
         from scipy.signal import savgol_filter
 
         key = (id(log), column)

@@ -92,14 +92,14 @@ class LinearData:
 
     def statespace(self):
         """The python-control model (a `vsj.linear.LinearModel`)."""
-        from .statespace import LinearModel
+        from .statespace import LinearModel  # lazy: python-control is heavy
 
         return LinearModel.from_data(self)
 
 
 def describe(model) -> str:
     """Sizes, friction, pivot, names and modes of a linear model, as text."""
-    from .analysis import modes
+    from .analysis import modes  # circle: vsj.linear.analysis imports this
 
     lines = [f"linear model {model.name}: {model.nstates} states, {model.ninputs} inputs, "
              f"{model.noutputs} outputs; friction {model.friction} "

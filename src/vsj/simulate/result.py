@@ -39,9 +39,9 @@ class Result:
         """The run as an `xarray.Dataset`: one variable per signal over ``time`` [s],
         each with its unit (``units``, as CF names it); the run's success, message
         and solver as attributes."""
-        import xarray as xr
+        import xarray as xr  # lazy: xarray is heavy; import vsj needs none
 
-        from .. import __version__
+        from .. import __version__  # circle: vsj imports vsj.simulate, which imports this
 
         data = {name: ("time", values, {"units": self.units[name]})
                 for name, values in self.signals.items()}
@@ -131,9 +131,9 @@ class BatchResult:
         """The batch as an `xarray.Dataset` over ``run`` and ``time`` [s]: one variable
         per signal with its unit, and each run's success, message and stop time; the
         same layout as `Result.to_xarray` with a ``run`` dimension in front."""
-        import xarray as xr
+        import xarray as xr  # lazy: xarray is heavy; import vsj needs none
 
-        from .. import __version__
+        from .. import __version__  # circle: vsj imports vsj.simulate, which imports this
 
         data = {name: (("run", "time"), self[name],
                        {"units": "rad/s" if name.endswith(".speed") else "rad"})

@@ -38,14 +38,14 @@ def sensitivity(method: str, problem: dict, unit: np.ndarray, y: np.ndarray,
         return {"names": list(problem["names"]), **{k: list(nan) for k in keys},
                 "note": "some runs failed: indices need every run"}
     if method == "sobol":
-        from SALib.analyze import sobol
+        from SALib.analyze import sobol  # lazy: SALib is heavy; only sensitivity studies
 
         r = sobol.analyze(problem, y, calc_second_order=False, num_resamples=RESAMPLES,
                           conf_level=CONFIDENCE, seed=seed)
         return {"names": list(problem["names"]), "S1": r["S1"].tolist(),
                 "S1_conf": r["S1_conf"].tolist(), "ST": r["ST"].tolist(),
                 "ST_conf": r["ST_conf"].tolist()}
-    from SALib.analyze import morris
+    from SALib.analyze import morris  # lazy: SALib is heavy; only sensitivity studies
 
     levels = (unit * MORRIS_LEVELS - 0.5) / (MORRIS_LEVELS - 1)  # back to SALib's grid
     r = morris.analyze(problem, levels, y, num_resamples=RESAMPLES, conf_level=CONFIDENCE,
@@ -62,7 +62,7 @@ def _png(fig) -> bytes:
 
 
 def _figure(rows: int, cols: int, width: float = 3.2, height: float = 2.6):
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # lazy: matplotlib is heavy; only the plots
 
     fig = Figure(figsize=(max(4.0, width * cols), max(3.0, height * rows)),
                  layout="constrained")

@@ -83,6 +83,7 @@ def _local(job, chunks, workers):
 def client_for(scheduler: str, workers: int | None):
     """A Dask client: of a new ``LocalCluster`` (``"local"``) or of a running scheduler."""
     try:
+        # lazy: dask is heavy; only its scheduler
         from dask.distributed import Client, LocalCluster
     except ImportError:  # pragma: no cover - a dependency
         raise InputError("--scheduler needs dask.distributed (pip install 'dask[distributed]')")
@@ -98,7 +99,7 @@ def client_for(scheduler: str, workers: int | None):
 
 
 def _dask(job, chunks, scheduler, workers):
-    from dask.distributed import as_completed
+    from dask.distributed import as_completed  # lazy: dask is heavy; only its scheduler
 
     client, cluster = client_for(scheduler, workers)
     try:

@@ -213,8 +213,8 @@ def create(path: Path, *, varied: list[str], values: np.ndarray, units: list[str
     The coordinates go through xarray; the per-run arrays are made with zarr
     directly, in xarray's layout (dimension names, the ``coordinates`` attribute),
     because xarray can allocate an array without writing it only through Dask."""
-    import xarray as xr
-    import zarr
+    import xarray as xr  # lazy: xarray is heavy; only reading the results
+    import zarr  # lazy: zarr is heavy; vsj verify of result sets needs none
 
     runs, n_t = len(values), len(time)
     coords = {"run": ("run", np.arange(runs)),
@@ -253,7 +253,7 @@ class Writer:
     """The store opened once for writing finished chunks into their regions."""
 
     def __init__(self, path: Path):
-        import zarr
+        import zarr  # lazy: zarr is heavy; vsj verify of result sets needs none
 
         group = zarr.open_group(path, mode="r+")
         self.arrays = {name: group[name] for name in ("signals", "metrics", "status", "steps")}
@@ -287,7 +287,7 @@ def _digest(arrays) -> str:
 
 def open_dataset(path: Path):
     """The store as an xarray Dataset (NumPy-backed: read on access, no Dask)."""
-    import xarray as xr
+    import xarray as xr  # lazy: xarray is heavy; only reading the results
 
     return xr.open_dataset(path, engine="zarr", consolidated=False, chunks=None)
 
@@ -347,7 +347,7 @@ def inputs(job, spec) -> dict:
 
 def libraries() -> dict:
     """Versions of the libraries the draws come from (for messages, not compared)."""
-    from importlib import metadata
+    from importlib import metadata  # lazy: scans installed packages; only for a manifest
 
     out = {}
     for name in ("numpy", "scipy", "SALib"):
@@ -427,7 +427,7 @@ def _values_sha256(values: np.ndarray) -> str:
 def frame_record(path: Path) -> dict:
     """SHA-256 of each metadata file of the store ``path`` and of each coordinate's
     values (everything but the chunks' arrays `DATA`)."""
-    import zarr
+    import zarr  # lazy: zarr is heavy; vsj verify of result sets needs none
 
     group = zarr.open_group(path, mode="r")
     coordinates = {name: _values_sha256(group[name][...]) for name in sorted(group.array_keys())
@@ -439,7 +439,7 @@ def frame_record(path: Path) -> dict:
 def check_frame(path: Path, recorded: dict) -> list[str]:
     """What differs between the store's frame and ``recorded`` (`frame_record`): each
     metadata file missing, changed or unreadable, each coordinate changed."""
-    import zarr
+    import zarr  # lazy: zarr is heavy; vsj verify of result sets needs none
 
     shown = f"{ZARR}"
     if not path.is_dir():
@@ -498,7 +498,7 @@ def check_chunks(path: Path, record: dict, progress=None) -> dict[int, str]:
     """The finished chunks of ``record`` whose numbers in the store ``path`` no longer
     match their recorded SHA-256, each with what is wrong (a chunk file changed,
     truncated or deleted). ``progress(runs)`` is called as chunks are read."""
-    import zarr
+    import zarr  # lazy: zarr is heavy; vsj verify of result sets needs none
 
     done = record["done"]
     try:
