@@ -79,6 +79,7 @@ class Measurement:
 
     @property
     def synthetic(self) -> bool:
+        """True if the file's comments mark it as synthetic (generated from the model)."""
         return any(SYNTHETIC_MARK in c.lower() for c in self.comments)
 
     def __getitem__(self, quantity: str) -> np.ndarray:

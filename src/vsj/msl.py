@@ -153,10 +153,13 @@ class Check:
 
     @property
     def passed(self) -> bool:
+        """True if every signal stays inside its tube and every stuck-flag difference lies
+        within one step of a switch of the reference."""
         return (all(t.inside for t in self.tubes)
                 and all(m["worst_steps"] <= 1 for m in self.modes.values()))
 
     def summary(self) -> str:
+        """The tube reports and the stuck-flag differences, one line each."""
         lines = [str(t) for t in self.tubes]
         for name, m in self.modes.items():
             lines.append(f"{name}: stuck flag differs from the reference at {m['differ']} of "

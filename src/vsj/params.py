@@ -256,6 +256,8 @@ class Parameters:
         return {name: self.values[f"{section}.{name}"] for name in SCHEMA[section]}
 
     def section(self, name: str) -> "_Section":
+        """The values of section ``name`` (attribute access by key); KeyError if the schema
+        has no such section."""
         if name not in SCHEMA:
             raise KeyError(f"no parameter section {name!r}")
         return _Section(self, name)
@@ -458,6 +460,7 @@ class Relation:
         return sum(weight * values[key] for key, weight in self.terms)
 
     def holds(self, values: Mapping[str, float]) -> bool:
+        """True if the relation holds for ``values`` (SI values by key)."""
         margin = self.margin(values)
         return margin > 0.0 if self.strict else margin >= 0.0
 

@@ -106,6 +106,7 @@ class Where:
     path: str = ""
 
     def key(self, name: str) -> Where:
+        """The place one key ``name`` deeper."""
         return Where(self.origin, f"{self.path}.{name}" if self.path else name)
 
     def __str__(self) -> str:
@@ -129,6 +130,8 @@ class Case:
 
 @dataclass(frozen=True)
 class Scenario:
+    """A scenario loaded and checked: its name, description, origin (file or built-in), its
+    cases and the table it was read from."""
     name: str
     description: str
     origin: str
@@ -136,6 +139,8 @@ class Scenario:
     table: Mapping = field(repr=False, default_factory=dict)
 
     def resolved_params(self, case: Case, params: Parameters) -> Parameters:
+        """``params`` with the case's parameter overrides applied (the same set if it has
+        none)."""
         if not case.params:
             return params
         return params.with_overrides(case.params, origin=str(case.where.key("params")),
@@ -460,6 +465,7 @@ def _builtin_dir() -> Path:
 
 
 def builtin_names() -> list[str]:
+    """Names of the built-in scenarios, sorted."""
     return sorted(p.stem for p in _builtin_dir().glob("*.toml"))
 
 

@@ -171,10 +171,12 @@ class Stepper:
     # -- sizes and names ----------------------------------------------------------------
     @property
     def n_state(self) -> int:
+        """Length of the state vector."""
         return self._n_state
 
     @property
     def n_inputs(self) -> int:
+        """Number of inputs (`input_names`)."""
         return len(self.input_names)
 
     def input_vector(self, inputs: Mapping[str, float] | Sequence[float] | np.ndarray | None

@@ -130,6 +130,7 @@ def loop_axes(ax, deflection, torque, *, q, K, hysteresis, offset, linear_limit,
 
 
 def loops_axes(axes, curves):
+    """Draw each curve fit of ``curves`` on its axes of ``axes`` (`loop_axes`)."""
     for ax, c in zip(axes, curves):
         loop_axes(ax, c.deflection, c.torque, q=c.q, K=c.K.value,
                   hysteresis=c.hysteresis.value, offset=c.offset.value,

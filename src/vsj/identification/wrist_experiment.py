@@ -79,6 +79,7 @@ class Sensors:
     jitter: float = 2e-5
 
     def artefacts(self) -> str:
+        """The recording's artefacts in one sentence (for the log's comments)."""
         return (f"encoder quantisation ({self.encoder_counts} counts per turn), white noise "
                 f"(angles {self.angle_noise:g} rad, currents {self.current_noise:g} A, torques "
                 f"{self.torque_noise:g} N m, q {self.q_noise:g} m), current sensor offset "
@@ -121,6 +122,7 @@ class Experiment:
         return out
 
     def to_toml(self) -> str:
+        """The experiment as the text of an experiment file (TOML, with units)."""
         s = self.sensors
         doc = {"experiment": {"description": self.description,
                               "duration": format_quantity(self.duration, "s", digits=10),
@@ -224,6 +226,8 @@ def load(path) -> Experiment:
 
 
 def from_table(doc: Mapping, origin: str) -> Experiment:
+    """An `Experiment` from a parsed experiment file ``doc``; `InputError` naming ``origin``
+    and the key for anything missing, unknown or out of range."""
     unknown = set(doc) - {"experiment", "signals", "sensors", "simulation"}
     if unknown:
         raise InputError(f"{origin}: unknown table(s) {', '.join(sorted(unknown))}; allowed: "

@@ -493,6 +493,8 @@ class WristModel:
         return max(mad, quantum, NOISE_FLOOR * max(float(np.ptp(values)), 1e-12))
 
     def set_noise(self, noise: Mapping[str, float]) -> None:
+        """Replace the noise level of each output (its unit, by output name) that weights
+        the residuals."""
         self.noise = dict(noise)
 
     # -- engines and initial states ---------------------------------------------------
@@ -1030,11 +1032,14 @@ class WristModel:
         return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
 
     def measured(self, k: int) -> np.ndarray:
+        """The measured outputs of window ``k``, one row per output, at the window's
+        compared samples."""
         w = self.windows[k]
         log = self.logs[w.log]
         return np.array([log[o.name][w.samples] for o in self.outputs])
 
     def weights(self) -> np.ndarray:
+        """One weight per output: 1 / its noise level."""
         return np.array([1.0 / self.noise[o.name] for o in self.outputs])
 
     def residuals(self, values: np.ndarray, law: str, windows: Sequence[int] | None = None
@@ -1052,8 +1057,10 @@ class WristModel:
 
     @property
     def compared(self) -> int:
+        """Number of measured values compared (samples times outputs over all windows)."""
         return sum(len(w.samples) for w in self.windows) * len(self.outputs)
 
     @property
     def log_seconds(self) -> float:
+        """Total duration [s] of the logs."""
         return float(sum(lg["time"][-1] - lg["time"][0] for lg in self.logs))

@@ -77,17 +77,21 @@ class LinearData:
 
     @property
     def nstates(self) -> int:
+        """Number of states (rows of ``A``)."""
         return self.A.shape[0]
 
     @property
     def ninputs(self) -> int:
+        """Number of inputs (columns of ``B``)."""
         return self.B.shape[1]
 
     @property
     def noutputs(self) -> int:
+        """Number of outputs (rows of ``C``)."""
         return self.C.shape[0]
 
     def describe(self) -> str:
+        """Sizes, friction, pivot, names and modes, as text (`describe`)."""
         return describe(self)
 
     def statespace(self):

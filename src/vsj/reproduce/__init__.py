@@ -94,6 +94,8 @@ def table_4_1(params: Parameters) -> list[Row]:
 
 @dataclass
 class Outcome:
+    """What became of one figure: its `Figure` (None if it failed), the error and traceback
+    if it failed, the files written and the PNG drawn."""
     name: str
     figure: Figure | None = None
     error: str | None = None
@@ -104,6 +106,8 @@ class Outcome:
 
 @dataclass
 class Reproduction:
+    """Result of `run`: the output directory, one `Outcome` per figure, the rows of table
+    4.1 and whether the reduced setting was used."""
     out: Path
     outcomes: list[Outcome]
     table: list[Row]
@@ -111,9 +115,11 @@ class Reproduction:
 
     @property
     def failed(self) -> list[Outcome]:
+        """The outcomes of the figures that failed."""
         return [o for o in self.outcomes if o.error is not None]
 
     def rows(self) -> list[tuple[str, Row]]:
+        """Every row compared with the report, labelled with its figure (or table 4.1)."""
         out = [("table 4.1", r) for r in self.table]
         for o in self.outcomes:
             if o.figure is not None:
@@ -152,6 +158,7 @@ class Reproduction:
                                     for c in CATEGORIES if c != PREDICTION}}
 
     def headline_text(self) -> str:
+        """The `headline` counts in one sentence."""
         h = self.headline()
         others = h["not_predictions"]
         apart = ", ".join(f"{others[c]['rows']} {COUNTED_AS[c]}" for c in CATEGORIES
@@ -376,6 +383,8 @@ def _summary(result: Reproduction) -> str:
 
 
 def render_html(result: Reproduction, params: Parameters) -> str:
+    """The body of report.html: provenance, failures, the comparison table and every figure
+    with its notes."""
     parts = [f"<p>vsj {html.escape(__version__)}, parameter set "
              f"'{html.escape(str(params.meta.get('name', params.origin)))}' (hash "
              f"{params.hash()[:12]}){' — reduced setting' if result.reduced else ''}. "

@@ -98,11 +98,14 @@ class MemorySink:
     keeps_samples = True
 
     def begin(self, table, time: np.ndarray) -> None:
+        """Make room for every signal of ``table`` at the sample times ``time`` [s] (NaN
+        until written)."""
         self.time = time
         self.signals = {s.name: np.full(len(time), np.nan) for s in table}
         self.units = {s.name: s.unit for s in table}
 
     def write(self, start: int, signals: Mapping[str, np.ndarray]) -> None:
+        """Store a block of samples, by signal name, from sample ``start`` on."""
         for name, values in signals.items():
             self.signals[name][start:start + len(values)] = values
 

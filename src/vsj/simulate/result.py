@@ -33,6 +33,7 @@ class Result:
                            f"{', '.join(list(self.signals)[:12])}, ...") from None
 
     def columns(self) -> list[str]:
+        """Names of the recorded signals."""
         return list(self.signals)
 
     def to_xarray(self):
@@ -52,6 +53,7 @@ class Result:
         return ds
 
     def summary(self) -> str:
+        """Success and message, solver statistics and the energy ledger, one line each."""
         lines = [f"{'success' if self.success else 'FAILED'}: {self.message}",
                  f"solver {self.solver['name']}: {self.solver['steps']} steps in "
                  f"{self.solver['wall_time']:.3f} s"]

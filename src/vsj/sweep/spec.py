@@ -122,6 +122,9 @@ class Metric:
 
 @dataclass(frozen=True)
 class SweepSpec:
+    """A sweep file read and checked (SI values): the scenario and case it runs, the
+    parameters it fixes, samples or draws from a covariance, the design and method, the
+    metrics it computes and the signals it keeps."""
     origin: str
     text: str
     scenario: str
@@ -196,6 +199,7 @@ def spec_of(name: str) -> Spec | None:
 
 
 def allowed_range(spec: Spec) -> tuple[float, float]:
+    """``(minimum, maximum)`` of a schema entry, infinite where it has no bound."""
     lo = -math.inf if spec.minimum is None else spec.minimum
     hi = math.inf if spec.maximum is None else spec.maximum
     return lo, hi
@@ -524,6 +528,8 @@ def check_design(spec: SweepSpec) -> None:
 
 
 def run_count(spec: SweepSpec) -> int:
+    """Number of runs the sweep makes: the grid of fixed values times the samples its design
+    needs."""
     factorial = math.prod(len(f.values) for f in spec.fixed)
     if not (spec.sampled or spec.covariance):
         return factorial
@@ -545,5 +551,6 @@ def with_method(spec: SweepSpec, method: str | None) -> SweepSpec:
 
 
 def load(path: str | Path) -> SweepSpec:
+    """The sweep file at ``path``, read and checked (`loads`)."""
     path = Path(path)
     return loads(read_text(path, "sweep file"), str(path), path.parent)

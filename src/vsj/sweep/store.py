@@ -139,6 +139,7 @@ class Directory:
                             os.unlink(os.path.join(root, name))
 
     def close(self):
+        """Release the directory's lock."""
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
@@ -153,6 +154,7 @@ class Directory:
 
     @property
     def zarr(self) -> Path:
+        """Path of the sweep's zarr store in the directory."""
         return self.path / ZARR
 
 
@@ -196,6 +198,7 @@ def read_manifest(directory: Path, option: str = "--out") -> dict:
 
 
 def write_manifest(directory: Path, record: dict) -> None:
+    """Write the sweep's manifest ``record`` into ``directory`` atomically."""
     with atomic_write(directory / MANIFEST) as handle:
         handle.write(json.dumps(record, indent=1) + "\n")
 
