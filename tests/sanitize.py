@@ -103,6 +103,12 @@ for name in refs.REFERENCES:                      # the scenarios
     refs.run(name)
     print("scenario", name, flush=True)
 
+rng = np.random.default_rng(1)                    # the splines' tridiagonal solve, pivoting
+for n in (1, 2, 3, 17):
+    a, d, c = rng.normal(size=n - 1), 1e-9 * rng.normal(size=n), rng.normal(size=n - 1)
+    assert vsj._core.solve_tridiagonal(a, d, c, rng.normal(size=n)) == 0
+print("tridiagonal", flush=True)
+
 params = vsj.params.default()
 from vsj.inputs import Table                       # end stops: compliant and rigid
 from vsj.simulate import simulate

@@ -114,3 +114,13 @@ def test_the_binding_is_a_leaf():
     assert "PyImport_Import" not in text and "PyImport_ImportModule" not in text
     users = {name for name, deps in graph_of(modules()).items() if "vsj._core" in deps}
     assert {"vsj.springs", "vsj.friction", "vsj.engine.core", "vsj.engine.plan"} <= users
+
+
+def test_every_page_is_made_by_vsj_pages():
+    """One look: only `vsj.pages` writes a page's shell (doctype, head, style sheet);
+    the datasheet, reproduction, sweep summary, identification report and the FMU's
+    documentation give it their body."""
+    shells = sorted(str(p.relative_to(ROOT)) for p in PACKAGE.rglob("*.py")
+                    if p.name != "pages.py" and ("<html" in (text := p.read_text()).lower()
+                                                 or "<!doctype" in text.lower()))
+    assert shells == [], f"pages with their own HTML shell: {shells}"

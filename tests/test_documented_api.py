@@ -85,7 +85,7 @@ PYTHON_EXAMPLES = {
     "vsj": (lambda tmp_path: {}, _ran_wrist),
     "vsj.stepper": (lambda tmp_path: {"params": vsj.params.default(), "u1": 1.0, "u2": -1.0,
                                       "tau_x": 0.01, "tau_y": 0.0}, _stepped),
-    "vsj.output.ResultSet": (lambda tmp_path: {"args": SimpleNamespace(out=str(tmp_path / "out")),
+    "vsj.output.files.ResultSet": (lambda tmp_path: {"args": SimpleNamespace(out=str(tmp_path / "out")),
                                                "estimate": 10_000, "record": {"example": 1}},
                              _committed),
 }

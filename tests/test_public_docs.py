@@ -10,8 +10,13 @@ from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "vsj"
 #: being reworked (issue 32): their docstrings are checked once the rework lands
-REWORKED = {"output.py", "pages.py", "simulate/signals.py", "engine/plan.py", "fmu.py",
-            "sweep/runner.py"}
+REWORKED = {"output.py", "output/", "pages.py", "simulate/signals.py", "engine/plan.py",
+            "fmu.py", "sweep/runner.py"}
+
+
+def _reworked(path: Path) -> bool:
+    rel = path.relative_to(PACKAGE).as_posix()
+    return any(rel == r or r.endswith("/") and rel.startswith(r) for r in REWORKED)
 
 
 def undocumented(source: str) -> list[str]:
@@ -33,7 +38,7 @@ def undocumented(source: str) -> list[str]:
 def test_every_public_definition_has_a_docstring():
     missing = [f"{path.relative_to(PACKAGE)}:{entry}"
                for path in sorted(PACKAGE.rglob("*.py"))
-               if path.relative_to(PACKAGE).as_posix() not in REWORKED
+               if not _reworked(path)
                for entry in undocumented(path.read_text())]
     assert missing == [], "public definitions without a docstring:\n" + "\n".join(missing)
 

@@ -522,7 +522,7 @@ def test_clearing_a_staging_directory_deletes_only_vsj_files(tmp_path):
     (staging / "own.txt").write_text("a user's")
     (target / "taken.txt").write_text("in the way")
     (staging / "taken.txt").write_text("a user's, name taken")
-    from vsj.output import _DISPOSABLE
+    from vsj.output.files import _DISPOSABLE
 
     assert clear_staging(str(staging), str(target), _DISPOSABLE) is False
     assert sorted(os.listdir(staging)) == ["taken.txt"]  # kept rather than deleted

@@ -869,6 +869,55 @@ static PyObject *py_step_rate(PyObject *mod, PyObject *args) {
     return PyLong_FromLong(status);
 }
 
+/* solve_tridiagonal(lower, diagonal, upper, rhs): vsj_solve_tridiagonal, rhs receiving
+ * the solution (every array overwritten); 0, or -1 for a singular system. */
+static PyObject *py_solve_tridiagonal(PyObject *mod, PyObject *args) {
+    PyObject *o[4];
+    arg a[4];
+    const char *names[4] = {"lower", "diagonal", "upper", "rhs"};
+    Py_ssize_t n, i, k;
+    double *fill;
+    int status = 0, ok = 1;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "OOOO:solve_tridiagonal", &o[0], &o[1], &o[2], &o[3]))
+        return NULL;
+    for (i = 0; i < 4; i++)
+        a[i].held = 0;
+    for (i = 0; ok && i < 4; i++)
+        ok = get(o[i], &a[i], DOUBLES, 1, -1, names[i]) == 0;
+    n = ok ? items(&a[1]) : 0;
+    if (ok && (n < 1 || items(&a[0]) != n - 1 || items(&a[2]) != n - 1 || items(&a[3]) != n)) {
+        PyErr_SetString(PyExc_ValueError, "solve_tridiagonal: a diagonal of n >= 1 values, "
+                                          "lower and upper of n - 1, rhs of n");
+        ok = 0;
+    }
+    for (k = 0; ok && k < 4; k++) {
+        const double *v = (const double *)a[k].view.buf;
+        for (i = 0; ok && i < items(&a[k]); i++)
+            if (!isfinite(v[i])) {
+                PyErr_Format(PyExc_ValueError, "solve_tridiagonal: %s[%zd] is not finite",
+                             names[k], i);
+                ok = 0;
+            }
+    }
+    fill = ok ? (double *)malloc((size_t)(n > 2 ? n - 2 : 1) * sizeof(double)) : NULL;
+    if (ok && !fill) {
+        PyErr_NoMemory();
+        ok = 0;
+    }
+    if (ok) {
+        Py_BEGIN_ALLOW_THREADS
+        status = vsj_solve_tridiagonal((int64_t)n, (double *)a[0].view.buf,
+                                       (double *)a[1].view.buf, (double *)a[2].view.buf, fill,
+                                       (double *)a[3].view.buf);
+        Py_END_ALLOW_THREADS
+    }
+    free(fill);
+    for (i = 0; i < 4; i++)
+        release(&a[i]);
+    return ok ? PyLong_FromLong(status) : NULL;
+}
+
 /* solve_impulses(YT, qs, cap, active, ps, states, iterations): vsj_solve_impulses */
 static PyObject *py_solve_impulses(PyObject *mod, PyObject *args) {
     PyObject *o[7];
@@ -1057,6 +1106,9 @@ static PyMethodDef methods[] = {
     {"stored_energy", py_stored_energy, METH_VARARGS, "Kinetic, spring and inductor energy."},
     {"ts_prepare", py_ts_prepare, METH_VARARGS, "Analyse a model for the time-stepper."},
     {"step_rate", py_step_rate, METH_VARARGS, "ds/dt of the step function's state."},
+    {"solve_tridiagonal", py_solve_tridiagonal, METH_VARARGS,
+     "solve_tridiagonal(lower, diagonal, upper, rhs): rhs receives the solution (0, or -1 "
+     "if singular); every array is overwritten"},
     {"solve_impulses", py_solve_impulses, METH_VARARGS,
      "The joint Coulomb impulse problem for a sequence of right-hand sides."},
     {"spring_law", py_spring_law, METH_VARARGS, "Spring law at many deflections."},

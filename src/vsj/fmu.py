@@ -61,6 +61,7 @@ import numpy as np
 
 from . import __version__, export
 from .errors import InputError
+from . import pages
 from .params import RELATIONS, SCHEMA, Parameters
 from .params import default as default_params
 from .simulate import DIVERGED, INTO_STOP, InitialState, SimulationOptions
@@ -457,14 +458,14 @@ def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None =
         for path in _source_paths():
             shutil.copy(path, root / "sources" / path.name)
         (root / "sources" / "buildDescription.xml").write_text(build_description())
-        (root / "documentation" / "index.html").write_text(
-            f"<html><body><h1>vsj wrist FMU</h1><p>{description}</p><p>It refuses, with "
-            f"fmi2Error and the reason through the logger, what vsj refuses elsewhere (a "
-            f"parameter value a parameter file refuses, another FMU's GUID or state), and "
-            f"checks each run as vsj simulate does: a spring far past its end stop ends the "
-            f"run, one pressed into it or a motor above its voltage limit gives fmi2Warning, "
-            f"and fmi2Terminate judges the run's energy ledger.</p><p>Built by vsj "
-            f"{__version__}; see vsj's README, section 'The wrist as an FMU'.</p></body></html>\n")
+        (root / "documentation" / "index.html").write_text(pages.document("vsj wrist FMU", [
+            f"<p>{pages.esc(description)}</p><p>It refuses, with fmi2Error and the reason through "
+            "the logger, what vsj refuses elsewhere (a parameter value a parameter file "
+            "refuses, another FMU's GUID or state), and checks each run as vsj simulate "
+            "does: a spring far past its end stop ends the run, one pressed into it or a "
+            "motor above its voltage limit gives fmi2Warning, and fmi2Terminate judges the "
+            f"run's energy ledger.</p><p>Built by vsj {pages.esc(__version__)}; see vsj's README, "
+            "section 'The wrist as an FMU'.</p>"]))
         said = {"linux64": compile_binary(
             "linux64", root / "binaries" / "linux64" / f"{MODEL_IDENTIFIER}.so")}
         platforms = ["linux64"]

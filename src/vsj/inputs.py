@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import _core
 from .errors import InputError
 
 #: Coefficient rows are (c0, c1, c2, c3) of c0 + c1 tau + c2 tau^2 + c3 tau^3, tau = t - knot.
@@ -130,11 +131,12 @@ def spline_pieces(t, y) -> Pieces:
     points or more), as the engine's pieces: the curve `scipy.interpolate.CubicSpline`
     draws with its default ends, to rounding.
 
-    It is built here from its slopes, with SciPy's banded solver, because importing
-    ``scipy.interpolate`` would cost a short run more than the whole simulation. The
-    slopes ``m`` make the first and second derivatives continuous at inner knots; at
-    each end the third derivative is continuous across the first inner knot. Three
-    points give one parabola and two a line.
+    It is built here from its slopes, solved by the engine's tridiagonal solver
+    (Gaussian elimination with partial pivoting, `vsj_solve_tridiagonal`), because
+    importing ``scipy.interpolate`` or ``scipy.linalg`` would cost a short run more than
+    its whole simulation. The slopes ``m`` make the first and second derivatives
+    continuous at inner knots; at each end the third derivative is continuous across
+    the first inner knot. Three points give one parabola and two a line.
     """
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
@@ -146,23 +148,21 @@ def spline_pieces(t, y) -> Pieces:
         middle = (h[1] * secant[0] + h[0] * secant[1]) / (h[0] + h[1])
         m = np.array([2.0 * secant[0] - middle, middle, 2.0 * secant[1] - middle])
     else:
-        # lazy: import vsj needs no SciPy; only cubic splines do
-        from scipy.linalg import solve_banded
-
+        # the tridiagonal system of the slopes: inner rows from the continuity of the
+        # second derivative, end rows from the not-a-knot conditions
         n = len(t)
-        bands = np.zeros((3, n))  # rows: above, on and below the diagonal
-        rhs = np.empty(n)
-        bands[1, 1:-1] = 2.0 * (h[:-1] + h[1:])
-        bands[0, 2:] = h[:-1]
-        bands[2, :-2] = h[1:]
-        rhs[1:-1] = 3.0 * (h[1:] * secant[:-1] + h[:-1] * secant[1:])
+        lower, diagonal, upper, m = np.empty(n - 1), np.empty(n), np.empty(n - 1), np.empty(n)
+        diagonal[1:-1] = 2.0 * (h[:-1] + h[1:])
+        upper[1:] = h[:-1]
+        lower[:-1] = h[1:]
+        m[1:-1] = 3.0 * (h[1:] * secant[:-1] + h[:-1] * secant[1:])
         first, last = h[0] + h[1], h[-1] + h[-2]
-        bands[1, 0], bands[0, 1] = h[1], first
-        rhs[0] = ((h[0] + 2.0 * first) * h[1] * secant[0] + h[0] ** 2 * secant[1]) / first
-        bands[1, -1], bands[2, -2] = h[-2], last
-        rhs[-1] = (h[-1] ** 2 * secant[-2] + (2.0 * last + h[-1]) * h[-2] * secant[-1]) / last
-        m = solve_banded((1, 1), bands, rhs, overwrite_ab=True, overwrite_b=True,
-                         check_finite=False)
+        diagonal[0], upper[0] = h[1], first
+        m[0] = ((h[0] + 2.0 * first) * h[1] * secant[0] + h[0] ** 2 * secant[1]) / first
+        diagonal[-1], lower[-1] = h[-2], last
+        m[-1] = (h[-1] ** 2 * secant[-2] + (2.0 * last + h[-1]) * h[-2] * secant[-1]) / last
+        if _core.solve_tridiagonal(lower, diagonal, upper, m) != 0:
+            raise InputError("spline knots too close together: the slopes' system is singular")
     curvature = (m[:-1] + m[1:] - 2.0 * secant) / h
     coef = np.column_stack([y[:-1], m[:-1], (secant - m[:-1]) / h - curvature, curvature / h])
     return t, coef

@@ -63,11 +63,20 @@ from .components.planetary import MESH_RELATIONS
 from .errors import InputError, read_text
 from .friction import law_code
 from .inputs import Constant, Input, Position, Sine, Step, Table, circle
+from .engine.plan import Plan
 from .network import Network, Structure
 from .params import Parameters, default
 from .progress import progress as bar
-from .simulate import (InitialState, Result, SimulationOptions, check_run_size, choose_solver,
-                       prepare, simulate)
+from .simulate import (
+    InitialState,
+    Result,
+    SimulationOptions,
+    check_run_size,
+    choose_solver,
+    prepare,
+    run_plan,
+    simulate,
+)
 from .units import to_si
 from .wrist import DRIVES, ELASTIC_MODELS, WristOptions, build_wrist
 
@@ -490,13 +499,15 @@ class Prepared:
     network: Network
     structure: Structure
     inputs: Mapping[str, Input]
+    plan: Plan  # the run of the case, compiled (`vsj.engine.plan.Plan`)
 
     def run(self, *, duration: float | None = None, ports: bool = True, sink=None) -> Result:
         """Simulate the case (for ``duration`` instead of its own, if given; its samples
         to ``sink``, see `vsj.simulate.simulate`)."""
-        return simulate(self.structure, self.inputs, duration or self.case.duration,
-                        options=self.case.options, initial=self.case.initial, ports=ports,
-                        sink=sink)
+        if duration is None or duration == self.case.duration:
+            return run_plan(self.plan, ports=ports, sink=sink)
+        return simulate(self.structure, self.inputs, duration, options=self.case.options,
+                        initial=self.case.initial, ports=ports, sink=sink)
 
 
 def prepare_case(scenario: Scenario, case: Case, params: Parameters, *,
@@ -522,9 +533,9 @@ def prepare_case(scenario: Scenario, case: Case, params: Parameters, *,
         check_run_size(structure, case.duration, options, choose_solver(structure, options),
                        in_memory=in_memory)
     with _context(where):  # the initial state against the network, and the compiled inputs
-        prepare(structure, inputs, case.duration, options, case.initial)
+        plan = prepare(structure, inputs, case.duration, options, case.initial)
     return Prepared(case=case, params=resolved, network=net, structure=structure,
-                    inputs=inputs)
+                    inputs=inputs, plan=plan)
 
 
 @dataclass(frozen=True)

@@ -107,6 +107,8 @@ class Plan:
     duration: float
     y0: np.ndarray
     inputs: Mapping[str, Input] = field(default_factory=dict, repr=False)
+    #: the `vsj.simulate.SimulationOptions` it was compiled with (sampling, checks)
+    options: object = field(default=None, repr=False)
 
     @cached_property
     def native(self) -> _core.Model:
@@ -135,13 +137,14 @@ class Plan:
                                       slope_width=options.slope_width)
         if held:
             y0 = np.zeros(layout.n_state + layout.n_acc)
-            return cls(structure, model, layout, scheme, float(duration), y0, inputs)
-        return cls.starting(structure, model, layout, scheme, float(duration), inputs, initial)
+            return cls(structure, model, layout, scheme, float(duration), y0, inputs, options)
+        return cls.starting(structure, model, layout, scheme, float(duration), inputs, initial,
+                            options=options)
 
     @classmethod
     def starting(cls, structure: Structure, model: EngineModel, layout: Layout, scheme: Scheme,
                  duration: float, inputs: Mapping[str, Input], initial,
-                 source_speeds: np.ndarray | None = None) -> "Plan":
+                 source_speeds: np.ndarray | None = None, *, options=None) -> "Plan":
         """The plan of a run of a compiled ``model`` from ``initial`` (`InitialState`):
         the initial state built and checked, the position sources starting where their
         inputs do. ``source_speeds`` at t = 0, if known, saves evaluating them."""
@@ -150,7 +153,7 @@ class Plan:
         x0, v0, sigma0, currents = initial_state(structure, inputs, initial, source_speeds)
         model = model._replace(src_pos0=np.ascontiguousarray(sigma0, dtype=float))
         y0 = np.concatenate([x0, v0, currents, np.zeros(layout.n_acc)])
-        return cls(structure, model, layout, scheme, duration, y0, inputs)
+        return cls(structure, model, layout, scheme, duration, y0, inputs, options)
 
     def retuned(self, *, y0=None, **arrays) -> "Plan":
         """This plan with some arrays of its model replaced (same sizes) and, if given,

@@ -6,14 +6,13 @@ The page uses the datasheet's style sheet and its way of embedding figures
 
 from __future__ import annotations
 
-import base64
 import html
 import io
 import math
 
 from .. import __version__
 from ..output import atomic_write, write_meta
-from ..pages import STYLE as _CSS
+from ..pages import document, figure
 from ..plots import MAX_POINTS, pyplot
 
 
@@ -91,11 +90,9 @@ def html_page(fit, figures: dict[str, bytes]) -> str:
     ident = ([f"<li>not determined: {esc(', '.join(fit.undetermined))}</li>"]
              if fit.undetermined else ["<li>every free parameter is determined</li>"])
     ident += [f"<li>poorly determined direction: {esc(c)}</li>" for c in fit.combinations]
-    parts = ["<!DOCTYPE html>", "<html lang=en><head><meta charset=utf-8>",
-             f"<title>vsj: the wrist identified</title><style>{_CSS}</style></head><body>",
-             "<h1>The wrist identified from its signals"
-             + (" [synthetic data]" if fit.synthetic else "") + "</h1>",
-             f"<p>vsj {esc(__version__)}; fitted to {esc(', '.join(fit.files))}"
+    title = "The wrist identified from its signals" + (" [synthetic data]" if fit.synthetic
+                                                         else "")
+    parts = [f"<p>vsj {esc(__version__)}; fitted to {esc(', '.join(fit.files))}"
              + (f"; validated on {esc(', '.join(fit.validation_files))}"
                 if fit.validation_files else "")
              + f". {fit.simulations} window simulations ({fit.simulated_seconds:.4g} s "
@@ -118,14 +115,11 @@ def html_page(fit, figures: dict[str, bytes]) -> str:
              "<h2>Fit quality</h2><table><tr><th class=l>data</th><th class=l>signal</th>"
              "<th>fit %</th><th>NRMSE</th><th>noise (SI)</th><th>samples</th></tr>",
              *quality, "</table>", "<h2>Figures</h2>"]
-    for name, png in figures.items():
-        data = base64.b64encode(png).decode("ascii")
-        parts.append(f"<figure id={esc(name)}><img alt=\"{esc(name)}\" "
-                     f"src=\"data:image/png;base64,{data}\"><figcaption>{esc(name)}"
-                     "</figcaption></figure>")
+    parts += [figure(png, name, anchor=name, synthetic=fit.synthetic)
+              for name, png in figures.items()]
     parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{esc(n)}</li>" for n in fit.notes)
-                 + "</ul></body></html>")
-    return "\n".join(parts) + "\n"
+                 + "</ul>")
+    return document(title, parts)
 
 
 def _uncertainty(fit) -> list[str]:

@@ -26,7 +26,7 @@ The package is laid out by job: `options` (how to run), `driver` (one run),
 from .batch import simulate_batch
 from .checks import DIVERGED, INTO_STOP, judge, warnings_of
 from .driver import (MemorySink, check_run_size, choose_solver, prepare, rigid_stops,
-                     sample_times, simulate)
+                     run_plan, sample_times, simulate)
 from .ledger import ledger
 from .options import LEDGER_TOLERANCE, RANGES, InitialState, SimulationOptions
 from .result import BatchResult, Result
@@ -34,5 +34,5 @@ from .signals import SignalSpec, catalogue, collect, port_flows, state_names
 
 __all__ = ["MemorySink", "SignalSpec", "catalogue", "sample_times", "BatchResult", "DIVERGED", "INTO_STOP", "InitialState", "LEDGER_TOLERANCE", "RANGES",
            "Result", "SimulationOptions", "check_run_size", "choose_solver", "collect", "judge",
-           "ledger", "port_flows", "prepare", "rigid_stops", "simulate", "simulate_batch",
+           "ledger", "port_flows", "prepare", "rigid_stops", "run_plan", "simulate", "simulate_batch",
            "state_names", "warnings_of"]

@@ -144,11 +144,22 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
     engine's steps do not depend on them.
     """
     inputs, options, initial = check_arguments(structure, inputs, duration, options, initial)
-    solver = choose_solver(structure, options)
+    # the size first: a run too large for memory or disk is refused before anything else
+    check_run_size(structure, duration, options, choose_solver(structure, options),
+                   in_memory=getattr(sink, "keeps_samples", True), ports=ports)
+    return run_plan(prepare(structure, inputs, duration, options, initial), ports=ports,
+                    sink=sink)
+
+
+def run_plan(plan: Plan, *, ports: bool = True, sink=None) -> Result:
+    """Run a plan made by `prepare` (or `vsj.scenario.prepare_case`), as `simulate` runs
+    it: sampled on its options' output grid, block by block into ``sink``, watched by
+    the physical checks and judged by the energy ledger."""
+    structure, options, duration = plan.structure, plan.options, plan.duration
+    solver = plan.scheme.name
     sink = MemorySink() if sink is None else sink
     check_run_size(structure, duration, options, solver,
                    in_memory=getattr(sink, "keeps_samples", True), ports=ports)
-    plan = prepare(structure, inputs, duration, options, initial)
     layout = plan.layout
     t_out = sample_times(duration, options.output_step)
     n_out = len(t_out)

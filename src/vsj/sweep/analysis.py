@@ -11,14 +11,13 @@ one-dimensional sweep over the pivot position q, the metric against q.
 
 from __future__ import annotations
 
-import base64
 import html
 import io
 import math
 
 import numpy as np
 
-from ..pages import STYLE  # one look for vsj's pages
+from ..pages import document, figure
 from .sampling import MORRIS_LEVELS
 
 #: Confidence level of the intervals SALib's bootstrap gives.
@@ -165,8 +164,7 @@ def page(title: str, facts: list[tuple[str, str]], stats: list[list], figures: d
     """``summary.html``: facts, a table of each metric's statistics, the sensitivity
     table, the figures (embedded), the failed runs."""
     esc = html.escape
-    parts = [(f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{esc(title)}</title>"
-              f"<style>{STYLE}</style></head><body>"), f"<h1>{esc(title)}</h1>", "<table>"]
+    parts = ["<table>"]
     parts += [f"<tr><th>{esc(k)}</th><td>{esc(v)}</td></tr>" for k, v in facts]
     parts.append("</table><h2>Metrics</h2><table><tr><th>metric</th><th>unit</th>"
                  "<th>runs</th><th>mean</th><th>std</th><th>min</th><th>5 %</th>"
@@ -181,16 +179,13 @@ def page(title: str, facts: list[tuple[str, str]], stats: list[list], figures: d
             parts.append("<tr>" + "".join(f"<td>{esc(_fmt(v))}</td>" for v in row) + "</tr>")
         parts.append("</table>")
     for name, (caption, png) in figures.items():
-        data = base64.b64encode(png).decode("ascii")
-        parts.append(f"<h2>{esc(caption)}</h2><figure><img alt='{esc(name)}' "
-                     f"src='data:image/png;base64,{data}'></figure>")
+        parts.append(f"<h2>{esc(caption)}</h2>" + figure(png, caption, anchor=name))
     if failures:
         parts.append(f"<h2>Failed runs ({len(failures)})</h2><table><tr><th>run</th>"
                      "<th>message</th></tr>")
         parts += [f"<tr><td>{r}</td><td>{esc(m)}</td></tr>" for r, m in failures[:200]]
         parts.append("</table>")
-    parts.append("</body></html>")
-    return "\n".join(parts) + "\n"
+    return document(title, parts)
 
 
 def statistics(metrics: np.ndarray, names: list[str], units: list[str]) -> list[list]:

@@ -1,7 +1,8 @@
 /* Small dense linear algebra for the time-stepper and its impulse solver: the
  * Cholesky factor of a symmetric positive definite matrix and the triangular
  * solves with it. Each works on the leading k x k block of a row-major n x n
- * array, so that one allocation serves problems of every size up to n. */
+ * array, so that one allocation serves problems of every size up to n.
+ * And the tridiagonal solve behind the input splines (vsj.inputs.spline_pieces). */
 #include <math.h>
 
 #include "internal.h"
@@ -51,4 +52,39 @@ void vsj__backward(const double *L, const double *b, double *out, int64_t k, int
 void vsj__solve(const double *L, const double *b, double *out, int64_t n) {
     vsj__forward(L, b, out, n, n);
     vsj__backward(L, out, out, n, n);
+}
+
+int vsj_solve_tridiagonal(int64_t n, double *dl, double *d, double *du, double *du2, double *b) {
+    int64_t i;
+    for (i = 0; i + 1 < n; i++) {
+        if (fabs(d[i]) >= fabs(dl[i])) { /* the pivot stays on the diagonal */
+            double f;
+            if (d[i] == 0.0)
+                return -1;
+            f = dl[i] / d[i];
+            d[i + 1] -= f * du[i];
+            b[i + 1] -= f * b[i];
+            if (i + 2 < n)
+                du2[i] = 0.0;
+        } else { /* rows i and i + 1 exchanged: row i + 1 is the pivot row */
+            double f = d[i] / dl[i], next_d = d[i + 1], old_b = b[i];
+            d[i] = dl[i];
+            d[i + 1] = du[i] - f * next_d;
+            du[i] = next_d;
+            if (i + 2 < n) {
+                du2[i] = du[i + 1];
+                du[i + 1] = -f * du2[i];
+            }
+            b[i] = b[i + 1];
+            b[i + 1] = old_b - f * b[i + 1];
+        }
+    }
+    if (n < 1 || d[n - 1] == 0.0)
+        return -1;
+    b[n - 1] /= d[n - 1];
+    if (n > 1)
+        b[n - 2] = (b[n - 2] - du[n - 2] * b[n - 1]) / d[n - 2];
+    for (i = n - 3; i >= 0; i--)
+        b[i] = (b[i] - du[i] * b[i + 1] - du2[i] * b[i + 2]) / d[i];
+    return 0;
 }

@@ -266,6 +266,13 @@ size_t vsj_ts_history_size(const vsj_model *m);
 void vsj_ts_save(const vsj_model *m, const vsj_work *w, unsigned char *buffer);
 void vsj_ts_restore(const vsj_model *m, vsj_work *w, const unsigned char *buffer);
 
+/* A tridiagonal system of order n: sub-diagonal dl (n - 1), diagonal d (n), super-
+ * diagonal du (n - 1), right-hand side b (n), solved by Gaussian elimination with
+ * partial pivoting (two rows exchanged where the sub-diagonal entry is the larger);
+ * b receives the solution, dl, d, du and du2 (n - 2, the fill) are overwritten.
+ * Returns 0, or -1 for a singular system. */
+int vsj_solve_tridiagonal(int64_t n, double *dl, double *d, double *du, double *du2, double *b);
+
 /* The time-stepper's joint Coulomb impulse problem on its own: for each of
  * `count` right-hand sides q (rows of qs, m values), impulses p with
  * |p_e| <= cap_e such that the slips s = q - Y^T Y p (Y: the n x m matrix YT)
