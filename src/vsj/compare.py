@@ -52,6 +52,7 @@ class TubeReport:
 
     @property
     def inside(self) -> bool:
+        """True if no sample leaves the tube (``outside == 0``)."""
         return self.outside == 0
 
     def __str__(self) -> str:

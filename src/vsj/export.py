@@ -20,10 +20,11 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .params import Parameters
-from .simulate import InitialState, SimulationOptions
 from .engine.model import ARRAYS
 from .engine.plan import METHODS as SCHEME_CODES
+from .output import atomic_write
+from .params import Parameters
+from .simulate import InitialState, SimulationOptions
 from .stepper import METHODS, Stepper
 from .wrist import WristOptions
 
@@ -118,8 +119,6 @@ def program_bytes(document: dict, stepper: Stepper) -> bytes:
 def write_model(path: Path, document: dict, stepper: Stepper) -> None:
     """Write the program file of ``stepper`` (atomically: a failed write leaves no half
     file)."""
-    from .output import atomic_write
-
     with atomic_write(Path(path), "wb") as handle:
         handle.write(program_bytes(document, stepper))
 

@@ -42,6 +42,10 @@ class Input:
     is_position = False
 
     def value(self, t):
+        """The signal's value at the times ``t`` [s] (scalar or array), in the unit of the
+        channel it drives (rad/s, N m or V).
+
+        Subclasses implement this; the engine evaluates `pieces` instead."""
         raise NotImplementedError
 
     def pieces(self, t_end: float) -> Pieces:
@@ -60,6 +64,7 @@ class Input:
         return None
 
     def describe(self) -> str:
+        """The signal in one line of words (here its repr; subclasses say it in words)."""
         return repr(self)
 
 
@@ -202,15 +207,19 @@ class Constant(Input):
             raise InputError(f"constant input: value must be finite, got {self.level!r}")
 
     def value(self, t):
+        """``level`` at every time of ``t`` [s], shaped as ``t``."""
         return np.full_like(np.asarray(t, dtype=float), self.level)
 
     def pieces(self, t_end: float) -> Pieces:
+        """One constant piece over ``[0, t_end]`` [s] (at least 1 ns long)."""
         return np.array([0.0, max(t_end, 1e-9)]), np.array([[self.level, 0.0, 0.0, 0.0]])
 
     def knots(self, t_end: float) -> int:
+        """Always 2: a constant is one piece."""
         return 2
 
     def describe(self) -> str:
+        """The signal in one line of words."""
         return f"constant {self.level:g}"
 
 
@@ -257,6 +266,8 @@ class Sine(Input):
                                                            + self.phase)
 
     def value(self, t):
+        """The signal's value at the times ``t`` [s] (scalar or array), in the unit of the
+        channel it drives (rad/s, N m or V). ``offset`` outside ``[start, stop)``."""
         t = np.asarray(t, dtype=float)
         return np.where((t >= self.start) & (t < self.stop), self._wave(t), self.offset)
 
@@ -287,6 +298,9 @@ class Sine(Input):
         return step, math.ceil(max(self.start + self.fade_in - on, 0.0) / step - 1e-9)
 
     def repeats(self) -> tuple[float, float] | None:
+        """``(t0, period)`` [s] for a sine that never stops: it repeats from the end of its
+        fade-in (rounded up to a knot) with period ``1 / frequency``; None for one that
+        stops."""
         grid = self._periodic_grid()
         if grid is None:
             return None
@@ -294,6 +308,9 @@ class Sine(Input):
         return max(self.start, 0.0) + fade_steps * step, 1.0 / self.frequency
 
     def pieces(self, t_end: float) -> Pieces:
+        """Knots [s] and cubic coefficients covering ``[0, t_end]``: the sine splined on a
+        grid fine enough for its frequency and fade-in, with knots at its start and stop
+        and on the period's grid when it repeats."""
         knots, coefs = [], []
         grid = self._periodic_grid()
         for a, b, waving in self._segments(t_end):
@@ -313,10 +330,13 @@ class Sine(Input):
         return np.concatenate(knots), np.vstack(coefs).astype(float)
 
     def knots(self, t_end: float) -> int:
+        """Number of knots `pieces` makes for ``[0, t_end]`` [s], counted without making
+        them. `InputError` if more than `MAX_KNOTS` would be needed."""
         return 1 + sum(_intervals(b - a, self._step()) if waving else 1
                        for a, b, waving in self._segments(t_end))
 
     def describe(self) -> str:
+        """The signal in one line of words."""
         until = f", stop {self.stop:g} s" if math.isfinite(self.stop) else ""
         return (f"sine amplitude {self.amplitude:g}, {self.frequency:g} Hz, phase "
                 f"{self.phase:g} rad, offset {self.offset:g}, start {self.start:g} s{until}, "
@@ -339,10 +359,14 @@ class Step(Input):
                                  f"{getattr(self, name)!r}")
 
     def value(self, t):
+        """``offset`` before ``start`` [s], ``offset + height`` from then on, at the times
+        ``t`` [s]."""
         t = np.asarray(t, dtype=float)
         return np.where(t >= self.start, self.offset + self.height, self.offset)
 
     def pieces(self, t_end: float) -> Pieces:
+        """Knots [s] and coefficients covering ``[0, t_end]``: two constant pieces with a
+        knot at ``start``, or one if the step lies outside ``(0, t_end)``."""
         if 0.0 < self.start < t_end:
             return (np.array([0.0, self.start, t_end]),
                     np.array([[self.offset, 0, 0, 0], [self.offset + self.height, 0, 0, 0]],
@@ -351,9 +375,11 @@ class Step(Input):
         return Constant(level).pieces(t_end)
 
     def knots(self, t_end: float) -> int:
+        """3 if the step falls inside ``(0, t_end)`` [s], else 2."""
         return 3 if 0.0 < self.start < t_end else 2
 
     def describe(self) -> str:
+        """The signal in one line of words."""
         return f"step of {self.height:g} at {self.start:g} s from {self.offset:g}"
 
 
@@ -391,12 +417,16 @@ class Table(Input):
                              f"{self.interpolation!r}")
 
     def value(self, t):
+        """The table interpolated (linearly or by the cubic spline) at the times ``t`` [s],
+        first and last values held outside it."""
         if self.interpolation == "linear":
             return np.interp(t, self.times, self.values)
         t = np.clip(np.asarray(t, dtype=float), self.times[0], self.times[-1])
         return evaluate(spline_pieces(self.times, self.values), t)
 
     def pieces(self, t_end: float) -> Pieces:
+        """The table's own times as knots [s] with linear or not-a-knot cubic spline
+        coefficients (``t_end`` is not used: the engine holds the ends)."""
         t = np.asarray(self.times, dtype=float)
         v = np.asarray(self.values, dtype=float)
         if self.interpolation == "cubic":
@@ -408,9 +438,11 @@ class Table(Input):
         return knots, coef
 
     def knots(self, t_end: float) -> int:
+        """Number of table points (independent of ``t_end``)."""
         return len(self.times)
 
     def describe(self) -> str:
+        """The signal in one line of words."""
         return f"table of {len(self.times)} points ({self.interpolation})"
 
 
@@ -442,6 +474,8 @@ class Hold(Input):
         _check_series("hold", self.times, self.values, 1)
 
     def value(self, t):
+        """The held value at the times ``t`` [s]: ``values[i]`` over ``(times[i], times[i +
+        1]]``."""
         t = np.asarray(t, dtype=float)
         index = np.searchsorted(np.asarray(self.times, dtype=float), t, side="left") - 1
         return np.asarray(self.values, dtype=float)[np.clip(index, 0, len(self.values) - 1)]
@@ -453,6 +487,8 @@ class Hold(Input):
         return max(self.KNOT_OFFSET * shortest, 64 * np.spacing(max(abs(t).max(), 1.0)))
 
     def pieces(self, t_end: float) -> Pieces:
+        """Constant pieces, each change `KNOT_OFFSET` of the shortest interval after its
+        time, the last one extended to ``t_end`` [s]."""
         t = np.asarray(self.times, dtype=float)
         v = np.asarray(self.values, dtype=float)
         delta = self._offset()
@@ -464,12 +500,15 @@ class Hold(Input):
         return knots, coef
 
     def knots(self, t_end: float) -> int:
+        """Number of knots `pieces` makes (one per value plus the end); `InputError` above
+        `MAX_KNOTS`."""
         if len(self.times) + 1 > MAX_KNOTS:
             raise InputError(f"hold input: {len(self.times)} values; at most {MAX_KNOTS - 1} "
                              "are allowed")
         return len(self.times) + 1
 
     def describe(self) -> str:
+        """The signal in one line of words."""
         return f"hold of {len(self.times)} values (zero-order)"
 
 
@@ -481,24 +520,32 @@ class Position(Input):
     is_position = True
 
     def value(self, t):
+        """The angle [rad] at the times ``t`` [s] (the wrapped signal's value)."""
         return self.angle.value(t)
 
     def initial_angle(self) -> float:
+        """The angle [rad] at time zero: the velocity source's initial angle."""
         return float(self.angle.value(np.array([0.0]))[0])
 
     def pieces(self, t_end: float) -> Pieces:
+        """The angle's spline differentiated: knots [s] and cubic coefficients of the speed
+        [rad/s]."""
         knots, coef = self.angle.pieces(t_end)
         derivative = np.column_stack([coef[:, 1], 2 * coef[:, 2], 3 * coef[:, 3],
                                       np.zeros(len(coef))])
         return knots, derivative
 
     def knots(self, t_end: float) -> int:
+        """Number of knots of the angle's spline over ``[0, t_end]`` [s]."""
         return self.angle.knots(t_end)
 
     def repeats(self) -> tuple[float, float] | None:
+        """Whether the angle repeats, as `Input.repeats` (its derivative repeats with it).
+        """
         return self.angle.repeats()
 
     def describe(self) -> str:
+        """The signal in one line of words."""
         return f"angle given by {self.angle.describe()}"
 
 

@@ -32,7 +32,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from . import __version__
 from .errors import InputError, read_text
+from .output import atomic_write
 from .units import from_si, to_si
 
 #: Known quantities: SI unit and the names that mean them.
@@ -77,6 +79,7 @@ class Measurement:
 
     @property
     def synthetic(self) -> bool:
+        """True if the file's comments mark it as synthetic (generated from the model)."""
         return any(SYNTHETIC_MARK in c.lower() for c in self.comments)
 
     def __getitem__(self, quantity: str) -> np.ndarray:
@@ -214,8 +217,6 @@ def _delimiter(header: str, path: str, line: int) -> str:
 def _mark(buffer, comments: Sequence[str]) -> None:
     """The comment lines of a file vsj writes: ``comments``, then vsj's mark
     (`vsj.output.written_by_vsj` recognises it, so that vsj replaces the file again)."""
-    from . import __version__
-
     for c in comments:
         for line in str(c).splitlines():
             buffer.write(f"# {line}\n")
@@ -225,8 +226,6 @@ def _mark(buffer, comments: Sequence[str]) -> None:
 def write(path: str | Path, columns: Mapping[str, tuple[np.ndarray, str]],
           comments: Sequence[str] = ()) -> None:
     """Write a measurement file: ``columns`` maps quantity to (SI values, unit to write)."""
-    from .output import atomic_write
-
     names = list(columns)
     for q in names:
         if q not in QUANTITIES:
@@ -327,8 +326,6 @@ def read_log(path: str | Path, known: Mapping[str, str], *, min_points: int = 5)
 def write_log(path: str | Path, columns: Mapping[str, tuple[np.ndarray, str]],
               comments: Sequence[str] = ()) -> None:
     """Write a signal log: ``columns`` maps signal name to (SI values, unit to write)."""
-    from .output import atomic_write
-
     names = list(columns)
     buffer = io.StringIO()
     _mark(buffer, comments)

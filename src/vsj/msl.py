@@ -33,6 +33,7 @@ from . import compare
 from .components import Brake, Clutch, Inertia, SpringDamper, TorqueSource
 from .inputs import Constant, Input, Sine, Step
 from .network import Network, Structure
+from .plots import pyplot, save
 from .simulate import InitialState, Result, SimulationOptions, simulate
 
 
@@ -152,10 +153,13 @@ class Check:
 
     @property
     def passed(self) -> bool:
+        """True if every signal stays inside its tube and every stuck-flag difference lies
+        within one step of a switch of the reference."""
         return (all(t.inside for t in self.tubes)
                 and all(m["worst_steps"] <= 1 for m in self.modes.values()))
 
     def summary(self) -> str:
+        """The tube reports and the stuck-flag differences, one line each."""
         lines = [str(t) for t in self.tubes]
         for name, m in self.modes.items():
             lines.append(f"{name}: stuck flag differs from the reference at {m['differ']} of "
@@ -203,8 +207,6 @@ def figure(example: Example, result: Result, reference: Mapping[str, np.ndarray]
     """One panel per compared signal (the reference, its tube and vsj's samples)
     and one for the stick phases of every friction element, against the
     reference's modes."""
-    from .plots import pyplot, save
-
     plt = pyplot()
     names = list(example.signals)
     fig, axes = plt.subplots(len(names) + 1, 1, figsize=(9, 1.9 * (len(names) + 1) + 0.6),

@@ -218,6 +218,8 @@ class Parts:
         )
 
     def merge(self, other: "Parts") -> "Parts":
+        """Add ``other``'s elements to these parts in place: lists are extended, inertias on
+        one flange add up, other mappings take ``other``'s value. Returns self."""
         for f in dataclasses.fields(self):
             mine = getattr(self, f.name)
             theirs = getattr(other, f.name)
@@ -299,6 +301,8 @@ class Network:
         self.signals: list[Signal] = []
 
     def add(self, *components: Component) -> "Network":
+        """Add components (their names must be unique in the network); returns the network,
+        for chaining."""
         names = {c.name for c in self.components}
         for c in components:
             if c.name in names:
@@ -340,6 +344,8 @@ class Network:
         return self
 
     def parts(self) -> Parts:
+        """Everything the components contribute, merged, with the network's own published
+        signals."""
         total = Parts()
         for c in self.components:
             total.merge(c.parts())
@@ -556,15 +562,18 @@ class Structure:
     # -- derived matrices ---------------------------------------------------
     @property
     def n(self) -> int:
+        """Number of degrees of freedom (free generalised speeds)."""
         return len(self.free)
 
     def index(self, flange: str) -> int:
+        """Position of ``flange`` in ``nodes``; `InputError` if there is no such flange."""
         try:
             return self.nodes.index(flange)
         except ValueError:
             raise InputError(f"unknown flange {flange!r} in network {self.name!r}") from None
 
     def mass_matrix(self) -> np.ndarray:
+        """The mass matrix ``A^T diag(inertia) A`` [kg m^2] of the free speeds."""
         return self.A.T @ (self.inertia[:, None] * self.A)
 
     def _check_inertia(self) -> None:
@@ -596,6 +605,7 @@ class Structure:
         return tuple(dict.fromkeys(names))
 
     def describe(self) -> str:
+        """A few lines in words: flanges, degrees of freedom, sources and element counts."""
         lines = [f"network {self.name}: {len(self.nodes)} flanges, {self.n} degrees of "
                  f"freedom ({', '.join(self.free) or 'none'})"]
         lines.append(f"  sources: {', '.join(s.name for s in self.sources) or 'none'}")
@@ -638,6 +648,7 @@ class Structure:
         return sol
 
     def pivot_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(row_x, row_u)`` of the pivot flange's angle (zeros if the pivot is pinned)."""
         if self.pivot.flange is None:
             return np.zeros(self.n), np.zeros(len(self.sources))
         return self.rows(self.pivot.flange)

@@ -42,6 +42,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Mapping
 
+import tomli_w
+
 from .errors import InputError, read_text
 from .units import format_quantity, to_si
 
@@ -254,6 +256,8 @@ class Parameters:
         return {name: self.values[f"{section}.{name}"] for name in SCHEMA[section]}
 
     def section(self, name: str) -> "_Section":
+        """The values of section ``name`` (attribute access by key); KeyError if the schema
+        has no such section."""
         if name not in SCHEMA:
             raise KeyError(f"no parameter section {name!r}")
         return _Section(self, name)
@@ -301,8 +305,6 @@ class Parameters:
         """The set as a parameter file (values in their display units, each with the
         fewest digits, 10 at least, that read back as the same number: a file written
         from an identified set gives the set itself)."""
-        import tomli_w
-
         doc: dict = {"meta": dict(self.meta)} if self.meta else {}
         for section, specs in SCHEMA.items():
             doc[section] = {}
@@ -458,6 +460,7 @@ class Relation:
         return sum(weight * values[key] for key, weight in self.terms)
 
     def holds(self, values: Mapping[str, float]) -> bool:
+        """True if the relation holds for ``values`` (SI values by key)."""
         margin = self.margin(values)
         return margin > 0.0 if self.strict else margin >= 0.0
 

@@ -7,11 +7,13 @@ an SVG when asked). The report's figures live in `vsj.reproduce`.
 from __future__ import annotations
 
 import sys
+import textwrap
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
+from .output import atomic_write
 from .simulate import Result
 
 #: Signals shown by `trajectory_figure`, per network, with their display units.
@@ -30,6 +32,7 @@ MAIN_SIGNALS = {
 def figure(**options):
     """A matplotlib `Figure` outside pyplot (no pyplot import, no figure registry to
     close it from; `save` writes it through the Agg canvas)."""
+    # lazy: matplotlib is heavy; imported when a figure is drawn
     from matplotlib.figure import Figure
 
     return Figure(**options)
@@ -37,9 +40,10 @@ def figure(**options):
 
 def pyplot():
     """matplotlib's pyplot on the off-screen Agg backend (imported on first use)."""
-    import matplotlib
+    import matplotlib  # lazy: matplotlib is heavy; imported when a figure is drawn
 
     matplotlib.use("Agg")
+    # lazy: matplotlib is heavy; imported when a figure is drawn
     import matplotlib.pyplot as plt
 
     return plt
@@ -53,8 +57,6 @@ MAX_POINTS = 2000
 def save(fig, path: Path, *, svg: bool = False, tight: bool = True) -> None:
     """Write ``fig`` as PNG (and SVG); ``tight`` crops it to its contents (an extra
     drawing pass: figures laid out with ``tight_layout`` do without)."""
-    from .output import atomic_write
-
     path = Path(path)
     with atomic_write(path, "wb") as handle:
         fig.savefig(handle, format="png", dpi=120, bbox_inches="tight" if tight else None)
@@ -85,8 +87,6 @@ def trajectory_figure(runs: Sequence[tuple[str, Result]], network: str, path: Pa
     if len(runs) > 1:
         axes[0, 0].legend(fontsize=8, ncol=min(len(runs), 5))
     if title:
-        import textwrap
-
         fig.suptitle("\n".join(textwrap.wrap(title, 90)), fontsize=10)
     fig.tight_layout()
     save(fig, path, tight=False)
@@ -95,8 +95,6 @@ def trajectory_figure(runs: Sequence[tuple[str, Result]], network: str, path: Pa
 def trajectory_file_figure(trajectory, network: str, path: Path, *, title: str = "") -> None:
     """`trajectory_figure` of a streamed `vsj.output.TrajectoryFile`: each plotted signal
     read from the file at most `MAX_POINTS` samples per line."""
-    from .simulate import Result
-
     runs = []
     for k, label in enumerate(trajectory.labels):
         reached = trajectory.reached[k]

@@ -65,7 +65,8 @@ from .friction import law_code
 from .inputs import Constant, Input, Position, Sine, Step, Table, circle
 from .engine.plan import Plan
 from .network import Network, Structure
-from .params import Parameters
+from .params import Parameters, default
+from .progress import progress as bar
 from .simulate import (
     InitialState,
     Result,
@@ -114,6 +115,7 @@ class Where:
     path: str = ""
 
     def key(self, name: str) -> Where:
+        """The place one key ``name`` deeper."""
         return Where(self.origin, f"{self.path}.{name}" if self.path else name)
 
     def __str__(self) -> str:
@@ -137,6 +139,8 @@ class Case:
 
 @dataclass(frozen=True)
 class Scenario:
+    """A scenario loaded and checked: its name, description, origin (file or built-in), its
+    cases and the table it was read from."""
     name: str
     description: str
     origin: str
@@ -144,6 +148,8 @@ class Scenario:
     table: Mapping = field(repr=False, default_factory=dict)
 
     def resolved_params(self, case: Case, params: Parameters) -> Parameters:
+        """``params`` with the case's parameter overrides applied (the same set if it has
+        none)."""
         if not case.params:
             return params
         return params.with_overrides(case.params, origin=str(case.where.key("params")),
@@ -468,6 +474,7 @@ def _builtin_dir() -> Path:
 
 
 def builtin_names() -> list[str]:
+    """Names of the built-in scenarios, sorted."""
     return sorted(p.stem for p in _builtin_dir().glob("*.toml"))
 
 
@@ -551,9 +558,6 @@ def run(scenario: Scenario | str, params: Parameters | None = None, *,
     and powers to the results; ``progress`` shows a bar on stderr. A failed
     run is returned with ``result.success`` False: the caller decides.
     """
-    from .params import default
-    from .progress import progress as bar
-
     scen = load(scenario) if isinstance(scenario, str) else scenario
     params = default() if params is None else params
     prepared = [prepare_case(scen, case, params) for case in scen.cases]

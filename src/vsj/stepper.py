@@ -61,11 +61,10 @@ A `Stepper` holds one work: use one `Stepper` per thread.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Mapping, Sequence
 
 import numpy as np
-
-from dataclasses import replace
 
 from . import _core
 from .engine import OK, STATUS_TEXT
@@ -76,6 +75,7 @@ from .errors import InputError, SimulationError
 from .inputs import Constant
 from .network import Structure
 from .simulate import InitialState, SimulationOptions, prepare
+from .wrist import build_wrist
 
 METHODS = ("dopri", "rk4", "timestep")
 
@@ -166,17 +166,17 @@ class Stepper:
     @classmethod
     def wrist(cls, params, wrist_options=None, period: float = 1e-3, **kwargs) -> "Stepper":
         """A stepper of the whole wrist (`vsj.wrist.build_wrist`)."""
-        from .wrist import build_wrist
-
         return cls(build_wrist(params, wrist_options).assemble(), period, **kwargs)
 
     # -- sizes and names ----------------------------------------------------------------
     @property
     def n_state(self) -> int:
+        """Length of the state vector."""
         return self._n_state
 
     @property
     def n_inputs(self) -> int:
+        """Number of inputs (`input_names`)."""
         return len(self.input_names)
 
     def input_vector(self, inputs: Mapping[str, float] | Sequence[float] | np.ndarray | None
@@ -354,7 +354,7 @@ class Stepper:
 
     def discretize(self, state, inputs) -> tuple[np.ndarray, np.ndarray]:
         """Discrete-time Jacobians ``(F, G)`` of one period (zero-order hold of `jacobian`)."""
-        from scipy.linalg import expm
+        from scipy.linalg import expm  # lazy: heavy; only discretize() needs it
 
         jx, ju = self.jacobian(state, inputs)
         ns, ni = jx.shape[0], ju.shape[1]

@@ -25,10 +25,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import __version__
+from .benches import elastic_bench, planetary_bench
 from .errors import InputError
 from .inputs import Position, Sine, Table
+from .measurements import LIMITS
 from .params import Parameters
 from .scenario import staircase
+from .simulate import SimulationOptions, simulate
+from .wrist import WristOptions, build_wrist, elastic_element
 
 #: The report's fitted constants (c1 [N m s/rad], c2 [N m], c3 [s/rad]).
 REPORT_CONSTANTS = {
@@ -77,8 +81,6 @@ def _check_artefacts(noise: float, seed: int, **fractions: float) -> None:
 def _check_constants(constants) -> None:
     """`InputError` unless (c1, c2, c3) make a friction curve: c1, c2 >= 0, not both zero,
     c3 > 0, and torques a bench file can hold over the test's speeds."""
-    from .measurements import LIMITS
-
     if len(constants) != 3:
         raise InputError(f"constants: expected c1, c2, c3, got {len(constants)} values")
     for name, value, unit, low in zip(("c1", "c2", "c3"), constants,
@@ -153,6 +155,7 @@ def friction(*, fixed: str, constants: tuple[float, float, float] | None = None,
                  f"ripple (rms {ripple_fraction:g} of it, mirrored with the direction, fig 4.6)")
     comments = _header(f"{fixed}-fixed friction curve ({form})", how, seed, artefacts)
     if form == "points":
+        # lazy: scipy.optimize; only rippled friction
         from .identification.friction import plateaus
 
         speeds, torques = [], []
@@ -172,9 +175,6 @@ def friction(*, fixed: str, constants: tuple[float, float, float] | None = None,
 
 
 def _bench_friction(params: Parameters, fixed: str, t, speed_signal):
-    from .benches import planetary_bench
-    from .simulate import SimulationOptions, simulate
-
     structure = planetary_bench(params, fixed=fixed).assemble()
     # the report's final module model (fig 4.7): arctan mesh friction, bearings that stick
     options = SimulationOptions(friction="arctan", friction_overrides=BEARINGS_STICK,
@@ -203,10 +203,7 @@ def stiffness(*, q: float, params: Parameters, noise: float = 0.01, play: float 
     elsewhere: report fig 4.12) lets the deflection pass through a band at
     almost constant torque.
     """
-    from . import characteristics as ch
-    from .benches import elastic_bench
-    from .simulate import SimulationOptions, simulate
-    from .wrist import elastic_element
+    from . import characteristics as ch  # lazy: scipy.optimize; only stiffness curves
 
     lo, hi = params.pivot.q_min, params.pivot.q_max
     if not lo <= q <= hi:
@@ -267,9 +264,6 @@ def wrist_run(experiment, params: Parameters):
     """The noiseless run of ``experiment`` with ``params`` (true stiction, at the
     experiment's step) up to `run_end`: the `vsj.simulate` result every synthetic wrist
     log samples. The inputs follow the experiment's signals past its duration."""
-    from .simulate import SimulationOptions, simulate
-    from .wrist import WristOptions, build_wrist
-
     e = experiment
     end = run_end(e)
     options = WristOptions(motors=e.motors, elastic=e.elastic)

@@ -71,7 +71,7 @@ _TOKEN = re.compile(r"\s*(?:(?P<name>(?:[^\W\d]|[°%])\w*)|(?P<one>1)(?![\w.])"
 @functools.lru_cache(maxsize=1)
 def registry():
     """The shared pint registry (created once per process, without pint's disk cache)."""
-    import pint
+    import pint  # lazy: pint is heavy; only units outside vsj's own table
 
     return pint.UnitRegistry()
 
@@ -210,7 +210,7 @@ def _convert(value: float, unit_text: str, unit: str) -> float:
         return _by_pint(value, f"to|{unit_text}|{unit}",
                         lambda x: registry().Quantity(x, _unit(unit_text)).to(_unit(unit)))
     except Exception as exc:
-        import pint
+        import pint  # lazy: pint is heavy; only units outside vsj's own table
 
         if isinstance(exc, pint.errors.DimensionalityError):
             raise _NotConvertible(f"{_unit(unit_text):~}") from None

@@ -68,6 +68,8 @@ class WristOptions:
     mesh_relation: str = "printed"
 
     def validate(self) -> None:
+        """`InputError` naming the option and what is allowed if an option is unknown or
+        incomplete (a linear elastic model needs a stiffness > 0)."""
         if self.elastic not in ELASTIC_MODELS:
             raise InputError(f"elastic model must be one of {', '.join(ELASTIC_MODELS)}, "
                              f"got {self.elastic!r}")

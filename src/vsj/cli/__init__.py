@@ -8,18 +8,25 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
+from dataclasses import asdict
 from pathlib import Path
 
+from .. import __version__, params
 from ..errors import InputError, SimulationError
+from ..progress import progress
+from ..simulate import catalogue, sample_times
+from ..units import to_si
+from . import control, fit, sweep
 
 
 def _params(path: str | None):
-    from .. import params
-
     return params.load(path)
 
 
 def cmd_params(args) -> int:
+    """``vsj params``: print a parameter set (value, unit, description, source per key), or
+    with ``--check`` validate a file. Returns the exit code (0)."""
     params = _params(args.check or args.file)
     if args.check:
         print(f"{args.check}: ok ({len(params.values)} parameters, hash {params.hash()[:12]})")
@@ -35,11 +42,13 @@ def cmd_params(args) -> int:
 
 
 def cmd_simulate(args) -> int:
+    """``vsj simulate``: run every case of a scenario and write trajectory.nc and meta.json
+    (trajectory.csv, trajectory.png on request) as one result set. Returns the exit code:
+    0, or 1 if a case failed."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import scenario as scenarios
     from ..output import (ResultSet, TrajectoryFile, atomic_write, parameters_record,
                           trajectory_bytes, write_meta, write_trajectory_csv)
-    from ..progress import progress
-    from ..simulate import catalogue, sample_times
 
     params = _params(args.params)
     scen = scenarios.load(args.scenario)
@@ -75,7 +84,7 @@ def cmd_simulate(args) -> int:
             if args.csv:
                 write_trajectory_csv(results.path("trajectory.csv"), trajectory)
             if args.plot:
-                from ..plots import trajectory_file_figure
+                from ..plots import trajectory_file_figure  # lazy: only --plot draws
 
                 trajectory_file_figure(trajectory, scen.cases[0].network,
                                        results.path("trajectory.png"),
@@ -101,6 +110,9 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_scenarios(args) -> int:
+    """``vsj scenarios``: list the built-in scenarios with their descriptions. Returns the
+    exit code (0)."""
+    # lazy: only this command needs it, and every vsj command imports vsj.cli
     from .. import scenario as scenarios
 
     for name in scenarios.builtin_names():
@@ -110,8 +122,9 @@ def cmd_scenarios(args) -> int:
 
 
 def cmd_reproduce(args) -> int:
-    import time
-
+    """``vsj reproduce``: regenerate the report's figures, report.html and results.json.
+    Returns the exit code: 0, or 1 if a figure failed."""
+    # lazy: only this command needs it, and every vsj command imports vsj.cli
     from ..reproduce import run
 
     params = _params(args.params)
@@ -132,6 +145,9 @@ def cmd_reproduce(args) -> int:
 
 
 def cmd_verify(args) -> int:
+    """``vsj verify``: check an output directory (result sets or a sweep) against its
+    manifest. Returns the exit code: 0 if complete, 1 if not."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from ..output import MANIFEST, read_manifest, verify
     from ..sweep import store
 
@@ -162,11 +178,12 @@ def cmd_verify(args) -> int:
 
 
 def cmd_msl(args) -> int:
-    from dataclasses import asdict
-
+    """``vsj msl``: rebuild a Modelica Standard Library example, simulate it with the
+    time-stepper and compare it with the MSL reference result. Returns the exit code: 0,
+    or 1 if it leaves the reference's tube or stick/slip intervals."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import msl
     from ..output import ResultSet, cases_dataset, write_dataset, write_meta
-    from ..units import to_si
 
     if args.example not in msl.EXAMPLES:
         raise InputError(f"msl: unknown example {args.example!r}; allowed: "
@@ -203,8 +220,8 @@ def cmd_msl(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .. import __version__
-
+    """The argument parser of the ``vsj`` command with all its subcommands; each subcommand
+    sets ``func`` to the function that runs it."""
     parser = argparse.ArgumentParser(
         prog="vsj", description="Model, simulate and characterise the 2-DOF variable "
                                 "stiffness joint.")
@@ -257,8 +274,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plot", action="store_true", help="skip the PNG")
     p.set_defaults(func=cmd_msl)
 
-    from . import control, fit, sweep
-
     fit.register(sub)
     control.register(sub)
     sweep.register(sub)
@@ -266,6 +281,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``vsj`` command with ``argv`` (default: the process's arguments). Returns the
+    exit code: 0 success, 1 a simulation or fit failed, 2 bad input, 130 interrupted."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

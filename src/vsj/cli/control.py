@@ -17,18 +17,21 @@ import math
 import sys
 from pathlib import Path
 
+from .. import params
 from ..errors import InputError, SimulationError
+from ..friction import LAWS
+from ..friction import LINEAR_TREATMENTS as FRICTION_TREATMENTS
+from ..simulate import InitialState, SimulationOptions
+from ..stepper import METHODS
+from ..units import to_si
+from ..wrist import DRIVES, ELASTIC_MODELS, WristOptions
 
 
 def _params(path: str | None):
-    from .. import params
-
     return params.load(path)
 
 
 def _quantity(text: str, unit: str, option: str) -> float:
-    from ..units import to_si
-
     value = to_si(text, unit, where=f"option {option}")
     if not math.isfinite(value):
         raise InputError(f"option {option}: {text!r} is not finite")
@@ -46,8 +49,6 @@ def _names(text: str | None) -> list[str] | None:
 
 def _wrist_options(args):
     """WristOptions from the options `_add_wrist_arguments` adds."""
-    from ..wrist import WristOptions
-
     options = WristOptions(elastic=args.elastic, motors=args.motor_model,
                            pivot_drive=getattr(args, "pivot_drive", "velocity"),
                            linear_stiffness=(_quantity(args.linear_stiffness, "N*m",
@@ -72,8 +73,12 @@ def _add_wrist_arguments(p, elastic_models, drives, *, pivot_drive: bool = False
 
 
 def cmd_linearize(args) -> int:
+    """``vsj linearize``: the wrist linearised about an operating point, printed (or as
+    JSON) and optionally saved to .json or .npz. Returns the exit code: 0 (bad input
+    raises `InputError`, which `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import linear
-    from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
+    from ..output import SMALL_OUTPUT_BYTES, _jsonable, check_output_file, write_errors
 
     if args.out is not None and Path(args.out).suffix not in (".json", ".npz"):
         raise InputError(f"--out {args.out}: a linear model is written to a .json or .npz file")
@@ -93,8 +98,6 @@ def cmd_linearize(args) -> int:
         with write_errors("--out", args.out):
             linear.save(model, Path(args.out))
     if args.json:
-        from ..output import _jsonable
-
         print(json.dumps(_jsonable(linear.to_dict(model)), indent=1))
         return 0
     print(model.describe())
@@ -119,6 +122,10 @@ def cmd_linearize(args) -> int:
 
 
 def cmd_datasheet(args) -> int:
+    """``vsj datasheet``: compute the wrist's datasheet and write it as HTML and JSON in one
+    result set. Returns the exit code: 0 (bad input raises `InputError`, which `main`
+    turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import datasheet
     from ..output import ResultSet
 
@@ -135,9 +142,13 @@ def cmd_datasheet(args) -> int:
 
 
 def cmd_export_model(args) -> int:
+    """``vsj export-model``: write the wrist, with a parameter set and model options, as a
+    JSON model file that the C library loads (``vsj_load_model``) and steps one control
+    period at a time. Returns the exit code: 0 (bad input raises `InputError`, which
+    `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import export
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
-    from ..simulate import InitialState, SimulationOptions
 
     check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES, force=args.force)
     params = _params(args.params)
@@ -162,6 +173,10 @@ def cmd_export_model(args) -> int:
 
 
 def cmd_fmu(args) -> int:
+    """``vsj fmu``: build an FMI 2.0 co-simulation FMU of the wrist and/or write an FMI
+    cross-check folder. Returns the exit code: 0 (bad input raises `InputError`, which
+    `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import fmu
     from ..output import check_output_file, write_errors
 
@@ -209,9 +224,6 @@ def cmd_fmu(args) -> int:
 def register(sub) -> None:
     """Add ``linearize``, ``datasheet`` and ``export-model`` to the ``vsj`` command's
     subparsers."""
-    from ..friction import LINEAR_TREATMENTS as FRICTION_TREATMENTS
-    from ..wrist import DRIVES, ELASTIC_MODELS
-
     p = sub.add_parser(
         "linearize", help="linear state-space model of the wrist around an operating point",
         description="Linearise the wrist at a pivot position, motor positions and a static "
@@ -256,9 +268,6 @@ def register(sub) -> None:
                    choices=[m for m in ELASTIC_MODELS if m != "linear"],
                    help="elastic element model (default geometric)")
     p.set_defaults(func=cmd_datasheet)
-
-    from ..friction import LAWS
-    from ..stepper import METHODS
 
     p = sub.add_parser(
         "export-model", help="write the wrist as a model file for the C engine (vsj.h)",

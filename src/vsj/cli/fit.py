@@ -7,13 +7,22 @@ standard output (messages go to standard error), so it can be piped.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import json
 import math
 import sys
+import tomllib
 from pathlib import Path
 
-from ..errors import InputError
+import numpy as np
+
+from .. import __version__, params
+from ..errors import InputError, read_text
+from ..params import SCHEMA
+from ..springs import GEOMETRIC, GEOMETRY_FIELDS
+from ..units import to_si
+from ..wrist import WristOptions, geometry
 
 
 def _force(parser) -> None:
@@ -25,8 +34,6 @@ def _force(parser) -> None:
 
 def _at_least_one(text: str) -> int:
     """A whole number >= 1 (argparse type): a count of starts or threads."""
-    import argparse
-
     try:
         value = int(text)
     except ValueError:
@@ -47,8 +54,6 @@ def _floats(text: str, count: int, what: str) -> tuple[float, ...]:
 
 
 def _params(path):
-    from .. import params
-
     return params.load(path)
 
 
@@ -59,7 +64,7 @@ def _say(args, text: str) -> None:
 
 def _print_json(args, record: dict) -> None:
     if args.json:
-        from ..output import _jsonable
+        from ..output import _jsonable  # lazy: not every command writes files (vsj.output)
 
         print(json.dumps(_jsonable(record), indent=2))
 
@@ -67,6 +72,7 @@ def _print_json(args, record: dict) -> None:
 def _results(out: Path | None, kind: str, **options):
     """The `vsj.output.ResultSet` of ``--out DIR`` (entering it checks the directory, so
     enter it before the work), or, without ``--out``, a context that gives None."""
+    # lazy: not every command writes files (vsj.output)
     from ..output import SMALL_OUTPUT_BYTES, ResultSet
 
     if out is None:
@@ -75,6 +81,10 @@ def _results(out: Path | None, kind: str, **options):
 
 
 def cmd_synth_friction(args) -> int:
+    """``vsj synth friction``: write a synthetic torque-velocity curve of the planetary
+    bench (labelled synthetic). Returns the exit code: 0 (bad input raises `InputError`,
+    which `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import measurements, synth
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
@@ -97,6 +107,7 @@ def cmd_synth_friction(args) -> int:
 def cmd_synth_stiffness(args) -> int:
     """One curve per pivot position: into a directory as one result set, or, for a single
     curve, into a ``.csv`` file."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import measurements, synth
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
 
@@ -132,6 +143,10 @@ def _out(args) -> Path | None:
 
 
 def cmd_fit_friction(args) -> int:
+    """``vsj fit friction``: fit ``T = c1 w + c2 atan(c3 w)`` (report eq 4.2) to one curve,
+    with JSON and a figure. Returns the exit code: 0 (bad input raises `InputError`,
+    which `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import measurements
     from ..identification.friction import fit_curve
     from ..identification.plots import friction_figure
@@ -169,17 +184,18 @@ def cmd_fit_friction(args) -> int:
 
 
 def _write_params(path: str, overrides: dict, base: str | None) -> None:
+    # lazy: not every command writes files (vsj.output)
     from ..output import atomic_write, write_errors
 
     params = _params(base)
     identified = params.with_overrides(overrides, origin=str(path))
-    from .. import __version__
 
     with write_errors("--write-params", path), atomic_write(Path(path)) as handle:
         handle.write(f"# parameter set written by vsj {__version__}\n" + identified.to_toml())
 
 
 def _check_write_params(args) -> None:
+    # lazy: not every command writes files (vsj.output)
     from ..output import SMALL_OUTPUT_BYTES, check_output_file
 
     if args.write_params:
@@ -188,6 +204,10 @@ def _check_write_params(args) -> None:
 
 
 def cmd_fit_planetary(args) -> int:
+    """``vsj fit planetary``: the planetary module's parameters from the fixed-sun and
+    fixed-ring curves, optionally written to a parameter file. Returns the exit code: 0,
+    or 1 if no model explains the curves or the written file does not reproduce them."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import measurements
     from ..identification.friction import fit_curve
     from ..identification.planetary import fit_planetary
@@ -285,8 +305,7 @@ def _write_planetary_params(args, result) -> float:
     """Write the set with the fit's planetary parameters; run the bench forward with the
     file as written and return its largest deviation from the fitted curves, relative to
     their largest torque."""
-    import numpy as np
-
+    # lazy: scipy.optimize, for the fits only
     from ..identification.planetary import bench_curves
 
     base = _params(args.params)
@@ -301,13 +320,17 @@ def _write_planetary_params(args, result) -> float:
 
 
 def cmd_fit_stiffness(args) -> int:
+    """``vsj fit stiffness``: stiffness K per torque-deflection curve and K(q) (report eq
+    4.5) over the curves, optionally the spring geometry calibrated to them. Returns the
+    exit code: 0 (bad input raises `InputError`, which `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import characteristics as ch
     from .. import measurements
+    from ..identification.geometry import calibrate_to_curves
     from ..identification.plots import geometry_figure, stiffness_figure
     from ..identification.stiffness import fit_stiffness
     from ..output import write_meta
     from ..plots import save
-    from ..springs import GEOMETRIC, GEOMETRY_FIELDS
 
     data = [measurements.read(f, required=("deflection", "torque")) for f in args.files]
     if args.write_params and len(data) < 4 and not args.calibrate_geometry:
@@ -320,9 +343,6 @@ def cmd_fit_stiffness(args) -> int:
         fit = fit_stiffness(data)
         record = fit.to_json()
         if args.calibrate_geometry:
-            from ..identification.geometry import calibrate_to_curves
-            from ..wrist import geometry
-
             start = dict(zip(GEOMETRY_FIELDS, geometry(_params(args.params))))
             calibration = calibrate_to_curves(fit.curves, start)
             record["geometry"] = calibration.to_json()
@@ -386,10 +406,6 @@ def cmd_fit_stiffness(args) -> int:
 
 
 def _row(dims: dict, start: dict):
-    import numpy as np
-
-    from ..springs import GEOMETRY_FIELDS
-
     return np.array([dims.get(k, start.get(k)) for k in GEOMETRY_FIELDS])
 
 
@@ -399,9 +415,6 @@ def _row(dims: dict, start: dict):
 def _free(items) -> tuple[tuple[str, ...], dict]:
     """``--free NAME`` or ``NAME=LOW,HIGH`` (bounds in the parameter's display unit, as
     `vsj params` shows it) -> names and SI bounds."""
-    from ..params import SCHEMA
-    from ..units import to_si
-
     names, bounds = [], {}
     for item in items:
         name, _, rest = item.partition("=")
@@ -423,10 +436,6 @@ def _free(items) -> tuple[tuple[str, ...], dict]:
 def _setup_file(path) -> dict:
     """A small TOML with any of: inputs, outputs, free (lists of names), window, lead
     (seconds as text with units)."""
-    import tomllib
-
-    from ..errors import read_text
-
     try:
         doc = tomllib.loads(read_text(path, "fit set-up file"))
     except tomllib.TOMLDecodeError as exc:
@@ -443,12 +452,14 @@ def _setup_file(path) -> dict:
 
 
 def cmd_fit_wrist(args) -> int:
+    """``vsj fit wrist``: the assembled wrist's free parameters from logs of its signals by
+    output error, with standard errors, validation and a report. Returns the exit code: 0
+    (bad input raises `InputError`, which `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import measurements
     from ..identification import wrist_report
     from ..identification.wrist import fit_wrist
     from ..identification.wrist_model import Setup, all_known_columns, check_free
-    from ..units import to_si
-    from ..wrist import WristOptions
 
     setup_doc = _setup_file(args.setup) if args.setup else {}
     free_items = list(args.free or []) + list(setup_doc.get("free", []))
@@ -514,6 +525,10 @@ def cmd_fit_wrist(args) -> int:
 
 
 def cmd_synth_wrist(args) -> int:
+    """``vsj synth wrist``: a synthetic log of the wrist running an experiment file
+    (labelled synthetic). Returns the exit code: 0 (bad input raises `InputError`, which
+    `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import measurements, synth
     from ..identification import wrist_experiment
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
@@ -528,10 +543,13 @@ def cmd_synth_wrist(args) -> int:
 
 
 def cmd_excite(args) -> int:
+    """``vsj excite``: design a D-optimal excitation for the named parameters within the
+    motors' limits and write it as an experiment file. Returns the exit code: 0 (bad
+    input raises `InputError`, which `main` turns into 2)."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from ..identification import wrist_experiment
     from ..identification.wrist_model import check_free
     from ..output import SMALL_OUTPUT_BYTES, atomic_write, check_output_file, write_errors
-    from ..units import to_si
 
     names, _ = _free(args.free)
     params = _params(args.params)

@@ -6,10 +6,16 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ..errors import InputError
+
 
 def cmd_sweep(args) -> int:
+    """``vsj sweep``: run a sweep file and write its store, metrics and plots. Returns the
+    exit code: 0 (failed runs are reported, not fatal), 1 if the sweep is unfinished, 130
+    if interrupted."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import sweep
-    from ..errors import InputError
+    from ..sweep.analysis import header
 
     if args.chunk is not None and args.chunk < 1:
         raise InputError(f"--chunk {args.chunk}: must be a whole number >= 1")
@@ -32,8 +38,6 @@ def cmd_sweep(args) -> int:
     print(f"{outcome.runs} runs ({outcome.ran} now, {outcome.failed} failed) in "
           f"{outcome.chunks} chunks, {outcome.seconds:.1f} s")
     if outcome.sensitivity:
-        from ..sweep.analysis import header
-
         head = header(outcome.method)
         print("  ".join(head))
         for row in outcome.sensitivity:

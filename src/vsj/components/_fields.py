@@ -53,6 +53,7 @@ class Field:
 
     @property
     def spec(self) -> Spec:
+        """The schema entry (`vsj.params.Spec`) of ``key``: unit, bounds and description."""
         section, name = self.key.split(".", 1)
         return SCHEMA[section][name]
 

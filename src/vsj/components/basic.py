@@ -35,6 +35,7 @@ class Inertia(Component):
         self.inertia = _check(f"inertia of {name}", INERTIA, inertia)
 
     def parts(self) -> Parts:
+        """One flange carrying ``inertia`` [kg m^2]."""
         f = self.port("flange")
         return Parts(flanges=[f], inertia={f: self.inertia}, priority={f: 1})
 
@@ -45,6 +46,8 @@ class Fixed(Component):
     ports = ("flange",)
 
     def parts(self) -> Parts:
+        """One flange held at rest by a constraint (it has the highest priority, so
+        elimination keeps it prescribed)."""
         f = self.port("flange")
         return Parts(flanges=[f], constraints=[Constraint(f"{self.name} fixed", {f: 1.0})],
                      priority={f: PRESCRIBED})
@@ -68,6 +71,7 @@ class VelocitySource(_Driven):
     """
 
     def parts(self) -> Parts:
+        """One flange whose speed [rad/s] the input channel prescribes."""
         f = self.port("flange")
         return Parts(flanges=[f], sources=[Source(self.name, f, self.channel)])
 
@@ -76,6 +80,7 @@ class TorqueSource(_Driven):
     """An applied torque from input ``channel`` [N m] (an external load)."""
 
     def parts(self) -> Parts:
+        """One flange loaded by the input channel's torque [N m]."""
         f = self.port("flange")
         return Parts(flanges=[f], loads=[Load(self.name, f, self.channel)])
 
@@ -104,6 +109,8 @@ class IdealGear(Component):
         return -self.ratio * tau_a
 
     def parts(self) -> Parts:
+        """Flanges a and b tied by the constraint ``omega_a - ratio omega_b = 0`` (the
+        torques follow from its transpose)."""
         a, b = self.port("a"), self.port("b")
         return Parts(flanges=[a, b],
                      constraints=[Constraint(f"{self.name} gear", {a: 1.0, b: -self.ratio})])
@@ -165,6 +172,8 @@ class SpringDamper(Component):
         self.damping = _check(f"damping of {name}", VISCOUS, damping)
 
     def parts(self) -> Parts:
+        """A linear spring of ``stiffness`` [N m/rad] from a to b, with a viscous damper of
+        ``damping`` [N m s/rad] beside it if that is > 0."""
         a, b = self.port("a"), self.port("b")
         parts = Parts(flanges=[a, b], springs=[
             Spring(self.name, {b: 1.0, a: -1.0}, LINEAR,

@@ -82,6 +82,8 @@ class Clutch(_NormalForceFriction):
     ports = ("a", "b")
 
     def parts(self) -> Parts:
+        """Friction on the slip speed ``omega_b - omega_a`` [rad/s], its level set by the
+        normal-force channel."""
         a, b = self.port("a"), self.port("b")
         return Parts(flanges=[a, b], frictions=[self._friction({b: 1.0, a: -1.0})])
 
@@ -93,5 +95,7 @@ class Brake(_NormalForceFriction):
     ports = ("flange",)
 
     def parts(self) -> Parts:
+        """Friction on the flange's absolute speed [rad/s], its level set by the
+        normal-force channel."""
         f = self.port("flange")
         return Parts(flanges=[f], frictions=[self._friction({f: 1.0})])

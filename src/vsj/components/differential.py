@@ -41,6 +41,8 @@ class Differential(SchemaComponent):
         return MAP.T @ np.asarray(output_torques)
 
     def parts(self) -> Parts:
+        """The four flanges, the two constraints of the kinematic map `MAP` (report eq
+        3.31), the output inertias and the gear friction on the y output."""
         p1, p2, tx, ty = (self.port(p) for p in self.ports)
         return Parts(
             flanges=[p1, p2, tx, ty],

@@ -105,6 +105,10 @@ class ElasticElement(SchemaComponent):
         return base + added / (2.0 * h)
 
     def parts(self) -> Parts:
+        """The ring flange with the element's spring law and its lever friction.
+
+        Raises ValueError if ``initial_tension`` > 0: the engine's spring laws have no coil
+        pretension term."""
         if self.initial_tension > 0.0:
             raise ValueError(f"{self.name}: initial_tension = {self.initial_tension:g} N (coil "
                              "pretension) cannot be simulated: the engine's spring laws have "

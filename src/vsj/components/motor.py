@@ -30,6 +30,9 @@ class DCMotor(SchemaComponent):
         self.channel = channel or name
 
     def parts(self) -> Parts:
+        """The rotor (an internal flange with the rotor inertia, viscous loss and the
+        electrical model driven by the voltage channel) geared to the output flange by
+        ``gear_ratio``."""
         out = self.port("flange")
         rotor = self.node("rotor")
         return Parts(

@@ -44,6 +44,9 @@ class PivotMechanism(SchemaComponent):
         return math.asin(q / self.amplitude)
 
     def parts(self) -> Parts:
+        """The motor flange geared (``ratio``) to the carrier, which carries the inertia,
+        the gear friction and the pivot ``q = amplitude sin(phi_C)`` [m] within ``[q_min,
+        q_max]``."""
         motor = self.port("input")
         carrier = self.node("carrier")
         return Parts(
@@ -70,4 +73,5 @@ class FixedPivot(Component):
         self.q = float(q)
 
     def parts(self) -> Parts:
+        """No flanges: only a pivot pinned at ``q`` [m]."""
         return Parts(pivots=[Pivot(None, fixed=self.q)])

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import friction
 from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Constraint, Parts
 from ._fields import Field, SchemaComponent, section
@@ -95,6 +96,8 @@ class IdealPlanetary(Component):
         return -self.r_RC * tau, -self.r_SC * tau
 
     def parts(self) -> Parts:
+        """Sun, ring and carrier tied by the one kinematic constraint ``omega_C = r_RC
+        omega_R + r_SC omega_S`` (report eq 3.9-3.10)."""
         s, r, c = (self.port(p) for p in self.ports)
         row = {c: 1.0, r: -self.r_RC, s: -self.r_SC}
         return Parts(flanges=[s, r, c], constraints=[Constraint(f"{self.name} gear set", row)],
@@ -162,6 +165,8 @@ class PlanetaryGearModule(SchemaComponent):
                             sharpness=scale_b * self.mesh.sharpness, peak=self.mesh.peak)
 
     def parts(self) -> Parts:
+        """The ideal gear set, the two mesh frictions and, on each flange, its inertia and
+        bearing, embedded under this module's name."""
         s, r, c = (self.port(p) for p in PORTS)
         flange = {"sun": s, "ring": r, "carrier": c}
         parts = self.embed(self.gears, sun=s, ring=r, carrier=c)
@@ -188,8 +193,6 @@ class PlanetaryGearModule(SchemaComponent):
         equal-force relation ``c2 = 2 k_1`` (fixed sun) and ``2 k_1 / x`` (fixed
         ring).
         """
-        from .. import friction
-
         w = np.atleast_1d(np.asarray(carrier_speed, dtype=float))
         x = self.tooth_ratio
         if fixed == "sun":

@@ -31,6 +31,9 @@ class Transmission(SchemaComponent):
                                "compliance": 0.0, "damping": 0.0}) + FRICTION
 
     def parts(self) -> Parts:
+        """Input and output geared by ``ratio`` with friction on the input; if
+        ``compliance`` [rad/(N m)] is > 0, a linear spring of stiffness ``1 /
+        compliance`` sits between the gear and the output flange."""
         a, b = self.port("input"), self.port("output")
         parts = Parts(flanges=[a, b], frictions=[
             Friction(f"{self.name}.friction", {a: 1.0}, self.viscous, self.stiction,

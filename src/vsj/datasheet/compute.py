@@ -6,10 +6,18 @@ import math
 from typing import Sequence
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
 
 from .. import __version__
 from .. import linear as linear_models
+from ..characteristics import pretension_loss, spring_extensions, stiffness
+from ..components import PivotMechanism
 from ..errors import InputError, SimulationError
+from ..inputs import Constant
+from ..network import Network
+from ..simulate import InitialState, SimulationOptions, simulate
+from ..springs import GEOMETRIC, GEOMETRIC_REPORT, evaluate
+from ..wrist import WristOptions, build_wrist, elastic_element, motor
 
 CURVE_POINTS = 241
 #: Frequency grid of the Bode plots [rad/s].
@@ -24,8 +32,6 @@ def _kinematics(params, elastic: str):
     Returns ``(T, M, element)``: ``T`` (2 x 2), the mass matrix of the ring
     angles and one elastic element (both are identical, report section 3.1).
     """
-    from ..wrist import WristOptions, build_wrist, elastic_element
-
     structure = build_wrist(params, WristOptions(elastic=elastic, pivot_drive="fixed",
                                                  fixed_q=0.0)).assemble()
     if structure.free != ("vsm_1.ring", "vsm_2.ring"):
@@ -38,8 +44,6 @@ def _kinematics(params, elastic: str):
 
 def _output_curve(element, T, q: float, theta: np.ndarray) -> dict[str, np.ndarray]:
     """Torque, tangent stiffness and stored energy about theta_x at deflections ``theta``."""
-    from ..springs import evaluate
-
     c = np.linalg.solve(T, np.array([1.0, 0.0]))  # ring deflection per unit theta_x
     torque = np.zeros_like(theta)
     stiffness = np.zeros_like(theta)
@@ -77,8 +81,6 @@ def deflection_limit(element, ring_per_output, q: float, theta: np.ndarray,
     peak = int(np.argmax(torque))
     if peak == len(theta) - 1:
         return peak, END_STOP
-    from ..characteristics import spring_extensions
-    from ..springs import GEOMETRIC, GEOMETRIC_REPORT
 
     if element.law in (GEOMETRIC, GEOMETRIC_REPORT):
         lo, hi = theta[max(peak - 1, 0)], theta[peak + 1]
@@ -98,12 +100,6 @@ def _stiffness_change(params, q_from: float, q_to: float) -> dict:
     does not load it. Returns the time to reach ``q_to``, the electric energy
     drawn until then and the trajectory.
     """
-    from ..components import PivotMechanism
-    from ..inputs import Constant
-    from ..network import Network
-    from ..simulate import InitialState, SimulationOptions, simulate
-    from ..wrist import motor
-
     pv, mo = params.pivot, params.motor
     net = Network("pivot-drive")
     # the whole reach, not the set's pivot range: the drive runs on past q_to
@@ -129,7 +125,6 @@ def _stiffness_change(params, q_from: float, q_to: float) -> dict:
     if passed.size == 0:
         raise SimulationError(f"datasheet: the pivot did not reach q = {q_to} m within "
                               f"{duration:.3g} s at {voltage:g} V")
-    from scipy.integrate import cumulative_trapezoid
 
     k = int(passed[0])
     t = result.time
@@ -163,8 +158,6 @@ def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = Non
     c = Tinv @ np.array([1.0, 0.0])
     theta_max = end_stop / float(np.max(np.abs(c)))
     output_inertia = Tinv.T @ M @ Tinv
-
-    from ..characteristics import pretension_loss, stiffness
 
     per_q = []
     models = {}
@@ -302,8 +295,6 @@ def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = Non
 
 
 def _options(elastic: str):
-    from ..wrist import WristOptions
-
     return WristOptions(elastic=elastic)
 
 

@@ -7,13 +7,13 @@ import math
 
 import numpy as np
 
+from ..plots import pyplot
+
 # -- figures ----------------------------------------------------------------------------
 
 
 def figures(sheet: dict) -> dict[str, tuple[str, bytes]]:
     """Each figure as ``name: (caption, PNG bytes)``."""
-    from ..plots import pyplot
-
     plt = pyplot()
     out = {}
     per_q = sheet["per_q"]

@@ -9,6 +9,7 @@ import math
 from pathlib import Path
 
 from .. import pages
+from ..output import ResultSet, _jsonable, atomic_write
 from .drawing import figures
 
 # -- the page ---------------------------------------------------------------------------
@@ -66,8 +67,6 @@ def write(sheet: dict, out) -> tuple[Path, Path]:
     ``out``, replacing a previous datasheet there as a unit, or into ``out``, an open
     `vsj.output.ResultSet` of kind ``datasheet`` (checked before the sheet was computed).
     Returns where the two files are (or will be, once the set is committed)."""
-    from ..output import ResultSet, _jsonable, atomic_write
-
     if not isinstance(out, ResultSet):
         with ResultSet(Path(out), "datasheet", size=OUTPUT_BYTES) as results:
             return write(sheet, results)

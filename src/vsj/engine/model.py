@@ -84,10 +84,13 @@ class Layout:
 
     @property
     def n_state(self) -> int:
+        """Length of the engine's state: angles and speeds of the ``n`` free coordinates,
+        and one armature current per motor."""
         return 2 * self.n + self.n_motors
 
     @property
     def n_acc(self) -> int:
+        """Number of energy accumulators [J] the engine keeps (see `acc_slices`)."""
         return (self.n_sources + self.n_loads + 2 * self.n_motors + self.n_frictions
                 + 3 * self.n_springs)
 

@@ -90,6 +90,8 @@ class Ripple:
     torque: np.ndarray  # N m, ripple at positive speed on that grid
 
     def to_json(self) -> dict:
+        """The ripple's size (rms and peak to peak, N m) as plain JSON data (SI values with
+        their units)."""
         return {"method": self.method, "rms": self.rms, "peak_to_peak": self.peak_to_peak,
                 "unit": "N m"}
 
@@ -113,14 +115,19 @@ class FrictionFit:
     notes: list[str] = field(default_factory=list)
 
     def predict(self, velocity) -> np.ndarray:
+        """Torque [N m] of the fitted ``c1 w + c2 atan(c3 w)`` (report eq 4.2) at
+        ``velocity`` [rad/s]."""
         w = np.asarray(velocity, dtype=float)
         return self.c1.value * w + self.c2.value * np.arctan(self.c3.value * w)
 
     @property
     def values(self) -> np.ndarray:
+        """The fitted ``(c1, c2, c3)`` as an array (SI)."""
         return np.array([self.c1.value, self.c2.value, self.c3.value])
 
     def to_json(self) -> dict:
+        """The fit (constants with uncertainties, data size, residual, ripple, notes) as
+        plain JSON data (SI values with their units)."""
         return {"file": self.source, "synthetic": self.synthetic, "form": self.form,
                 "model": "T = c1 w + c2 atan(c3 w)",
                 "c1": self.c1.to_json(), "c2": self.c2.to_json(), "c3": self.c3.to_json(),
@@ -130,6 +137,8 @@ class FrictionFit:
 
 
 def curve(c, w):
+    """``c[0] w + c[1] atan(c[2] w)`` (report eq 4.2): torque [N m] at speed ``w`` [rad/s]
+    for constants ``c``."""
     return c[0] * w + c[1] * np.arctan(c[2] * w)
 
 

@@ -35,7 +35,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import differential_evolution
+from scipy.optimize import differential_evolution, least_squares
 
 from .. import characteristics as ch
 from ..springs import GEOMETRIC, GEOMETRY_FIELDS
@@ -61,6 +61,8 @@ class ReportTargets:
     end_stop_stiffness: float = 50.0
 
     def K_exponential(self, q):
+        """The report's exponential ``K(q) = a1 exp(a2 q) + a3`` [N m/rad] at pivot
+        positions ``q`` [m] (eq 4.5)."""
         a1, a2, a3 = self.exponential
         return a1 * np.exp(a2 * np.asarray(q)) + a3
 
@@ -70,6 +72,9 @@ class ReportTargets:
 
 
 def parameter_row(R, L, W, x0, y0, s0, k, targets: ReportTargets) -> np.ndarray:
+    """The spring-law parameter row of a geometry (ring radius, lever length and width,
+    anchor x and y, rest length [m], spring rate [N/m]) with the report's end stop and
+    end-stop stiffness appended."""
     return np.array([R, L, W, x0, y0, s0, k, targets.end_stop, targets.end_stop_stiffness])
 
 
@@ -168,6 +173,8 @@ class CurveCalibration:
     per_curve: list[dict]       # q, rms before and after, K of the calibrated model
 
     def to_json(self) -> dict:
+        """The calibration (dimensions, rms misfit before and after, per curve) as plain
+        JSON data (SI values with their units)."""
         return {"dimensions": {k: {"value": v, "unit": _UNITS[k]}
                                for k, v in self.dimensions.items()},
                 "relative_rms_before": self.rms_before, "relative_rms_after": self.rms_after,
@@ -190,8 +197,6 @@ def calibrate_to_curves(curves, start: dict) -> CurveCalibration:
     proportion to its torque range, so soft and stiff settings weigh alike),
     starting from ``start`` (for example the bundled estimate).
     """
-    from scipy.optimize import least_squares
-
     if len(curves) < 2:
         raise ValueError("the geometry needs curves at two or more pivot positions")
     data = []

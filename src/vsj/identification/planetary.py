@@ -52,9 +52,12 @@ import numpy as np
 from scipy import stats
 from scipy.optimize import least_squares, linprog, nnls
 
+from ..benches import planetary_bench
 from ..components.planetary import PlanetaryGearModule
 from ..errors import InputError
+from ..inputs import Constant
 from ..params import SCHEMA
+from ..simulate import SimulationOptions, simulate
 from .friction import Estimate, FrictionFit
 
 #: Linear coefficients, their ``[planetary]`` keys and units (the entries' own).
@@ -142,6 +145,7 @@ class StructureFit:
     profile: tuple[np.ndarray, np.ndarray] | None = None
 
     def value(self, name: str) -> float:
+        """The fitted value (SI) of the parameter ``name``."""
         return next(e.value for e in self.parameters if e.name == name)
 
     @property
@@ -157,6 +161,8 @@ class StructureFit:
                 and self.tooth_ratio_accepted[1] > self.tooth_ratio_accepted[0])
 
     def to_json(self) -> dict:
+        """The structure's fit (parameters, misfit, noise, chi-square test, profile) as
+        plain JSON data (SI values with their units)."""
         profile = (None if self.profile is None else
                    {"x": self.profile[0].tolist(), "chi2": self.profile[1].tolist()})
         return {
@@ -221,6 +227,7 @@ class PlanetaryFit:
 
     @property
     def verdict(self) -> str:
+        """Which structure explains both curves, in one sentence."""
         mesh, full = self.fits["mesh"], self.fits["bearing-stiction"]
         chosen = self.chosen
         within = (" (a chi-square too small to discriminate: see the caution)"
@@ -235,6 +242,8 @@ class PlanetaryFit:
                 + "): some assumption of the model does not hold for this gear set")
 
     def to_json(self) -> dict:
+        """The comparison (files, verdict, chosen structure and both fits) as plain JSON
+        data (SI values with their units)."""
         chosen = self.chosen
         out = {
             "files": {k: c.source for k, c in self.curves.items()},
@@ -330,10 +339,6 @@ def bench_curves(params, velocities) -> dict[str, np.ndarray]:
     carrier takes the speed in the first step, and from then on every element slides and
     the drive holds the sum of their torques, which is read after the second step.
     """
-    from ..benches import planetary_bench
-    from ..inputs import Constant
-    from ..simulate import SimulationOptions, simulate
-
     options = SimulationOptions(friction=BENCH_FRICTION, friction_overrides=BENCH_OVERRIDES,
                                 solver="timestep")
     out = {}

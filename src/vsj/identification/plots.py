@@ -12,6 +12,9 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from .. import characteristics as ch
+from ..springs import GEOMETRIC
+
 
 def _title(fig: Figure, text: str, synthetic: bool) -> None:
     fig.suptitle(text + ("  [synthetic data]" if synthetic else ""), fontsize=10)
@@ -127,6 +130,7 @@ def loop_axes(ax, deflection, torque, *, q, K, hysteresis, offset, linear_limit,
 
 
 def loops_axes(axes, curves):
+    """Draw each curve fit of ``curves`` on its axes of ``axes`` (`loop_axes`)."""
     for ax, c in zip(axes, curves):
         loop_axes(ax, c.deflection, c.torque, q=c.q, K=c.K.value,
                   hysteresis=c.hysteresis.value, offset=c.offset.value,
@@ -192,9 +196,6 @@ def stiffness_figure(fit, model_K=None) -> Figure:
 
 def geometry_figure(calibration, curves, start_row, calibrated_row) -> Figure:
     """Measured elastic torque against the geometric model before and after calibration."""
-    from .. import characteristics as ch
-    from ..springs import GEOMETRIC
-
     n = len(curves)
     cols = min(4, n)
     rows = math.ceil(n / cols)

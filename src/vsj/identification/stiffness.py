@@ -34,7 +34,8 @@ from scipy.optimize import least_squares
 
 from ..errors import InputError, SimulationError
 from ..measurements import LIMITS, Measurement
-from .friction import Estimate
+from ..units import to_si
+from .friction import Estimate, estimates
 
 #: Bands of |phi| whose local stiffness is within this fraction of the innermost
 #: band's belong to the linear regime.
@@ -71,6 +72,8 @@ class CurveFit:
     notes: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict:
+        """The curve's fit (K, hysteresis, offset, play, linear limit, pretension loss) as
+        plain JSON data (SI values with their units)."""
         return {"file": self.source, "synthetic": self.synthetic, "q": {"value": self.q,
                                                                         "unit": "m"},
                 "K": self.K.to_json(), "hysteresis": self.hysteresis.to_json(),
@@ -94,9 +97,13 @@ class ExponentialFit:
     relative_rms: float
 
     def predict(self, q) -> np.ndarray:
+        """Stiffness ``a1 exp(a2 q) + a3`` [N m/rad] at pivot positions ``q`` [m] (report eq
+        4.5)."""
         return self.a1.value * np.exp(self.a2.value * np.asarray(q)) + self.a3.value
 
     def to_json(self) -> dict:
+        """The exponential fit (a1, a2, a3, relative rms) as plain JSON data (SI values with
+        their units)."""
         return {"model": "K = a1 exp(a2 q) + a3", "a1": self.a1.to_json(),
                 "a2": self.a2.to_json(), "a3": self.a3.to_json(),
                 "relative_rms": self.relative_rms}
@@ -104,10 +111,14 @@ class ExponentialFit:
 
 @dataclass
 class StiffnessFit:
+    """Result of `fit_stiffness`: one `CurveFit` per curve and, with curves at enough pivot
+    positions, the exponential K(q) over them (else None)."""
     curves: list[CurveFit]
     exponential: ExponentialFit | None
 
     def to_json(self) -> dict:
+        """The fits of every curve and the exponential as plain JSON data (SI values with
+        their units)."""
         return {"curves": [c.to_json() for c in self.curves],
                 "synthetic": any(c.synthetic for c in self.curves),
                 "exponential": None if self.exponential is None else
@@ -126,7 +137,6 @@ def pivot_of(m: Measurement) -> float:
     if text is None:
         raise InputError(f"{m.path}: no pivot position; add a 'pivot [cm]' column or a "
                          "comment line '# pivot: 1.4 cm'")
-    from ..units import to_si
 
     where = f"{m.path}, comment 'pivot: {text}'"
     q = to_si(text, "m", where=where)
@@ -288,7 +298,6 @@ def fit_exponential(q, K) -> ExponentialFit:
     result = least_squares(residual, [a1, a2, a3], x_scale="jac")
     if not result.success:
         raise SimulationError(f"the fit of K(q) did not converge ({result.message})")
-    from .friction import estimates
 
     dof = len(q) - 3
     est = estimates(result, ["a1", "a2", "a3"], ["N m/rad", "1/m", "N m/rad"], max(dof, 1))

@@ -76,6 +76,7 @@ from scipy.optimize import least_squares
 from ..errors import InputError, SimulationError
 from ..measurements import Measurement
 from ..params import SCHEMA, Parameters
+from ..units import format_quantity
 from .wrist_model import Setup, WristModel
 
 #: Relative standard error above which a direction of the parameters is not determined.
@@ -131,6 +132,8 @@ class Estimate:
     bounds: tuple[float, float]
 
     def to_json(self) -> dict:
+        """The estimate (value, and standard error and 95 % interval where determined;
+        status, start, bounds) as plain JSON data (SI values with their units)."""
         ok = self.status == "determined"
         return {"value": self.value, "unit": self.unit, "stderr": self.stderr if ok else None,
                 "ci95": list(self.ci95) if ok and self.ci95 else None, "status": self.status,
@@ -139,6 +142,11 @@ class Estimate:
 
 @dataclass
 class SignalQuality:
+    """How well a fitted model reproduces one signal: ``nrmse``, the rms error over the
+    signal's range; ``fit_percent``, 100 (1 - |error| / |signal - its mean|) (the
+    fit measure of system identification); the noise level assumed for it (its unit);
+    and the number of samples compared."""
+
     nrmse: float
     fit_percent: float
     noise: float
@@ -176,13 +184,17 @@ class WristFit:
 
     @property
     def names(self) -> list[str]:
+        """Names of the free parameters, in the order of `values`."""
         return [e.name for e in self.estimates]
 
     @property
     def values(self) -> np.ndarray:
+        """The estimated values (SI) of the free parameters."""
         return np.array([e.value for e in self.estimates])
 
     def to_json(self) -> dict:
+        """The fit (estimates, delays, covariance of the determined parameters, fit quality,
+        starts, timings) as plain JSON data (SI values with their units)."""
         def matrix(a):
             return [[None if not math.isfinite(v) else float(v) for v in row] for row in a]
 
@@ -215,8 +227,6 @@ class WristFit:
     def overrides(self, files: str) -> dict:
         """Parameter-file overrides of the determined estimates, ``source`` saying where
         they come from (what ``--write-params`` writes)."""
-        from ..units import format_quantity
-
         out = {}
         for e in self.estimates:
             if e.status == "determined":

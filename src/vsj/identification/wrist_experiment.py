@@ -36,9 +36,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+import tomli_w
 
+from .. import synth
 from ..errors import InputError, read_text
+from ..measurements import Measurement
 from ..units import format_quantity, to_si
+from .wrist_model import Setup, WristModel
 
 #: Motor signals rise smoothly (quintic smoothstep) over this time [s] from rest.
 FADE = 0.5
@@ -75,6 +79,7 @@ class Sensors:
     jitter: float = 2e-5
 
     def artefacts(self) -> str:
+        """The recording's artefacts in one sentence (for the log's comments)."""
         return (f"encoder quantisation ({self.encoder_counts} counts per turn), white noise "
                 f"(angles {self.angle_noise:g} rad, currents {self.current_noise:g} A, torques "
                 f"{self.torque_noise:g} N m, q {self.q_noise:g} m), current sensor offset "
@@ -117,8 +122,7 @@ class Experiment:
         return out
 
     def to_toml(self) -> str:
-        import tomli_w
-
+        """The experiment as the text of an experiment file (TOML, with units)."""
         s = self.sensors
         doc = {"experiment": {"description": self.description,
                               "duration": format_quantity(self.duration, "s", digits=10),
@@ -222,6 +226,8 @@ def load(path) -> Experiment:
 
 
 def from_table(doc: Mapping, origin: str) -> Experiment:
+    """An `Experiment` from a parsed experiment file ``doc``; `InputError` naming ``origin``
+    and the key for anything missing, unknown or out of range."""
     unknown = set(doc) - {"experiment", "signals", "sensors", "simulation"}
     if unknown:
         raise InputError(f"{origin}: unknown table(s) {', '.join(sorted(unknown))}; allowed: "
@@ -414,8 +420,6 @@ def within_limits(experiment: Experiment, params, limits: MotorLimits):
     needed (to `LIMIT_RESOLUTION`) for every motor to stay within ``limits`` (speed,
     torque, voltage), or None when no scale found does (the external torques or
     friction alone load a motor beyond its limit)."""
-    from .. import synth
-
     def attempt(factor):
         e = experiment if factor == 1.0 else scaled_motors(experiment, factor)
         run = synth.wrist_run(e, params)
@@ -445,10 +449,8 @@ def predicted(experiment: Experiment, params, free, *, threads=None, run=None):
     Fisher information in relative parameter units: the batch Jacobian of a noiseless
     synthetic log (true stiction, windows restarted as the fit restarts them) weighted
     by the sensors' noise. ``run``: `vsj.synth.wrist_run` of the experiment, if at hand."""
-    from .. import synth
-    from ..measurements import Measurement
+    # lazy: scipy.optimize; synth wrist loads experiments without it
     from .wrist import FINAL, _Problem
-    from .wrist_model import Setup, WristModel
 
     quiet = replace(experiment.sensors, encoder_counts=2 ** 40, angle_noise=0.0,
                     current_noise=0.0, current_offset=0.0, torque_noise=0.0, q_noise=0.0,

@@ -68,6 +68,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .. import params as params_module
 from ..engine import Engine, compile_model, core
 from ..engine.model import Layout
 from ..engine.plan import Plan, Scheme, run_batch
@@ -161,8 +162,6 @@ def known_columns(structure) -> dict[str, str]:
 
 def all_known_columns() -> dict[str, str]:
     """Columns of a wrist log under either motor model (for reading before choosing)."""
-    from .. import params as params_module
-
     base = params_module.default()
     out = {}
     for motors in ("velocity", "dc"):
@@ -494,6 +493,8 @@ class WristModel:
         return max(mad, quantum, NOISE_FLOOR * max(float(np.ptp(values)), 1e-12))
 
     def set_noise(self, noise: Mapping[str, float]) -> None:
+        """Replace the noise level of each output (its unit, by output name) that weights
+        the residuals."""
         self.noise = dict(noise)
 
     # -- engines and initial states ---------------------------------------------------
@@ -552,6 +553,7 @@ class WristModel:
         noise excursion starts or stops early), an error the compared signals'
         noise does not describe. The start states and the compared samples are the
         log's own."""
+        # lazy: heavy; only logs with a measured torque input are smoothed
         from scipy.signal import savgol_filter
 
         values = np.asarray(values, dtype=float).reshape(-1)
@@ -622,6 +624,7 @@ class WristModel:
         and white torque noise fed to the model moves it where the real wrist was not
         moved. The noise within the wrist's own band stays; `perturbed_residuals`
         measures what it does."""
+        # lazy: heavy; only logs with a measured torque input are smoothed
         from scipy.signal import savgol_filter
 
         key = (id(log), column)
@@ -1029,11 +1032,14 @@ class WristModel:
         return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
 
     def measured(self, k: int) -> np.ndarray:
+        """The measured outputs of window ``k``, one row per output, at the window's
+        compared samples."""
         w = self.windows[k]
         log = self.logs[w.log]
         return np.array([log[o.name][w.samples] for o in self.outputs])
 
     def weights(self) -> np.ndarray:
+        """One weight per output: 1 / its noise level."""
         return np.array([1.0 / self.noise[o.name] for o in self.outputs])
 
     def residuals(self, values: np.ndarray, law: str, windows: Sequence[int] | None = None
@@ -1051,8 +1057,10 @@ class WristModel:
 
     @property
     def compared(self) -> int:
+        """Number of measured values compared (samples times outputs over all windows)."""
         return sum(len(w.samples) for w in self.windows) * len(self.outputs)
 
     @property
     def log_seconds(self) -> float:
+        """Total duration [s] of the logs."""
         return float(sum(lg["time"][-1] - lg["time"][0] for lg in self.logs))

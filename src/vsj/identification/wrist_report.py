@@ -11,6 +11,7 @@ import io
 import math
 
 from .. import __version__
+from ..output import atomic_write, write_meta
 from ..pages import document, figure
 from ..plots import MAX_POINTS, pyplot
 
@@ -142,8 +143,6 @@ def _uncertainty(fit) -> list[str]:
 def write(fit, results) -> list[str]:
     """Write ``wrist-fit.json``, ``wrist-fit.html`` and the figures into an open
     `vsj.output.ResultSet`; returns the file names."""
-    from ..output import atomic_write, write_meta
-
     figures = {}
     names = []
     for kind in fit.traces:

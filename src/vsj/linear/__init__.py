@@ -71,7 +71,7 @@ from .files import FORMAT, FORMAT_VERSION, from_dict, load, save, to_dict
 
 def __getattr__(name):
     if name == "LinearModel":  # imports python-control, which is slow to import
-        from .statespace import LinearModel
+        from .statespace import LinearModel  # lazy: python-control is heavy
 
         return LinearModel
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

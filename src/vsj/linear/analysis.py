@@ -121,7 +121,7 @@ def bandwidth(model: LinearData, output: str, input, *, input_angle: bool = Fals
               drop_db: float = -3.0, omega_max: float = 1e5) -> float:
     """Lowest frequency [rad/s] where ``|output/input|`` falls ``drop_db`` below its
     low-frequency value; ``inf`` if it never does below ``omega_max``."""
-    from scipy.optimize import brentq
+    from scipy.optimize import brentq  # lazy: heavy; only the bandwidth search needs it
 
     if input_angle:
         low = abs(transfer(model, output, input, [1e-6], input_angle=True)[0])

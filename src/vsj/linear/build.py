@@ -18,8 +18,9 @@ import numpy as np
 from ..errors import InputError, SimulationError
 from ..network import Signal, Structure
 from ..simulate import SimulationOptions
-from ..springs import end_stop
+from ..springs import end_stop, evaluate
 from ..stepper import JACOBIAN_STEP, Stepper
+from ..wrist import WristOptions, build_wrist
 from .data import FRICTION_TREATMENTS, PIVOT_INPUT, LinearData, select, signal_name
 
 _ENGINE_LAW = {"linearised": "arctan", "viscous": "viscous", "removed": "viscous"}
@@ -258,8 +259,6 @@ def linearize_structure(structure: Structure, *, angles: Mapping[str, float] | N
 
 
 def _spring_torque(spring, deflection: float, q: float) -> tuple[float, float]:
-    from ..springs import evaluate
-
     torque, stiffness, _, _ = evaluate(spring.law, spring.parameters, deflection, q)
     return float(torque[0]), float(stiffness[0])
 
@@ -280,8 +279,6 @@ def linearize(params, q: float = 0.0, *, motors: tuple[float, float] = (0.0, 0.0
     `LinearModel` (python-control), or with ``statespace=False`` the plain
     `LinearData`.
     """
-    from ..wrist import WristOptions, build_wrist
-
     lo, hi = params.pivot.q_min, params.pivot.q_max
     if not (isinstance(q, (int, float)) and math.isfinite(q)):
         raise InputError(f"pivot position q must be a finite number of metres, got {q!r}")

@@ -77,29 +77,33 @@ class LinearData:
 
     @property
     def nstates(self) -> int:
+        """Number of states (rows of ``A``)."""
         return self.A.shape[0]
 
     @property
     def ninputs(self) -> int:
+        """Number of inputs (columns of ``B``)."""
         return self.B.shape[1]
 
     @property
     def noutputs(self) -> int:
+        """Number of outputs (rows of ``C``)."""
         return self.C.shape[0]
 
     def describe(self) -> str:
+        """Sizes, friction, pivot, names and modes, as text (`describe`)."""
         return describe(self)
 
     def statespace(self):
         """The python-control model (a `vsj.linear.LinearModel`)."""
-        from .statespace import LinearModel
+        from .statespace import LinearModel  # lazy: python-control is heavy
 
         return LinearModel.from_data(self)
 
 
 def describe(model) -> str:
     """Sizes, friction, pivot, names and modes of a linear model, as text."""
-    from .analysis import modes
+    from .analysis import modes  # circle: vsj.linear.analysis imports this
 
     lines = [f"linear model {model.name}: {model.nstates} states, {model.ninputs} inputs, "
              f"{model.noutputs} outputs; friction {model.friction} "

@@ -12,6 +12,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import TEXT_BYTES, InputError, read_bytes
+from ..output import _jsonable, atomic_write
 from .data import FRICTION_TREATMENTS, LinearData
 
 #: File format tag of `save`/`load`.
@@ -76,8 +77,6 @@ def from_dict(data: Mapping, *, origin: str = "data", statespace: bool = True):
 def save(model: LinearData, path: Path) -> None:
     """Write ``.json`` (everything as text) or ``.npz`` (matrices as arrays, names and
     units as string arrays, the rest as JSON text under ``meta``)."""
-    from ..output import _jsonable, atomic_write
-
     path = Path(path)
     data = _jsonable(to_dict(model))
     if path.suffix == ".json":

@@ -38,6 +38,8 @@ class LinearModel(control.StateSpace):
 
     @classmethod
     def from_data(cls, data: LinearData) -> "LinearModel":
+        """The python-control model of plain `LinearData`, with its labels, units, operating
+        point and information."""
         return cls(data.A, data.B, data.C, data.D, states=data.state_labels,
                    inputs=data.input_labels, outputs=data.output_labels,
                    state_units=data.state_units, input_units=data.input_units,
@@ -45,4 +47,5 @@ class LinearModel(control.StateSpace):
                    friction=data.friction, info=data.info, name=data.name)
 
     def describe(self) -> str:
+        """Sizes, friction, pivot, names and modes, as text (`vsj.linear.data.describe`)."""
         return describe(self)

@@ -23,24 +23,16 @@ import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .. import pages
+from .. import __version__, pages
+from ..errors import InputError
+from ..output import ResultSet, _jsonable, atomic_write
 from ..params import Parameters
-from .base import (
-    AGREEMENT,
-    BY_CONSTRUCTION,
-    CALIBRATION,
-    CATEGORIES,
-    CONSISTENCY,
-    INPUT,
-    LIMIT,
-    PREDICTION,
-    ROUND_TRIP,
-    VARIANT,
-    Context,
-    Figure,
-    Row,
-    statement_verdict,
-)
+from ..plots import save
+from ..progress import progress
+from . import data_figures, model_figures
+from .base import (AGREEMENT, BY_CONSTRUCTION, CALIBRATION, CATEGORIES, CONSISTENCY, INPUT,
+                   LIMIT, PREDICTION, ROUND_TRIP, VARIANT, Context, Figure, Row,
+                   statement_verdict)
 
 #: The report's table 4.1 (section 4.3): parameter key -> (symbol, value, unit).
 TABLE_4_1 = {
@@ -67,8 +59,6 @@ def _order(name: str) -> tuple:
 
 def figures() -> dict:
     """Figure name -> function, in the report's order."""
-    from . import data_figures, model_figures
-
     table = {**model_figures.FIGURES, **data_figures.FIGURES}
     return dict(sorted(table.items(), key=lambda kv: _order(kv[0])))
 
@@ -104,6 +94,8 @@ def table_4_1(params: Parameters) -> list[Row]:
 
 @dataclass
 class Outcome:
+    """What became of one figure: its `Figure` (None if it failed), the error and traceback
+    if it failed, the files written and the PNG drawn."""
     name: str
     figure: Figure | None = None
     error: str | None = None
@@ -114,6 +106,8 @@ class Outcome:
 
 @dataclass
 class Reproduction:
+    """Result of `run`: the output directory, one `Outcome` per figure, the rows of table
+    4.1 and whether the reduced setting was used."""
     out: Path
     outcomes: list[Outcome]
     table: list[Row]
@@ -121,9 +115,11 @@ class Reproduction:
 
     @property
     def failed(self) -> list[Outcome]:
+        """The outcomes of the figures that failed."""
         return [o for o in self.outcomes if o.error is not None]
 
     def rows(self) -> list[tuple[str, Row]]:
+        """Every row compared with the report, labelled with its figure (or table 4.1)."""
         out = [("table 4.1", r) for r in self.table]
         for o in self.outcomes:
             if o.figure is not None:
@@ -162,6 +158,7 @@ class Reproduction:
                                     for c in CATEGORIES if c != PREDICTION}}
 
     def headline_text(self) -> str:
+        """The `headline` counts in one sentence."""
         h = self.headline()
         others = h["not_predictions"]
         apart = ", ".join(f"{others[c]['rows']} {COUNTED_AS[c]}" for c in CATEGORIES
@@ -208,11 +205,6 @@ def run(out: Path, params: Parameters, *, reduced: bool = False, only=None,
     """Regenerate the figures (all, or the names in ``only``) into ``out``, replacing the
     previous reproduction there as a unit (`vsj.output.ResultSet`); the directory is
     checked before any figure is made."""
-    from ..errors import InputError
-    from ..output import ResultSet, _jsonable, atomic_write
-    from ..plots import save
-    from ..progress import progress
-
     table = figures()
     names = list(table) if not only else list(only)
     unknown = [n for n in names if n not in table]
@@ -391,8 +383,8 @@ def _summary(result: Reproduction) -> str:
 
 
 def render_html(result: Reproduction, params: Parameters) -> str:
-    from .. import __version__
-
+    """The body of report.html: provenance, failures, the comparison table and every figure
+    with its notes."""
     parts = [f"<p>vsj {html.escape(__version__)}, parameter set "
              f"'{html.escape(str(params.meta.get('name', params.origin)))}' (hash "
              f"{params.hash()[:12]}){' — reduced setting' if result.reduced else ''}. "

@@ -36,21 +36,13 @@ from .. import characteristics as ch
 from .. import synth
 from ..identification import friction as fr
 from ..identification.planetary import fit_planetary
+from ..identification.stiffness import StiffnessFit
 from ..identification.stiffness import fit_curve as fit_loop
+from ..identification.stiffness import fit_exponential
 from ..measurements import Measurement
 from ..wrist import elastic_element, planetary
-from .base import (
-    BY_CONSTRUCTION,
-    CALIBRATION,
-    CONSISTENCY,
-    NOT_STATED,
-    ROUND_TRIP,
-    VARIANT,
-    Context,
-    Drawing,
-    Figure,
-    Row,
-)
+from .base import (BY_CONSTRUCTION, CALIBRATION, CONSISTENCY, NOT_STATED, ROUND_TRIP, VARIANT,
+                   Context, Drawing, Figure, Row)
 
 NOTE_SYNTH = ("synthetic: regenerated from the report's constants with noise and ripple, "
               "then fitted; the difference is the toolchain's recovery error")
@@ -126,18 +118,24 @@ def _friction_figure(ctx: Context, name: str, proto: str, fixed: str,
 
 
 def fig_4_2(ctx):
+    """Report fig 4.2: the old fixed-sun friction measurement, fitted (synthetic data)."""
     return _friction_figure(ctx, "fig-4.2", "old", "sun", ("c1 (old)", "c2 (old)", "c3 (old)"))
 
 
 def fig_4_3(ctx):
+    """Report fig 4.3: the old fixed-ring friction measurement, fitted (synthetic data)."""
     return _friction_figure(ctx, "fig-4.3", "old", "ring", ("c4 (old)", "c5 (old)", "c6 (old)"))
 
 
 def fig_4_4(ctx):
+    """Report fig 4.4: the second fixed-sun friction measurement, fitted (synthetic data).
+    """
     return _friction_figure(ctx, "fig-4.4", "second", "sun", ("c1", "c2", "c3"))
 
 
 def fig_4_5(ctx):
+    """Report fig 4.5: the second fixed-ring friction measurement, fitted (synthetic data).
+    """
     return _friction_figure(ctx, "fig-4.5", "second", "ring", ("c4", "c5", "c6"))
 
 
@@ -487,14 +485,17 @@ def _loop_figure(ctx: Context, name: str) -> Figure:
 
 
 def fig_4_10(ctx):
+    """Report fig 4.10: torque-deflection loops at its pivot position (synthetic data)."""
     return _loop_figure(ctx, "fig-4.10")
 
 
 def fig_4_11(ctx):
+    """Report fig 4.11: torque-deflection loops at its pivot position (synthetic data)."""
     return _loop_figure(ctx, "fig-4.11")
 
 
 def fig_4_12(ctx):
+    """Report fig 4.12: torque-deflection loops at its pivot position (synthetic data)."""
     return _loop_figure(ctx, "fig-4.12")
 
 
@@ -509,8 +510,6 @@ def fig_4_13(ctx):
     ``a1``, ``a2``, ``a3`` and ``K``) and ``geometric_K`` [N m/rad]; ``measured``,
     the report's three values (``q`` [m], ``K`` [N m/rad]).
     """
-    from ..identification.stiffness import StiffnessFit, fit_exponential
-
     params = ctx.params
     qs = K_Q_REDUCED if ctx.reduced else K_Q
     curves = [_loop_for(ctx, q) for q in qs]

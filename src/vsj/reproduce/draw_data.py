@@ -47,6 +47,8 @@ def friction_figure(data) -> Figure:
 
 
 def fig_4_6(data) -> Figure:
+    """Draw report fig 4.6 from its data: the raw torque and speed, and the ripple against
+    the carrier angle."""
     fig = Figure(figsize=(10, 4))
     raw, shape = fig.subplots(1, 2)
     t = data["time"]
@@ -76,6 +78,8 @@ FORWARD_STYLES = {"arctan": "-", "sign": "--"}
 
 
 def fig_4_7(data) -> Figure:
+    """Draw report fig 4.7 from its data: for fixed sun and fixed ring, the report's curve
+    against the table 4.1 model's, and their relative difference [%] over carrier speed."""
     w = data["speed"]
     low, high = data["measured_speeds"]
     fig = Figure(figsize=(11, 7), layout="constrained")
@@ -111,6 +115,8 @@ def fig_4_7(data) -> Figure:
 
 
 def fig_4_7_refit(data) -> Figure:
+    """Draw the refit beside fig 4.7: the fixed-sun and fixed-ring plateau means with each
+    candidate structure's curves, and the residuals."""
     curves, candidates = data["curves"], data["candidates"]
     fig = Figure(figsize=(13, 4.6), layout="constrained")
     ax_sun, ax_ring, ax_res = fig.subplots(1, 3)

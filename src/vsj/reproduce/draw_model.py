@@ -16,6 +16,8 @@ STYLES = {"geometric": "-", "geometric-report": "--", "exponential": ":"}
 
 
 def fig_3_5(data) -> Figure:
+    """Draw report fig 3.5 from its data: deflection and largest torque against pivot
+    position [cm], per spring model."""
     stop, load, qs = data["end_stop"], data["load"], data["q"]
     fig = Figure(figsize=(11, 4.2), layout="constrained")
     ax_phi, ax_tau = fig.subplots(1, 2)
@@ -37,6 +39,8 @@ def fig_3_5(data) -> Figure:
 
 
 def fig_3_6(data) -> Figure:
+    """Draw report fig 3.6 from its data: the stiffness range against pivot position [cm],
+    relative and absolute, per spring model."""
     qs = data["q"]
     report_lo, report_hi = data["report_range"]
     fig = Figure(figsize=(11, 4.2), layout="constrained")
@@ -64,6 +68,9 @@ def fig_3_6(data) -> Figure:
 
 
 def fig_3_7(data) -> Figure:
+    """Draw report fig 3.7 from its data: restoring torque [N m] against deflection [rad] at
+    three pivot positions per panel, with the end stops and where a spring goes slack or
+    taut."""
     phis, stop = data["phi"], data["end_stop"]
     fig = Figure(figsize=(14, 4.8), layout="constrained")
     axes = fig.subplots(1, 3, sharey=True)
@@ -88,6 +95,8 @@ def fig_3_7(data) -> Figure:
 
 
 def fig_4_14(data) -> Figure:
+    """Draw report fig 4.14 from its data: the end-effector torque [N m] that holds it off
+    centre around a circle, and its magnitude against the direction, per case."""
     cases = data["cases"]
     fig = Figure(figsize=(11, 5), layout="constrained")
     ax_tau, ax_mag = fig.subplots(1, 2)

@@ -35,36 +35,20 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import tomli_w
 from scipy.optimize import brentq
 
 from .. import characteristics as ch
 from .. import scenario as scenarios
-from ..springs import (
-    EXPONENTIAL,
-    GEOMETRIC,
-    GEOMETRIC_REPORT,
-    GEOMETRY_FIELDS,
-    MODEL_NAMES,
-    coil_pretension,
-)
 from ..errors import SimulationError
 from ..identification.geometry import TESTED_Q, ReportTargets
 from ..params import Parameters
+from ..springs import (EXPONENTIAL, GEOMETRIC, GEOMETRIC_REPORT, GEOMETRY_FIELDS, MODEL_NAMES,
+                       coil_pretension)
 from ..units import to_si
 from ..wrist import exponential, geometry
-from .base import (
-    BY_CONSTRUCTION,
-    CALIBRATION,
-    CONSISTENCY,
-    INPUT,
-    LIMIT,
-    NOT_STATED,
-    PREDICTION,
-    Context,
-    Drawing,
-    Figure,
-    Row,
-)
+from .base import (BY_CONSTRUCTION, CALIBRATION, CONSISTENCY, INPUT, LIMIT, NOT_STATED,
+                   PREDICTION, Context, Drawing, Figure, Row)
 
 #: Largest axis ratio of fig 4.14's loop still read as an ellipse, not a circle: the
 #: rigid case's ratio differs from 1 by well under 2 % (the differential's stiction).
@@ -706,8 +690,6 @@ def _law_label(law: str, scenario_law: str) -> str:
 
 def _with_friction(scen: scenarios.Scenario, law: str) -> scenarios.Scenario:
     """The scenario with its friction law replaced."""
-    import tomli_w
-
     table = dict(scen.table)
     table["solver"] = {**table.get("solver", {}), "friction": law}
     return scenarios.loads(tomli_w.dumps(table), f"{scen.origin}, friction law '{law}'")

@@ -98,11 +98,14 @@ class MemorySink:
     keeps_samples = True
 
     def begin(self, table, time: np.ndarray) -> None:
+        """Make room for every signal of ``table`` at the sample times ``time`` [s] (NaN
+        until written)."""
         self.time = time
         self.signals = {s.name: np.full(len(time), np.nan) for s in table}
         self.units = {s.name: s.unit for s in table}
 
     def write(self, start: int, signals: Mapping[str, np.ndarray]) -> None:
+        """Store a block of samples, by signal name, from sample ``start`` on."""
         for name, values in signals.items():
             self.signals[name][start:start + len(values)] = values
 
@@ -115,7 +118,7 @@ class MemorySink:
 def block_samples(structure: Structure, layout, ports: bool) -> int:
     """Samples per block: as many as fit `BLOCK_BYTES` with the state rows, the
     engine's observation and the named signals of each sample."""
-    from ..output import signals_bound
+    from ..output import signals_bound  # circle: vsj.output imports vsj.simulate
 
     width = 2 * layout.n_state + layout.n_acc + 4 * (layout.n + layout.n_sources) \
         + 8 * (layout.n_frictions + layout.n_springs + layout.n_motors) + 4 \
@@ -246,7 +249,7 @@ def available_memory() -> tuple[float, str]:
     except OSError:
         pass
     try:
-        import resource
+        import resource  # lazy: Unix only, its absence is handled here
 
         soft, _ = resource.getrlimit(resource.RLIMIT_AS)
         if soft != resource.RLIM_INFINITY:
@@ -289,7 +292,7 @@ def check_run_size(structure: Structure, duration: float, options: SimulationOpt
             raise InputError(f"{duration:g} s in steps of {options.step:g} s are "
                              f"{duration / options.step:.3g} steps, more than max_steps "
                              f"({options.max_steps})")
-    from ..output import signals_bound
+    from ..output import signals_bound  # circle: vsj.output imports vsj.simulate
 
     samples = math.floor(duration / options.output_step + 1e-9) + 1
     width = signals_bound(structure)

@@ -46,6 +46,8 @@ class SimulationOptions:
     ledger_tolerance: float = LEDGER_TOLERANCE
 
     def validate(self) -> None:
+        """`InputError` naming the option, the value and what is allowed if any option is
+        out of range."""
         friction_laws.law_code(self.friction)
         if self.solver not in ("auto", "dopri", "timestep"):
             raise InputError(f"solver must be 'auto', 'dopri' or 'timestep', got {self.solver!r}")

@@ -33,15 +33,16 @@ class Result:
                            f"{', '.join(list(self.signals)[:12])}, ...") from None
 
     def columns(self) -> list[str]:
+        """Names of the recorded signals."""
         return list(self.signals)
 
     def to_xarray(self):
         """The run as an `xarray.Dataset`: one variable per signal over ``time`` [s],
         each with its unit (``units``, as CF names it); the run's success, message
         and solver as attributes."""
-        import xarray as xr
+        import xarray as xr  # lazy: xarray is heavy; import vsj needs none
 
-        from .. import __version__
+        from .. import __version__  # circle: vsj imports vsj.simulate, which imports this
 
         data = {name: ("time", values, {"units": self.units[name]})
                 for name, values in self.signals.items()}
@@ -52,6 +53,7 @@ class Result:
         return ds
 
     def summary(self) -> str:
+        """Success and message, solver statistics and the energy ledger, one line each."""
         lines = [f"{'success' if self.success else 'FAILED'}: {self.message}",
                  f"solver {self.solver['name']}: {self.solver['steps']} steps in "
                  f"{self.solver['wall_time']:.3f} s"]
@@ -131,9 +133,9 @@ class BatchResult:
         """The batch as an `xarray.Dataset` over ``run`` and ``time`` [s]: one variable
         per signal with its unit, and each run's success, message and stop time; the
         same layout as `Result.to_xarray` with a ``run`` dimension in front."""
-        import xarray as xr
+        import xarray as xr  # lazy: xarray is heavy; import vsj needs none
 
-        from .. import __version__
+        from .. import __version__  # circle: vsj imports vsj.simulate, which imports this
 
         data = {name: (("run", "time"), self[name],
                        {"units": "rad/s" if name.endswith(".speed") else "rad"})

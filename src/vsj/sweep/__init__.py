@@ -15,13 +15,21 @@ import csv
 import io
 import math
 import os
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .spec import SweepSpec, load, loads, run_count, with_method
+from .. import __version__
+from ..errors import InputError
+from ..output import OutputError, atomic_write, file_record
+from ..progress import progress
+from . import analysis, schedulers, store
+from .runner import describe, job_for
+from .sampling import design, sensitivity_problem
+from .spec import SweepSpec, load, loads, run_count, spec_of, with_method, within_pivot_range
 
 #: Default runs per chunk at most: enough to keep the per-chunk cost (a task, a zarr
 #: region, a manifest update) small beside the runs, few enough to lose little when
@@ -73,11 +81,6 @@ def run(spec: SweepSpec, out: str | Path, *, resume: bool = False,
     sweep writes included. ``announce(text)``, if given, is told that bound before the
     runs start, and what a resumed sweep found damaged and runs again. A failure to
     write the directory raises `Unfinished`."""
-    from ..errors import InputError
-    from . import store
-    from .runner import describe, job_for
-    from .spec import within_pivot_range
-
     started = time.perf_counter()
     job = job_for(spec)
     info = describe(job)
@@ -116,9 +119,6 @@ def _check_space(out: Path, info, spec, runs: int, size: int, record, plots: boo
                  say) -> None:
     """`OutputError` if the runs not done yet may not fit the free space of ``out``;
     else ``say`` how many bytes they write at most."""
-    from ..output import OutputError
-    from . import store
-
     done = sum(b - a for a, b in (e["runs"] for e in (record or {"done": {}})["done"].values()))
     todo = runs - done
     need = store.estimate(todo, math.ceil(todo / size), len(info["time"]), len(info["keep"]),
@@ -139,14 +139,6 @@ def _check_space(out: Path, info, spec, runs: int, size: int, record, plots: boo
 
 def _run(spec, job, info, directory, record, expected, size, *, scheduler, workers, plots,
          show_progress, say) -> Outcome:
-    from .. import __version__
-    from ..output import file_record
-    from ..progress import progress
-    from . import store
-    from .sampling import design
-    from .schedulers import execute
-    from .spec import spec_of
-
     out = directory.path
     runs = run_count(spec)
     # before the draws (which take a while for millions of runs): the runs not recorded
@@ -179,7 +171,7 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
     storing = 0.0
     bar = None
     # the workers start on their first chunks while this process makes the store
-    running = execute(job, todo, scheduler, workers)
+    running = schedulers.execute(job, todo, scheduler, workers)
     try:
         if record is None:
             make(directory.zarr)
@@ -236,11 +228,6 @@ def _recover(spec, directory, record: dict, values: np.ndarray, make,
     values drawn now are those stored, and forget every finished chunk whose numbers no
     longer match its SHA-256 (to run it again). Returns what was found, one sentence
     each."""
-    from ..errors import InputError
-    from ..output import OutputError
-    from ..progress import progress
-    from . import store
-
     out = directory.path
     notes = []
     frame = record["frame"]
@@ -260,8 +247,6 @@ def _recover(spec, directory, record: dict, values: np.ndarray, make,
         drawn = [n for n in spec.varied
                  if fresh["coordinates"].get(n) != frame["coordinates"].get(n)]
         if drawn:
-            import shutil
-
             shutil.rmtree(temp)
             raise InputError(_drawn_differ(out, drawn, record))
         store.install_frame(temp, directory.zarr)
@@ -293,8 +278,6 @@ def _recover(spec, directory, record: dict, values: np.ndarray, make,
 
 
 def _drawn_differ(out: Path, names: list[str], record: dict) -> str:
-    from . import store
-
     then, now = record.get("libraries", {}), store.libraries()
     changed = [f"{k} {then.get(k)} there, {now.get(k)} now" for k in sorted(set(then) | set(now))
                if then.get(k) != now.get(k)]
@@ -308,10 +291,6 @@ def _drawn_differ(out: Path, names: list[str], record: dict) -> str:
 def _finish(spec: SweepSpec, out: Path, zarr_path: Path, record: dict, unit,
             outcome: Outcome, plots: bool) -> None:
     """The tables, figures and page of a sweep whose chunks are all done."""
-    from .. import __version__
-    from ..output import atomic_write
-    from . import analysis, store
-
     ds = store.open_dataset(zarr_path)
     varied = spec.varied
     store.write_metrics_csv(out / store.METRICS, ds, record["failed_runs"], varied)
@@ -333,8 +312,6 @@ def _finish(spec: SweepSpec, out: Path, zarr_path: Path, record: dict, unit,
             figures["sweep-vs-q.png"] = ("Each metric against the pivot position q",
                                          analysis.versus_q(inputs[:, 0], metrics, names, units))
     if names and spec.method is not None:
-        from .sampling import sensitivity_problem
-
         problem = sensitivity_problem(spec.sampled)
         indices = {name: analysis.sensitivity(spec.method, problem, unit, metrics[:, j],
                                               spec.seed)

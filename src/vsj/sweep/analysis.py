@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from ..pages import document, figure
+from .sampling import MORRIS_LEVELS
 
 #: Confidence level of the intervals SALib's bootstrap gives.
 CONFIDENCE = 0.95
@@ -36,16 +37,14 @@ def sensitivity(method: str, problem: dict, unit: np.ndarray, y: np.ndarray,
         return {"names": list(problem["names"]), **{k: list(nan) for k in keys},
                 "note": "some runs failed: indices need every run"}
     if method == "sobol":
-        from SALib.analyze import sobol
+        from SALib.analyze import sobol  # lazy: SALib is heavy; only sensitivity studies
 
         r = sobol.analyze(problem, y, calc_second_order=False, num_resamples=RESAMPLES,
                           conf_level=CONFIDENCE, seed=seed)
         return {"names": list(problem["names"]), "S1": r["S1"].tolist(),
                 "S1_conf": r["S1_conf"].tolist(), "ST": r["ST"].tolist(),
                 "ST_conf": r["ST_conf"].tolist()}
-    from SALib.analyze import morris
-
-    from .sampling import MORRIS_LEVELS
+    from SALib.analyze import morris  # lazy: SALib is heavy; only sensitivity studies
 
     levels = (unit * MORRIS_LEVELS - 0.5) / (MORRIS_LEVELS - 1)  # back to SALib's grid
     r = morris.analyze(problem, levels, y, num_resamples=RESAMPLES, conf_level=CONFIDENCE,
@@ -62,7 +61,7 @@ def _png(fig) -> bytes:
 
 
 def _figure(rows: int, cols: int, width: float = 3.2, height: float = 2.6):
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # lazy: matplotlib is heavy; only the plots
 
     fig = Figure(figsize=(max(4.0, width * cols), max(3.0, height * rows)),
                  layout="constrained")
@@ -75,6 +74,7 @@ def _label(name: str, unit: str) -> str:
 
 
 def histograms(metrics: np.ndarray, names: list[str], units: list[str]) -> bytes:
+    """PNG of one histogram per metric (finite values only)."""
     cols = min(3, len(names))
     rows = math.ceil(len(names) / cols)
     fig, axes = _figure(rows, cols)
@@ -89,6 +89,7 @@ def histograms(metrics: np.ndarray, names: list[str], units: list[str]) -> bytes
 
 
 def scatter(metrics, names, units, inputs, input_names, input_units) -> bytes:
+    """PNG of each metric against each varied input (the first six of each)."""
     shown_m, shown_i = names[:6], input_names[:6]
     fig, axes = _figure(len(shown_m), len(shown_i), 2.8, 2.3)
     step = max(1, len(metrics) // 5000)  # more points than pixels draw slowly
@@ -102,6 +103,7 @@ def scatter(metrics, names, units, inputs, input_names, input_units) -> bytes:
 
 
 def versus_q(q: np.ndarray, metrics, names, units) -> bytes:
+    """PNG of each metric against the pivot position q [cm]."""
     cols = min(3, len(names))
     rows = math.ceil(len(names) / cols)
     fig, axes = _figure(rows, cols)
@@ -116,6 +118,8 @@ def versus_q(q: np.ndarray, metrics, names, units) -> bytes:
 
 
 def sensitivity_chart(method: str, indices: dict[str, dict]) -> bytes:
+    """PNG of the sensitivity indices per metric (Sobol S1 and ST, or Morris mu* and sigma),
+    with their confidence intervals."""
     names = list(indices)
     fig, axes = _figure(len(names), 1, 6.0, 2.6)
     for ax, metric in zip(axes.flat, names):
@@ -149,6 +153,7 @@ def sensitivity_rows(method: str, indices: dict[str, dict]) -> list[list]:
 
 
 def header(method: str) -> list[str]:
+    """Column names of the sensitivity table for ``method`` (sobol or morris)."""
     if method == "sobol":
         return ["metric", "parameter", "S1", "S1 95% half-width", "ST", "ST 95% half-width"]
     return ["metric", "parameter", "mu*", "mu* 95% half-width", "sigma"]
@@ -184,6 +189,8 @@ def page(title: str, facts: list[tuple[str, str]], stats: list[list], figures: d
 
 
 def statistics(metrics: np.ndarray, names: list[str], units: list[str]) -> list[list]:
+    """Per metric: name, unit, count of finite values, mean, standard deviation, minimum,
+    5th, 50th and 95th percentile and maximum."""
     out = []
     for j, name in enumerate(names):
         v = metrics[:, j][np.isfinite(metrics[:, j])]

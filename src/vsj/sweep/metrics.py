@@ -238,6 +238,7 @@ class Evaluator:
 
     @property
     def signals(self) -> set[str]:
+        """Names of the signals the metric's expressions read."""
         return set().union(*(e.signals for e in self.expressions.values()))
 
     def __call__(self, c: Context) -> float:

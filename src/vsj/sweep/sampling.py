@@ -21,6 +21,7 @@ import warnings
 
 import numpy as np
 
+from ..errors import InputError
 from .spec import Covariance, Distribution, SweepSpec
 
 #: Morris grid levels (SALib's default is 4).
@@ -32,6 +33,7 @@ def unit_design(kind: str, method: str | None, samples: int, dimensions: int,
     """``(runs, dimensions)`` points in [0, 1): ``kind`` random | lhs | sobol, or the
     design a sensitivity ``method`` (sobol | morris) needs."""
     if method == "sobol":
+        # lazy: SALib is heavy; only sensitivity designs
         from SALib.sample import sobol as saltelli
 
         with warnings.catch_warnings():  # SALib warns when samples is not a power of 2
@@ -39,7 +41,7 @@ def unit_design(kind: str, method: str | None, samples: int, dimensions: int,
             return saltelli.sample(_unit_problem(dimensions), samples, calc_second_order=False,
                                    scramble=True, seed=seed)
     if method == "morris":
-        from SALib.sample import morris
+        from SALib.sample import morris  # lazy: SALib is heavy; only sensitivity designs
 
         levels = morris.sample(_unit_problem(dimensions), samples, num_levels=MORRIS_LEVELS,
                                seed=seed)
@@ -49,7 +51,7 @@ def unit_design(kind: str, method: str | None, samples: int, dimensions: int,
     rng = np.random.default_rng(seed)
     if kind == "random":
         return rng.random((samples, dimensions))
-    from scipy.stats import qmc
+    from scipy.stats import qmc  # lazy: heavy; grid sweeps need none
 
     if kind == "lhs":
         return qmc.LatinHypercube(d=dimensions, seed=rng).random(samples)
@@ -65,7 +67,7 @@ def _unit_problem(dimensions: int) -> dict:
 
 def to_values(unit: np.ndarray, distributions: tuple[Distribution, ...]) -> np.ndarray:
     """Map unit-cube points through each distribution's truncated inverse CDF (SI)."""
-    from scipy import stats
+    from scipy import stats  # lazy: heavy; grid sweeps need none
 
     out = np.empty_like(unit, dtype=float)
     for j, d in enumerate(distributions):
@@ -104,8 +106,6 @@ def covariance_draws(cov: Covariance, samples: int, seed: int) -> np.ndarray:
         filled += len(take)
         tries += len(batch)
         if tries > 1000 * samples + 10_000:
-            from ..errors import InputError
-
             raise InputError(f"{cov.origin}: fewer than 1 in 1000 draws of the covariance "
                              "fall inside the parameters' allowed ranges; check the values")
     return out

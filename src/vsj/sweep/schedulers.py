@@ -17,12 +17,13 @@ bounded and an interruption loses only those. Close what it returns to stop.
 
 from __future__ import annotations
 
+import multiprocessing
 from collections.abc import Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from ..engine.core import available_cores
 from ..errors import InputError
 from .runner import ChunkResult, Job, run_chunk
-
 
 #: Imported once by the fork server the workers are forked from (see the module).
 PRELOAD = ["vsj.sweep._worker"]
@@ -52,8 +53,6 @@ def _local(job, chunks, workers):
         for index, start, values in chunks:
             yield index, run_chunk(job, start, values, threads=cores)
         return
-    import multiprocessing
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     # a fork server imports the runner once and forks each worker from it: no fork of
     # this (threaded) process, and no worker importing everything anew
@@ -84,6 +83,7 @@ def _local(job, chunks, workers):
 def client_for(scheduler: str, workers: int | None):
     """A Dask client: of a new ``LocalCluster`` (``"local"``) or of a running scheduler."""
     try:
+        # lazy: dask is heavy; only its scheduler
         from dask.distributed import Client, LocalCluster
     except ImportError:  # pragma: no cover - a dependency
         raise InputError("--scheduler needs dask.distributed (pip install 'dask[distributed]')")
@@ -99,7 +99,7 @@ def client_for(scheduler: str, workers: int | None):
 
 
 def _dask(job, chunks, scheduler, workers):
-    from dask.distributed import as_completed
+    from dask.distributed import as_completed  # lazy: dask is heavy; only its scheduler
 
     client, cluster = client_for(scheduler, workers)
     try:

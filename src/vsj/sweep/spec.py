@@ -57,12 +57,15 @@ import json
 import math
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+
+import numpy as np
 
 from ..errors import InputError, read_text
 from ..params import SCHEMA, Spec
-from ..units import to_si
+from ..units import format_quantity, to_si
+from .metrics import KINDS
 
 TOP_KEYS = {"sweep", "vary", "covariance", "signals", "metrics", "output"}
 SWEEP_KEYS = {"scenario", "case", "params", "duration", "seed", "samples", "design", "method"}
@@ -119,6 +122,9 @@ class Metric:
 
 @dataclass(frozen=True)
 class SweepSpec:
+    """A sweep file read and checked (SI values): the scenario and case it runs, the
+    parameters it fixes, samples or draws from a covariance, the design and method, the
+    metrics it computes and the signals it keeps."""
     origin: str
     text: str
     scenario: str
@@ -193,6 +199,7 @@ def spec_of(name: str) -> Spec | None:
 
 
 def allowed_range(spec: Spec) -> tuple[float, float]:
+    """``(minimum, maximum)`` of a schema entry, infinite where it has no bound."""
     lo = -math.inf if spec.minimum is None else spec.minimum
     hi = math.inf if spec.maximum is None else spec.maximum
     return lo, hi
@@ -307,8 +314,6 @@ def within_pivot_range(spec: SweepSpec, q_min: float, q_max: float) -> SweepSpec
     """``spec`` with q's values checked against, and its distribution truncated to, the
     pivot range [q_min, q_max] (m) of the parameter set the sweep runs with: a grid,
     list or distribution outside it is refused before any run (`InputError`)."""
-    from dataclasses import replace
-
     cov = spec.covariance
     if cov is not None and Q in cov.names:
         j = cov.names.index(Q)
@@ -327,8 +332,6 @@ def within_pivot_range(spec: SweepSpec, q_min: float, q_max: float) -> SweepSpec
 
 
 def _show(value: float, spec: Spec) -> str:
-    from ..units import format_quantity
-
     return format_quantity(value, spec.display) if math.isfinite(value) else \
         ("-inf" if value < 0 else "inf")
 
@@ -369,7 +372,6 @@ def read_covariance(path: Path, where: str) -> Covariance:
             all(isinstance(r, list) and len(r) == n for r in matrix)):
         raise InputError(f"{path}: covariance: expected a {n} x {n} list of lists (one row "
                          "per name)")
-    import numpy as np
 
     try:
         cov = np.array(matrix, dtype=float)
@@ -384,8 +386,6 @@ def read_covariance(path: Path, where: str) -> Covariance:
 
 
 def _metric(name: str, entry, origin: str) -> Metric:
-    from .metrics import KINDS
-
     where = _where(origin, "metrics", name)
     if isinstance(entry, str):
         return Metric(name, "expression", {"expression": entry}, where)
@@ -528,6 +528,8 @@ def check_design(spec: SweepSpec) -> None:
 
 
 def run_count(spec: SweepSpec) -> int:
+    """Number of runs the sweep makes: the grid of fixed values times the samples its design
+    needs."""
     factorial = math.prod(len(f.values) for f in spec.fixed)
     if not (spec.sampled or spec.covariance):
         return factorial
@@ -541,8 +543,6 @@ def run_count(spec: SweepSpec) -> int:
 
 def with_method(spec: SweepSpec, method: str | None) -> SweepSpec:
     """``spec`` with the command line's ``--method`` (which wins over the file's)."""
-    from dataclasses import replace
-
     if method is None or method == spec.method:
         return spec
     out = replace(spec, method=method)
@@ -551,5 +551,6 @@ def with_method(spec: SweepSpec, method: str | None) -> SweepSpec:
 
 
 def load(path: str | Path) -> SweepSpec:
+    """The sweep file at ``path``, read and checked (`loads`)."""
     path = Path(path)
     return loads(read_text(path, "sweep file"), str(path), path.parent)

@@ -44,8 +44,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import __version__
 from ..errors import InputError, read_bytes
-from ..output import OUTPUTS, OutputError, atomic_write, file_record
+from ..output import OUTPUTS, PLOT_BYTES, OutputError, atomic_write, file_record
+from ..params import SCHEMA
 
 ZARR = "sweep.zarr"
 MANIFEST = "sweep.json"
@@ -137,6 +139,7 @@ class Directory:
                             os.unlink(os.path.join(root, name))
 
     def close(self):
+        """Release the directory's lock."""
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
@@ -151,6 +154,7 @@ class Directory:
 
     @property
     def zarr(self) -> Path:
+        """Path of the sweep's zarr store in the directory."""
         return self.path / ZARR
 
 
@@ -194,6 +198,7 @@ def read_manifest(directory: Path, option: str = "--out") -> dict:
 
 
 def write_manifest(directory: Path, record: dict) -> None:
+    """Write the sweep's manifest ``record`` into ``directory`` atomically."""
     with atomic_write(directory / MANIFEST) as handle:
         handle.write(json.dumps(record, indent=1) + "\n")
 
@@ -211,8 +216,8 @@ def create(path: Path, *, varied: list[str], values: np.ndarray, units: list[str
     The coordinates go through xarray; the per-run arrays are made with zarr
     directly, in xarray's layout (dimension names, the ``coordinates`` attribute),
     because xarray can allocate an array without writing it only through Dask."""
-    import xarray as xr
-    import zarr
+    import xarray as xr  # lazy: xarray is heavy; only reading the results
+    import zarr  # lazy: zarr is heavy; vsj verify of result sets needs none
 
     runs, n_t = len(values), len(time)
     coords = {"run": ("run", np.arange(runs)),
@@ -251,7 +256,7 @@ class Writer:
     """The store opened once for writing finished chunks into their regions."""
 
     def __init__(self, path: Path):
-        import zarr
+        import zarr  # lazy: zarr is heavy; vsj verify of result sets needs none
 
         group = zarr.open_group(path, mode="r+")
         self.arrays = {name: group[name] for name in ("signals", "metrics", "status", "steps")}
@@ -285,7 +290,7 @@ def _digest(arrays) -> str:
 
 def open_dataset(path: Path):
     """The store as an xarray Dataset (NumPy-backed: read on access, no Dask)."""
-    import xarray as xr
+    import xarray as xr  # lazy: xarray is heavy; only reading the results
 
     return xr.open_dataset(path, engine="zarr", consolidated=False, chunks=None)
 
@@ -329,8 +334,6 @@ def inputs(job, spec) -> dict:
     scenario's text, the parameter set as resolved (every value after ``extends``, SI)
     and the covariance as read (names, means, matrix), the resolved values themselves
     (to name the ones that changed), and the vsj version."""
-    from .. import __version__
-
     params = job.params
     cov = spec.covariance
     return {
@@ -347,7 +350,7 @@ def inputs(job, spec) -> dict:
 
 def libraries() -> dict:
     """Versions of the libraries the draws come from (for messages, not compared)."""
-    from importlib import metadata
+    from importlib import metadata  # lazy: scans installed packages; only for a manifest
 
     out = {}
     for name in ("numpy", "scipy", "SALib"):
@@ -399,8 +402,6 @@ def check_resume(directory: Path, record: dict, expected: dict, *, job=None,
 
 
 def _si(text, key: str) -> str:
-    from ..params import SCHEMA
-
     if text is None:
         return "absent"
     section, _, name = key.partition(".")
@@ -429,7 +430,7 @@ def _values_sha256(values: np.ndarray) -> str:
 def frame_record(path: Path) -> dict:
     """SHA-256 of each metadata file of the store ``path`` and of each coordinate's
     values (everything but the chunks' arrays `DATA`)."""
-    import zarr
+    import zarr  # lazy: zarr is heavy; vsj verify of result sets needs none
 
     group = zarr.open_group(path, mode="r")
     coordinates = {name: _values_sha256(group[name][...]) for name in sorted(group.array_keys())
@@ -441,7 +442,7 @@ def frame_record(path: Path) -> dict:
 def check_frame(path: Path, recorded: dict) -> list[str]:
     """What differs between the store's frame and ``recorded`` (`frame_record`): each
     metadata file missing, changed or unreadable, each coordinate changed."""
-    import zarr
+    import zarr  # lazy: zarr is heavy; vsj verify of result sets needs none
 
     shown = f"{ZARR}"
     if not path.is_dir():
@@ -500,7 +501,7 @@ def check_chunks(path: Path, record: dict, progress=None) -> dict[int, str]:
     """The finished chunks of ``record`` whose numbers in the store ``path`` no longer
     match their recorded SHA-256, each with what is wrong (a chunk file changed,
     truncated or deleted). ``progress(runs)`` is called as chunks are read."""
-    import zarr
+    import zarr  # lazy: zarr is heavy; vsj verify of result sets needs none
 
     done = record["done"]
     try:
@@ -607,8 +608,6 @@ def estimate(runs: int, chunks: int, samples: int, kept: int, metrics: int,
     store's numbers uncompressed (zstd never grows them beyond its headers), the
     manifest written twice over (atomic replacement), metrics.csv, the page and (with
     ``figures``) the figures."""
-    from ..output import PLOT_BYTES
-
     numbers = runs * (8 * samples * kept + 8 * metrics + 16)
     manifest = 2 * (chunks * 256 + runs * MESSAGE_BYTES)
     table = runs * (CSV_VALUE_BYTES * (3 + varied + metrics) + MESSAGE_BYTES)
