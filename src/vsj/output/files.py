@@ -241,7 +241,7 @@ def written_by_vsj(path: str | Path) -> bool:
     ``vsj`` or ``vsj_version`` key (or a ``format`` that starts with ``vsj``), or a text
     file (TOML, CSV) whose comment lines at the top name vsj. Unreadable or other files
     are not vsj's."""
-    import zipfile
+    import zipfile  # lazy: only an FMU among the files vsj writes is a zip archive
 
     path = Path(path)
     try:
@@ -421,6 +421,7 @@ def clear_staging(staging: str, target: str, disposable: str) -> bool:
     that name is taken, left with the staging directory). Self-contained (the watchdog
     runs its source on its own) and safe to run twice at once.
     """
+    # lazy: self-contained, the watchdog process runs this function's source alone
     import os
     import re
     import stat
@@ -938,6 +939,8 @@ def _jsonable(value):
 
 
 def write_meta(path: Path, record: dict) -> None:
+    """Write ``record`` as the JSON metadata of a result (atomically), vsj's version
+    first; NumPy values become plain JSON."""
     record = {"vsj_version": __version__, **record}
     text = json.dumps(_jsonable(record), indent=2, sort_keys=False)
     with atomic_write(path) as handle:

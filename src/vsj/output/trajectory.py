@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..params import Parameters
+from ..netcdf import ClassicFile, Variable
+from ..params import SCHEMA, Parameters
 from ..simulate import Result
 from .files import atomic_write
 
@@ -57,6 +58,7 @@ def trajectory_bytes(samples: int, signals: int, cases: int, *, csv: bool, plot:
 # --- trajectories and metadata -----------------------------------------------------
 
 def column_name(signal: str, unit: str, label: str | None) -> str:
+    """A CSV column's header: ``signal@label [unit]`` (without ``@label`` for one case)."""
     name = signal if label is None else f"{signal}@{label}"
     return f"{name} [{unit}]"
 
@@ -79,6 +81,8 @@ def trajectory_table(runs: Sequence[tuple[str, Result]]) -> tuple[list[str], np.
 
 
 def write_trajectory(path: Path, runs: Sequence[tuple[str, Result]]) -> None:
+    """Write the trajectory CSV of ``runs`` (label, result) to ``path``, every value
+    with all its digits, an empty field where a run has no sample."""
     header, data = trajectory_table(runs)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
@@ -93,7 +97,7 @@ def cases_dataset(runs: Sequence[tuple[str, Result]]):
     """Several runs on one time grid as one `xarray.Dataset` with a ``case``
     dimension (a failed run's missing samples are NaN), each signal with its
     unit; each case's success is the variable ``success``."""
-    import xarray as xr
+    import xarray as xr  # lazy: heavy, and only the dataset functions need it
 
     if not runs:
         raise ValueError("no runs to write")
@@ -124,7 +128,7 @@ def write_cases(path: Path, runs: Sequence[tuple[str, Result]]) -> None:
     this format. Importing xarray (and through it Dask) costs a ``vsj simulate``
     more than simulating and writing; reading the file back with xarray gives
     `cases_dataset`'s dataset (tested)."""
-    from scipy.io import netcdf_file
+    from scipy.io import netcdf_file  # lazy: heavy, and only reading back needs it
 
     if not runs:
         raise ValueError("no runs to write")
@@ -173,7 +177,6 @@ class TrajectoryFile:
     have, read as NaN. Used as a context manager on an open binary handle."""
 
     def __init__(self, handle, labels: Sequence[str], time: np.ndarray, tables):
-        from ..netcdf import ClassicFile, Variable
 
         self.labels = list(labels)
         self.time = np.asarray(time, dtype=float)
@@ -219,6 +222,7 @@ class TrajectoryFile:
         return self.tables[k]
 
     def close(self) -> None:
+        """Record each case's success; the file is complete after this."""
         self.file.write("success", np.array(self.success, dtype=np.int32))
 
 
@@ -297,8 +301,8 @@ def read_trajectory(path: Path) -> tuple[list[str], np.ndarray]:
 
 
 def parameters_record(params: Parameters) -> dict:
-    from ..params import SCHEMA
-
+    """The parameter set as a result's metadata records it: origin, hash, and each
+    entry's SI value, unit, text as written and source."""
     values = {}
     for section, specs in SCHEMA.items():
         for name, spec in specs.items():

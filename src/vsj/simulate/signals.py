@@ -19,6 +19,8 @@ from ..network import Signal, Structure
 
 
 def state_names(structure: Structure) -> list[str]:
+    """Names of the engine's state components: each free flange's angle and speed, then
+    each motor's armature current."""
     names = [f"{f}.angle" for f in structure.free] + [f"{f}.speed" for f in structure.free]
     return names + [f"{m.name}.current" for m in structure.motors]
 
@@ -34,6 +36,7 @@ class Block:
     cache: dict
 
     def col(self, name: str) -> np.ndarray:
+        """The samples of one group of observation columns (rows: samples)."""
         return self.raw[:, self.columns[name]]
 
 
@@ -180,12 +183,15 @@ class PortFlows:
                 self.connections.append((r, f"{a}--{b}", structure.index(a)))
 
     def speed(self, block: Block) -> np.ndarray:
+        """Speed of every flange [rad/s] at the block's samples (kept in its cache)."""
         if "speed" not in block.cache:
             s = self.structure
             block.cache["speed"] = block.col("v") @ s.A.T + block.col("u") @ s.B.T
         return block.cache["speed"]
 
     def torque(self, block: Block) -> np.ndarray:
+        """Force of every constraint [N m] at the block's samples, from Newton's law
+        per flange (kept in its cache)."""
         if "nu" not in block.cache:
             s = self.structure
             accel = block.col("a") @ s.A.T + block.col("ud") @ s.B.T

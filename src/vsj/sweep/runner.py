@@ -20,20 +20,25 @@ from __future__ import annotations
 import hashlib
 import math
 import pickle
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from functools import cached_property
+from pathlib import Path
 
 import numpy as np
 
 from ..engine import STATUS_TEXT, Engine, compile_model, core, observation_layout
 from ..engine.plan import Plan, Scheme, initial_state, run_batch
 from ..engine.retune import RETUNABLE, Slots, find_passthrough, retune
-from ..errors import InputError
+from .. import params as params_module
+from .. import scenario as scenarios
+from ..errors import InputError, read_text
 from ..params import Parameters, _relations
 from ..simulate import InitialState, choose_solver
 from ..simulate.signals import Block, catalogue
 from .metrics import Context, Evaluator, Expression
+from .sampling import to_values
 from .spec import Q, SweepSpec, spec_of
 
 #: Status of a run that could not be built (the engine's codes are 0 and up).
@@ -55,6 +60,8 @@ class Job:
 
     @cached_property
     def key(self) -> str:
+        """A digest of everything the runs depend on (sweep text and method, scenario,
+        parameter set), which names the job's prepared state in a worker."""
         return hashlib.sha256(pickle.dumps((self.spec.text, self.spec.method,
                                             self.scenario_text, self.scenario_origin,
                                             self.params.hash(),
@@ -75,6 +82,7 @@ class ChunkResult:
 
     @property
     def failed(self) -> int:
+        """Number of the chunk's runs that did not succeed."""
         return int(np.count_nonzero(self.status != core.OK))
 
 
@@ -99,8 +107,6 @@ class Prepared:
     """A `Job` made ready in one process: scenario, base model, signals, metrics."""
 
     def __init__(self, job: Job):
-        from .. import scenario as scenarios
-
         spec = job.spec
         self.spec = spec
         scen = scenarios.loads(job.scenario_text, job.scenario_origin)
@@ -189,8 +195,6 @@ class Prepared:
     def _probe_values(self, name: str) -> list[float]:
         """Values of ``name`` to compile the model at: near the base value, and in the
         range the sweep file gives it; all within the parameter's allowed range."""
-        from .sampling import to_values
-
         spec = self.spec
         base = self.base_params.values[name]
         out = [base * (1.0 + d) for d in (0.0123, -0.0234, 0.0345)] if base != 0.0 else []
@@ -260,6 +264,8 @@ class Prepared:
         return replace(base, values=new, sources=sources, texts=texts)
 
     def initial_for(self, values: np.ndarray, params: Parameters) -> InitialState:
+        """The initial state of a run: the case's, at the varied pivot position if q is
+        varied (`InputError` outside the pivot's range for ``params``)."""
         initial = self.case.initial
         if Q in self.varied:
             q = float(values[self.varied.index(Q)])
@@ -373,8 +379,6 @@ def run_chunk(job: Job, start: int, values: np.ndarray, threads: int | None = No
               ) -> ChunkResult:
     """Simulate the runs ``start ..`` with the varied quantities ``values`` (runs x
     varied, SI); ``threads`` share the kernel's runs (default: every core)."""
-    import time
-
     p = prepared(job)
     runs = len(values)
     n_t, n_keep, n_metrics = len(p.t_out), len(p.keep), len(p.metrics)
@@ -446,20 +450,13 @@ def _measure(p: Prepared, run: _Run, states: np.ndarray, transitions: int,
 def job_for(spec: SweepSpec) -> Job:
     """The `Job` of a sweep file: its scenario's text read and its parameter set loaded
     here (the files it ``extends`` read relative to it), so workers read no files."""
-    from .. import params as params_module
-    from .. import scenario as scenarios
-
     scen = scenarios.load(spec.scenario)
     text = scen_text(scen, spec.scenario)
     return Job(spec, text, scen.origin, params_module.load(spec.params))
 
 
 def scen_text(scen, name: str) -> str:
-    from pathlib import Path
-
-    from .. import scenario as scenarios
-    from ..errors import read_text
-
+    """The text of the scenario ``scen`` named ``name`` (a file, or a built-in one)."""
     path = Path(name)
     if path.suffix == ".toml" or path.exists():
         return read_text(path, "scenario file")
