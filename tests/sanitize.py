@@ -77,7 +77,8 @@ def build(scratch: Path) -> tuple[Path, Path]:
                     *map(str, sorted((ENGINE / "c").glob("*.c"))), "-lm"], check=True)
     fmi = ROOT / "src" / "vsj" / "fmi"
     subprocess.run([cc, "-std=c99", *FLAGS, "-shared", "-fPIC", "-I", str(ENGINE / "c"), "-I",
-                    str(fmi), "-o", str(scratch / "vsj_wrist.so"), str(fmi / "vsj_fmu.c"),
+                    str(fmi), "-o", str(scratch / "vsj_wrist.so"),
+                    *map(str, sorted(fmi.glob("*.c"))),
                     *map(str, sorted((ENGINE / "c").glob("*.c"))), "-lm"], check=True)
     return pkg, example
 

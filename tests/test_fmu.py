@@ -136,7 +136,8 @@ def test_fmpy_validates_the_fmu_and_the_binary_exports_every_fmi2_function(wrist
                              text=True, check=True).stdout
     exported = set(re.findall(r" T (fmi2\w+)", symbols))
     assert declared <= exported
-    assert not any(s.startswith("vsj_") for s in re.findall(r" T (\w+)", symbols))
+    # the engine (vsj_*) and the FMU's internal functions (fmu__*) stay hidden
+    assert set(re.findall(r" T (\w+)", symbols)) == declared
     md = read_model_description(str(path))
     variables = {v.name: v for v in md.modelVariables}
     assert variables["transmission.stiction"].causality == "parameter"
@@ -155,6 +156,15 @@ def test_fmpy_validates_the_fmu_and_the_binary_exports_every_fmi2_function(wrist
     for name in ("sources/vsj_fmu.c", "sources/timestep.c", "sources/buildDescription.xml",
                  "resources/model.vsjm", "resources/fmu.txt", "modelDescription.xml"):
         assert (Path(unzipped) / name).is_file(), name
+    # an importer builds from sources/ with the files buildDescription.xml lists: every
+    # file of the engine and of the FMI layer is there, and every .c file is listed
+    shipped = {p.name for p in (Path(unzipped) / "sources").iterdir()}
+    package = Path(fmu.__file__).parent
+    for folder in (package / "engine" / "c", package / "fmi"):
+        assert {p.name for p in folder.glob("*.[ch]")} <= shipped, folder
+    listed = re.findall(r'<SourceFile name="([^"]+)"/>',
+                        (Path(unzipped) / "sources" / "buildDescription.xml").read_text())
+    assert sorted(listed) == sorted(name for name in shipped if name.endswith(".c"))
 
 
 def test_a_held_wrist_under_a_torque_matches_vsj_simulate_and_does_not_drift(wrist_fmu):

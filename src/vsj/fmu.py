@@ -8,7 +8,8 @@ the Modelica Association's Reference FMUs are:
   descriptions;
 * ``binaries/linux64/vsj_wrist.so`` (and ``binaries/win64/vsj_wrist.dll`` where
   the mingw-w64 cross-compiler is installed): the C engine (``vsj/engine/c``)
-  and its FMI layer (``vsj/fmi/vsj_fmu.c``), built with the system compiler;
+  and its FMI layer (``vsj/fmi``: ``vsj_fmu.c``, the fmi2 entry points, and the
+  ``fmu_*.c`` files behind them), built with the system compiler;
 * ``sources/`` and ``sources/buildDescription.xml``: the same C files, so an
   importer can build the FMU for its own platform;
 * ``resources/model.vsjm``: the wrist as `vsj.export` writes it, and
@@ -70,7 +71,7 @@ from .springs import EXPONENTIAL, EXPONENTIAL_FIELDS, GEOMETRIC, GEOMETRIC_REPOR
 from .wrist import WristOptions
 
 MODEL_IDENTIFIER = "vsj_wrist"
-#: value references (see vsj/fmi/vsj_fmu.c)
+#: value references (see vsj/fmi/vsj_fmu.c; their C names are in fmu_internal.h)
 VR_OUTPUT, VR_Q0, VR_PARAMETER = 10, 99, 100
 #: The FMU's outputs, in the order of the C `enum output`: FMI name and the signal of
 #: the wrist's table (`vsj.simulate.signals.catalogue`) it is, whose unit and
@@ -99,7 +100,10 @@ OWN_OUTPUTS = {
 }
 #: an affine map must reproduce the arrays to this fraction of their largest entry
 AFFINE_TOLERANCE = 1e-9
-SOURCES_C = ("vsj_fmu.c", "fmi2.h")
+#: the FMI layer's files (vsj/fmi), shipped in ``sources/``; every .c one is compiled and
+#: listed in buildDescription.xml
+SOURCES_C = ("vsj_fmu.c", "fmu_setup.c", "fmu_parameters.c", "fmu_ledger.c", "fmu_state.c",
+             "fmu_internal.h", "fmi2.h")
 
 
 @dataclass(frozen=True)
@@ -658,7 +662,7 @@ def checks_of(stepper, document: dict, options: SimulationOptions) -> Checks:
 
 
 def map_body(tunables: list[Tunable], params: Parameters, q0: float, checks: Checks) -> str:
-    """``fmu.txt`` after its GUID line (the layout: vsj/fmi/vsj_fmu.c)."""
+    """``fmu.txt`` after its GUID line (the layout: vsj/fmi/fmu_setup.c)."""
     lines = [f"parameters {len(tunables)}"]
     for t in tunables:
         low = t.minimum if math.isfinite(t.minimum) else -1.7976931348623157e308

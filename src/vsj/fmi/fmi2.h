@@ -3,7 +3,7 @@
  * Types, enumerations and function signatures are those the FMI 2.0 standard
  * (Modelica Association, fmi-standard.org) fixes for every FMU; an importer
  * calls the functions by these names. Only the declarations are here: the
- * implementation is vsj_fmu.c.
+ * implementation is vsj_fmu.c, with the fmu_*.c files behind it.
  */
 #ifndef VSJ_FMI2_H
 #define VSJ_FMI2_H
