@@ -185,6 +185,48 @@ def test_a_state_of_this_fmu_round_trips_and_ends_with_its_checksum(wrist):
     s.close()
 
 
+@pytest.fixture(scope="module")
+def smooth(tmp_path_factory):
+    """An FMU on dopri (arctan friction): its integrator keeps no stick/slip history."""
+    path, unzipped = _build(tmp_path_factory, "smooth", friction="arctan", method="dopri",
+                            step=H)
+    yield path, unzipped
+    shutil.rmtree(unzipped, ignore_errors=True)
+
+
+def test_a_serialized_state_holds_the_state_and_nothing_else(smooth):
+    """Two processes that take the same steps serialize the same bytes. A dopri FMU has
+    no stick/slip history, and the state's place for it holds zeros, not whatever bytes
+    the heap held (which differ from process to process)."""
+    import subprocess
+    import sys
+
+    path, unzipped = smooth
+    code = f"""
+import hashlib
+from fmpy import read_model_description
+from fmpy.fmi2 import FMU2Slave
+md = read_model_description({str(path)!r})
+vr = {{v.name: v.valueReference for v in md.modelVariables}}
+# heap garbage first, so that fresh memory is not zero by chance
+junk = [bytes([k % 251]) * 4096 for k in range(2000)]
+del junk[::2]
+f = FMU2Slave(guid=md.guid, unzipDirectory={str(unzipped)!r},
+              modelIdentifier=md.coSimulation.modelIdentifier, instanceName="a")
+f.instantiate()
+f.setupExperiment(startTime=0.0)
+f.enterInitializationMode()
+f.exitInitializationMode()
+for k in range(20):
+    f.setReal([vr["tau_x"]], [0.3])
+    f.doStep(k * {H!r}, {H!r})
+print(hashlib.sha256(f.serializeFMUstate(f.getFMUstate())).hexdigest())
+"""
+    digests = {subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                              check=True).stdout for _ in range(3)}
+    assert len(digests) == 1
+
+
 def test_a_state_of_another_vsj_fmu_is_refused(wrist, other):
     """A state serialized by another vsj FMU of the same sizes (another friction law and
     step) is refused by the fingerprint its header carries; so is its in-memory state."""

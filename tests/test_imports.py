@@ -18,7 +18,7 @@ from test_architecture import graph_of, modules
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "vsj"
 TAGS = ("# lazy: ", "# circle: ")
 #: being reworked (issue 32): their imports are checked once the rework lands
-REWORKED = {"fmu.py"}
+REWORKED: set[str] = set()
 #: what ``import vsj`` and ``import vsj.cli`` must not load: each adds a noticeable
 #: part of a second to every command's start and no common command needs it at once
 HEAVY = ("matplotlib", "xarray", "dask", "scipy", "scipy.optimize", "pint", "zarr", "SALib",

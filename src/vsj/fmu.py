@@ -60,14 +60,15 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from . import __version__, export
+from . import __version__, export, pages, scenario
 from .errors import InputError
-from . import pages
+from .output import atomic_write
 from .params import RELATIONS, SCHEMA, Parameters
 from .params import default as default_params
 from .simulate import DIVERGED, INTO_STOP, InitialState, SimulationOptions
 from .simulate.signals import SignalSpec, catalogue
 from .springs import EXPONENTIAL, EXPONENTIAL_FIELDS, GEOMETRIC, GEOMETRIC_REPORT, GEOMETRY_FIELDS
+from .stepper import Stepper
 from .wrist import WristOptions
 
 MODEL_IDENTIFIER = "vsj_wrist"
@@ -108,6 +109,9 @@ SOURCES_C = ("vsj_fmu.c", "fmu_setup.c", "fmu_parameters.c", "fmu_ledger.c", "fm
 
 @dataclass(frozen=True)
 class Tunable:
+    """A parameter the FMU lets an importer change (``fmi2SetReal``): its key, value and
+    range, and how it enters the model's arrays (affine ``entries``)."""
+
     key: str
     value: float
     minimum: float
@@ -215,7 +219,7 @@ def _check_together(params, found, base, scale, wrist_options, options, method, 
 
 
 def _unit_xml(units: dict[str, str]) -> str:
-    import pint
+    import pint  # lazy: heavy, only the unit names of the model description need it
 
     ureg = pint.UnitRegistry()
     base = {"[mass]": "kg", "[length]": "m", "[time]": "s", "[current]": "A",
@@ -241,6 +245,9 @@ def _display(si_unit: str) -> str:
 def model_description(document: dict, tunables: list[Tunable], params: Parameters,
                       q0: float, q_range: tuple[float, float], guid: str, step: float,
                       description: str, signals: dict[str, SignalSpec]) -> str:
+    """The FMU's modelDescription.xml: its inputs, outputs (units and descriptions from
+    ``signals``, the run's signal table), the initial pivot position and the tunable
+    parameters, with FMI's unit definitions."""
     units: dict[str, str] = {}  # FMI unit name -> the same in pint's notation
     variables = []
 
@@ -347,6 +354,8 @@ def _source_paths() -> list[Path]:
 
 
 def build_description() -> str:
+    """The FMU's sources/buildDescription.xml: every C file it carries, to compile as
+    one binary."""
     files = "\n".join(f'      <SourceFile name="{name}"/>' for name in _source_names()
                       if name.endswith(".c"))
     return f"""<?xml version="1.0" encoding="UTF-8"?>
@@ -478,7 +487,6 @@ def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None =
             said["win64"] = compile_binary(
                 "win64", root / "binaries" / "win64" / f"{MODEL_IDENTIFIER}.dll")
             platforms.append("win64")
-        from .output import atomic_write
 
         with atomic_write(Path(out), "wb") as handle, \
                 zipfile.ZipFile(handle, "w", zipfile.ZIP_DEFLATED) as archive:
@@ -520,7 +528,6 @@ def cross_check_commands(names: list[str], period: float, steps: int) -> np.ndar
     sine voltages with the same frequency, phases and fade-in. ``tau_x`` steps to
     `CROSS_CHECK_LOAD` at `CROSS_CHECK_LOAD_START`.
     """
-    from . import scenario
 
     t = np.arange(steps + 1) * period
     u = np.zeros((steps, len(names)))
@@ -555,7 +562,6 @@ def cross_check(directory: Path, params: Parameters, *,
     ``vsj_wrist_ref.csv`` (vsj's own run of the same held inputs: the step function
     `vsj.stepper.Stepper`, one call per communication step), ``vsj_wrist_ref.opt``
     and ``README.md``. One folder per platform the FMU has a binary for."""
-    from .stepper import Stepper
 
     wrist_options = wrist_options or WristOptions()
     chosen = choose_method(friction, method)
@@ -691,6 +697,8 @@ def map_body(tunables: list[Tunable], params: Parameters, q0: float, checks: Che
 
 
 def map_text(guid: str, body: str) -> str:
+    """The FMU's resources/fmu.txt: format version and GUID, then ``body`` (the
+    parameter map, `map_body`)."""
     return f"vsj-fmu 2\nguid {guid}\n{body}"
 
 
