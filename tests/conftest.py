@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 
 import pytest
@@ -37,6 +39,40 @@ def params():
     return params_module.default()
 
 
+#: What `_once` made in this process: key -> (value, directory).
+_MADE: dict = {}
+
+
+def _once(tmp_path_factory, key: str, make):
+    """``make(directory)`` run once per test session for ``key``: ``(value, directory)``.
+
+    ``make`` writes its files into ``directory`` (which it may have to create) and
+    returns a JSON value. Under pytest-xdist each worker is a process of its own, so the
+    first worker to ask makes it in this session's temporary directory (shared by its
+    workers) while holding a lock; the others wait for it and read the same files and
+    value. Tests must not change the files.
+    """
+    if key in _MADE:
+        return _MADE[key]
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    if worker is None or fcntl is None:
+        out = tmp_path_factory.mktemp(key)
+        _MADE[key] = make(out), out
+        return _MADE[key]
+    shared = tmp_path_factory.getbasetemp().parent  # this session's, above the workers'
+    out = shared / key
+    value_file = shared / f"{key}.json"
+    with open(shared / f"{key}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            if not value_file.exists():
+                value_file.write_text(json.dumps(make(out)))
+            _MADE[key] = json.loads(value_file.read_text()), out
+            return _MADE[key]
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
 def _reproduce(out) -> int:
     from vsj.cli import main
 
@@ -48,26 +84,34 @@ def reproduction(tmp_path_factory):
     """``vsj reproduce --reduced`` run once per test session: ``(exit code, output dir)``.
 
     It makes every report figure (about a minute of work), and three test files
-    read what it writes. Under pytest-xdist each worker is a process of its
-    own, so the first worker to ask makes the figures in this session's
-    temporary directory (shared by its workers) while holding a lock; the
-    others wait for it and read the same files. Tests must not change them.
+    read what it writes (made once for all workers, `_once`). Tests must not change them.
     """
-    worker = os.environ.get("PYTEST_XDIST_WORKER")
-    if worker is None or fcntl is None:
-        out = tmp_path_factory.mktemp("reproduction")
-        return _reproduce(out), out
-    shared = tmp_path_factory.getbasetemp().parent  # this session's, above the workers'
-    out = shared / "reproduction"
-    code_file = shared / "reproduction.code"
-    with open(shared / "reproduction.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        try:
-            if not code_file.exists():
-                code_file.write_text(str(_reproduce(out)))
-            return int(code_file.read_text()), out
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
+    return _once(tmp_path_factory, "reproduction", _reproduce)
+
+
+@pytest.fixture(scope="session")
+def wrist_fmu_file(tmp_path_factory):
+    """A function ``(**options) -> (path, info)``: the wrist FMU that `vsj.fmu.build`
+    writes for the bundled parameters with these keyword options, and what it returns.
+
+    Compiling an FMU's binary takes seconds, and test_fmu.py and test_fmu_refusals.py
+    import the same default FMU: it is built once per test session for each set of
+    options (`_once`), so both files exercise the very file `fmu.build` wrote. Tests
+    must not change it (extract a copy to modify).
+    """
+    from vsj import fmu
+
+    def built(**options):
+        key = "fmu-" + hashlib.sha1(json.dumps(options, sort_keys=True).encode()).hexdigest()[:12]
+
+        def make(out):
+            out.mkdir(parents=True, exist_ok=True)
+            return fmu.build(out / "wrist.fmu", params_module.default(), **options)
+
+        info, out = _once(tmp_path_factory, key, make)
+        return out / "wrist.fmu", info
+
+    return built
 
 
 def override(params, **values):

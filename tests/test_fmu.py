@@ -70,10 +70,9 @@ SIGNALS = {"theta_x": "theta_x", "theta_y": "theta_y",
 
 
 @pytest.fixture(scope="module")
-def wrist_fmu(tmp_path_factory):
-    path = tmp_path_factory.mktemp("fmu") / "wrist.fmu"
-    info = fmu.build(path, params.default(), friction="stiction", step=H, q0=Q0, win64=False)
-    return path, info
+def wrist_fmu(wrist_fmu_file):
+    """The default FMU, built once per session (shared with test_fmu_refusals.py)."""
+    return wrist_fmu_file(friction="stiction", step=H, q0=Q0, win64=False)
 
 
 def refs(path):

@@ -44,9 +44,11 @@ def _build(tmp_path_factory, name, **options):
 
 
 @pytest.fixture(scope="module")
-def wrist(tmp_path_factory):
-    """The default FMU: true stiction on the time-stepper at 1 ms."""
-    path, unzipped = _build(tmp_path_factory, "wrist", friction="stiction", step=H)
+def wrist(wrist_fmu_file):
+    """The default FMU: true stiction on the time-stepper at 1 ms (built once per session,
+    shared with test_fmu.py; unzipped here into a directory of this module's own)."""
+    path, _ = wrist_fmu_file(friction="stiction", step=H, q0=Q0, win64=False)
+    unzipped = extract(str(path))
     yield path, unzipped
     shutil.rmtree(unzipped, ignore_errors=True)
 

@@ -190,19 +190,34 @@ def _changed_run(name: str, params):
     return label, current
 
 
+@pytest.fixture(scope="module")
+def changed_run(params):
+    """`_changed_run` of a reference name, made once in this module: the last test below
+    looks at the same changed fig-4.15-geometric run as the tube test of that scenario
+    (the run is deterministic, and neither test changes it)."""
+    made = {}
+
+    def get(name: str):
+        if name not in made:
+            made[name] = _changed_run(name, params)
+        return made[name]
+
+    return get
+
+
 @pytest.mark.parametrize("name", list(CHANGES))
-def test_a_one_percent_parameter_change_leaves_the_tube(name, params):
+def test_a_one_percent_parameter_change_leaves_the_tube(name, changed_run):
     """The tube is tight enough to see a 1 % change of one parameter (first case only)."""
-    label, current = _changed_run(name, params)
+    label, current = changed_run(name)
     reports = tube_reports(name, current, labels={label})
     key = CHANGES[name][0]
     assert max(r.usage for r in reports) > 1.0, f"{key} +1 % stays inside every tube of {name}"
 
 
-def test_a_one_percent_stiffness_change_leaves_even_the_msl_tube(params):
+def test_a_one_percent_stiffness_change_leaves_even_the_msl_tube(changed_run):
     """With MSL's own size (2e-3 of the range and of the duration), a 1 % stiffer
     spring still moves the elastic deflection of fig 4.15 outside."""
-    label, current = _changed_run("fig-4.15-geometric", params)
+    label, current = changed_run("fig-4.15-geometric")
     reference = np.load(REFERENCES / "fig-4.15-geometric.npz")
     report = compare.tube(reference[f"{label}/time"], reference[f"{label}/phi_1"],
                           current[f"{label}/time"], current[f"{label}/phi_1"], name="phi_1")
