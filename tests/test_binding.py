@@ -142,3 +142,30 @@ def test_a_run_cannot_be_advanced_past_its_end(model):
     assert _core.run(engine.c, engine.work, y, scheme, 0.0, begin=(0.0, 0.01))[0] == 0
     status = _core.run(engine.c, engine.work, y, scheme, 0.02)[0]
     assert status == 6 and np.all(y == 0.0)  # VSJ_BAD_ARGUMENT, the state untouched
+
+
+def test_a_retuned_model_equals_one_built_whole_and_keeps_what_it_shares_alive(model):
+    """Model.retuned replaces real arrays and shares the rest with its parent: the result
+    is the model built from all the arrays (same binary form), it is checked like one,
+    and it outlives the parent object it shares arrays with."""
+    import gc
+
+    from vsj.engine.core import native
+
+    par = model.par.copy()
+    par[:, 0] *= 1.01  # the viscous coefficients (the other columns hold codes and flags)
+    heavier = model._replace(mass=model.mass * 2.0, Minv=model.Minv / 2.0, par=par)
+    retuned = native(model).retuned({"mass": heavier.mass, "Minv": heavier.Minv,
+                                     "par": heavier.par})
+    gc.collect()  # the parent made above is referenced by nothing but the retuned model
+    assert retuned.to_bytes() == native(heavier).to_bytes()
+    again = retuned.retuned({"src_pos0": heavier.src_pos0 + 0.1})
+    del retuned
+    gc.collect()
+    assert again.to_bytes() == native(heavier._replace(src_pos0=heavier.src_pos0 + 0.1)).to_bytes()
+    with pytest.raises(ValueError, match="Minv"):  # checked as a whole
+        native(model).retuned({"mass": heavier.mass})
+    with pytest.raises(KeyError, match="code"):  # integer arrays set the structure
+        native(model).retuned({"code": model.code})
+    with pytest.raises(ValueError):
+        native(model).retuned({"mass": heavier.mass[:-1]})

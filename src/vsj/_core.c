@@ -84,12 +84,17 @@ static Py_ssize_t items(const arg *a) { return a->view.len / a->view.itemsize; }
  * runs was checked by the same reader. */
 typedef struct {
     PyObject_HEAD
-    vsj_model *model;
-    vsj_model m; /* a copy of *model's fields, for the functions below */
+    vsj_model *model; /* the memory it owns (its arrays, or a retuned one's new arrays) */
+    vsj_model m;      /* its sizes and arrays, for the functions below */
+    PyObject *parent; /* a retuned model: the model whose other arrays it shares */
 } ModelObject;
 
 static void model_dealloc(ModelObject *self) {
-    vsj_model_free(self->model);
+    if (self->parent)
+        free(self->model);
+    else
+        vsj_model_free(self->model);
+    Py_XDECREF(self->parent);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
@@ -255,8 +260,89 @@ static PyObject *model_sizes(ModelObject *self, PyObject *Py_UNUSED(ignored)) {
     return out;
 }
 
+/* model.retuned(arrays): a model with some real arrays replaced (same sizes), sharing
+ * the others with this one (kept alive by it); checked as a whole. A batch of runs of
+ * one network with other inertias and parameters copies only what differs. */
+static PyObject *model_retuned(ModelObject *self, PyObject *oarrays) {
+    ModelObject *out;
+    PyObject *key, *value;
+    Py_ssize_t pos = 0;
+    size_t total = 0;
+    unsigned char *memory;
+    char message[256];
+    vsj_model m = self->m;
+    int pass;
+    if (!PyDict_Check(oarrays)) {
+        PyErr_SetString(PyExc_TypeError, "retuned: a dict of arrays");
+        return NULL;
+    }
+    /* pass 0 sizes the memory, pass 1 copies each array into it */
+    memory = NULL;
+    for (pass = 0; pass < 2; pass++) {
+        size_t at = 0;
+        pos = 0;
+        while (PyDict_Next(oarrays, &pos, &key, &value)) {
+            const char *name = PyUnicode_Check(key) ? PyUnicode_AsUTF8(key) : NULL;
+            const double **slot = NULL;
+            Py_ssize_t want = 0;
+            arg a;
+            if (!name) {
+                free(memory);
+                PyErr_SetString(PyExc_TypeError, "retuned: array names are strings");
+                return NULL;
+            }
+#define VSJ__SLOT(field, kind, count, doc)                                                  \
+            if (kind == VSJ_REAL && strcmp(name, #field) == 0) {                             \
+                const vsj_model *M = &self->m;                                               \
+                slot = (const double **)(void *)&m.field;                                    \
+                want = (Py_ssize_t)(count);                                                  \
+                (void)M;                                                                     \
+            }
+            VSJ_ARRAYS(VSJ__SLOT)
+#undef VSJ__SLOT
+            if (!slot) {
+                free(memory);
+                PyErr_Format(PyExc_KeyError, "retuned: %s is not a real array of the model",
+                             name);
+                return NULL;
+            }
+            if (get(value, &a, DOUBLES, 0, want, name) < 0) {
+                free(memory);
+                return NULL;
+            }
+            if (pass == 1) {
+                memcpy(memory + at, a.view.buf, (size_t)want * sizeof(double));
+                *slot = (const double *)(void *)(memory + at);
+            }
+            at += (size_t)want * sizeof(double);
+            release(&a);
+        }
+        total = at;
+        if (pass == 0 && !(memory = (unsigned char *)malloc(total + 1)))
+            return PyErr_NoMemory();
+    }
+    if (vsj_check_model(&m, message, sizeof message) != VSJ_OK) {
+        free(memory);
+        PyErr_SetString(PyExc_ValueError, message);
+        return NULL;
+    }
+    out = (ModelObject *)Py_TYPE(self)->tp_alloc(Py_TYPE(self), 0);
+    if (!out) {
+        free(memory);
+        return NULL;
+    }
+    out->model = (vsj_model *)(void *)memory;
+    out->m = m;
+    out->parent = (PyObject *)self; /* whose arrays (its own, or its parent's) m shares */
+    Py_INCREF(out->parent);
+    return (PyObject *)out;
+}
+
 static PyMethodDef model_methods[] = {
     {"sizes", (PyCFunction)model_sizes, METH_NOARGS, "The model's sizes, by name."},
+    {"retuned", (PyCFunction)model_retuned, METH_O,
+     "retuned(arrays): this model with some real arrays replaced (same sizes), sharing the "
+     "others; checked."},
     {"to_bytes", (PyCFunction)model_to_bytes, METH_NOARGS, "The model's binary form."},
     {"from_bytes", (PyCFunction)model_from_bytes, METH_O | METH_CLASS,
      "A model from its binary form (checked)."},

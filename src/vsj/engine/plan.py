@@ -109,16 +109,26 @@ class Plan:
     inputs: Mapping[str, Input] = field(default_factory=dict, repr=False)
     #: the `vsj.simulate.SimulationOptions` it was compiled with (sampling, checks)
     options: object = field(default=None, repr=False)
+    #: a retuned plan: the plan it was retuned from and the real arrays it replaced,
+    #: so that its checked model shares the others with that plan's (`checked`)
+    base: tuple | None = field(default=None, repr=False, compare=False)
 
     @cached_property
     def native(self) -> _core.Model:
         """The engine's checked copy of the model, made on first use and kept."""
-        return native(self.model)
+        return self.checked()
 
     def checked(self) -> _core.Model:
         """`native` if made already, else a checked copy that is not kept (batches make
-        one per run, so that a long list of plans holds no copies)."""
-        return self.__dict__.get("native") or native(self.model)
+        one per run, so that a long list of plans holds no copies). A retuned plan's
+        shares the arrays it did not replace with its origin's."""
+        made = self.__dict__.get("native")
+        if made is not None:
+            return made
+        if self.base is not None:
+            origin, changed = self.base
+            return origin.native.retuned(changed)
+        return native(self.model)
 
     @classmethod
     def compile(cls, structure: Structure, inputs: Mapping[str, Input], duration: float,
@@ -158,8 +168,13 @@ class Plan:
     def retuned(self, *, y0=None, **arrays) -> "Plan":
         """This plan with some arrays of its model replaced (same sizes) and, if given,
         another initial state."""
-        model = self.model._replace(**{k: np.ascontiguousarray(v) for k, v in arrays.items()})
-        return replace(self, model=model, y0=self.y0 if y0 is None else np.asarray(y0, dtype=float))
+        arrays = {k: np.ascontiguousarray(v) for k, v in arrays.items()}
+        model = self.model._replace(**arrays)
+        origin, changed = self.base if self.base is not None else (self, {})
+        changed = {**changed, **arrays}
+        shared = all(v.dtype == np.float64 for v in changed.values())
+        y0 = self.y0 if y0 is None else np.asarray(y0, dtype=float)
+        return replace(self, model=model, y0=y0, base=(origin, changed) if shared else None)
 
     def with_scheme(self, **settings) -> "Plan":
         """This plan with other scheme settings (``rtol``, ``step``, ...; `Scheme`)."""

@@ -642,6 +642,7 @@ class WristModel:
                                  slope_width=self.setup.slope_width)
         engine = Engine(model)
         w.engines[law] = engine
+        self.__dict__.pop("_window_plans", None)  # made from the engines and start angles
         for h in {self.setup.step, self.setup.smooth_step}:
             if h not in w.grids:
                 t_out = np.arange(round(w.duration / h) + 1) * h
@@ -653,6 +654,7 @@ class WristModel:
         """The window's start state from the measurements (see `set_state_delays`)."""
         log = self.logs[w.log]
         w.sigma0, w.x0, w.v0, w.null, w.later = self._measured_state(log, w.start, engine)
+        self.__dict__.pop("_window_plans", None)  # their sources start at sigma0
         w.quasi_static.clear()
         delay = dict(zip((o.name for o in self.outputs), self.state_delays))
         w.currents = np.array([
@@ -864,6 +866,16 @@ class WristModel:
         cache[law] = result
         return result
 
+    def _window_plan(self, k: int, law: str, h: float) -> Plan:
+        """`_plan` of window ``k`` with its own model, made once: the runs of every
+        evaluation retune it, and their checked models share its input tables."""
+        plans = self.__dict__.setdefault("_window_plans", {})
+        key = (k, law, h)
+        if key not in plans:
+            w = self.windows[k]
+            plans[key] = self._plan(w, law, h, w.engines[law].model)
+        return plans[key]
+
     def _plan(self, w: Window, law: str, h: float, model) -> Plan:
         """The plan of a window's run (the time-stepper at step ``h``, no ledger) with
         ``model``, its sources starting at the window's measured angles; runs retune
@@ -974,7 +986,7 @@ class WristModel:
         def work(task):
             k, lo, hi = task
             w = self.windows[k]
-            base = self._plan(w, law, h, w.engines[law].model)
+            base = self._window_plan(k, law, h)
             plans = [base.retuned(y0=self._initial(w, law, *compiled[r]), mass=compiled[r][0],
                                   Minv=compiled[r][1], par=compiled[r][2])
                      for r in range(lo, hi)]
