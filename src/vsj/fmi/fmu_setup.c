@@ -76,15 +76,24 @@ char *fmu__resource_path(const char *location, const char *file) {
     return out;
 }
 
-/* The tunable parameters of the map, with the entries each moves. */
-static int read_parameters(fmu *f, FILE *file, char *why, size_t size) {
+/* A section's heading line, "<name> <count>", with 0 <= count <= most; 0 if it is not
+ * there (the reason in `why`). */
+static int section_count(FILE *file, const char *name, long long most, long long *count,
+                         char *why, size_t size) {
     char word[32];
-    long long count, p, k, total = 0;
-    if (fscanf(file, "%31s %lld", word, &count) != 2 || strcmp(word, "parameters") != 0
-        || count < 0 || count > 100000) {
-        snprintf(why, size, "no parameters line");
+    if (fscanf(file, "%31s %lld", word, count) != 2 || strcmp(word, name) != 0 || *count < 0
+        || *count > most) {
+        snprintf(why, size, "no %s line", name);
         return 0;
     }
+    return 1;
+}
+
+/* The tunable parameters of the map, with the entries each moves. */
+static int read_parameters(fmu *f, FILE *file, char *why, size_t size) {
+    long long count, p, k, total = 0;
+    if (!section_count(file, "parameters", 100000, &count, why, size))
+        return 0;
     f->n_parameters = count;
     f->parameters = (parameter *)calloc((size_t)(count ? count : 1), sizeof(parameter));
     f->values = (double *)calloc((size_t)(count ? count : 1), sizeof(double));
@@ -133,13 +142,9 @@ static int read_parameters(fmu *f, FILE *file, char *why, size_t size) {
 
 /* The relations between keys, over the tunable parameters and constants. */
 static int read_relations(fmu *f, FILE *file, char *why, size_t size) {
-    char word[32];
     long long count, r, k, total = 0;
-    if (fscanf(file, "%31s %lld", word, &count) != 2 || strcmp(word, "relations") != 0
-        || count < 0 || count > 1000) {
-        snprintf(why, size, "no relations line");
+    if (!section_count(file, "relations", 1000, &count, why, size))
         return 0;
-    }
     f->n_relations = count;
     f->relations = (relation *)calloc((size_t)(count ? count : 1), sizeof(relation));
     if (!f->relations) {
@@ -210,11 +215,8 @@ static int read_checks(fmu *f, FILE *file, char *why, size_t size) {
         }
         f->springs[k].stop_column = column;
     }
-    if (fscanf(file, "%31s %lld", word, &count) != 2 || strcmp(word, "limits") != 0
-        || count < 0 || count > f->ni) {
-        snprintf(why, size, "no limits line");
+    if (!section_count(file, "limits", f->ni, &count, why, size))
         return 0;
-    }
     f->n_limits = count;
     for (k = 0; k < count; k++) {
         limit *lim = f->limits + k;

@@ -9,7 +9,8 @@
 
 from .files import (MANIFEST, OUTPUTS, SMALL_OUTPUT_BYTES, OutputError, ResultSet, _jsonable,
                     atomic_write, check_output_file, clear_staging, file_record,
-                    read_manifest, verify, write_errors, write_meta, written_by_vsj)
+                    read_manifest, recorded_file_problems, regular_file, verify,
+                    write_errors, write_meta, written_by_vsj)
 from .trajectory import (PLOT_BYTES, TrajectoryFile, cases_dataset, column_name,
                          parameters_record, read_trajectory, signals_bound, trajectory_bytes,
                          trajectory_table, write_cases, write_dataset, write_trajectory,
@@ -17,7 +18,8 @@ from .trajectory import (PLOT_BYTES, TrajectoryFile, cases_dataset, column_name,
 
 __all__ = ["MANIFEST", "OUTPUTS", "SMALL_OUTPUT_BYTES", "OutputError", "ResultSet",
            "atomic_write", "check_output_file", "clear_staging", "file_record",
-           "read_manifest", "verify", "write_errors", "write_meta", "written_by_vsj",
+           "read_manifest", "recorded_file_problems", "regular_file", "verify", "write_errors",
+           "write_meta", "written_by_vsj",
            "PLOT_BYTES", "TrajectoryFile", "cases_dataset", "column_name",
            "parameters_record", "read_trajectory", "signals_bound", "trajectory_bytes",
            "trajectory_table", "write_cases", "write_dataset", "write_trajectory",

@@ -64,7 +64,7 @@ import stat
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Self
 
@@ -877,7 +877,7 @@ def verify(directory: str | Path) -> list[str]:
     and in ``meta.json``'s ``files``, and the directory holds no other file). Only
     regular files are read: a FIFO or a device is named, never opened for reading."""
     directory = Path(directory)
-    if not _regular_file(directory / MANIFEST):
+    if not regular_file(directory / MANIFEST):
         return [f"{directory}: no {MANIFEST}"]
     sets = read_manifest(directory)["sets"]
     if not sets:
@@ -889,21 +889,14 @@ def verify(directory: str | Path) -> list[str]:
             problems.append(f"set {name!r}: incomplete (its writing was interrupted)")
         files = dict(entry.get("files", {}))
         listed |= set(files)
-        if "meta.json" in files and _regular_file(directory / "meta.json"):
+        if "meta.json" in files and regular_file(directory / "meta.json"):
             with contextlib.suppress(InputError, ValueError, AttributeError):
                 meta = json.loads(read_bytes(directory / "meta.json", "meta.json",
                                              SMALL_OUTPUT_BYTES))
                 for f, record in meta.get("files", {}).items():
                     if files.get(f, record) != record:
                         problems.append(f"set {name!r}: {f}: meta.json and {MANIFEST} differ")
-        for f, record in sorted(files.items()):
-            path = directory / f
-            if not os.path.lexists(path):
-                problems.append(f"set {name!r}: {f} is missing")
-            elif not _regular_file(path):
-                problems.append(f"set {name!r}: {f} is not a regular file")
-            elif file_record(path) != record:
-                problems.append(f"set {name!r}: {f} has changed (its SHA-256 differs)")
+        problems += recorded_file_problems(directory, files, f"set {name!r}: ")
     for entry in sorted(os.listdir(directory)):
         if entry not in listed:
             kind = ("left by an interrupted write (the next vsj command writing here "
@@ -914,7 +907,24 @@ def verify(directory: str | Path) -> list[str]:
     return problems
 
 
-def _regular_file(path: Path) -> bool:
+def recorded_file_problems(directory: Path, files: Mapping[str, dict],
+                           prefix: str = "") -> list[str]:
+    """What is wrong with each file a manifest records (``files``: name -> its
+    `file_record`) in ``directory``: missing, not a regular file, or changed; each
+    message begins with ``prefix``."""
+    problems = []
+    for name, record in sorted(files.items()):
+        path = directory / name
+        if not os.path.lexists(path):
+            problems.append(f"{prefix}{name} is missing")
+        elif not regular_file(path):
+            problems.append(f"{prefix}{name} is not a regular file")
+        elif file_record(path) != record:
+            problems.append(f"{prefix}{name} has changed (its SHA-256 differs)")
+    return problems
+
+
+def regular_file(path: Path) -> bool:
     """Whether ``path`` is a regular file (not following a symbolic link)."""
     try:
         return stat.S_ISREG(os.stat(path, follow_symlinks=False).st_mode)

@@ -39,14 +39,14 @@ import os
 import re
 import secrets
 import shutil
-import stat
 from pathlib import Path
 
 import numpy as np
 
 from .. import __version__
 from ..errors import InputError, read_bytes
-from ..output import OUTPUTS, PLOT_BYTES, OutputError, atomic_write, file_record
+from ..output import (OUTPUTS, PLOT_BYTES, OutputError, atomic_write, file_record,
+                      recorded_file_problems, regular_file)
 from ..params import SCHEMA
 
 ZARR = "sweep.zarr"
@@ -450,7 +450,7 @@ def check_frame(path: Path, recorded: dict) -> list[str]:
     problems = []
     for name, sha in sorted(recorded.get("metadata", {}).items()):
         file = path / name
-        if not _regular(file):
+        if not regular_file(file):
             problems.append(f"{shown}/{name} is missing" if not os.path.lexists(file) else
                             f"{shown}/{name} is not a regular file")
         elif file_record(file)["sha256"] != sha:
@@ -539,13 +539,6 @@ def drop_chunks(record: dict, bad) -> None:
     record["complete"] = False
 
 
-def _regular(path: Path) -> bool:
-    try:
-        return stat.S_ISREG(os.stat(path, follow_symlinks=False).st_mode)
-    except OSError:
-        return False
-
-
 def _chunk_grid(path: Path, name: str) -> list[int] | None:
     """The chunk grid of the store's array ``name`` (chunks along each dimension), from
     its metadata; None where that cannot be read."""
@@ -582,7 +575,7 @@ def foreign_in_store(path: Path, recorded: dict) -> list[str]:
             if top in arrays and grids[top] is None and rel.startswith(f"{top}/c/"):
                 continue  # its array's metadata is damaged, which is reported
             if top in arrays and grids[top] is not None and \
-                    _is_chunk_key(rel, top, grids[top]) and _regular(path / rel):
+                    _is_chunk_key(rel, top, grids[top]) and regular_file(path / rel):
                 continue
             unknown.append(rel)
     return sorted(unknown)
@@ -663,14 +656,7 @@ def verify(directory: str | Path) -> list[str]:
                             "sweep, or not by vsj)")
         else:
             problems.append(f"{entry}: a foreign file (not recorded in {MANIFEST})")
-    for name, recorded in sorted(files.items()):
-        path = directory / name
-        if not os.path.lexists(path):
-            problems.append(f"{name} is missing")
-        elif not _regular(path):
-            problems.append(f"{name} is not a regular file")
-        elif file_record(path) != recorded:
-            problems.append(f"{name} has changed (its SHA-256 differs)")
+    problems += recorded_file_problems(directory, files)
     frame = record.get("frame")
     if not isinstance(frame, dict):
         problems.append(f"{MANIFEST} records no store frame (written by an older vsj)")
