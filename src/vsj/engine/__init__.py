@@ -1,9 +1,10 @@
 """The simulation engine (private): arrays in, trajectories out.
 
-`model.compile_model` turns a network into arrays; the C library under
-``c/`` (public header ``c/vsj.h``) evaluates forces and integrates them;
-`core.Engine` is its Python face. Users call `vsj.simulate`, which drives
-these.
+`model.compile_model` turns a network into arrays; `plan.Plan` is what every driver
+runs (the arrays, inputs, scheme, duration and initial state), through the binding's
+one run function; the C library under ``c/`` (public header ``c/vsj.h``) evaluates
+forces and integrates them; `core.Engine` evaluates a model at given instants
+(observation, energies). Users call `vsj.simulate`, which drives these.
 """
 
 from .core import (FRICTION_SOLVER, NOT_FINITE, OK, PIVOT_RANGE, STATUS_TEXT, STEP_TOO_SMALL,
