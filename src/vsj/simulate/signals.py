@@ -18,6 +18,14 @@ from ..engine import Engine, Layout, observation_layout
 from ..network import Signal, Structure
 
 
+def rows(samples: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """``samples @ matrix``, each row of the result summed in the same order however
+    many rows there are. A BLAS product may sum a row otherwise in a block of another
+    height (OpenBLAS's kernels do), and a run sampled in blocks must give the bits of
+    one sampled at once."""
+    return np.einsum("ij,j...->i...", samples, matrix, optimize=False)
+
+
 def state_names(structure: Structure) -> list[str]:
     """Names of the engine's state components: each free flange's angle and speed, then
     each motor's armature current."""
@@ -82,9 +90,9 @@ def catalogue(structure: Structure, *, ports: bool) -> list[SignalSpec]:
         rx, ru = structure.rows(s.flange)
         what = f"{s.description} (flange {s.flange})" if s.description else f"flange {s.flange}"
         add(s.name, "rad", f"angle: {what}",
-            lambda b, rx=rx, ru=ru: b.col("x") @ rx + b.col("sigma") @ ru, "sigma", "x")
+            lambda b, rx=rx, ru=ru: rows(b.col("x"), rx) + rows(b.col("sigma"), ru), "sigma", "x")
         add(f"{s.name}.speed", "rad/s", f"speed: {what}",
-            lambda b, rx=rx, ru=ru: b.col("v") @ rx + b.col("u") @ ru, "u", "v")
+            lambda b, rx=rx, ru=ru: rows(b.col("v"), rx) + rows(b.col("u"), ru), "u", "v")
     if structure.pivot.flange is not None or structure.springs:
         add("q", "m", "pivot position of the elastic elements", lambda b: b.col("q")[:, 0], "q")
         add("q.rate", "m/s", "rate of the pivot position", lambda b: b.col("qdot")[:, 0], "qdot")
@@ -186,7 +194,7 @@ class PortFlows:
         """Speed of every flange [rad/s] at the block's samples (kept in its cache)."""
         if "speed" not in block.cache:
             s = self.structure
-            block.cache["speed"] = block.col("v") @ s.A.T + block.col("u") @ s.B.T
+            block.cache["speed"] = rows(block.col("v"), s.A.T) + rows(block.col("u"), s.B.T)
         return block.cache["speed"]
 
     def torque(self, block: Block) -> np.ndarray:
@@ -194,14 +202,14 @@ class PortFlows:
         per flange (kept in its cache)."""
         if "nu" not in block.cache:
             s = self.structure
-            accel = block.col("a") @ s.A.T + block.col("ud") @ s.B.T
-            applied = -block.col("fr_f") @ s.friction_rows
-            applied += block.col("sp_tau") @ s.spring_rows
+            accel = rows(block.col("a"), s.A.T) + rows(block.col("ud"), s.B.T)
+            applied = -rows(block.col("fr_f"), s.friction_rows)
+            applied += rows(block.col("sp_tau"), s.spring_rows)
             for j, ld in enumerate(s.loads):
                 applied[:, s.index(ld.flange)] += block.col("ld_tau")[:, j]
             for j, mo in enumerate(s.motors):
                 applied[:, s.index(mo.flange)] += mo.torque_constant * block.col("current")[:, j]
-            block.cache["nu"] = (accel * s.inertia - applied) @ self.solve
+            block.cache["nu"] = rows(accel * s.inertia - applied, self.solve)
         return block.cache["nu"]
 
 
