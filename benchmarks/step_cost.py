@@ -96,9 +96,9 @@ def main() -> int:
         stepper = Stepper.wrist(p, period=PERIOD, method=method, substeps=4,
                                 options=SimulationOptions(friction=law, step=PERIOD))
         U = inputs_for(stepper)
-        model = scratch / f"{method}-{law}.json"
+        model = scratch / f"{method}-{law}.vsjm"
         export.write_model(model, export.model_document(stepper, params=p, initial=initial,
-                                                        inputs=U[0]))
+                                                        inputs=U[0]), stepper)
         inputs = scratch / "inputs.csv"
         np.savetxt(inputs, U, delimiter=",", fmt="%.17g")
         start = stepper.initial_state(initial, U[0])
