@@ -145,25 +145,26 @@ class Plan:
         model, layout = compile_model(structure, inputs, duration, friction=options.friction,
                                       friction_overrides=options.friction_overrides,
                                       slope_width=options.slope_width)
-        if held:
-            y0 = np.zeros(layout.n_state + layout.n_acc)
-            return cls(structure, model, layout, scheme, float(duration), y0, inputs, options)
-        return cls.starting(structure, model, layout, scheme, float(duration), inputs, initial,
-                            options=options)
+        plan = cls(structure, model, layout, scheme, float(duration),
+                   np.zeros(layout.n_state + layout.n_acc), inputs, options)
+        return plan if held else plan.started(initial)
 
-    @classmethod
-    def starting(cls, structure: Structure, model: EngineModel, layout: Layout, scheme: Scheme,
-                 duration: float, inputs: Mapping[str, Input], initial,
-                 source_speeds: np.ndarray | None = None, *, options=None) -> "Plan":
-        """The plan of a run of a compiled ``model`` from ``initial`` (`InitialState`):
-        the initial state built and checked, the position sources starting where their
-        inputs do. ``source_speeds`` at t = 0, if known, saves evaluating them."""
+    def started(self, initial, source_speeds: np.ndarray | None = None, *,
+                structure: Structure | None = None, **arrays) -> "Plan":
+        """This plan run from ``initial`` (`InitialState`): the initial state built and
+        checked against the network (``structure``, default the plan's: another of the
+        same topology for a batch over parameter sets), the position sources starting
+        where their inputs do; ``arrays`` replace those of the model as in `retuned`, so
+        the checked model shares the rest with this plan's. ``source_speeds`` at t = 0,
+        if known, saves evaluating them."""
+        structure = self.structure if structure is None else structure
         if source_speeds is None:
-            source_speeds = Engine(model).source_speeds(0.0)
-        x0, v0, sigma0, currents = initial_state(structure, inputs, initial, source_speeds)
-        model = model._replace(src_pos0=np.ascontiguousarray(sigma0, dtype=float))
-        y0 = np.concatenate([x0, v0, currents, np.zeros(layout.n_acc)])
-        return cls(structure, model, layout, scheme, duration, y0, inputs, options)
+            source_speeds = self.engine().source_speeds(0.0)
+        x0, v0, sigma0, currents = initial_state(structure, self.inputs, initial,
+                                                 source_speeds)
+        y0 = np.concatenate([x0, v0, currents, np.zeros(self.layout.n_acc)])
+        plan = self.retuned(y0=y0, src_pos0=np.asarray(sigma0, dtype=float), **arrays)
+        return plan if structure is self.structure else replace(plan, structure=structure)
 
     def retuned(self, *, y0=None, **arrays) -> "Plan":
         """This plan with some arrays of its model replaced (same sizes) and, if given,

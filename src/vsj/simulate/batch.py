@@ -8,7 +8,7 @@ from typing import Mapping
 import numpy as np
 
 from ..engine import STATUS_TEXT, compile_model, core
-from ..engine.plan import Plan, run_batch
+from ..engine.plan import run_batch
 from ..errors import InputError
 from ..inputs import Input
 from ..network import Structure
@@ -71,8 +71,7 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
                                           slope_width=options.slope_width)
             _same_topology(base, layout, m_r, layout_r, r)
             per_run = {name: getattr(m_r, name) for name in _PER_RUN}
-        run_plan = Plan.starting(struct_r, base._replace(**per_run), layout, plan.scheme,
-                                 plan.duration, inputs, initial, u0)
+        run_plan = plan.started(initial, u0, structure=struct_r, **per_run)
         src0s[r] = run_plan.model.src_pos0
         plans.append(run_plan)
     t_out = sample_times(duration, options.output_step)

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..network import Structure
+from .signals import rows
 
 
 @dataclass
@@ -98,13 +99,13 @@ class BatchResult:
         """Angle [rad] of a flange, shape (runs, samples)."""
         rx, ru = self.structure.rows(flange)
         n = self.structure.n
-        return self.states[:, :, :n] @ rx + self.source_angles @ ru
+        return rows(self.states[:, :, :n], rx) + rows(self.source_angles, ru)
 
     def speed(self, flange: str) -> np.ndarray:
         """Speed [rad/s] of a flange, shape (runs, samples)."""
         rx, ru = self.structure.rows(flange)
         n = self.structure.n
-        return self.states[:, :, n:2 * n] @ rx + (self.source_speeds @ ru)[None, :]
+        return rows(self.states[:, :, n:2 * n], rx) + rows(self.source_speeds, ru)[None, :]
 
     # -- the same names as a single run's `Result` ---------------------------------------
     def _flanges(self) -> dict[str, str]:

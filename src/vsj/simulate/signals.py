@@ -19,11 +19,13 @@ from ..network import Signal, Structure
 
 
 def rows(samples: np.ndarray, matrix: np.ndarray) -> np.ndarray:
-    """``samples @ matrix``, each row of the result summed in the same order however
-    many rows there are. A BLAS product may sum a row otherwise in a block of another
-    height (OpenBLAS's kernels do), and a run sampled in blocks must give the bits of
-    one sampled at once."""
-    return np.einsum("ij,j...->i...", samples, matrix, optimize=False)
+    """``samples @ matrix`` (a vector or a matrix; samples along the leading axes), each
+    row of the result summed in the same order however many rows there are. A BLAS
+    product may sum a row otherwise in a block of another height (OpenBLAS's kernels
+    do), and a run sampled in blocks, or in a batch, must give the bits of one sampled
+    at once."""
+    spec = "...j,j->..." if np.ndim(matrix) == 1 else "...j,jk->...k"
+    return np.einsum(spec, samples, matrix, optimize=False)
 
 
 def state_names(structure: Structure) -> list[str]:

@@ -176,6 +176,23 @@ class Prepared:
         self.light = all(self.recipes[n].light for n in needed if n in self.recipes)
         self.columns = observation_layout(layout)
 
+    def origin(self, structure, model, *, keep: bool = True) -> Plan:
+        """The plan of ``model`` (a compiled network of this sweep) that its runs start
+        from (`Plan.started`), kept per model with ``keep``, so that their checked
+        models share its arrays."""
+        origins = self.__dict__.setdefault("_origins", {})
+        found = origins.get(id(model))
+        if found is not None and found[0] is model:
+            return found[1]
+        plan = Plan(structure, model, self.layout, self.scheme, self.duration,
+                    np.zeros(self.layout.n_state + self.layout.n_acc), self.inputs,
+                    self.options)
+        if keep:
+            if len(origins) > MAX_SHARED:  # as many as the shared models kept, and the base
+                origins.clear()
+            origins[id(model)] = (model, plan)
+        return plan
+
     def _compile(self, structure):
         o = self.options
         return compile_model(structure, self.inputs, self.duration, friction=o.friction,
@@ -357,22 +374,22 @@ def _compiled(p: Prepared, params: Parameters) -> _Compiled:
 def _build(p: Prepared, values: np.ndarray) -> _Run:
     params = p.parameters_for(values)
     initial = p.initial_for(values, params)
+    arrays: dict = {}
     if params is p.base_params:
-        structure, model = p.structure, p.base_model
+        origin = p.origin(p.structure, p.base_model)
     else:
         shared = p.compiled_for(values)
-        if shared is None:
+        if shared is None:  # compiled for this run alone: its plan is not kept
             shared = _compiled(p, params)
-            model = shared.model
+            origin = p.origin(shared.structure, shared.model, keep=False)
         else:
-            model = shared.model
+            origin = p.origin(shared.structure, shared.model)
             if p.passthrough:
                 named = dict(zip(p.varied, values.tolist()))
-                arrays = retune(model._asdict(), p.passthrough, named)
-                model = model._replace(**{k: arrays[k] for k in RETUNABLE})
-        structure = shared.structure
-    return _Run(params, Plan.starting(structure, model, p.layout, p.scheme, p.duration,
-                                      p.inputs, initial, p.u0))
+                tuned = retune(shared.model._asdict(), p.passthrough, named)
+                arrays = {k: tuned[k] for k in RETUNABLE}
+    # the run's checked model shares the origin's arrays but those it retunes
+    return _Run(params, origin.started(initial, p.u0, **arrays))
 
 
 def run_chunk(job: Job, start: int, values: np.ndarray, threads: int | None = None
