@@ -107,6 +107,13 @@ ring_inertia = { value = "6.47e-5 kg", source = "an inertia in kg" }
 """
 
 
+def _each_names(problems: list[str], expected: list[str]) -> None:
+    """One problem per expected fragment, each naming its own, in order."""
+    assert len(problems) == len(expected), "\n".join(problems)
+    for fragment, problem in zip(expected, problems):
+        assert fragment in problem, problem
+
+
 def test_the_checks_find_each_kind_of_mistake(tmp_path, monkeypatch):
     """Each check finds its mistake in `FLAWED` and flags none of its correct lines, so
     that a README test that passes has checked something."""
@@ -120,18 +127,14 @@ def test_the_checks_find_each_kind_of_mistake(tmp_path, monkeypatch):
                 "`vsj sweep` has no option --motors",
                 "the Python block fails",
                 "ring_inertia"]
-    assert len(problems) == len(expected), "\n".join(problems)
-    for fragment, problem in zip(expected, problems):
-        assert fragment in problem, problem
+    _each_names(problems, expected)
     assert "ran: vsj scenarios" in log[0] and "parsed only (its input my_own.toml" in log[4]
 
     problems = prose_problems(FLAWED, "FLAWED")
     expected = ["`--motors dc`: no such option of the commands this section shows",
                 "`--friction wrong`: --friction wrong: allowed",
                 "`vsj fit planetery`: no such command"]
-    assert len(problems) == len(expected), "\n".join(problems)
-    for fragment, problem in zip(expected, problems):
-        assert fragment in problem, problem
+    _each_names(problems, expected)
 
     problems = name_problems(FLAWED, "FLAWED")
     expected = ["`vsj.no_such_module`: vsj has no 'no_such_module'",
@@ -141,9 +144,7 @@ def test_the_checks_find_each_kind_of_mistake(tmp_path, monkeypatch):
                 "`engine/c/no_such_file.c`: no such file",
                 "`no_such_file.py`: no such source file",
                 "`vsj_no_such_function`: not in the C sources"]
-    assert len(problems) == len(expected), "\n".join(problems)
-    for fragment, problem in zip(expected, problems):
-        assert fragment in problem, problem
+    _each_names(problems, expected)
 
     assert figure_problems(FLAWED, "FLAWED") == [
         "FLAWED shows docs/no-such-figure.png, which does not exist",

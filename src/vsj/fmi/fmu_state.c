@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "fmu_internal.h"
+#include "internal.h" /* vsj__fnv1a */
 
 #define SNAPSHOT_MAGIC 0x736a7376u /* an fmi2FMUstate of this FMU */
 #define STATE_MAGIC 0x53736a76u    /* "vjsS": a serialized one */
@@ -140,16 +141,6 @@ static size_t serialized_size(const fmu *f) {
            + f->history_size + sizeof(uint64_t);
 }
 
-static uint64_t checksum(const fmi2Byte *bytes, size_t size) {
-    uint64_t h = 0xcbf29ce484222325u;
-    size_t i;
-    for (i = 0; i < size; i++) {
-        h ^= (unsigned char)bytes[i];
-        h *= 0x100000001b3u;
-    }
-    return h;
-}
-
 static void sizes_of(const fmu *f, int64_t sizes[5]) {
     sizes[0] = f->ns;
     sizes[1] = f->ni;
@@ -208,7 +199,8 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate,
     PUT(st->values, (size_t)f->n_parameters * sizeof(double));
     PUT(st->record, (size_t)f->at.size * sizeof(double));
     PUT(st->history, f->history_size);
-    sum = checksum(serializedState, (size_t)(at - serializedState));
+    sum = vsj__fnv1a((const unsigned char *)serializedState,
+                     (size_t)(at - serializedState));
     PUT(&sum, sizeof sum);
     return fmi2OK;
 }
@@ -242,7 +234,7 @@ static const char *foreign_header(const fmu *f, const fmi2Byte *bytes, size_t si
     if (memcmp(sizes, mine, sizeof sizes) != 0 || size != serialized_size(f))
         return "its sizes are not this FMU's";
     memcpy(&sum, bytes + size - sizeof sum, sizeof sum);
-    if (checksum(bytes, size - sizeof sum) != sum)
+    if (vsj__fnv1a((const unsigned char *)bytes, size - sizeof sum) != sum)
         return "it is damaged (its checksum does not match)";
     return NULL;
 }

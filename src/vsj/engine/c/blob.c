@@ -58,7 +58,7 @@ static uint32_t get4(const unsigned char *in) {
            | (uint32_t)in[3] << 24;
 }
 
-static uint64_t fnv1a(const unsigned char *data, size_t len) {
+uint64_t vsj__fnv1a(const unsigned char *data, size_t len) {
     uint64_t h = 14695981039346656037ULL;
     size_t i;
     for (i = 0; i < len; i++) {
@@ -107,7 +107,7 @@ size_t vsj_model_write(const vsj_model *m, unsigned char *out, size_t capacity) 
     VSJ_ARRAYS(VSJ__PUT_ARRAY)
 #undef VSJ__PUT_ARRAY
     {
-        uint64_t sum = fnv1a(out, at);
+        uint64_t sum = vsj__fnv1a(out, at);
         put8(out + at, &sum);
     }
     return need;
@@ -136,7 +136,7 @@ vsj_model *vsj_model_read(const unsigned char *data, size_t length, char *messag
     if (get4(data + 8) != (uint32_t)N_SIZES_ || get4(data + 12) != (uint32_t)N_ARRAYS_)
         return fail(message, size, "its layout differs from this engine's (vsj_layout.h)");
     get8(data + length - 8, &sum);
-    if (fnv1a(data, length - 8) != sum)
+    if (vsj__fnv1a(data, length - 8) != sum)
         return fail(message, size, "damaged (its checksum does not match)");
     if (length < HEADER + 8 * (size_t)N_SIZES_ + 8)
         return fail(message, size, "truncated");

@@ -121,6 +121,10 @@ struct vsj_work {
 VSJ_INTERNAL void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y,
                            int64_t ny, double *dy);
 
+/* The 64-bit FNV-1a hash of `len` bytes: the checksum of the model files (blob.c,
+ * load.c) and of the FMU's serialized states. */
+VSJ_INTERNAL uint64_t vsj__fnv1a(const unsigned char *data, size_t len);
+
 /* Whether a spring of m has a rigid end stop (only the time-stepper can run it). */
 VSJ_INTERNAL int vsj__rigid_stop(const vsj_model *m);
 

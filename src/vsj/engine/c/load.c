@@ -114,16 +114,6 @@ static double *reals(reader *r, int64_t n) {
     return out;
 }
 
-static uint64_t fnv1a(const unsigned char *data, size_t len) {
-    uint64_t h = 14695981039346656037ULL;
-    size_t i;
-    for (i = 0; i < len; i++) {
-        h ^= data[i];
-        h *= 1099511628211ULL;
-    }
-    return h;
-}
-
 void vsj_free_loaded(vsj_loaded *l) {
     int64_t i;
     if (!l)
@@ -242,7 +232,7 @@ vsj_loaded *vsj_parse_model(const char *text, size_t length, char *message, size
     }
     for (i = 0; i < 8; i++)
         sum |= (uint64_t)data[length - 8 + (size_t)i] << (8 * i);
-    if (fnv1a(data, length - 8) != sum) {
+    if (vsj__fnv1a(data, length - 8) != sum) {
         rfail(&r, "damaged (its checksum does not match)");
         return NULL;
     }
