@@ -42,7 +42,7 @@ def case(params):
 def test_the_binding_has_one_function_that_advances_time():
     # everything else in the binding evaluates the model at one instant (or, for the
     # input splines, solves their slopes)
-    instant = {"derivatives", "friction_torque", "observation_width", "observe",
+    instant = {"derivatives", "friction_torque", "jacobian", "observation_width", "observe",
                "solve_impulses", "source_signals", "spring_extensions", "spring_geometry",
                "spring_law", "status_text", "step_rate", "stored_energy", "transitions",
                "solve_tridiagonal",

@@ -578,18 +578,19 @@ static int step_args(ModelObject *model, PyObject *os, PyObject *ou, arg *s, arg
 /* ---- runs: the one entry point of every driver ------------------------------------- */
 
 /* A scheme from its tuple (method, rtol, atol, h_max, n_err, h, max_steps, ledger,
- * substeps); method 0 dopri, 1 time-stepper, 2 rk4 (a held period only). */
+ * substeps); method 0 dopri, 1 time-stepper, 2 rk4 (a held period only), 3 rosenbrock. */
 static int scheme_of(PyObject *o, vsj_scheme *sc) {
     long long method, n_err, max_steps, substeps;
     int ledger;
     if (!PyArg_ParseTuple(o, "LdddLdLpL:scheme", &method, &sc->rtol, &sc->atol, &sc->h_max,
                           &n_err, &sc->h, &max_steps, &ledger, &substeps))
         return -1;
-    if ((method != VSJ_METHOD_DOPRI && method != VSJ_METHOD_TIMESTEP && method != VSJ_METHOD_RK4)
+    if ((method != VSJ_METHOD_DOPRI && method != VSJ_METHOD_TIMESTEP && method != VSJ_METHOD_RK4
+         && method != VSJ_METHOD_ROSENBROCK)
         || !(sc->rtol > 0.0) || !(sc->atol > 0.0) || !(sc->h_max > 0.0)
         || !(isfinite(sc->h) && sc->h > 0.0) || max_steps < 1 || n_err < 0 || substeps < 1
         || substeps > VSJ_MAX_PERIOD_STEPS) {
-        PyErr_SetString(PyExc_ValueError, "scheme: method 0, 1 or 2; rtol, atol, h_max and h "
+        PyErr_SetString(PyExc_ValueError, "scheme: method 0, 1, 2 or 3; rtol, atol, h_max and h "
                                           "> 0; max_steps and substeps >= 1; n_err >= 0");
         return -1;
     }
@@ -705,6 +706,8 @@ static PyObject *py_run(PyObject *mod, PyObject *args, PyObject *kwds) {
         }
         if (sc.method == VSJ_METHOD_DOPRI && sc.n_err > ny)
             sc.n_err = ny;
+        if (sc.method == VSJ_METHOD_ROSENBROCK && sc.n_err > vsj_n_state(&model->m))
+            sc.n_err = vsj_n_state(&model->m);
         status = vsj_begin(&model->m, work->w, &sc, (const double *)y.view.buf, ny, t0, t_end);
         if (status != VSJ_OK) {
             give_back(work);
@@ -843,6 +846,46 @@ static PyObject *py_derivatives(PyObject *mod, PyObject *args) {
     give_back(work);
     release(&y);
     release(&dy);
+    return PyLong_FromLong(status);
+}
+
+/* jacobian(model, work, t, y, J, ft) -> status (vsj_jacobian) */
+static PyObject *py_jacobian(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    PyObject *oy, *oj, *oft;
+    double t;
+    arg y, J, ft;
+    Py_ssize_t ns;
+    int status;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "O!O!dOOO:jacobian", &ModelType, &model, &WorkType, &work, &t,
+                          &oy, &oj, &oft))
+        return NULL;
+    ns = (Py_ssize_t)vsj_n_state(&model->m);
+    if (finite_scalar(t, "t") < 0 || get(oy, &y, DOUBLES, 0, ns, "y") < 0)
+        return NULL;
+    if (get(oj, &J, DOUBLES, 1, ns * ns, "J") < 0) {
+        release(&y);
+        return NULL;
+    }
+    if (get(oft, &ft, DOUBLES, 1, ns, "ft") < 0) {
+        release(&y);
+        release(&J);
+        return NULL;
+    }
+    if (take(work, &model->m) < 0) {
+        release(&y);
+        release(&J);
+        release(&ft);
+        return NULL;
+    }
+    status = vsj_jacobian(&model->m, work->w, t, (const double *)y.view.buf,
+                          (double *)J.view.buf, (double *)ft.view.buf);
+    give_back(work);
+    release(&y);
+    release(&J);
+    release(&ft);
     return PyLong_FromLong(status);
 }
 
@@ -1207,6 +1250,8 @@ static PyMethodDef methods[] = {
     {"transitions", py_transitions, METH_VARARGS, "The time-stepper's stick-phase counts."},
     {"observe", py_observe, METH_VARARGS, "Every internal signal at samples (vsj_observe)."},
     {"derivatives", py_derivatives, METH_VARARGS, "dy/dt (vsj_derivatives)."},
+    {"jacobian", py_jacobian, METH_VARARGS,
+     "d(dy/dt)/dy and d(dy/dt)/dt of the state (vsj_jacobian)."},
     {"source_signals", py_source_signals, METH_VARARGS, "Source angles and speeds."},
     {"stored_energy", py_stored_energy, METH_VARARGS, "Kinetic, spring and inductor energy."},
     {"ts_prepare", py_ts_prepare, METH_VARARGS, "Analyse a model for the time-stepper."},

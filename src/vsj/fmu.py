@@ -399,7 +399,7 @@ def compile_binary(kind: str, out: Path) -> str:
     return done.stderr.strip()
 
 
-METHODS = ("auto", "timestep", "dopri")
+METHODS = ("auto", "timestep", "dopri", "rosenbrock")
 
 
 def choose_method(friction: str, method: str = "auto") -> str:
@@ -408,8 +408,8 @@ def choose_method(friction: str, method: str = "auto") -> str:
         raise InputError(f"method {method!r}: one of {', '.join(METHODS)}")
     if method == "auto":
         return "timestep" if friction == "stiction" else "dopri"
-    if method == "dopri" and friction == "stiction":
-        raise InputError("the stiction law needs the time-stepper (method timestep); dopri "
+    if method in ("dopri", "rosenbrock") and friction == "stiction":
+        raise InputError(f"the stiction law needs the time-stepper (method timestep); {method} "
                          "integrates the smooth laws only")
     return method
 
@@ -431,7 +431,7 @@ def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None =
     platforms, compiler warnings). ``win64``: None builds the Windows DLL where the
     cross-compiler is installed, True requires it, False skips it. ``method``: the
     engine's step function, ``timestep`` (the time-stepper at ``step``; needed by
-    true stiction) or ``dopri`` (adaptive); ``auto`` takes the time-stepper for
+    true stiction), ``dopri`` or ``rosenbrock`` (adaptive); ``auto`` takes the time-stepper for
     stiction and dopri for the smooth laws."""
     wrist_options = wrist_options or WristOptions()
     method = choose_method(friction, method)

@@ -67,6 +67,7 @@ from .engine.plan import Plan
 from .network import Network, Structure
 from .params import Parameters, default
 from .progress import progress as bar
+from .simulate.options import SOLVERS
 from .simulate import (
     InitialState,
     Result,
@@ -93,7 +94,6 @@ ELASTIC_BENCH = {"q": None, "model": tuple(m for m in ELASTIC_MODELS if m != "li
                  "sensor_stiffness": None}
 SOLVER_KEYS = {"friction", "method", "rtol", "atol", "step", "output_step", "slope_width",
                "max_step", "max_steps", "friction_overrides"}
-SOLVERS = ("auto", "dopri", "timestep")
 INITIAL_KEYS = {"q", "angles", "speeds", "currents"}
 INPUT_KINDS = {
     "constant": {"kind", "value"},

@@ -77,7 +77,7 @@ from .network import Structure
 from .simulate import InitialState, SimulationOptions, prepare
 from .wrist import build_wrist
 
-METHODS = ("dopri", "rk4", "timestep")
+METHODS = ("dopri", "rosenbrock", "rk4", "timestep")
 
 #: The most steps one period may take (rk4 substeps, time-stepper steps; vsj.h's
 #: VSJ_MAX_PERIOD_STEPS).
@@ -98,7 +98,8 @@ class Stepper:
     ``structure``: an assembled network (`vsj.wrist.build_wrist(...).assemble()`
     or any other); ``period`` [s]: the control period; ``options``: friction
     law and tolerances as for `vsj.simulate.simulate` (``rtol`` and ``atol``
-    steer ``method="dopri"``, whose steps are bounded by the period only;
+    steer ``method="dopri"`` and ``"rosenbrock"``, whose steps are bounded by the
+    period only;
     ``max_steps`` bounds them per period); ``substeps`` sets ``method="rk4"``'s
     steps per period. A step fails when the pivot leaves the range its
     mechanism allows (`vsj.network.Pivot`).
@@ -125,7 +126,8 @@ class Stepper:
         if method != "timestep" and "stiction" in friction_laws_for(
                 structure, options.friction, options.friction_overrides):
             raise InputError("stepper: the stiction friction law needs method='timestep' "
-                             "(the time-stepping solver); dopri and rk4 integrate smooth laws "
+                             "(the time-stepping solver); dopri, rosenbrock and rk4 integrate "
+                             "smooth laws "
                              "(viscous, arctan, sign, slope)")
         self.structure = structure
         self.period = float(period)

@@ -146,32 +146,35 @@ REFINE = 0.01
 ERROR = "@error"
 
 
-def smooth_cases(name: str) -> dict[str, float]:
-    """The cases of reference ``name`` that dopri integrates, with their rtol."""
+def smooth_cases(name: str, solver: dict | None = None) -> dict[str, float]:
+    """The cases of reference ``name`` (its [solver] amended by ``solver``) that an
+    adaptive scheme integrates (dopri or rosenbrock), with their rtol."""
     from vsj.simulate import choose_solver
 
-    scen = load(name)
+    scen = load(name, solver)
     out = {}
     for case in scen.cases:
         structure = scenarios.prepare_case(scen, case, parameters.default()).structure
-        if choose_solver(structure, case.options) == "dopri":
+        if choose_solver(structure, case.options) != "timestep":
             out[case.label] = case.options.rtol
     return out
 
 
-def global_errors(name: str, current: dict, params=None, labels=None) -> dict[str, np.ndarray]:
-    """Each kept signal's error in the smooth cases of ``current`` (a `run` of ``name``):
-    its largest distance from a rerun at `REFINE` times the rtol, plus that rerun's
-    largest distance from one at `REFINE` squared times the rtol (the scatter that no
-    tolerance removes). Keyed ``case/signal@error``."""
-    cases = {c: rtol for c, rtol in smooth_cases(name).items()
+def global_errors(name: str, current: dict, params=None, labels=None,
+                  solver: dict | None = None) -> dict[str, np.ndarray]:
+    """Each kept signal's error in the smooth cases of ``current`` (a `run` of ``name``
+    with its [solver] amended by ``solver``): its largest distance from a rerun at
+    `REFINE` times the rtol, plus that rerun's largest distance from one at `REFINE`
+    squared times the rtol (the scatter that no tolerance removes), the reruns by the
+    same scheme. Keyed ``case/signal@error``."""
+    cases = {c: rtol for c, rtol in smooth_cases(name, solver).items()
              if (labels is None or c in labels) and f"{c}/time" in current}
     if not cases:
         return {}
     assert len(set(cases.values())) == 1, "one rtol per reference"
     rtol = next(iter(cases.values()))
-    refined = run(name, {"rtol": REFINE * rtol}, params, set(cases))
-    finer = run(name, {"rtol": REFINE ** 2 * rtol}, params, set(cases))
+    refined = run(name, {**(solver or {}), "rtol": REFINE * rtol}, params, set(cases))
+    finer = run(name, {**(solver or {}), "rtol": REFINE ** 2 * rtol}, params, set(cases))
     out = {}
     for key, values in refined.items():
         case, what = key.split("/", 1)

@@ -282,15 +282,18 @@ def register(sub) -> None:
     p.add_argument("--friction", default="arctan", choices=list(LAWS),
                    help="friction law (default arctan)")
     p.add_argument("--method", choices=list(METHODS),
-                   help="step function: dopri (adaptive), rk4 (fixed cost) or timestep (true "
-                        "stiction); default timestep with --friction stiction, else dopri")
+                   help="step function: dopri or rosenbrock (adaptive), rk4 (fixed cost) or "
+                        "timestep (true stiction); default timestep with --friction stiction, "
+                        "else dopri")
     p.add_argument("--period", default="1 ms", metavar="TIME",
                    help="control period (default 1 ms)")
     p.add_argument("--step", default="1 ms", metavar="TIME",
                    help="time-stepper step (default 1 ms)")
     p.add_argument("--substeps", type=int, default=4, help="rk4 substeps per period (default 4)")
-    p.add_argument("--rtol", type=float, default=1e-8, help="dopri relative tolerance")
-    p.add_argument("--atol", type=float, default=1e-10, help="dopri absolute tolerance")
+    p.add_argument("--rtol", type=float, default=1e-8,
+                   help="dopri/rosenbrock relative tolerance")
+    p.add_argument("--atol", type=float, default=1e-10,
+                   help="dopri/rosenbrock absolute tolerance")
     p.add_argument("--q", metavar="LENGTH",
                    help="pivot position of the initial state, e.g. --q=-1cm (default 0 cm)")
     p.set_defaults(func=cmd_export_model)
@@ -313,10 +316,13 @@ def register(sub) -> None:
     _add_wrist_arguments(p, ELASTIC_MODELS, DRIVES, pivot_drive=True)
     p.add_argument("--friction", default="stiction", choices=list(LAWS),
                    help="friction law (default stiction: the time-stepper)")
-    p.add_argument("--method", default="auto", choices=("auto", "timestep", "dopri"),
+    # the FMU runs the step methods that keep an energy ledger (not rk4); vsj.fmu, not
+    # imported here, checks the same list
+    p.add_argument("--method", default="auto",
+                   choices=("auto",) + tuple(m for m in METHODS if m != "rk4"),
                    help="step function inside the FMU: the time-stepper at --step, or dopri "
-                        "(adaptive; smooth laws only); auto: timestep for stiction, else "
-                        "dopri")
+                        "or rosenbrock (adaptive; smooth laws only); auto: timestep for "
+                        "stiction, else dopri")
     p.add_argument("--step", default="1 ms", metavar="TIME",
                    help="internal step (the time-stepper's; default 1 ms)")
     p.add_argument("--q", default="-1 cm", metavar="LENGTH",

@@ -12,6 +12,10 @@ Solvers (C, see the sources for their derivations):
 ``dopri``
     adaptive Dormand-Prince 5(4) with dense output (Hairer, Norsett and
     Wanner's DOPRI5), for friction laws that are functions of speed;
+``rosenbrock``
+    adaptive linearly implicit Rosenbrock 4(3) (Kaps and Rentrop's GRK4T) with
+    the model's analytic Jacobian, for the same laws where their steep slopes
+    bound an explicit step (loose tolerances);
 ``timestep``
     fixed-step, velocity-level time stepping with exact Coulomb stiction:
     the impulses of all stiction elements decided jointly at each step.
@@ -96,6 +100,15 @@ class Engine:
         y = np.ascontiguousarray(y, dtype=float)
         dy = np.empty_like(y)
         return _core.derivatives(self.c, self.work, t, y, dy), dy
+
+    def jacobian(self, t: float, y: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+        """``(status, J, ft)``: the Jacobian of the state's derivatives at ``(t, y)``
+        (``y`` the state; ``J[i, j] = d(dy_i/dt)/dy_j``) and their partial derivative in
+        time, as the ``rosenbrock`` scheme linearises (exact for a fixed pivot)."""
+        y = np.ascontiguousarray(y[:self.n_state], dtype=float)
+        jac = np.empty((self.n_state, self.n_state))
+        ft = np.empty(self.n_state)
+        return _core.jacobian(self.c, self.work, t, y, jac, ft), jac, ft
 
 
 def pivot_position(model: EngineModel, x: np.ndarray, sigma: np.ndarray) -> float:

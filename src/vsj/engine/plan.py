@@ -29,13 +29,14 @@ from .core import OK, Engine, available_cores, native
 from .model import EngineModel, Layout, compile_model
 
 #: Codes of the schemes in ``vsj._core.run`` (engine/c/run.c).
-METHODS = {"dopri": 0, "timestep": 1, "rk4": 2}
+METHODS = {"dopri": 0, "timestep": 1, "rk4": 2, "rosenbrock": 3}
 
 
 @dataclass(frozen=True)
 class Scheme:
     """An integration scheme and its settings (SI): ``dopri`` (adaptive Dormand-Prince
-    5(4): ``rtol``, ``atol``, ``max_step``), ``timestep`` (the time-stepper with true
+    5(4): ``rtol``, ``atol``, ``max_step``), ``rosenbrock`` (adaptive linearly
+    implicit Rosenbrock 4(3) with the model's Jacobian, the same settings), ``timestep`` (the time-stepper with true
     stiction, step ``step``) or ``rk4`` (held periods of the step function only,
     ``substeps`` a period); ``max_steps`` bounds a run's steps."""
 

@@ -6,11 +6,16 @@ and options, integrates, samples every signal on a uniform output grid, and
 returns a `Result` that says whether the run succeeded, how, and where energy
 went (`Result.ledger`).
 
-Two solvers:
+Three solvers:
 
 ``dopri``
     adaptive Dormand-Prince 5(4), for friction laws that are functions of
     speed (viscous, arctan, sign, slope);
+``rosenbrock``
+    adaptive linearly implicit Rosenbrock 4(3) with the model's Jacobian, for
+    the same laws: their steep slopes near zero speed bound an explicit step,
+    not this one, which is faster at loose tolerances (below about 1e-5,
+    dopri's higher order wins);
 ``timestep``
     fixed-step, linearly implicit, with exact Coulomb stiction impulses solved
     jointly for every element at each step (`vsj.engine.timestep`); required

@@ -31,7 +31,8 @@ def finer_setting(solver: str, residual: float, options: SimulationOptions) -> s
     """What to run instead when the ledger's residual exceeds its tolerance: for the
     time-stepper a step that divides the output step and, at the residual's second
     order in the step (its springs, integrated by the trapezoidal rule), brings it to
-    a quarter of the tolerance; for dopri an rtol that would bring it to a hundredth if
+    a quarter of the tolerance; for dopri and rosenbrock an rtol that would bring it to a
+    hundredth if
     it followed rtol in proportion (it does only roughly: another rtol takes other
     steps, whose errors need not cancel alike)."""
     excess = residual / options.ledger_tolerance

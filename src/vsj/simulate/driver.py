@@ -58,13 +58,14 @@ def choose_solver(structure: Structure, options: SimulationOptions) -> str:
     laws = friction_laws_for(structure, options.friction, options.friction_overrides)
     sticky = "stiction" in laws
     rigid = rigid_stops(structure)
-    if options.solver == "dopri" and sticky:
+    smooth_only = options.solver in ("dopri", "rosenbrock")
+    if smooth_only and sticky:
         raise InputError("the stiction law needs the time-stepping solver (solver = "
-                         "'timestep' or 'auto'); dopri integrates smooth laws only")
-    if options.solver == "dopri" and rigid:
+                         f"'timestep' or 'auto'); {options.solver} integrates smooth laws only")
+    if smooth_only and rigid:
         raise InputError(f"a rigid end stop ({', '.join(rigid)}) is a constraint that only the "
-                         "time-stepping solver handles (solver = 'timestep' or 'auto'); dopri "
-                         "needs a finite elastic_element.end_stop_stiffness")
+                         "time-stepping solver handles (solver = 'timestep' or 'auto'); "
+                         f"{options.solver} needs a finite elastic_element.end_stop_stiffness")
     if options.solver == "auto":
         return "timestep" if sticky or rigid else "dopri"
     return options.solver
@@ -189,7 +190,7 @@ def run_plan(plan: Plan, *, ports: bool = True, sink=None) -> Result:
     y_end = run.y
     wall = _time.perf_counter() - started
     report = {"name": solver, "steps": int(run.steps)}
-    report.update({"rejected": int(run.rejected)} if solver == "dopri" else
+    report.update({"rejected": int(run.rejected)} if solver != "timestep" else
                   {"step": options.step})
     report.update(wall_time=wall, options={k: v for k, v in asdict(options).items()})
     flips = run.transitions()

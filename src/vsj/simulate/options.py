@@ -20,6 +20,9 @@ RANGES = {"rtol": (1e-14, 1e-2), "atol": (1e-20, 1e-2), "step": (1e-7, 0.05),
 #: a sound run closes it to 1e-15 with the time-stepper, to about rtol with dopri;
 #: the default tolerance of 1e-8 gives about 1e-11).
 LEDGER_TOLERANCE = 1e-3
+#: the solvers a run may ask for ("auto": the time-stepper where stiction or a rigid
+#: end stop needs it, else dopri)
+SOLVERS = ("auto", "dopri", "rosenbrock", "timestep")
 
 
 @dataclass(frozen=True)
@@ -27,7 +30,8 @@ class SimulationOptions:
     """How to simulate: friction law, solver and numerical knobs (SI units).
 
     ``slope_width`` is the report's ``w`` of fig 4.8 (a numerical knob, not a
-    property of the prototype). ``rtol``/``atol`` steer ``dopri``; ``step`` is
+    property of the prototype). ``rtol``/``atol`` steer ``dopri`` and ``rosenbrock``;
+    ``step`` is
     the fixed step of ``timestep``. ``output_step`` sets the sample grid. A run
     whose energy ledger leaves a residual above ``ledger_tolerance`` (a fraction
     of the energy in play) is reported as failed. `RANGES` bounds every number.
@@ -49,8 +53,9 @@ class SimulationOptions:
         """`InputError` naming the option, the value and what is allowed if any option is
         out of range."""
         friction_laws.law_code(self.friction)
-        if self.solver not in ("auto", "dopri", "timestep"):
-            raise InputError(f"solver must be 'auto', 'dopri' or 'timestep', got {self.solver!r}")
+        if self.solver not in SOLVERS:
+            raise InputError(f"solver must be one of {', '.join(map(repr, SOLVERS))}, got "
+                             f"{self.solver!r}")
         for name, (lo, hi) in RANGES.items():
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) \

@@ -31,8 +31,8 @@ static const double D[7] = {-12715105075.0 / 11282082432.0, 0.0,
                             701980252875.0 / 199316789632.0, -1453857185.0 / 822651844.0,
                             69997945.0 / 29380423.0};
 
-static double norm(const double *e, const double *y, const double *y2, double rtol, double atol,
-                   int64_t n_err) {
+double vsj__err_norm(const double *e, const double *y, const double *y2, double rtol,
+                     double atol, int64_t n_err) {
     double acc = 0.0;
     int64_t i;
     for (i = 0; i < n_err; i++) {
@@ -71,12 +71,31 @@ static void sample_step(const vsj_work *w, const dopri_state *d, const double *t
     }
 }
 
+double vsj__initial_step(const vsj_model *m, vsj_work *w, const double *y, const double *f0,
+                         int64_t ny, double t0, double t_end, double order, double *scratch) {
+    const dopri_state *d = &w->dopri;
+    double *yt = w->yt, *err = w->err, d0, d1, d2, h, big, h1;
+    int64_t i;
+    d0 = vsj__err_norm(y, y, y, d->rtol, d->atol, d->n_err);
+    d1 = vsj__err_norm(f0, y, y, d->rtol, d->atol, d->n_err);
+    h = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
+    h = dmin(dmin(h, d->h_max), t_end - t0);
+    for (i = 0; i < ny; i++)
+        yt[i] = y[i] + h * f0[i];
+    vsj__eval_derivatives(m, w, t0 + h, yt, ny, scratch);
+    for (i = 0; i < ny; i++)
+        err[i] = scratch[i] - f0[i];
+    d2 = vsj__err_norm(err, y, y, d->rtol, d->atol, d->n_err) / h;
+    big = dmax(d1, d2);
+    h1 = big <= 1e-15 ? dmax(1e-6, h * 1e-3) : pow(0.01 / big, 1.0 / order);
+    return dmin(dmin(dmin(100.0 * h, h1), d->h_max), t_end - t0);
+}
+
 int vsj__dopri_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t ny, double t0,
                     double t_end, double rtol, double atol, double h_max, int64_t max_steps,
                     int64_t n_err) {
     dopri_state *d = &w->dopri;
-    double *K = w->K, *y = w->y, *yt = w->yt, *err = w->err, d0, d1, d2, h, big, h1;
-    int64_t i;
+    double *K = w->K, *y = w->y;
     memset(d, 0, sizeof *d);
     d->status = VSJ_BAD_ARGUMENT;
     if (!vsj__fits(m, w) || ny > w->ny_max || ny < 0 || n_err > ny || n_err < 0
@@ -99,20 +118,7 @@ int vsj__dopri_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t 
     d->status = w->status;
     if (d->status != VSJ_OK || !(t_end > t0))
         return d->status;
-    /* initial step (Hairer's estimate) */
-    d0 = norm(y, y, y, rtol, atol, n_err);
-    d1 = norm(K, y, y, rtol, atol, n_err);
-    h = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
-    h = dmin(dmin(h, h_max), t_end - t0);
-    for (i = 0; i < ny; i++)
-        yt[i] = y[i] + h * K[i];
-    vsj__eval_derivatives(m, w, t0 + h, yt, ny, K + ny);
-    for (i = 0; i < ny; i++)
-        err[i] = K[ny + i] - K[i];
-    d2 = norm(err, y, y, rtol, atol, n_err) / h;
-    big = dmax(d1, d2);
-    h1 = big <= 1e-15 ? dmax(1e-6, h * 1e-3) : pow(0.01 / big, 0.2);
-    d->h = dmin(dmin(dmin(100.0 * h, h1), h_max), t_end - t0);
+    d->h = vsj__initial_step(m, w, y, K, ny, t0, t_end, 5.0, K + ny);
     w->status = VSJ_OK;
     return d->status;
 }
@@ -150,7 +156,7 @@ static int attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
             total += E[j] * K[ny * j + i];
         err[i] = h * total;
     }
-    e = norm(err, y, y1, d->rtol, d->atol, d->n_err);
+    e = vsj__err_norm(err, y, y1, d->rtol, d->atol, d->n_err);
     d->steps++;
     if (!isfinite(e) || stage_bad || w->status == VSJ_NOT_FINITE) {
         w->status = VSJ_OK;
@@ -214,7 +220,9 @@ vsj_report vsj__dopri_advance(const vsj_model *m, vsj_work *w, const double *t_o
                 out[out_cols * i_out + i] = w->y[i];
             i_out++;
         }
-    if (d->status == VSJ_OK && d->steps > 0)
+    if (d->status == VSJ_OK && d->steps > 0 && d->rosenbrock)
+        vsj__ros_sample(w, d, t_out, n_out, &i_out, out, out_cols);
+    else if (d->status == VSJ_OK && d->steps > 0)
         sample_step(w, d, t_out, n_out, &i_out, out, out_cols);
     while (d->status == VSJ_OK && d->t < d->t_end && (i_out < n_out || finish)) {
         int accepted;
@@ -226,8 +234,10 @@ vsj_report vsj__dopri_advance(const vsj_model *m, vsj_work *w, const double *t_o
             d->status = VSJ_STEP_TOO_SMALL;
             break;
         }
-        accepted = attempt(m, w, d);
-        if (accepted > 0)
+        accepted = d->rosenbrock ? vsj__ros_attempt(m, w, d) : attempt(m, w, d);
+        if (accepted > 0 && d->rosenbrock)
+            vsj__ros_sample(w, d, t_out, n_out, &i_out, out, out_cols);
+        else if (accepted > 0)
             sample_step(w, d, t_out, n_out, &i_out, out, out_cols);
     }
     if (y_now)
@@ -235,10 +245,15 @@ vsj_report vsj__dopri_advance(const vsj_model *m, vsj_work *w, const double *t_o
     return report_of(d);
 }
 
-vsj_report vsj__dopri(const vsj_model *m, vsj_work *w, double *y, int64_t ny, double t0,
-                      double t_end, double rtol, double atol, int64_t max_steps, int64_t n_err) {
-    if (vsj__dopri_begin(m, w, y, ny, t0, t_end, rtol, atol, INFINITY, max_steps, n_err)
-        != VSJ_OK) {
+vsj_report vsj__adaptive(const vsj_model *m, vsj_work *w, int method, double *y, int64_t ny,
+                         double t0, double t_end, double rtol, double atol, int64_t max_steps,
+                         int64_t n_err) {
+    int status = method == VSJ_METHOD_ROSENBROCK
+                     ? vsj__ros_begin(m, w, y, ny, t0, t_end, rtol, atol, INFINITY, max_steps,
+                                      n_err)
+                     : vsj__dopri_begin(m, w, y, ny, t0, t_end, rtol, atol, INFINITY, max_steps,
+                                        n_err);
+    if (status != VSJ_OK) {
         vsj_report r = report_of(&w->dopri);
         if (r.status != VSJ_BAD_ARGUMENT)
             memcpy(y, w->y, (size_t)ny * sizeof(double));

@@ -94,12 +94,32 @@ static void eval_springs(const vsj_model *m, vsj_work *w, const double *y) {
     }
 }
 
+/* The arctangents of one evaluation: elements that turn at the same speed with the
+ * same sharpness (a bearing and a lever on one shaft) share one. */
+typedef struct atan_memo {
+    double x[4], value[4];
+    int used, next;
+} atan_memo;
+
+static double memo_atan(atan_memo *c, double x) {
+    int i;
+    for (i = 0; i < c->used; i++)
+        if (c->x[i] == x)
+            return c->value[i];
+    i = c->used < 4 ? c->used++ : c->next;
+    c->next = (i + 1) % 4;
+    c->x[i] = x;
+    c->value[i] = atan(x);
+    return c->value[i];
+}
+
 /* All element torques at y, as generalised forces in w->gen and, with `full`,
  * as source forces in srcw[:, SRCF]. Without `full`, elements that only the
  * sources feel are skipped (the dynamics do not need them). */
 static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int full) {
     int64_t n = m->n, s = m->n_sources, f = m->n_frictions, k = m->n_springs;
     int64_t nl = m->n_loads, i, j, kk, e, ld, mo;
+    atan_memo memo;
     for (i = 0; i < n; i++)
         w->gen[i] = 0.0;
     for (j = 0; j < s; j++)
@@ -112,16 +132,19 @@ static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int fu
         if (full)
             vsj__uadd(m, r, w->srcw, SRCF, tau);
     }
+    memo.used = memo.next = 0;
     for (e = 0; e < f; e++) {
         const double *p;
-        double slip, torque;
+        double slip, torque, level;
         if (!full && m->xp[e + 1] == m->xp[e])
             continue;
         p = vsj__row(m, e);
         slip = vsj__xdot(m, e, y + n) + vsj__udot(m, e, w->srcw, U);
-        torque = vsj__friction(m->code[e], p[0],
-                               vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1],
-                               p[2], p[3], slip, NULL);
+        level = vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1];
+        if (m->code[e] == VSJ_ARCTAN) /* vsj__friction's arctan law, sharing the arctangent */
+            torque = p[0] * slip + level * memo_atan(&memo, p[2] * slip);
+        else
+            torque = vsj__friction(m->code[e], p[0], level, p[2], p[3], slip, NULL);
         if (m->code[e] == VSJ_STICTION)
             torque += w->frw[FRW * e + EXTRA];
         w->frw[FRW * e + SLIP] = slip;
@@ -211,6 +234,16 @@ int vsj_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y, 
                     double *dy) {
     w->status = VSJ_OK;
     vsj__eval_derivatives(m, w, t, y, ny, dy);
+    return w->status;
+}
+
+int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, double *J,
+                 double *ft) {
+    if (!vsj__fits(m, w) || !y || !J || !ft)
+        return VSJ_BAD_ARGUMENT;
+    w->status = VSJ_OK;
+    vsj__eval_derivatives(m, w, t, y, vsj_n_state(m), w->dy);
+    vsj__eval_jacobian(m, w, y, J, ft);
     return w->status;
 }
 
@@ -305,4 +338,88 @@ int vsj_observe(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_
                 row[p++] = w->mow[2 * j + c];
     }
     return status;
+}
+
+/* ---- the Jacobian (for the Rosenbrock steps) --------------------------------- */
+
+/* d gen / d(column col + X_r) += scale X_r X_r^T, over the n x (ns + 1) array jg. */
+static void add_outer(const vsj_model *m, int64_t r, double *jg, int64_t cols, int64_t col,
+                      double scale) {
+    int64_t a, b;
+    for (a = m->xp[r]; a < m->xp[r + 1]; a++)
+        for (b = m->xp[r]; b < m->xp[r + 1]; b++)
+            jg[cols * m->xc[a] + col + m->xc[b]] += scale * m->xv[a] * m->xv[b];
+}
+
+/* The generalised forces' derivatives in the state (x, v, motor currents) and in
+ * time, into jg (n x (ns + 1), the time in the last column). */
+static void force_derivatives(const vsj_model *m, vsj_work *w, double *jg) {
+    int64_t n = m->n, s = m->n_sources, f = m->n_frictions, k = m->n_springs;
+    int64_t nl = m->n_loads, nm = m->n_motors, ns = 2 * n + nm, cols = ns + 1, sz = n + s;
+    int64_t i, j, e, kk, ld, mo;
+    memset(jg, 0, (size_t)(n * cols) * sizeof(double));
+    for (kk = 0; kk < k; kk++) { /* torque -stiff d, d = X x + U sigma */
+        int64_t r = f + kk;
+        double stiff = w->spw[SPW * kk + STIFF];
+        add_outer(m, r, jg, cols, 0, -stiff);
+        for (i = m->xp[r]; i < m->xp[r + 1]; i++)
+            jg[cols * m->xc[i] + ns] -= stiff * vsj__udot(m, r, w->srcw, U) * m->xv[i];
+    }
+    for (e = 0; e < f; e++) { /* torque -f(s), s = X v + U u */
+        const double *p = vsj__row(m, e);
+        double slip = w->frw[FRW * e + SLIP], level, slope;
+        if (m->xp[e + 1] == m->xp[e])
+            continue;
+        level = vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1];
+        slope = vsj__friction_slope(m->code[e], p[0], level, p[2], p[3], slip);
+        add_outer(m, e, jg, cols, n, -slope);
+        for (i = m->xp[e]; i < m->xp[e + 1]; i++)
+            jg[cols * m->xc[i] + ns] -= slope * vsj__udot(m, e, w->srcw, UD) * m->xv[i];
+    }
+    for (ld = 0; ld < nl; ld++) { /* a torque input */
+        int64_t r = f + k + ld;
+        double rate = w->chan[3 * m->code[r] + 1];
+        for (i = m->xp[r]; i < m->xp[r + 1]; i++)
+            jg[cols * m->xc[i] + ns] += rate * m->xv[i];
+    }
+    for (mo = 0; mo < nm; mo++) { /* torque constant times current */
+        int64_t r = f + k + nl + mo;
+        for (i = m->xp[r]; i < m->xp[r + 1]; i++)
+            jg[cols * m->xc[i] + 2 * n + mo] += vsj__row(m, r)[2] * m->xv[i];
+    }
+    for (i = 0; i < n; i++) /* the sources' accelerations through the mass matrix */
+        for (j = 0; j < s; j++)
+            jg[cols * i + ns] -= m->mass[sz * i + n + j] * w->chan_dd[m->src_ch[j]];
+}
+
+void vsj__eval_jacobian(const vsj_model *m, vsj_work *w, const double *y, double *J,
+                        double *ft) {
+    int64_t n = m->n, nm = m->n_motors, ns = 2 * n + nm, cols = ns + 1, i, r, c, mo;
+    int64_t base_m = m->n_frictions + m->n_springs + m->n_loads;
+    double *jg = w->jg;
+    (void)y;
+    force_derivatives(m, w, jg);
+    memset(J, 0, (size_t)(ns * ns) * sizeof(double));
+    for (i = 0; i < n; i++) {
+        J[ns * i + n + i] = 1.0; /* x' = v */
+        ft[i] = 0.0;
+        for (c = 0; c < cols; c++) {
+            double total = 0.0;
+            for (r = 0; r < n; r++)
+                total += m->Minv[n * i + r] * jg[cols * r + c];
+            if (c < ns)
+                J[ns * (n + i) + c] = total;
+            else
+                ft[n + i] = total;
+        }
+    }
+    for (mo = 0; mo < nm; mo++) { /* L i' = V - R i - Ke (X v + U u) */
+        const double *pr = vsj__row(m, base_m + mo);
+        int64_t row = 2 * n + mo, k;
+        J[ns * row + row] = -pr[0] / pr[1];
+        for (k = m->xp[base_m + mo]; k < m->xp[base_m + mo + 1]; k++)
+            J[ns * row + n + m->xc[k]] -= pr[2] / pr[1] * m->xv[k];
+        ft[row] = (w->chan[3 * m->code[base_m + mo] + 1]
+                   - pr[2] * vsj__udot(m, base_m + mo, w->srcw, UD)) / pr[1];
+    }
 }

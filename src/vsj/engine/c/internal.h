@@ -64,14 +64,18 @@ typedef struct ts_work {
     unsigned char *wanted;
 } ts_work;
 
-/* The state of a resumable Dormand-Prince integration (dopri.c). */
+/* The state of a resumable adaptive integration: Dormand-Prince (dopri.c) or
+ * Rosenbrock (rosenbrock.c). */
 typedef struct dopri_state {
     int status;
+    int rosenbrock;        /* which of the two steps this run */
     int64_t ny, n_err, max_steps, steps, rejected;
     double rtol, atol, h_max;
     double t, t_end, h;    /* where the integration stands, its end, the next step */
     double t_prev, h_prev; /* the last accepted step (for the samples it covers) */
-    double err_old;        /* the step controller's memory */
+    double err_old;        /* the step controller's memory (its last error; rosenbrock:
+                            * 0 before the first accepted step) */
+    double h_acc;          /* rosenbrock: the last accepted step */
     int rejected_last;
 } dopri_state;
 
@@ -80,6 +84,7 @@ struct vsj_work {
     int64_t n, s, f, k, nl, nm, nch, rows;
     int64_t *hint;         /* nch: last spline piece used */
     double *chan;          /* nch x 3: value, derivative, integral */
+    double *chan_dd;       /* nch: second derivative (the Rosenbrock steps' time terms) */
     double *srcw;          /* s x SRCW */
     double *frw;           /* f x FRW */
     double *spw;           /* k x SPW */
@@ -98,6 +103,12 @@ struct vsj_work {
     int64_t ny_max;
     double *K, *yt, *y1, *err, *r3, *r4, *r5, *y, *yo, *dy;
     dopri_state dopri;
+    /* Rosenbrock scratch (ns = vsj_n_state): the Jacobian J and the factor of
+     * I/(gamma h) - J (ns x ns), its pivots, df/dt (ns), the generalised forces'
+     * derivatives (n x (ns + 1)), and the ledger's rates' derivatives in the state
+     * and in time ((ny_max - ns) x (ns + 1)) */
+    double *jac, *lu, *ft, *jg, *jacc;
+    int64_t *piv;
     /* the run vsj_begin started (run.c) */
     vsj_scheme scheme;
     int64_t run_ny, run_steps;
@@ -121,6 +132,14 @@ struct vsj_work {
 VSJ_INTERNAL void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y,
                            int64_t ny, double *dy);
 
+/* The Jacobian of the state's derivatives (the first ns = vsj_n_state components
+ * of y; row-major ns x ns in J) and their partial derivative in time (ft), at the
+ * point (t, y) of the vsj__eval_derivatives call just before (it reads that call's
+ * element speeds, stiffnesses and inputs). Exact for a fixed pivot; the pivot's
+ * motion and the speed dependence of friction tables are left out. */
+VSJ_INTERNAL void vsj__eval_jacobian(const vsj_model *m, vsj_work *w, const double *y,
+                                     double *J, double *ft);
+
 /* The 64-bit FNV-1a hash of `len` bytes: the checksum of the model files (blob.c,
  * load.c) and of the FMU's serialized states. */
 VSJ_INTERNAL uint64_t vsj__fnv1a(const unsigned char *data, size_t len);
@@ -134,16 +153,35 @@ VSJ_INTERNAL int vsj__rigid_stop(const vsj_model *m);
  * earlier calls, not beyond t_end), stepping as far as they need and, with `finish`,
  * on to t_end; y_now (may be NULL) receives the state where it stands. The steps do
  * not depend on how the samples are split between calls. n_err leading components
- * enter the error norm. vsj__dopri is begin and a finishing advance in one. */
+ * enter the error norm. */
 VSJ_INTERNAL int vsj__dopri_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t ny,
                                   double t0, double t_end, double rtol, double atol,
                                   double h_max, int64_t max_steps, int64_t n_err);
 VSJ_INTERNAL vsj_report vsj__dopri_advance(const vsj_model *m, vsj_work *w, const double *t_out,
                                            int64_t n_out, double *out, int64_t out_cols,
                                            int finish, double *y_now);
-VSJ_INTERNAL vsj_report vsj__dopri(const vsj_model *m, vsj_work *w, double *y, int64_t ny,
-                                   double t0, double t_end, double rtol, double atol,
-                                   int64_t max_steps, int64_t n_err);
+/* The weighted RMS norm of the error e over the first n_err components (scale atol
+ * + rtol max(|y|, |y2|)), and the initial step of an adaptive method of `order` from
+ * (t0, y) with derivatives f0 (Hairer's estimate; one evaluation, into `scratch`). */
+VSJ_INTERNAL double vsj__err_norm(const double *e, const double *y, const double *y2,
+                                  double rtol, double atol, int64_t n_err);
+VSJ_INTERNAL double vsj__initial_step(const vsj_model *m, vsj_work *w, const double *y,
+                                      const double *f0, int64_t ny, double t0, double t_end,
+                                      double order, double *scratch);
+/* The Rosenbrock scheme (rosenbrock.c), resumable like dopri and advanced by
+ * vsj__dopri_advance: begin sets the state and the settings. */
+VSJ_INTERNAL int vsj__ros_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t ny,
+                                double t0, double t_end, double rtol, double atol,
+                                double h_max, int64_t max_steps, int64_t n_err);
+VSJ_INTERNAL int vsj__ros_attempt(const vsj_model *m, vsj_work *w, dopri_state *d);
+VSJ_INTERNAL void vsj__ros_sample(const vsj_work *w, const dopri_state *d, const double *t_out,
+                                  int64_t n_out, int64_t *i_out, double *out,
+                                  int64_t out_cols);
+/* A whole adaptive run in one call: begin (dopri or rosenbrock, `method`) and a
+ * finishing advance, the state where it ends into y. */
+VSJ_INTERNAL vsj_report vsj__adaptive(const vsj_model *m, vsj_work *w, int method, double *y,
+                                      int64_t ny, double t0, double t_end, double rtol,
+                                      double atol, int64_t max_steps, int64_t n_err);
 /* The time-stepper, resumable: begin sets the state at t0 (the work prepared for m,
  * vsj_ts_prepare); advance steps to t_end (the last step shortened to land on it),
  * booking the ledger into y's accumulators with `ledger`. */
@@ -175,6 +213,12 @@ VSJ_INTERNAL void vsj__forward(const double *L, const double *b, double *out, in
 VSJ_INTERNAL void vsj__backward(const double *L, const double *b, double *out, int64_t k,
                                 int64_t n);
 VSJ_INTERNAL void vsj__solve(const double *L, const double *b, double *out, int64_t n);
+/* LU factorisation with partial pivoting of the n x n row-major A in place (0 if
+ * singular), and the solve of A x = b with it (x may be b). */
+VSJ_INTERNAL int vsj__lu(double *A, int64_t *piv, int64_t n);
+VSJ_INTERNAL void vsj__lu_solve(const double *LU, const int64_t *piv, const double *b,
+                                double *x, int64_t n);
+
 
 /* The joint Coulomb impulse problem (impulses.c): YT is n x m, one column L^-1 d_e
  * per unknown, so that the Delassus matrix is W = Y Y^T; the other arrays are its
@@ -261,6 +305,16 @@ static inline int vsj__varying(const vsj_model *m, int64_t e) {
     return p[VSJ_F_PEAK] != 1.0 || p[VSJ_F_CHANNEL] >= 0.0 || p[VSJ_F_ROWS] > 0.0;
 }
 
+/* The slope df/ds of a friction law at s (vsj__friction's, without its torque). */
+static inline double vsj__friction_slope(int64_t law, double b, double k, double kb, double w,
+                                         double s) {
+    if (law == VSJ_ARCTAN)
+        return b + k * kb / (1.0 + (kb * s) * (kb * s));
+    if (law == VSJ_SLOPE && fabs(s) < w)
+        return b + k * (0.5 * VSJ_PI) / w;
+    return b;
+}
+
 /* The smooth part of a friction law (vsj_friction_torque). */
 static inline double vsj__friction(int64_t law, double b, double k, double kb, double w, double s,
                                     double *slope) {
@@ -302,8 +356,10 @@ static inline void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c,
         ch[0] = v;
         ch[1] = 0.0;
         ch[2] = t * v;
+        w->chan_dd[c] = 0.0;
         return;
     }
+    w->chan_dd[c] = 0.0;
     p0 = m->first[c];
     npieces = m->count[c];
     koff = p0 + c;
@@ -354,6 +410,7 @@ static inline void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c,
     c3 = m->coef[4 * p + 3];
     ch[0] = c0 + tau * (c1 + tau * (c2 + tau * c3));
     ch[1] = c1 + tau * (2.0 * c2 + 3.0 * c3 * tau);
+    w->chan_dd[c] = 2.0 * c2 + 6.0 * c3 * tau;
     ch[2] = base + m->cum[koff + j]
             + tau * (c0 + tau * (0.5 * c1 + tau * (c2 / 3.0 + 0.25 * c3 * tau)));
 }

@@ -157,11 +157,12 @@ static void read_program(reader *r, vsj_loaded *l) {
         return;
     /* the period always, and the settings of its method */
     if (!(l->period > 0.0 && l->period < 1e9)
-        || (method == VSJ_METHOD_DOPRI && !(rtol > 0.0 && atol > 0.0 && rtol < 1.0))
+        || ((method == VSJ_METHOD_DOPRI || method == VSJ_METHOD_ROSENBROCK)
+            && !(rtol > 0.0 && atol > 0.0 && rtol < 1.0))
         || (method == VSJ_METHOD_RK4 && (substeps < 1 || substeps > VSJ_MAX_PERIOD_STEPS))
         || (method == VSJ_METHOD_TIMESTEP && !(step > 0.0 && step <= l->period))
         || (method != VSJ_METHOD_DOPRI && method != VSJ_METHOD_RK4
-            && method != VSJ_METHOD_TIMESTEP)) {
+            && method != VSJ_METHOD_TIMESTEP && method != VSJ_METHOD_ROSENBROCK)) {
         rfail(r, "its solver settings are out of range");
         return;
     }

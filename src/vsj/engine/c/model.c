@@ -249,9 +249,11 @@ static void *carve(carver *cv, int64_t count, size_t item) {
 static void layout(vsj_work *w, carver *cv) {
     int64_t n = w->n, s = w->s, f = w->f, k = w->k, nl = w->nl, nm = w->nm, nch = w->nch;
     int64_t nr = n + 2 * k, mu = f + 2 * k; /* the impulse problem's rows and unknowns */
+    int64_t ns = 2 * n + nm;                /* the state */
     ts_work *t = &w->ts;
     w->hint = INTS(nch);
     w->chan = DOUBLES(3 * nch);
+    w->chan_dd = DOUBLES(nch);
     w->srcw = DOUBLES(SRCW * s);
     w->frw = DOUBLES(FRW * f);
     w->spw = DOUBLES(SPW * k);
@@ -273,6 +275,12 @@ static void layout(vsj_work *w, carver *cv) {
     w->sy = DOUBLES(w->ny_max);
     w->sk = DOUBLES(w->ny_max);
     w->sacc = DOUBLES(w->ny_max);
+    w->jac = DOUBLES(ns * ns);
+    w->lu = DOUBLES(ns * ns);
+    w->ft = DOUBLES(ns);
+    w->jg = DOUBLES(n * (ns + 1));
+    w->jacc = DOUBLES((w->ny_max - ns) * (ns + 1));
+    w->piv = INTS(ns);
     t->H = DOUBLES(n * n);
     t->H_last = DOUBLES(n * n);
     t->Lc = DOUBLES(n * n);

@@ -3,8 +3,8 @@
  * Every driver of the engine (single runs, batches, sweeps, identification, the
  * step function of estimators and FMUs) starts a run with vsj_begin (the scheme and
  * its settings, the initial state) and samples it with vsj_advance. The steps do
- * not depend on how the samples are split between calls (dopri.c, timestep.c), so a
- * run streamed in blocks equals one sampled at once.
+ * not depend on how the samples are split between calls (dopri.c, rosenbrock.c,
+ * timestep.c), so a run streamed in blocks equals one sampled at once.
  */
 #include <math.h>
 #include <string.h>
@@ -25,6 +25,9 @@ int vsj_begin(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, const d
     if (scheme->method == VSJ_METHOD_DOPRI) {
         status = vsj__dopri_begin(m, w, y0, ny, t0, t_end, scheme->rtol, scheme->atol,
                                  scheme->h_max, scheme->max_steps, scheme->n_err);
+    } else if (scheme->method == VSJ_METHOD_ROSENBROCK) {
+        status = vsj__ros_begin(m, w, y0, ny, t0, t_end, scheme->rtol, scheme->atol,
+                                scheme->h_max, scheme->max_steps, scheme->n_err);
     } else if (scheme->method == VSJ_METHOD_TIMESTEP) {
         if (!(scheme->h > 0.0) || ny < vsj_n_state(m)
             || (scheme->ledger && ny < vsj_n_state(m) + vsj_n_acc(m)))
@@ -53,7 +56,7 @@ vsj_report vsj_advance(const vsj_model *m, vsj_work *w, double *y, double t_unti
     }
     if (w->run_status != VSJ_OK)
         return rep;
-    if (sc->method == VSJ_METHOD_DOPRI) {
+    if (sc->method == VSJ_METHOD_DOPRI || sc->method == VSJ_METHOD_ROSENBROCK) {
         rep = vsj__dopri_advance(m, w, samples ? samples->t : NULL, samples ? samples->n : 0,
                                 samples ? samples->out : NULL, samples ? samples->out_cols : 0,
                                 finish, y);

@@ -86,15 +86,16 @@ double vsj_step_pivot_position(const vsj_model *m, const double *s) {
     return p[2] * p[0] * sin(angle) + (1.0 - p[2]) * p[1];
 }
 
-static int step_dopri(const vsj_model *m, vsj_work *w, double *s, const double *inputs,
-                      double dt, double rtol, double atol, int64_t max_steps) {
+static int step_adaptive(const vsj_model *m, vsj_work *w, const vsj_scheme *sc, double *s,
+                         const double *inputs, double dt) {
     int64_t ny = vsj_n_state(m);
     vsj_report rep;
     if (!vsj__fits(m, w) || !(dt > 0.0))
         return VSJ_BAD_ARGUMENT;
     hold(m, w, s, inputs);
     to_engine(m, s, inputs, w->sy);
-    rep = vsj__dopri(m, w, w->sy, ny, 0.0, dt, rtol, atol, max_steps, ny);
+    rep = vsj__adaptive(m, w, sc->method, w->sy, ny, 0.0, dt, sc->rtol, sc->atol, sc->max_steps,
+                        ny);
     w->held = NULL;
     if (rep.status == VSJ_OK)
         from_engine(m, w->sy, inputs, dt, s);
@@ -192,7 +193,7 @@ int vsj_step_rate(const vsj_model *m, vsj_work *w, const double *s, const double
     return status;
 }
 
-/* One period with the energy ledger over it (dopri and the time-stepper). */
+/* One period with the energy ledger over it (dopri, rosenbrock and the time-stepper). */
 static int step_ledger(const vsj_model *m, vsj_work *w, const vsj_scheme *sc, double *s,
                        const double *inputs, double dt, double *ledger) {
     int64_t nstate = vsj_n_state(m), nacc = vsj_n_acc(m), ny = nstate + nacc;
@@ -201,8 +202,9 @@ static int step_ledger(const vsj_model *m, vsj_work *w, const vsj_scheme *sc, do
     hold(m, w, s, inputs);
     to_engine(m, s, inputs, w->sy);
     memset(w->sy + nstate, 0, (size_t)nacc * sizeof(double));
-    if (sc->method == VSJ_METHOD_DOPRI) {
-        rep = vsj__dopri(m, w, w->sy, ny, 0.0, dt, sc->rtol, sc->atol, sc->max_steps, nstate);
+    if (sc->method == VSJ_METHOD_DOPRI || sc->method == VSJ_METHOD_ROSENBROCK) {
+        rep = vsj__adaptive(m, w, sc->method, w->sy, ny, 0.0, dt, sc->rtol, sc->atol,
+                            sc->max_steps, nstate);
         status = rep.status;
     } else {
         status = vsj__ts_begin(m, w, w->sy, 0.0);
@@ -230,7 +232,7 @@ int vsj_step(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, double *
             return VSJ_BAD_ARGUMENT;
         if (!vsj__ts_prepared_for(m, w) && vsj_ts_prepare(m, w) != VSJ_OK)
             return VSJ_BAD_ARGUMENT;
-    } else if (method == VSJ_METHOD_DOPRI) {
+    } else if (method == VSJ_METHOD_DOPRI || method == VSJ_METHOD_ROSENBROCK) {
         if (!(scheme->max_steps >= 1))
             return VSJ_BAD_ARGUMENT;
     } else if (method != VSJ_METHOD_RK4 || ledger) { /* rk4 keeps no ledger */
@@ -238,8 +240,8 @@ int vsj_step(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, double *
     }
     if (ledger)
         return step_ledger(m, w, scheme, s, inputs, dt, ledger);
-    if (method == VSJ_METHOD_DOPRI)
-        return step_dopri(m, w, s, inputs, dt, scheme->rtol, scheme->atol, scheme->max_steps);
+    if (method == VSJ_METHOD_DOPRI || method == VSJ_METHOD_ROSENBROCK)
+        return step_adaptive(m, w, scheme, s, inputs, dt);
     if (method == VSJ_METHOD_RK4)
         return step_rk4(m, w, s, inputs, dt, scheme->substeps);
     return step_timestep(m, w, s, inputs, dt, scheme->h);

@@ -163,6 +163,13 @@ void vsj_spring_extensions(const double par[VSJ_NPAR], double phi, double q, dou
  * status (VSJ_PIVOT_RANGE if the pivot is outside its range, VSJ_NOT_FINITE). */
 int vsj_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y, int64_t ny,
                     double *dy);
+/* The Jacobian of the state's derivatives at (t, y) (y: the state, vsj_n_state
+ * values; J: row-major vsj_n_state x vsj_n_state) and their partial derivative in
+ * time, ft (vsj_n_state values): the Rosenbrock scheme's linearisation. Exact for
+ * a fixed pivot; the pivot mechanism's motion and the speed dependence of friction
+ * tables are left out. Returns the status of the evaluation at (t, y). */
+int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, double *J,
+                 double *ft);
 
 /* Source angles and speeds at each of n_out times: arrays of n_out * n_sources. */
 void vsj_source_signals(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_out,
@@ -214,14 +221,17 @@ typedef struct vsj_samples {
 enum vsj_method {
     VSJ_METHOD_DOPRI = 0,    /* adaptive Dormand-Prince 5(4): smooth friction laws */
     VSJ_METHOD_TIMESTEP = 1, /* the time-stepper: true stiction, rigid end stops, any law */
-    VSJ_METHOD_RK4 = 2       /* classical Runge-Kutta, fixed substeps: held periods only */
+    VSJ_METHOD_RK4 = 2,      /* classical Runge-Kutta, fixed substeps: held periods only */
+    VSJ_METHOD_ROSENBROCK = 3 /* adaptive linearly implicit Rosenbrock 4(3): smooth laws
+                               * with steep slopes (stiff) */
 };
 
 /* A scheme and its settings. */
 typedef struct vsj_scheme {
     int method;              /* enum vsj_method */
-    double rtol, atol, h_max; /* dopri: tolerances and largest step [s] */
-    int64_t n_err;           /* dopri: leading components of y in the error norm */
+    double rtol, atol, h_max; /* dopri, rosenbrock: tolerances and largest step [s] */
+    int64_t n_err;           /* dopri, rosenbrock: leading components of y in the error
+                              * norm (rosenbrock: at most vsj_n_state) */
     double h;                /* time-stepper: the step [s] */
     int64_t max_steps;       /* most steps of the whole run */
     int ledger;              /* time-stepper: book the energy ledger into y's accumulators
@@ -229,7 +239,7 @@ typedef struct vsj_scheme {
     int64_t substeps;        /* rk4: steps per held period */
 } vsj_scheme;
 
-/* Starts a run of `scheme` (dopri or the time-stepper) from y0 (ny values: the state, or the state and the
+/* Starts a run of `scheme` (dopri, rosenbrock or the time-stepper) from y0 (ny values: the state, or the state and the
  * ledger's accumulators, see vsj_n_acc) at time t0, to end at t_end. */
 int vsj_begin(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, const double *y0,
               int64_t ny, double t0, double t_end);
@@ -285,8 +295,8 @@ int64_t vsj_step_state_size(const vsj_model *m);
 /* The most steps (rk4 substeps, time-stepper steps) one call may take. */
 #define VSJ_MAX_PERIOD_STEPS 10000000
 
-/* Advance s in place by one period dt with `inputs` held, by `scheme`: dopri (rtol,
- * atol, max_steps), rk4 (substeps; no rigid end stops, no ledger) or the time-stepper
+/* Advance s in place by one period dt with `inputs` held, by `scheme`: dopri or
+ * rosenbrock (rtol, atol, max_steps), rk4 (substeps; no rigid end stops, no ledger) or the time-stepper
  * (h; its stick/slip history is kept in the work from one period to the next). If
  * `ledger` is not NULL it receives the energy ledger over the period (vsj_n_acc
  * values, each accumulator's change). s is unchanged on failure. */
