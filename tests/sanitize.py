@@ -115,6 +115,9 @@ assert "pkg" in vsj._core.__file__, vsj._core.__file__
 for name in refs.REFERENCES:                      # the scenarios
     refs.run(name)
     print("scenario", name, flush=True)
+for name in ("planetary-fixed-sun", "fig-4.15-dc-motors"):  # the Rosenbrock steps, ledger
+    refs.run(name, {"method": "rosenbrock"})
+    print("rosenbrock", name, flush=True)
 
 rng = np.random.default_rng(1)                    # the splines' tridiagonal solve, pivoting
 for n in (1, 2, 3, 17):
@@ -151,7 +154,8 @@ for friction in ("arctan", "stiction"):           # batches on two threads
     assert b.success.all()
     print("batch", friction, flush=True)
 
-for method, friction in (("dopri", "arctan"), ("rk4", "arctan"), ("timestep", "stiction")):
+for method, friction in (("dopri", "arctan"), ("rosenbrock", "arctan"), ("rk4", "arctan"),
+                         ("timestep", "stiction")):
     stepper = Stepper.wrist(params, period=1e-3, method=method,
                             options=SimulationOptions(friction=friction))
     state = stepper.initial_state(InitialState(q=-0.01))

@@ -12,6 +12,9 @@ What each solver should show (the comments of ``src/vsj/engine/c``):
 * ``dopri`` (Dormand-Prince 5(4), ``dopri.c``): the global error is
   proportional to the tolerance (slope 1 against rtol), and, as a fifth-order
   method, falls as the fifth power of the number of steps;
+* ``rosenbrock`` (RODAS4, ``rosenbrock.c``): a fourth-order solution with a
+  third-order error estimate, also propagated, so its error too is proportional
+  to the tolerance, and falls as the fourth power of the number of steps;
 * ``timestep`` (``timestep.c``): springs take the trapezoidal rule, and so do
   dampers flagged as such (a spring-damper's), so the oscillator converges at
   second order; a viscous bearing takes implicit Euler, first order.
@@ -48,12 +51,15 @@ RTOLS = (1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
 SECOND_ORDER = (1.5, 2.5)
 FIRST_ORDER = (0.5, 1.5)
 FIFTH_ORDER = (4.5, 6.0)
+FOURTH_ORDER = (3.5, 5.0)
 #: The global error against rtol: control of the error per step with local
 #: extrapolation (the fifth-order solution propagated, the fourth-order one's error
 #: estimated) makes it proportional, exponent 1. Without extrapolation it would be
 #: rtol^(4/5), controlling the error per unit step with it rtol^(6/5): the band lies
 #: half-way to each.
 TOLERANCE_PROPORTIONAL = ((4 / 5 + 1) / 2, (1 + 6 / 5) / 2)
+#: The same for the fourth-order Rosenbrock pair: rtol^(3/4) and rtol^(5/4) either side.
+TOLERANCE_PROPORTIONAL_4 = ((3 / 4 + 1) / 2, (1 + 5 / 4) / 2)
 
 
 def exact(t):
@@ -133,4 +139,25 @@ def test_dopri_error_follows_its_tolerance_at_fifth_order():
     assert TOLERANCE_PROPORTIONAL[0] <= proportional <= TOLERANCE_PROPORTIONAL[1], \
         f"error ~ rtol^{proportional:.3f}: {errors}"
     assert FIFTH_ORDER[0] <= order <= FIFTH_ORDER[1], \
+        f"observed order {order:.3f} (steps {steps}, errors {errors})"
+
+
+def test_rosenbrock_error_follows_its_tolerance_at_fourth_order():
+    """The oscillator is linear, so the Jacobian the Rosenbrock steps use is exact and
+    the method shows its full order."""
+    structure = oscillator("damper")
+    errors, steps = [], []
+    for rtol in RTOLS:
+        options = SimulationOptions(solver="rosenbrock", rtol=rtol, atol=1e-2 * rtol * PHI0,
+                                    output_step=0.01)
+        result = simulate(structure, {}, DURATION, options=options, initial=RELEASED)
+        assert result.solver["name"] == "rosenbrock"
+        errors.append(max_error(result))
+        steps.append(result.solver["steps"])
+        assert errors[-1] <= rtol * PHI0, f"rtol {rtol:g}: error {errors[-1]:.3g}"
+    proportional = slope(RTOLS, errors)
+    order = -slope(steps, errors)
+    assert TOLERANCE_PROPORTIONAL_4[0] <= proportional <= TOLERANCE_PROPORTIONAL_4[1], \
+        f"error ~ rtol^{proportional:.3f}: {errors}"
+    assert FOURTH_ORDER[0] <= order <= FOURTH_ORDER[1], \
         f"observed order {order:.3f} (steps {steps}, errors {errors})"

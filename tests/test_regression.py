@@ -180,6 +180,27 @@ def test_scenario_stays_inside_its_reference_tube(name):
     assert not outside, "\n".join(outside)
 
 
+#: References rerun with the Rosenbrock steps: a bench driven through ramps (corners in
+#: its input) with a stiff, lightly damped torque sensor, and the wrist on DC motors
+#: (armature circuits in the state).
+ROSENBROCK = ("planetary-fixed-sun", "fig-4.15-dc-motors")
+
+
+@pytest.mark.parametrize("name", ROSENBROCK)
+def test_the_rosenbrock_steps_stay_inside_the_reference_tube(name):
+    """Another scheme at the reference's tolerance lies within its own measured error
+    of the exact solution, as the reference does: the same tube holds it, and its
+    ledger closes to its tolerance."""
+    solver = {"method": "rosenbrock"}
+    current = make_references.run(name, solver)
+    current.update(make_references.global_errors(name, current, solver=solver))
+    check_ledger(name, current)
+    reports = tube_reports(name, current)
+    assert reports and all(r.samples > 1 for r in reports)
+    outside = [str(r) for r in reports if not r.inside]
+    assert not outside, "\n".join(outside)
+
+
 def _changed_run(name: str, params):
     """The first case of reference ``name`` with one parameter changed by 1 %, with its
     own global errors."""

@@ -49,7 +49,13 @@ initial = { q = "0.5 cm" }
 """
 
 
-@pytest.mark.parametrize("text", [SMOOTH, STICTION], ids=["dopri", "time-stepper"])
+#: the same with the Rosenbrock steps, which end on the inputs' corners (the start of
+#: the sine's fade-in among them) wherever the blocks fall
+ROSENBROCK = SMOOTH.replace('friction = "arctan"', 'friction = "arctan"\nmethod = "rosenbrock"')
+
+
+@pytest.mark.parametrize("text", [SMOOTH, ROSENBROCK, STICTION],
+                         ids=["dopri", "rosenbrock", "time-stepper"])
 def test_streamed_file_equals_the_run_kept_in_memory(tmp_path, monkeypatch, text):
     """Streamed in small blocks (many of them) against the same run kept in memory in
     one block: every value of every signal equal to the bit, and the CSV made from the

@@ -13,7 +13,7 @@ Solvers (C, see the sources for their derivations):
     adaptive Dormand-Prince 5(4) with dense output (Hairer, Norsett and
     Wanner's DOPRI5), for friction laws that are functions of speed;
 ``rosenbrock``
-    adaptive linearly implicit Rosenbrock 4(3) (Kaps and Rentrop's GRK4T) with
+    adaptive linearly implicit Rosenbrock 4(3) (Hairer and Wanner's RODAS4) with
     the model's analytic Jacobian, for the same laws where their steep slopes
     bound an explicit step (loose tolerances);
 ``timestep``

@@ -12,10 +12,10 @@ Three solvers:
     adaptive Dormand-Prince 5(4), for friction laws that are functions of
     speed (viscous, arctan, sign, slope);
 ``rosenbrock``
-    adaptive linearly implicit Rosenbrock 4(3) with the model's Jacobian, for
-    the same laws: their steep slopes near zero speed bound an explicit step,
-    not this one, which is faster at loose tolerances (below about 1e-5,
-    dopri's higher order wins);
+    adaptive linearly implicit Rosenbrock 4(3) (RODAS4) with the model's
+    Jacobian, for the same laws: their steep slopes near zero speed bound an
+    explicit step, not this one, which is the faster at loose tolerances (about
+    1e-4 and looser; tighter, dopri's higher order wins);
 ``timestep``
     fixed-step, linearly implicit, with exact Coulomb stiction impulses solved
     jointly for every element at each step (`vsj.engine.timestep`); required

@@ -262,7 +262,7 @@ static void layout(vsj_work *w, carver *cv) {
     w->gen = DOUBLES(n);
     w->spcache = DOUBLES(4 * k);
     w->pos0 = DOUBLES(s);
-    w->K = DOUBLES(7 * w->ny_max);
+    w->K = DOUBLES(9 * w->ny_max); /* dopri: 7 rows, rosenbrock: 9 */
     w->yt = DOUBLES(w->ny_max);
     w->y1 = DOUBLES(w->ny_max);
     w->err = DOUBLES(w->ny_max);

@@ -1,16 +1,16 @@
 /* A linearly implicit Rosenbrock 4(3) method with the model's own Jacobian: the
  * scheme for smooth friction laws whose steep slopes make an explicit step short.
  *
- * The coefficients are Kaps and Rentrop's GRK4T (Numer. Math. 33, 1979), in the
- * form of Hairer and Wanner, "Solving Ordinary Differential Equations II",
- * section IV.7: each step factorises I/(gamma h) - J once, solves four linear
- * systems with it and evaluates the model three times (the fourth stage reuses the
- * third's point); the first evaluation of a step is the previous step's end point.
- * J and the time derivative df/dt are analytic (vsj__eval_jacobian: the friction
- * slopes, spring stiffnesses, motors and the sources' accelerations), so a step
- * costs few more evaluations than the explicit scheme's and is not bounded by
- * the friction slopes. Where J is only approximate (a moving pivot) the error
- * control still holds; the steps are shorter.
+ * The coefficients are Hairer and Wanner's RODAS4 ("Solving Ordinary Differential
+ * Equations II", section VI.4): six stages, stiffly accurate and L-stable, so that
+ * fast modes the steps do not resolve (a stiff, lightly damped torque sensor) are
+ * damped rather than carried along. Each step factorises I/(gamma h) - J once and
+ * evaluates the model five times; its first evaluation is the previous step's end
+ * point. J and the time derivative df/dt are analytic (vsj__eval_jacobian: the
+ * friction slopes, spring stiffnesses, motors and the sources' accelerations).
+ * Where J is only approximate (a moving pivot) the error control still holds; the
+ * steps are shorter. As x' = v, the linear systems reduce to the speeds and motor
+ * currents.
  *
  * The energy ledger's accumulators (components n_state .. ny-1) ride along as in
  * dopri, outside the error norm: their rows of the Jacobian (the rates' derivatives
@@ -25,17 +25,33 @@
 
 #include "internal.h"
 
-static const double GAMMA = 0.231;
-static const double A21 = 2.0, A31 = 4.52470820736, A32 = 4.16352878860;
-static const double C21 = -5.07167533877, C31 = 6.02015272865, C32 = 0.159750684673;
-static const double C41 = -1.856343618677, C42 = -8.50538085819, C43 = -2.08407513602;
-static const double B[4] = {3.95750374663, 4.62489238836, 0.617477263873, 1.282612945268};
-static const double E[4] = {-2.30215540292, -3.07363448539, 0.873280801802, 1.282612945268};
-static const double D[4] = {0.231, -0.396296677520e-01, 0.550778939579, -0.553509845700e-01};
-static const double ALPHA2 = 0.462, ALPHA3 = 0.880208333333;
+#define STAGES 6
+static const double GAMMA = 0.25;
+/* stage i evaluates at y + sum_j A[i][j] g_j, time t + CT[i] h */
+static const double A[STAGES][STAGES - 1] = {
+    {0.0, 0.0, 0.0, 0.0, 0.0},
+    {1.544, 0.0, 0.0, 0.0, 0.0},
+    {0.9466785280815826, 0.2557011698983284, 0.0, 0.0, 0.0},
+    {3.314825187068521, 2.896124015972201, 0.9986419139977817, 0.0, 0.0},
+    {1.221224509226641, 6.019134481288629, 12.53708332932087, -0.6878860361058950, 0.0},
+    {1.221224509226641, 6.019134481288629, 12.53708332932087, -0.6878860361058950, 1.0}};
+static const double CT[STAGES] = {0.0, 0.386, 0.21, 0.63, 1.0, 1.0};
+/* stage i's right-hand side adds sum_j C[i][j] g_j / h and h D[i] df/dt */
+static const double C[STAGES][STAGES - 1] = {
+    {0.0, 0.0, 0.0, 0.0, 0.0},
+    {-5.6688, 0.0, 0.0, 0.0, 0.0},
+    {-2.430093356833875, -0.2063599157091915, 0.0, 0.0, 0.0},
+    {-0.1073529058151375, -9.594562251023355, -20.47028614809616, 0.0, 0.0},
+    {7.496443313967647, -10.24680431464352, -33.99990352819905, 11.70890893206160, 0.0},
+    {8.083246795921522, -7.981132988064893, -31.52159432874371, 16.31930543123136,
+     -6.058818238834054}};
+static const double D[STAGES] = {0.25, -0.1043, 0.1035, -0.0362, 0.0, 0.0};
+/* stiffly accurate: the solution is the last stage's point plus its g, whose size
+ * is the error estimate */
 
-/* work rows of K (each ny long) */
-enum { F_NOW = 0, G1 = 1, G2 = 2, G3 = 3, G4 = 4, F_STAGE = 5, F_START = 6 };
+/* work rows of K (each ny long): the derivatives at the step's start, the stages'
+ * g, a stage's derivatives, the derivatives at the start of the last accepted step */
+enum { F_NOW = 0, G1 = 1, F_STAGE = G1 + STAGES, F_START = F_STAGE + 1, K_ROWS = F_START + 1 };
 
 static double dmin(double a, double b) { return a < b ? a : b; }
 static double dmax(double a, double b) { return a > b ? a : b; }
@@ -178,13 +194,12 @@ static void hermite(const vsj_work *w, const dopri_state *d, double theta, int64
 }
 
 int vsj__ros_attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
-    int64_t ny = d->ny, ns = vsj_n_state(m), i, j;
+    int64_t ny = d->ny, ns = vsj_n_state(m), i;
     double *K = w->K, *y = w->y, *yt = w->yt, *y1 = w->y1, *err = w->err;
-    double *g[4], h = d->h, e, fac, gh;
-    const double c2[1] = {C21}, c3[2] = {C31, C32}, c4[3] = {C41, C42, C43};
-    int last = 0, bad, end_status;
-    for (j = 0; j < 4; j++)
-        g[j] = K + ny * (G1 + j);
+    double *g[STAGES], h = d->h, e, fac, gh;
+    int last = 0, bad = 0, end_status, st, j;
+    for (st = 0; st < STAGES; st++)
+        g[st] = K + ny * (G1 + st);
     if (d->t + h >= d->t_end) {
         h = d->t_end - d->t;
         last = 1;
@@ -193,22 +208,29 @@ int vsj__ros_attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
     d->steps++;
     if (!factor(m, w, gh))
         return reject(w, d, 0.5);
-    stage(m, w, ny, K + ny * F_NOW, h, gh, D[0], NULL, NULL, 0, g[0]);
+    for (st = 0; st < STAGES; st++) {
+        const double *f = K + ny * F_NOW;
+        if (st > 0) {
+            for (i = 0; i < ns; i++) {
+                double total = y[i];
+                for (j = 0; j < st; j++)
+                    total += A[st][j] * g[j][i];
+                yt[i] = total;
+            }
+            f = K + ny * F_STAGE;
+            vsj__eval_derivatives(m, w, d->t + CT[st] * h, yt, ny, K + ny * F_STAGE);
+            bad |= failed(w);
+        }
+        stage(m, w, ny, f, h, gh, D[st], C[st], (const double *const *)g, st, g[st]);
+    }
+    for (i = 0; i < ny; i++) {
+        double total = y[i] + g[STAGES - 1][i];
+        for (j = 0; j < STAGES - 1; j++)
+            total += A[STAGES - 1][j] * g[j][i];
+        y1[i] = total;
+    }
     for (i = 0; i < ns; i++)
-        yt[i] = y[i] + A21 * g[0][i];
-    vsj__eval_derivatives(m, w, d->t + ALPHA2 * h, yt, ny, K + ny * F_STAGE);
-    bad = failed(w);
-    stage(m, w, ny, K + ny * F_STAGE, h, gh, D[1], c2, (const double *const *)g, 1, g[1]);
-    for (i = 0; i < ns; i++)
-        yt[i] = y[i] + A31 * g[0][i] + A32 * g[1][i];
-    vsj__eval_derivatives(m, w, d->t + ALPHA3 * h, yt, ny, K + ny * F_STAGE);
-    bad |= failed(w);
-    stage(m, w, ny, K + ny * F_STAGE, h, gh, D[2], c3, (const double *const *)g, 2, g[2]);
-    stage(m, w, ny, K + ny * F_STAGE, h, gh, D[3], c4, (const double *const *)g, 3, g[3]);
-    for (i = 0; i < ny; i++)
-        y1[i] = y[i] + B[0] * g[0][i] + B[1] * g[1][i] + B[2] * g[2][i] + B[3] * g[3][i];
-    for (i = 0; i < ns; i++)
-        err[i] = E[0] * g[0][i] + E[1] * g[1][i] + E[2] * g[2][i] + E[3] * g[3][i];
+        err[i] = g[STAGES - 1][i];
     e = vsj__err_norm(err, y, y1, d->rtol, d->atol, d->n_err);
     if (bad || !isfinite(e))
         return reject(w, d, 0.1);

@@ -1,0 +1,97 @@
+"""The Rosenbrock scheme (engine/c/rosenbrock.c): its linearisation (`vsj_jacobian`,
+engine/c/eval.c) and its steps through an input's corners.
+
+Its accuracy is checked elsewhere: the observed order and the error's proportion to
+the tolerance in test_convergence.py, the reference tubes and energy ledger in
+test_regression.py, streaming in test_streaming.py, the C program in test_c_api.py.
+"""
+
+import numpy as np
+import pytest
+
+from vsj import scenario as scenarios
+from vsj.inputs import Table
+from vsj.simulate import InitialState, SimulationOptions, prepare, simulate
+from vsj.wrist import WristOptions, build_wrist
+
+EPS = np.finfo(float).eps
+#: central differences: steps h and h/2 per component, relative to its size
+STEP = 1e-5
+
+
+def scenario_plan(name, params, duration=2.0):
+    scen = scenarios.load(name)
+    case = scen.cases[0]
+    prep = scenarios.prepare_case(scen, case, params)
+    return prepare(prep.structure, prep.inputs, duration, SimulationOptions(), case.initial)
+
+
+def dc_motor_plan(params):
+    structure = build_wrist(params, WristOptions(motors="dc", pivot_drive="fixed",
+                                                       fixed_q=-0.01)).assemble()
+    inputs = {"voltage_1": Table((0.0, 0.5, 2.0), (0.0, 4.0, -2.0)),
+              "voltage_2": Table((0.0, 0.5, 2.0), (0.0, -3.0, 5.0))}
+    return prepare(structure, inputs, 2.0, SimulationOptions(), InitialState(q=-0.01))
+
+
+PLANS = {"fig-4.15": lambda p: scenario_plan("fig-4.15", p),
+         "planetary-fixed-sun": lambda p: scenario_plan("planetary-fixed-sun", p),
+         "dc motors": dc_motor_plan}
+
+
+def central(fun, x, h):
+    return (fun(x + h) - fun(x - h)) / (2.0 * h)
+
+
+@pytest.mark.parametrize("name", list(PLANS))
+def test_the_jacobian_is_the_derivative_of_the_dynamics(name, params):
+    """J and df/dt against central differences of the derivatives, at a state off
+    equilibrium and a time between the inputs' knots. The differences' own error is
+    measured, not assumed: the gap between steps h and h/2 (truncation, falling as h^2)
+    plus the round-off of a difference, 2 eps |f| / h."""
+    plan = PLANS[name](params)
+    engine = plan.engine()
+    ns = engine.n_state
+    rng = np.random.default_rng(7)
+    y = np.asarray(plan.y0[:ns], dtype=float) + rng.normal(scale=0.05, size=ns)
+    t = 0.3123  # in every input's first ramp, between knots (the curvature may jump at one)
+    status, jac, ft = engine.jacobian(t, y)
+    assert status == 0
+    f0 = engine.derivatives(t, y)[1]
+    assert np.abs(jac).max() > 0 and np.abs(ft).max() > 0  # something to compare
+    for j in range(ns + 1):
+        size = max(1.0, abs(y[j])) if j < ns else max(1.0, t)
+
+        def f(s, j=j):
+            if j == ns:
+                return engine.derivatives(s, y)[1]
+            moved = y.copy()
+            moved[j] = s
+            return engine.derivatives(t, moved)[1]
+
+        at = y[j] if j < ns else t
+        coarse, fine = central(f, at, STEP * size), central(f, at, STEP * size / 2)
+        allowed = np.abs(coarse - fine) + 2 * EPS * np.abs(f0).max() / (STEP * size / 2)
+        got = jac[:, j] if j < ns else ft
+        assert np.all(np.abs(got - fine) <= 2 * allowed), (j, got, fine, allowed)
+
+
+def test_the_steps_follow_a_table_input_through_its_corners(params):
+    """A table's corners are kinks of the input (its slope jumps): the steps see them
+    through their error estimate and shorten there. The run agrees with a dopri run at
+    1e-11 to within its tolerance of each signal's range (its global error is
+    proportional to rtol, test_convergence.py), and its ledger closes to rtol."""
+    net = build_wrist(params, WristOptions(pivot_drive="fixed", fixed_q=-0.01)).assemble()
+    corners = (0.0, 0.31, 0.77, 1.5, 4.0, 4.05, 6.0)
+    inputs = {"motor_1": Table(corners, (0.0, 2.0, -1.0, -1.0, -1.0, 3.0, 3.0)),
+              "motor_2": Table(corners, (0.0, -1.0, 1.5, 1.5, 1.5, -2.0, -2.0))}
+    runs = {solver: simulate(net, inputs, 6.0, initial=InitialState(q=-0.01), ports=False,
+                             options=SimulationOptions(solver=solver, rtol=rtol,
+                                                       atol=1e-3 * rtol, output_step=0.01))
+            for solver, rtol in (("dopri", 1e-11), ("rosenbrock", 1e-6))}
+    assert all(r.success for r in runs.values())
+    ref, run = runs["dopri"], runs["rosenbrock"]
+    assert run.solver["name"] == "rosenbrock"
+    for signal in ("theta_x", "theta_x.speed", "theta_y", "theta_y.speed"):
+        assert np.max(np.abs(run[signal] - ref[signal])) <= 1e-6 * np.ptp(ref[signal]), signal
+    assert run.ledger["relative_residual"] <= 1e-6
