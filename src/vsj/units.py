@@ -214,6 +214,10 @@ def _convert(value: float, unit_text: str, unit: str) -> float:
 
         if isinstance(exc, pint.errors.DimensionalityError):
             raise _NotConvertible(f"{_unit(unit_text):~}") from None
+        # pint's parser fails inside on some spellings (a KeyError for a degree sign
+        # raised to the power 0): an unreadable unit too
+        if isinstance(exc, KeyError):
+            raise _Unreadable("pint's unit parser failed on it") from None
         if isinstance(exc, (pint.errors.PintError, ValueError, TypeError, AttributeError)):
             raise _Unreadable(str(exc)) from None
         raise
