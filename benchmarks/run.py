@@ -8,7 +8,11 @@ simulated. Baselines:
   same equations (`wrist_reference.python_rhs`);
 * compiled loop: the same equations written by hand in C, integrated by a
   fixed-step RK4 loop (`wrist_reference.compiled_rk4`, ``wrist_rk4.c``), compiled
-  with the flags of vsj's own extension.
+  with the flags of vsj's own extension;
+* implicit: scipy's BDF on the Python right-hand side, and SUNDIALS CVODES
+  (variable-order BDF, dense Newton, its own difference-quotient Jacobian) on the
+  hand-written C equations (``wrist_cvodes.c``; where Debian's libsundials-dev is
+  installed, else the row says why it is missing).
 
 Each method runs at the loosest setting that keeps the end-effector angle
 within 1e-6 rad of a tight reference, found in this run: tolerances are tried
@@ -202,6 +206,17 @@ def main() -> int:
     else:
         raise RuntimeError(f"scipy BDF: no tolerance down to 1e-9 meets {ACCURACY:g} rad")
 
+    # SUNDIALS CVODES on the compiled equations
+    cvodes_missing = ref.cvodes_available()
+    if cvodes_missing is None:
+        for crtol in tolerances(-2, -9):
+            states, cvodes_evals = ref.compiled_cvodes(consts, crtol, crtol * 1e-2, t_out)
+            err_cvodes = np.max(np.abs(ref.theta_x(states[:, :2], t_out, consts) - theta_ref))
+            if err_cvodes <= ACCURACY:
+                break
+        else:
+            raise RuntimeError(f"CVODES: no tolerance down to 1e-9 meets {ACCURACY:g} rad")
+
     # true stiction
     sopts = SimulationOptions(friction="stiction")
     stick_plan = prepare(structure, inputs, DURATION, sopts, case.initial)
@@ -231,6 +246,8 @@ def main() -> int:
         "rk4": (lambda: ref.compiled_rk4(consts, h_rk4, DURATION, every), 7),
         **{(solver, kind): (s[kind], 7 if kind != "full" else 3)
            for solver, s in schemes.items() for kind in ("core", "ledger", "full")},
+        **({"cvodes": (lambda: ref.compiled_cvodes(consts, crtol, crtol * 1e-2, t_out), 7)}
+           if cvodes_missing is None else {}),
         1e-3: (lambda: stick_run(1e-3), 5),
         2e-3: (lambda: stick_run(2e-3), 5),
     }
@@ -244,6 +261,9 @@ def main() -> int:
     rows.append(("scipy LSODA, Python RHS", f"rtol {srtol:g}", err_scipy, t_scipy))
     rows.append((f"scipy BDF, Python RHS ({bdf_evals} evaluations)", f"rtol {brtol:g}",
                  err_bdf, best["bdf"]))
+    if cvodes_missing is None:
+        rows.append((f"SUNDIALS CVODES BDF, C RHS ({cvodes_evals} evaluations)",
+                     f"rtol {crtol:g}", err_cvodes, best["cvodes"]))
     rows.append(("compiled RK4 loop (hand-written)", f"h {h_rk4 * 1e3:g} ms", err_rk4, t_rk4))
     for solver, s in schemes.items():
         setting = f"rtol {s['rtol']:g}"
@@ -256,9 +276,11 @@ def main() -> int:
     stick_rows = [(f"vsj true stiction, step {h * 1e3:g} ms", f"{flips} transitions", err,
                    best[h]) for h, (flips, err) in stick_errors.items()]
 
-    print(f"{'method':<45} {'setting':<18} {'error [rad]':>12} {'time [ms]':>10}")
+    if cvodes_missing is not None:
+        print(cvodes_missing)
+    print(f"{'method':<50} {'setting':<18} {'error [rad]':>12} {'time [ms]':>10}")
     for name, setting, err, t in rows + stick_rows:
-        print(f"{name:<45} {setting:<18} {err:12.2e} {t * 1e3:10.2f}")
+        print(f"{name:<50} {setting:<18} {err:12.2e} {t * 1e3:10.2f}")
     print("  (stiction errors against the same solver at 0.1 ms)")
 
     # batches: a sweep over the pivot position on both cores, the two kinds alternating
@@ -297,6 +319,8 @@ def main() -> int:
         ("vsj time / hand-written C loop time", t_vsj / t_rk4, "<= 0.5"),
         ("vsj dopri time / vsj rosenbrock time", best[("dopri", "core")]
          / best[("rosenbrock", "core")], "info"),
+        *([("CVODES (compiled C RHS) time / vsj time", best["cvodes"] / t_vsj, "info")]
+          if cvodes_missing is None else []),
         ("true stiction time / smooth time", stick_rows[0][3] / t_vsj, "<= 1.5"),
         ("first vsj simulate fig-4.15 [s]", cold["vsj simulate fig-4.15"], "<= 0.5"),
         ("warm vsj simulate fig-4.15 [s]", cold["vsj simulate fig-4.15, again"], "<= 0.5"),

@@ -10,9 +10,11 @@ elimination:
     differential input   psi' = w_C / ratio
     end-effector         theta' = J psi',  J = [[1, 1], [1, -1]] / 2
 
-Two integrators use them: `python_rhs` (a plain Python right-hand side, the
-way one would write it for scipy's `solve_ivp`) and `compiled_rk4` (the same
-equations by hand in C, ``wrist_rk4.c``, with a fixed-step Runge-Kutta loop).
+Three integrators use them: `python_rhs` (a plain Python right-hand side, the
+way one would write it for scipy's `solve_ivp`), `compiled_rk4` (the same
+equations by hand in C, ``wrist_equations.h``, with a fixed-step Runge-Kutta loop,
+``wrist_rk4.c``) and `compiled_cvodes` (SUNDIALS CVODES's BDF on the same C
+equations, ``wrist_cvodes.c``, where libsundials-dev is installed).
 """
 
 from __future__ import annotations
@@ -111,35 +113,64 @@ def python_rhs(c):
     return rhs
 
 
-_LIBRARY = None
+_LIBRARIES: dict = {}
 
 
-def _library():
-    """wrist_rk4.c, compiled once per process with the flags of Python's own extensions."""
-    global _LIBRARY
-    if _LIBRARY is None:
-        out = Path(tempfile.mkdtemp(prefix="vsj-bench-")) / "wrist_rk4.so"
+def _library(name: str, libraries=()):
+    """benchmarks/``name``.c, compiled once per process with the flags of Python's own
+    extensions (and linked with ``libraries``)."""
+    if name not in _LIBRARIES:
+        out = Path(tempfile.mkdtemp(prefix="vsj-bench-")) / f"{name}.so"
         flags = (sysconfig.get_config_var("CFLAGS") or "-O3").split()
         cc = (sysconfig.get_config_var("CC") or "cc").split()[0]
         subprocess.run([cc, *flags, "-shared", "-fPIC", "-o", str(out),
-                        str(Path(__file__).with_name("wrist_rk4.c")), "-lm"], check=True)
-        _LIBRARY = ctypes.CDLL(str(out))
-        _LIBRARY.rk4.restype = ctypes.c_long
-        _LIBRARY.rk4.argtypes = [ctypes.POINTER(ctypes.c_double), ctypes.c_double,
-                                 ctypes.c_double, ctypes.c_long,
-                                 ctypes.POINTER(ctypes.c_double)]
-    return _LIBRARY
+                        str(Path(__file__).with_name(f"{name}.c")),
+                        *[f"-l{lib}" for lib in libraries], "-lm"],
+                       check=True, capture_output=True)
+        _LIBRARIES[name] = ctypes.CDLL(str(out))
+    return _LIBRARIES[name]
+
+
+_DOUBLES = ctypes.POINTER(ctypes.c_double)
 
 
 def compiled_rk4(c, h, t_end, every):
     """Classical RK4 in C with fixed step ``h``; the states every ``every`` steps."""
-    lib = _library()
+    lib = _library("wrist_rk4")
+    lib.rk4.restype = ctypes.c_long
+    lib.rk4.argtypes = [_DOUBLES, ctypes.c_double, ctypes.c_double, ctypes.c_long, _DOUBLES]
     steps = int(round(t_end / h))
     out = np.empty((steps // every + 1, 4))
     c = np.ascontiguousarray(c, dtype=float)
-    pointer = ctypes.POINTER(ctypes.c_double)
-    lib.rk4(c.ctypes.data_as(pointer), h, t_end, every, out.ctypes.data_as(pointer))
+    lib.rk4(c.ctypes.data_as(_DOUBLES), h, t_end, every, out.ctypes.data_as(_DOUBLES))
     return out
+
+
+def cvodes_available() -> str | None:
+    """None if SUNDIALS CVODES can be built against here, else why not."""
+    try:
+        _library("wrist_cvodes", ("sundials_cvodes", "sundials_nvecserial"))
+    except subprocess.CalledProcessError as exc:
+        return ("CVODES not available (Debian: apt-get install libsundials-dev): "
+                + exc.stderr.decode(errors="replace").strip().splitlines()[0])
+    return None
+
+
+def compiled_cvodes(c, rtol: float, atol: float, t_out: np.ndarray):
+    """SUNDIALS CVODES (BDF, dense Newton, its difference-quotient Jacobian) on the
+    same equations in C: ``(states at t_out, right-hand side evaluations)``."""
+    lib = _library("wrist_cvodes", ("sundials_cvodes", "sundials_nvecserial"))
+    lib.cvodes_bdf.restype = ctypes.c_long
+    lib.cvodes_bdf.argtypes = [_DOUBLES, ctypes.c_double, ctypes.c_double, _DOUBLES,
+                               ctypes.c_long, _DOUBLES]
+    c = np.ascontiguousarray(c, dtype=float)
+    t_out = np.ascontiguousarray(t_out, dtype=float)
+    out = np.empty((len(t_out), 4))
+    evals = lib.cvodes_bdf(c.ctypes.data_as(_DOUBLES), rtol, atol, t_out.ctypes.data_as(_DOUBLES),
+                           len(t_out), out.ctypes.data_as(_DOUBLES))
+    if evals < 0:
+        raise RuntimeError(f"CVODES failed at rtol {rtol:g}")
+    return out, int(evals)
 
 
 def sun_angles(t, c):
