@@ -107,7 +107,7 @@ static double memo_atan(atan_memo *c, double x) {
         if (c->x[i] == x)
             return c->value[i];
     i = c->used < 4 ? c->used++ : c->next;
-    c->next = (i + 1) % 4;
+    c->next = (i + 1) & 3;
     c->x[i] = x;
     c->value[i] = atan(x);
     return c->value[i];
