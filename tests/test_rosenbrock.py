@@ -43,10 +43,13 @@ def central(fun, x, h):
     return (fun(x + h) - fun(x - h)) / (2.0 * h)
 
 
+@pytest.mark.parametrize("ledger", [False, True], ids=["state", "with the ledger"])
 @pytest.mark.parametrize("name", list(PLANS))
-def test_the_jacobian_is_the_derivative_of_the_dynamics(name, params):
+def test_the_jacobian_is_the_derivative_of_the_dynamics(name, ledger, params):
     """J and df/dt against central differences of the derivatives, at a state off
-    equilibrium and a time between the inputs' knots. The differences' own error is
+    equilibrium and a time between the inputs' knots; with the ledger, the rows of
+    every energy accumulator's rate too (the sources' work through the accelerations,
+    the friction, spring, load and motor powers). The differences' own error is
     measured, not assumed: the gap between steps h and h/2 (truncation, falling as h^2)
     plus the round-off of a difference, 2 eps |f| / h."""
     plan = PLANS[name](params)
@@ -54,8 +57,10 @@ def test_the_jacobian_is_the_derivative_of_the_dynamics(name, params):
     ns = engine.n_state
     rng = np.random.default_rng(7)
     y = np.asarray(plan.y0[:ns], dtype=float) + rng.normal(scale=0.05, size=ns)
+    if ledger:
+        y = np.concatenate([y, np.zeros(len(plan.y0) - ns)])
     t = 0.3123  # in every input's first ramp, between knots (the curvature may jump at one)
-    status, jac, ft = engine.jacobian(t, y)
+    status, jac, ft = engine.jacobian(t, y, ledger=ledger)
     assert status == 0
     f0 = engine.derivatives(t, y)[1]
     assert np.abs(jac).max() > 0 and np.abs(ft).max() > 0  # something to compare

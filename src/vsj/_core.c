@@ -849,27 +849,34 @@ static PyObject *py_derivatives(PyObject *mod, PyObject *args) {
     return PyLong_FromLong(status);
 }
 
-/* jacobian(model, work, t, y, J, ft) -> status (vsj_jacobian) */
+/* jacobian(model, work, t, y, J, ft) -> status (vsj_jacobian); y the state, or the state
+ * and the accumulators (J then has their rows too) */
 static PyObject *py_jacobian(PyObject *mod, PyObject *args) {
     ModelObject *model;
     WorkObject *work;
     PyObject *oy, *oj, *oft;
     double t;
     arg y, J, ft;
-    Py_ssize_t ns;
+    Py_ssize_t ns, ny;
     int status;
     (void)mod;
     if (!PyArg_ParseTuple(args, "O!O!dOOO:jacobian", &ModelType, &model, &WorkType, &work, &t,
                           &oy, &oj, &oft))
         return NULL;
     ns = (Py_ssize_t)vsj_n_state(&model->m);
-    if (finite_scalar(t, "t") < 0 || get(oy, &y, DOUBLES, 0, ns, "y") < 0)
+    if (finite_scalar(t, "t") < 0 || get(oy, &y, DOUBLES, 0, -1, "y") < 0)
         return NULL;
-    if (get(oj, &J, DOUBLES, 1, ns * ns, "J") < 0) {
+    ny = items(&y);
+    if (ny != ns && ny != ns + (Py_ssize_t)vsj_n_acc(&model->m)) {
+        PyErr_SetString(PyExc_ValueError, "y: expected the state, or the state and accumulators");
         release(&y);
         return NULL;
     }
-    if (get(oft, &ft, DOUBLES, 1, ns, "ft") < 0) {
+    if (get(oj, &J, DOUBLES, 1, ny * ns, "J") < 0) {
+        release(&y);
+        return NULL;
+    }
+    if (get(oft, &ft, DOUBLES, 1, ny, "ft") < 0) {
         release(&y);
         release(&J);
         return NULL;
@@ -880,7 +887,7 @@ static PyObject *py_jacobian(PyObject *mod, PyObject *args) {
         release(&ft);
         return NULL;
     }
-    status = vsj_jacobian(&model->m, work->w, t, (const double *)y.view.buf,
+    status = vsj_jacobian(&model->m, work->w, t, (const double *)y.view.buf, (int64_t)ny,
                           (double *)J.view.buf, (double *)ft.view.buf);
     give_back(work);
     release(&y);

@@ -101,13 +101,17 @@ class Engine:
         dy = np.empty_like(y)
         return _core.derivatives(self.c, self.work, t, y, dy), dy
 
-    def jacobian(self, t: float, y: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
-        """``(status, J, ft)``: the Jacobian of the state's derivatives at ``(t, y)``
-        (``y`` the state; ``J[i, j] = d(dy_i/dt)/dy_j``) and their partial derivative in
-        time, as the ``rosenbrock`` scheme linearises (exact for a fixed pivot)."""
-        y = np.ascontiguousarray(y[:self.n_state], dtype=float)
-        jac = np.empty((self.n_state, self.n_state))
-        ft = np.empty(self.n_state)
+    def jacobian(self, t: float, y: np.ndarray, *, ledger: bool = False
+                 ) -> tuple[int, np.ndarray, np.ndarray]:
+        """``(status, J, ft)``: the Jacobian of the derivatives at ``(t, y)`` in the state
+        (``J[i, j] = d(dy_i/dt)/dy_j`` over the state's components j) and their partial
+        derivative in time, as the ``rosenbrock`` scheme linearises (exact for a fixed
+        pivot). With ``ledger``, ``y`` carries the energy accumulators after the state
+        and ``J`` and ``ft`` their rates' rows too."""
+        ny = len(y) if ledger else self.n_state
+        y = np.ascontiguousarray(y[:ny], dtype=float)
+        jac = np.empty((ny, self.n_state))
+        ft = np.empty(ny)
         return _core.jacobian(self.c, self.work, t, y, jac, ft), jac, ft
 
 

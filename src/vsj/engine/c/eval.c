@@ -237,13 +237,24 @@ int vsj_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y, 
     return w->status;
 }
 
-int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, double *J,
-                 double *ft) {
-    if (!vsj__fits(m, w) || !y || !J || !ft)
+int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, int64_t ny,
+                 double *J, double *ft) {
+    int64_t ns = vsj_n_state(m), na = vsj_n_acc(m), i, c;
+    double *rows;
+    if (!vsj__fits(m, w) || !y || !J || !ft || (ny != ns && ny != ns + na))
         return VSJ_BAD_ARGUMENT;
     w->status = VSJ_OK;
-    vsj__eval_derivatives(m, w, t, y, vsj_n_state(m), w->dy);
+    vsj__eval_derivatives(m, w, t, y, ny, w->dy);
     vsj__eval_jacobian(m, w, y, J, ft);
+    if (ny > ns) {
+        rows = w->jacc;
+        vsj__eval_ledger_rows(m, w, y, J, ft, rows);
+        for (i = 0; i < na; i++) {
+            for (c = 0; c < ns; c++)
+                J[ns * (ns + i) + c] = rows[(ns + 1) * i + c];
+            ft[ns + i] = rows[(ns + 1) * i + ns];
+        }
+    }
     return w->status;
 }
 
@@ -422,4 +433,110 @@ void vsj__eval_jacobian(const vsj_model *m, vsj_work *w, const double *y, double
         ft[row] = (w->chan[3 * m->code[base_m + mo] + 1]
                    - pr[2] * vsj__udot(m, base_m + mo, w->srcw, UD)) / pr[1];
     }
+}
+
+/* ---- the ledger's rows of the Jacobian ------------------------------------------ */
+
+/* row[col + X_r] += scale X_r */
+static void add_x(const vsj_model *m, int64_t r, double *row, int64_t col, double scale) {
+    int64_t a;
+    for (a = m->xp[r]; a < m->xp[r + 1]; a++)
+        row[col + m->xc[a]] += scale * m->xv[a];
+}
+
+/* The derivatives of the sources' forces (srcw[:, SRCF]) in the state and in time,
+ * into dF (s x (ns + 1)): every element's torque through its source columns. */
+static void source_force_derivatives(const vsj_model *m, const vsj_work *w, double *dF) {
+    int64_t n = m->n, s = m->n_sources, f = m->n_frictions, k = m->n_springs;
+    int64_t nl = m->n_loads, ns = 2 * n + m->n_motors, cols = ns + 1, e, kk, ld, mo, c;
+    memset(dF, 0, (size_t)(s * cols) * sizeof(double));
+    for (kk = 0; kk < k; kk++) { /* + tau, tau = -stiff d */
+        int64_t r = f + kk;
+        double stiff = w->spw[SPW * kk + STIFF];
+        for (c = m->up[r]; c < m->up[r + 1]; c++) {
+            double *row = dF + cols * m->uc[c];
+            add_x(m, r, row, 0, -stiff * m->uv[c]);
+            row[ns] -= stiff * vsj__udot(m, r, w->srcw, U) * m->uv[c];
+        }
+    }
+    for (e = 0; e < f; e++) { /* - tau, tau = f(slip) */
+        const double *p = vsj__row(m, e);
+        double slip = w->frw[FRW * e + SLIP], slope;
+        if (m->up[e + 1] == m->up[e])
+            continue;
+        slope = vsj__friction_slope(
+            m->code[e], p[0], vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1],
+            p[2], p[3], slip);
+        for (c = m->up[e]; c < m->up[e + 1]; c++) {
+            double *row = dF + cols * m->uc[c];
+            add_x(m, e, row, n, -slope * m->uv[c]);
+            row[ns] -= slope * vsj__udot(m, e, w->srcw, UD) * m->uv[c];
+        }
+    }
+    for (ld = 0; ld < nl; ld++) { /* + a torque input */
+        int64_t r = f + k + ld;
+        for (c = m->up[r]; c < m->up[r + 1]; c++)
+            dF[cols * m->uc[c] + ns] += w->chan[3 * m->code[r] + 1] * m->uv[c];
+    }
+    for (mo = 0; mo < m->n_motors; mo++) { /* + torque constant times current */
+        int64_t r = f + k + nl + mo;
+        for (c = m->up[r]; c < m->up[r + 1]; c++)
+            dF[cols * m->uc[c] + 2 * n + mo] += vsj__row(m, r)[2] * m->uv[c];
+    }
+}
+
+void vsj__eval_ledger_rows(const vsj_model *m, vsj_work *w, const double *y, const double *J,
+                           const double *ft, double *rows) {
+    int64_t n = m->n, s = m->n_sources, f = m->n_frictions, k = m->n_springs;
+    int64_t nl = m->n_loads, nm = m->n_motors, ns = 2 * n + nm, cols = ns + 1, sz = n + s;
+    int64_t base_m = f + k + nl, j, i, c, r, e, kk, ld, mo;
+    double *row = rows, *dF = w->jsrc;
+    memset(rows, 0, (size_t)(vsj_n_acc(m) * cols) * sizeof(double));
+    for (j = 0; j < s; j++, row += cols) { /* u tau_source, tau = -F + M a + M ud */
+        const double *mrow = m->mass + sz * (n + j);
+        double u = w->srcw[SRCW * j + U];
+        if (j == 0)
+            source_force_derivatives(m, w, dF);
+        for (c = 0; c < cols; c++) {
+            double total = -dF[cols * j + c];
+            for (i = 0; i < n; i++)
+                total += mrow[i] * (c < ns ? J[ns * (n + i) + c] : ft[n + i]);
+            row[c] = u * total;
+        }
+        for (r = 0; r < s; r++)
+            row[ns] += u * mrow[n + r] * w->chan_dd[m->src_ch[r]];
+        row[ns] += w->srcw[SRCW * j + UD] * w->srcw[SRCW * j + SRCTAU];
+    }
+    for (ld = 0; ld < nl; ld++, row += cols) { /* tau omega */
+        int64_t rr = f + k + ld;
+        double tau = w->ldw[2 * ld];
+        add_x(m, rr, row, n, tau);
+        row[ns] = w->chan[3 * m->code[rr] + 1] * w->ldw[2 * ld + 1]
+                  + tau * vsj__udot(m, rr, w->srcw, UD);
+    }
+    for (mo = 0; mo < nm; mo++, row += cols) { /* V i */
+        row[2 * n + mo] = w->mow[2 * mo + 1];
+        row[ns] = w->chan[3 * m->code[base_m + mo] + 1] * y[2 * n + mo];
+    }
+    for (e = 0; e < f; e++, row += cols) { /* tau slip */
+        const double *p = vsj__row(m, e);
+        double slip = w->frw[FRW * e + SLIP], slope, dp;
+        slope = vsj__friction_slope(
+            m->code[e], p[0], vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1],
+            p[2], p[3], slip);
+        dp = slope * slip + w->frw[FRW * e + TORQUE];
+        add_x(m, e, row, n, dp);
+        row[ns] = dp * vsj__udot(m, e, w->srcw, UD);
+    }
+    for (mo = 0; mo < nm; mo++, row += cols) /* R i^2 */
+        row[2 * n + mo] = 2.0 * vsj__row(m, base_m + mo)[0] * y[2 * n + mo];
+    for (kk = 0; kk < k; kk++, row += cols) { /* tau rate */
+        int64_t rr = f + kk;
+        const double *sp = w->spw + SPW * kk;
+        add_x(m, rr, row, 0, -sp[STIFF] * sp[RATE]);
+        add_x(m, rr, row, n, sp[SPTAU]);
+        row[ns] = -sp[STIFF] * vsj__udot(m, rr, w->srcw, U) * sp[RATE]
+                  + sp[SPTAU] * vsj__udot(m, rr, w->srcw, UD);
+    }
+    /* the pivot's work (dV/dq q') and the end stops' rows stay zero */
 }

@@ -105,9 +105,9 @@ struct vsj_work {
     dopri_state dopri;
     /* Rosenbrock scratch (ns = vsj_n_state): the Jacobian J and the factor of
      * I/(gamma h) - J (ns x ns), its pivots, df/dt (ns), the generalised forces'
-     * derivatives (n x (ns + 1)), and the ledger's rates' derivatives in the state
-     * and in time ((ny_max - ns) x (ns + 1)) */
-    double *jac, *lu, *ft, *jg, *jacc;
+     * derivatives (n x (ns + 1)), the ledger's rates' derivatives in the state and in
+     * time ((ny_max - ns) x (ns + 1)) and the sources' forces' (s x (ns + 1)) */
+    double *jac, *lu, *ft, *jg, *jacc, *jsrc;
     int64_t *piv;
     /* the run vsj_begin started (run.c) */
     vsj_scheme scheme;
@@ -139,6 +139,13 @@ VSJ_INTERNAL void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double 
  * motion and the speed dependence of friction tables are left out. */
 VSJ_INTERNAL void vsj__eval_jacobian(const vsj_model *m, vsj_work *w, const double *y,
                                      double *J, double *ft);
+
+/* The ledger's rows of the Jacobian: each accumulator's rate differentiated in the
+ * state and (the last column) in time, vsj_n_acc rows of ns + 1, into rows; from the
+ * full-length vsj__eval_derivatives at (t, y) just before and the state's J and ft
+ * (vsj__eval_jacobian). The pivot's work is left out, as its motion is in J. */
+VSJ_INTERNAL void vsj__eval_ledger_rows(const vsj_model *m, vsj_work *w, const double *y,
+                                        const double *J, const double *ft, double *rows);
 
 /* The 64-bit FNV-1a hash of `len` bytes: the checksum of the model files (blob.c,
  * load.c) and of the FMU's serialized states. */

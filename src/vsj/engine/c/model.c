@@ -280,6 +280,7 @@ static void layout(vsj_work *w, carver *cv) {
     w->ft = DOUBLES(ns);
     w->jg = DOUBLES(n * (ns + 1));
     w->jacc = DOUBLES((w->ny_max - ns) * (ns + 1));
+    w->jsrc = DOUBLES(s * (ns + 1));
     w->piv = INTS(ns);
     t->H = DOUBLES(n * n);
     t->H_last = DOUBLES(n * n);

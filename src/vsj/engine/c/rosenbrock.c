@@ -13,9 +13,9 @@
  * currents.
  *
  * The energy ledger's accumulators (components n_state .. ny-1) ride along as in
- * dopri, outside the error norm: their rows of the Jacobian (the rates' derivatives
- * in the state and in time) are taken by forward differences, once per step, so
- * that they are integrated at the order of the state. Between steps every
+ * dopri, outside the error norm, with their own rows of the Jacobian (the rates'
+ * derivatives in the state and in time, vsj__eval_ledger_rows), so that they are
+ * integrated at the order of the state. Between steps every
  * component is the cubic Hermite interpolant of the step's ends and their
  * derivatives. The resumable run shares the adaptive driver of dopri.c
  * (vsj__dopri_advance) and its state (dopri_state).
@@ -56,30 +56,12 @@ enum { F_NOW = 0, G1 = 1, F_STAGE = G1 + STAGES, F_START = F_STAGE + 1, K_ROWS =
 static double dmin(double a, double b) { return a < b ? a : b; }
 static double dmax(double a, double b) { return a > b ? a : b; }
 
-/* J and df/dt at (t, y), from the evaluation there just made (whose derivatives,
- * ny of them, are f). With the ledger (ny > ns), the accumulators' rows by forward
- * differences, each component moved by sqrt(eps) of its error scale. */
-static void refresh_jacobian(const vsj_model *m, vsj_work *w, const dopri_state *d, double t,
-                             const double *y, const double *f) {
-    int64_t ns = vsj_n_state(m), ny = d->ny, na = ny - ns, i, j;
-    const double root_eps = 1.4901161193847656e-08;
-    double *moved = w->r4, *yt = w->r5;
-    vsj__eval_jacobian(m, w, y, w->jac, w->ft);
-    if (na == 0)
-        return;
-    memcpy(yt, y, (size_t)ny * sizeof(double));
-    for (j = 0; j <= ns; j++) { /* column ns: the time */
-        double delta = j < ns ? root_eps * (fabs(y[j]) + d->atol / d->rtol)
-                              : root_eps * dmax(fabs(t), 1.0);
-        if (j < ns)
-            yt[j] = y[j] + delta;
-        vsj__eval_derivatives(m, w, j < ns ? t : t + delta, yt, ny, moved);
-        for (i = 0; i < na; i++)
-            w->jacc[(ns + 1) * i + j] = (moved[ns + i] - f[ns + i]) / delta;
-        if (j < ns)
-            yt[j] = y[j];
-    }
-    w->status = VSJ_OK; /* the moved points' limits are not the run's */
+/* J and df/dt at (t, y), from the evaluation there just made; with the ledger
+ * (ny > ns, a full-length evaluation) the accumulators' rows too. */
+static void refresh_jacobian(const vsj_model *m, vsj_work *w, const dopri_state *d) {
+    vsj__eval_jacobian(m, w, w->y, w->jac, w->ft);
+    if (d->ny > vsj_n_state(m))
+        vsj__eval_ledger_rows(m, w, w->y, w->jac, w->ft, w->jacc);
 }
 
 int vsj__ros_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t ny, double t0,
@@ -110,7 +92,7 @@ int vsj__ros_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t ny
     d->status = w->status;
     if (d->status != VSJ_OK || !(t_end > t0))
         return d->status;
-    refresh_jacobian(m, w, d, t0, w->y, K + ny * F_NOW);
+    refresh_jacobian(m, w, d);
     d->h = vsj__initial_step(m, w, w->y, K + ny * F_NOW, ns, t0, t_end, 4.0, K + ny * F_STAGE);
     w->status = VSJ_OK;
     return d->status;
@@ -249,7 +231,7 @@ int vsj__ros_attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
     d->t_prev = d->t;
     d->h_prev = h;
     d->t = last ? d->t_end : d->t + h;
-    refresh_jacobian(m, w, d, d->t, y, K + ny * F_NOW);
+    refresh_jacobian(m, w, d);
     if (end_status != VSJ_OK) { /* a physical limit was crossed at the new point */
         d->status = end_status;
         return -1;

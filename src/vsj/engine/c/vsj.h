@@ -163,13 +163,16 @@ void vsj_spring_extensions(const double par[VSJ_NPAR], double phi, double q, dou
  * status (VSJ_PIVOT_RANGE if the pivot is outside its range, VSJ_NOT_FINITE). */
 int vsj_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y, int64_t ny,
                     double *dy);
-/* The Jacobian of the state's derivatives at (t, y) (y: the state, vsj_n_state
- * values; J: row-major vsj_n_state x vsj_n_state) and their partial derivative in
- * time, ft (vsj_n_state values): the Rosenbrock scheme's linearisation. Exact for
- * a fixed pivot; the pivot mechanism's motion and the speed dependence of friction
- * tables are left out. Returns the status of the evaluation at (t, y). */
-int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, double *J,
-                 double *ft);
+/* The Jacobian of the derivatives at (t, y) in the state (y: ny values, the state,
+ * vsj_n_state of them, or the state and the ledger's accumulators; J: row-major
+ * ny x vsj_n_state, as the accumulators' rates do not depend on the accumulators)
+ * and their partial derivative in time, ft (ny values): the Rosenbrock scheme's
+ * linearisation. Exact for a fixed pivot and friction levels that are constants;
+ * the pivot mechanism's motion, the speed dependence of friction tables and the
+ * time dependence of normal-force inputs are left out. Returns the status of the
+ * evaluation at (t, y). */
+int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, int64_t ny,
+                 double *J, double *ft);
 
 /* Source angles and speeds at each of n_out times: arrays of n_out * n_sources. */
 void vsj_source_signals(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_out,
