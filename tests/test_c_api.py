@@ -37,7 +37,7 @@ def same_engine(stepper, periods: int, size: np.ndarray, span: np.ndarray) -> np
     of size ``size`` and range ``span``. Two builds round differently; then dopri's
     step control may accept other steps, and each run is only as good as its
     tolerance, restarted every period: periods x 2 (rtol |y| + atol) (so is
-    rosenbrock's, whose forward-difference rows of the ledger play no part here). rk4's fixed
+    rosenbrock's). rk4's fixed
     substeps add a few ulps of the state each. The time-stepper with true stiction
     decides each element's impulse to IMPULSE_REL of the slip scale: steps x elements x
     IMPULSE_REL of the range (the regression tubes' model). The printed 17 digits and

@@ -53,13 +53,14 @@ FIRST_ORDER = (0.5, 1.5)
 FIFTH_ORDER = (4.5, 6.0)
 FOURTH_ORDER = (3.5, 5.0)
 #: The global error against rtol: control of the error per step with local
-#: extrapolation (the fifth-order solution propagated, the fourth-order one's error
-#: estimated) makes it proportional, exponent 1. Without extrapolation it would be
-#: rtol^(4/5), controlling the error per unit step with it rtol^(6/5): the band lies
-#: half-way to each.
-TOLERANCE_PROPORTIONAL = ((4 / 5 + 1) / 2, (1 + 6 / 5) / 2)
-#: The same for the fourth-order Rosenbrock pair: rtol^(3/4) and rtol^(5/4) either side.
-TOLERANCE_PROPORTIONAL_4 = ((3 / 4 + 1) / 2, (1 + 5 / 4) / 2)
+#: extrapolation (the fifth-order solution propagated, the fourth-order one's error,
+#: ~h^5, estimated) makes it proportional, exponent 1 (h ~ rtol^(1/5), global error
+#: ~h^5). Without extrapolation it would be rtol^(4/5); controlling the error per unit
+#: step with it (h^4 ~ rtol) rtol^(5/4): the band lies half-way to each.
+TOLERANCE_PROPORTIONAL = ((4 / 5 + 1) / 2, (1 + 5 / 4) / 2)
+#: The same for a fourth-order pair with a third-order estimate (the Rosenbrock
+#: steps): rtol^(3/4) without extrapolation, rtol^(4/3) per unit step (h^3 ~ rtol).
+TOLERANCE_PROPORTIONAL_4 = ((3 / 4 + 1) / 2, (1 + 4 / 3) / 2)
 
 
 def exact(t):

@@ -49,8 +49,8 @@ initial = { q = "0.5 cm" }
 """
 
 
-#: the same with the Rosenbrock steps, which end on the inputs' corners (the start of
-#: the sine's fade-in among them) wherever the blocks fall
+#: the same with the Rosenbrock steps (their Hermite samples between steps, a block's
+#: end anywhere in a step)
 ROSENBROCK = SMOOTH.replace('friction = "arctan"', 'friction = "arctan"\nmethod = "rosenbrock"')
 
 
@@ -64,6 +64,8 @@ def test_streamed_file_equals_the_run_kept_in_memory(tmp_path, monkeypatch, text
     runs = scenarios.run(path)
     whole = [(run.case.label, run.result) for run in runs]
     assert all(r.success for _, r in whole)
+    expected = {SMOOTH: "dopri", ROSENBROCK: "rosenbrock", STICTION: "timestep"}[text]
+    assert all(r.solver["name"] == expected for _, r in whole)
     write_cases(tmp_path / "memory.nc", whole)
     write_trajectory(tmp_path / "memory.csv", whole)
     monkeypatch.setattr(driver, "BLOCK_BYTES", SMALL_BLOCK_BYTES)

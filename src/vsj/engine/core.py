@@ -28,7 +28,7 @@ import os
 import numpy as np
 
 from .. import _core
-from .model import SIZES, EngineModel
+from .model import SIZES, EngineModel, Layout
 
 OK = 0
 NOT_FINITE = 1
@@ -63,6 +63,8 @@ class Engine:
         self.n, self.n_sources, self.n_frictions, self.n_springs = (int(v) for v in d[:4])
         self.n_loads, self.n_motors = int(d[4]), int(d[5])
         self.n_state = 2 * self.n + self.n_motors
+        self.n_acc = Layout(self.n, self.n_sources, self.n_frictions, self.n_springs,
+                            self.n_loads, self.n_motors).n_acc
 
     def observe(self, t_out: np.ndarray, out: np.ndarray, coulomb=None) -> np.ndarray:
         """Every internal signal at the samples (`vsj.engine.observation_layout` names
@@ -105,11 +107,14 @@ class Engine:
                  ) -> tuple[int, np.ndarray, np.ndarray]:
         """``(status, J, ft)``: the Jacobian of the derivatives at ``(t, y)`` in the state
         (``J[i, j] = d(dy_i/dt)/dy_j`` over the state's components j) and their partial
-        derivative in time, as the ``rosenbrock`` scheme linearises (exact for a fixed
-        pivot). With ``ledger``, ``y`` carries the energy accumulators after the state
-        and ``J`` and ``ft`` their rates' rows too."""
-        ny = len(y) if ledger else self.n_state
-        y = np.ascontiguousarray(y[:ny], dtype=float)
+        derivative in time, as the ``rosenbrock`` scheme linearises. With ``ledger``,
+        ``y`` carries the energy accumulators after the state and ``J`` and ``ft`` their
+        rates' rows too. Raises `ValueError` for a ``y`` of another length."""
+        ny = self.n_state + (self.n_acc if ledger else 0)
+        if len(y) != ny:
+            what = "the state and the energy accumulators" if ledger else "the state"
+            raise ValueError(f"jacobian: y has {len(y)} values; expected {ny} ({what})")
+        y = np.ascontiguousarray(y, dtype=float)
         jac = np.empty((ny, self.n_state))
         ft = np.empty(ny)
         return _core.jacobian(self.c, self.work, t, y, jac, ft), jac, ft

@@ -111,6 +111,7 @@ int vsj__dopri_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t 
     d->t = d->t_prev = t0;
     d->t_end = t_end;
     d->err_old = 1e-4;
+    vsj__breaks_reset(m, w);
     memcpy(y, y0, (size_t)ny * sizeof(double));
     memcpy(w->yo, y0, (size_t)ny * sizeof(double));
     w->status = VSJ_OK;
@@ -129,12 +130,8 @@ int vsj__dopri_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t 
 static int attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
     double *K = w->K, *yt = w->yt, *y1 = w->y1, *err = w->err, *y = w->y;
     int64_t ny = d->ny, i, j, st;
-    int last = 0, stage_bad = 0;
-    double h = d->h, e, fac11;
-    if (d->t + h >= d->t_end) {
-        h = d->t_end - d->t;
-        last = 1;
-    }
+    int end, stage_bad = 0;
+    double t_land, h = vsj__step_length(m, w, d, &end, &t_land), e, fac11;
     for (st = 1; st < 7; st++) {
         for (i = 0; i < ny; i++) {
             double total = 0.0;
@@ -148,7 +145,10 @@ static int attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
                 stage_bad = 1;
             w->status = VSJ_OK; /* only the end point's physical limits count */
         }
-        vsj__eval_derivatives(m, w, d->t + C[st] * h, yt, ny, K + ny * st);
+        w->left = end == 2 && C[st] == 1.0; /* a step ending on a corner sees its left */
+        vsj__eval_derivatives(m, w, C[st] == 1.0 ? t_land : d->t + C[st] * h, yt, ny,
+                              K + ny * st);
+        w->left = 0;
     }
     for (i = 0; i < ny; i++) {
         double total = 0.0;
@@ -192,7 +192,11 @@ static int attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
     memcpy(K, K + ny * 6, (size_t)ny * sizeof(double));
     d->t_prev = d->t;
     d->h_prev = h;
-    d->t = last ? d->t_end : d->t + h;
+    d->t = t_land;
+    if (end == 2) { /* the next step starts past the corner: its right limit */
+        vsj__eval_derivatives(m, w, d->t, y, ny, K);
+        w->status = VSJ_OK;
+    }
     {
         double fac = dmax(0.1, dmin(5.0, fac11 / pow(d->err_old, 0.04) / 0.9));
         double h_new = h / fac;
@@ -200,7 +204,8 @@ static int attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
             h_new = dmin(h_new, h);
         d->err_old = dmax(e, 1e-4);
         d->rejected_last = 0;
-        d->h = dmin(h_new, d->h_max);
+        if (end != 2) /* a step cut short by a corner says nothing of the next */
+            d->h = dmin(h_new, d->h_max);
     }
     return 1;
 }

@@ -245,7 +245,7 @@ int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, int
         return VSJ_BAD_ARGUMENT;
     w->status = VSJ_OK;
     vsj__eval_derivatives(m, w, t, y, ny, w->dy);
-    vsj__eval_jacobian(m, w, y, J, ft);
+    vsj__eval_jacobian(m, w, J, ft);
     if (ny > ns) {
         rows = w->jacc;
         vsj__eval_ledger_rows(m, w, y, J, ft, rows);
@@ -362,6 +362,51 @@ static void add_outer(const vsj_model *m, int64_t r, double *jg, int64_t cols, i
             jg[cols * m->xc[a] + col + m->xc[b]] += scale * m->xv[a] * m->xv[b];
 }
 
+/* row[col + X_r] += scale X_r */
+static void add_x(const vsj_model *m, int64_t r, double *row, int64_t col, double scale) {
+    int64_t a;
+    for (a = m->xp[r]; a < m->xp[r + 1]; a++)
+        row[col + m->xc[a]] += scale * m->xv[a];
+}
+
+/* row += scale d(angle)/d(x, t) of the pivot mechanism's angle X_p x + U_p sigma
+ * (the time in column ns) */
+static void add_angle(const vsj_model *m, const vsj_work *w, double *row, int64_t ns,
+                      double scale) {
+    int64_t rp = m->n_rows - 1;
+    if (scale == 0.0)
+        return;
+    add_x(m, rp, row, 0, scale);
+    row[ns] += scale * vsj__udot(m, rp, w->srcw, U);
+}
+
+/* The pivot's motion where the last evaluation was: w->pivot_dq = dq/d(angle) (0 for
+ * a fixed pivot) and, for a moving one, each spring's derivatives of its torque and of
+ * dV/dq by q, and of dV/dq by its deflection, in spw (central differences of the law
+ * alone, four evaluations of it, steps of cbrt(eps) of the scale). */
+static void pivot_motion(const vsj_model *m, vsj_work *w) {
+    const double *pp = vsj__row(m, m->n_rows - 1);
+    const double step = 6.0554544523933395e-06; /* cbrt(eps) */
+    int64_t kk;
+    w->pivot_dq = pp[2] * pp[0] * w->pivot_cos;
+    for (kk = 0; kk < m->n_springs; kk++) {
+        int64_t r = m->n_frictions + kk;
+        double *sp = w->spw + SPW * kk, phi = sp[DEFL], q = w->q, hq, hp, st, en, a, b, ta, tb;
+        sp[DTQ] = sp[DVQQ] = sp[DVQP] = 0.0;
+        if (w->pivot_dq == 0.0)
+            continue;
+        hq = step * vsj__dmax(fabs(q), 1e-3);
+        hp = step * vsj__dmax(fabs(phi), 1e-3);
+        ta = vsj__spring(m->code[r], vsj__row(m, r), phi, q + hq, &st, &en, &a, NULL, 1);
+        tb = vsj__spring(m->code[r], vsj__row(m, r), phi, q - hq, &st, &en, &b, NULL, 1);
+        sp[DTQ] = (ta - tb) / (2.0 * hq);
+        sp[DVQQ] = (a - b) / (2.0 * hq);
+        vsj__spring(m->code[r], vsj__row(m, r), phi + hp, q, &st, &en, &a, NULL, 1);
+        vsj__spring(m->code[r], vsj__row(m, r), phi - hp, q, &st, &en, &b, NULL, 1);
+        sp[DVQP] = (a - b) / (2.0 * hp);
+    }
+}
+
 /* The generalised forces' derivatives in the state (x, v, motor currents) and in
  * time, into jg (n x (ns + 1), the time in the last column). */
 static void force_derivatives(const vsj_model *m, vsj_work *w, double *jg) {
@@ -369,12 +414,14 @@ static void force_derivatives(const vsj_model *m, vsj_work *w, double *jg) {
     int64_t nl = m->n_loads, nm = m->n_motors, ns = 2 * n + nm, cols = ns + 1, sz = n + s;
     int64_t i, j, e, kk, ld, mo;
     memset(jg, 0, (size_t)(n * cols) * sizeof(double));
-    for (kk = 0; kk < k; kk++) { /* torque -stiff d, d = X x + U sigma */
+    for (kk = 0; kk < k; kk++) { /* torque -stiff d, d = X x + U sigma, and its q */
         int64_t r = f + kk;
-        double stiff = w->spw[SPW * kk + STIFF];
+        double stiff = w->spw[SPW * kk + STIFF], dtq = w->spw[SPW * kk + DTQ];
         add_outer(m, r, jg, cols, 0, -stiff);
-        for (i = m->xp[r]; i < m->xp[r + 1]; i++)
+        for (i = m->xp[r]; i < m->xp[r + 1]; i++) {
             jg[cols * m->xc[i] + ns] -= stiff * vsj__udot(m, r, w->srcw, U) * m->xv[i];
+            add_angle(m, w, jg + cols * m->xc[i], ns, m->xv[i] * dtq * w->pivot_dq);
+        }
     }
     for (e = 0; e < f; e++) { /* torque -f(s), s = X v + U u */
         const double *p = vsj__row(m, e);
@@ -403,12 +450,11 @@ static void force_derivatives(const vsj_model *m, vsj_work *w, double *jg) {
             jg[cols * i + ns] -= m->mass[sz * i + n + j] * w->chan_dd[m->src_ch[j]];
 }
 
-void vsj__eval_jacobian(const vsj_model *m, vsj_work *w, const double *y, double *J,
-                        double *ft) {
+void vsj__eval_jacobian(const vsj_model *m, vsj_work *w, double *J, double *ft) {
     int64_t n = m->n, nm = m->n_motors, ns = 2 * n + nm, cols = ns + 1, i, r, c, mo;
     int64_t base_m = m->n_frictions + m->n_springs + m->n_loads;
     double *jg = w->jg;
-    (void)y;
+    pivot_motion(m, w);
     force_derivatives(m, w, jg);
     memset(J, 0, (size_t)(ns * ns) * sizeof(double));
     for (i = 0; i < n; i++) {
@@ -437,26 +483,20 @@ void vsj__eval_jacobian(const vsj_model *m, vsj_work *w, const double *y, double
 
 /* ---- the ledger's rows of the Jacobian ------------------------------------------ */
 
-/* row[col + X_r] += scale X_r */
-static void add_x(const vsj_model *m, int64_t r, double *row, int64_t col, double scale) {
-    int64_t a;
-    for (a = m->xp[r]; a < m->xp[r + 1]; a++)
-        row[col + m->xc[a]] += scale * m->xv[a];
-}
-
 /* The derivatives of the sources' forces (srcw[:, SRCF]) in the state and in time,
  * into dF (s x (ns + 1)): every element's torque through its source columns. */
 static void source_force_derivatives(const vsj_model *m, const vsj_work *w, double *dF) {
     int64_t n = m->n, s = m->n_sources, f = m->n_frictions, k = m->n_springs;
     int64_t nl = m->n_loads, ns = 2 * n + m->n_motors, cols = ns + 1, e, kk, ld, mo, c;
     memset(dF, 0, (size_t)(s * cols) * sizeof(double));
-    for (kk = 0; kk < k; kk++) { /* + tau, tau = -stiff d */
+    for (kk = 0; kk < k; kk++) { /* + tau, tau = -stiff d, and its q */
         int64_t r = f + kk;
-        double stiff = w->spw[SPW * kk + STIFF];
+        double stiff = w->spw[SPW * kk + STIFF], dtq = w->spw[SPW * kk + DTQ];
         for (c = m->up[r]; c < m->up[r + 1]; c++) {
             double *row = dF + cols * m->uc[c];
             add_x(m, r, row, 0, -stiff * m->uv[c]);
             row[ns] -= stiff * vsj__udot(m, r, w->srcw, U) * m->uv[c];
+            add_angle(m, w, row, ns, m->uv[c] * dtq * w->pivot_dq);
         }
     }
     for (e = 0; e < f; e++) { /* - tau, tau = f(slip) */
@@ -482,6 +522,28 @@ static void source_force_derivatives(const vsj_model *m, const vsj_work *w, doub
         int64_t r = f + k + nl + mo;
         for (c = m->up[r]; c < m->up[r + 1]; c++)
             dF[cols * m->uc[c] + 2 * n + mo] += vsj__row(m, r)[2] * m->uv[c];
+    }
+}
+
+/* The rows of the pivot's work on the springs, dV/dq q', q' = dq/da (X_p v + U_p u)
+ * with dq/da = A cos(angle) for a moving pivot (all zero for a fixed one). */
+static void pivot_work_rows(const vsj_model *m, const vsj_work *w, const double *y,
+                            double *row) {
+    int64_t n = m->n, ns = 2 * n + m->n_motors, cols = ns + 1, rp = m->n_rows - 1, kk;
+    const double *pp = vsj__row(m, rp);
+    double rate, curvature;
+    if (w->pivot_dq == 0.0)
+        return;
+    rate = vsj__xdot(m, rp, y + n) + vsj__udot(m, rp, w->srcw, U); /* the angle's speed */
+    curvature = -pp[2] * pp[0] * sin(w->pivot_key[0]); /* d(dq/da)/da */
+    for (kk = 0; kk < m->n_springs; kk++, row += cols) {
+        int64_t r = m->n_frictions + kk;
+        const double *sp = w->spw + SPW * kk;
+        add_x(m, r, row, 0, sp[DVQP] * w->qdot);
+        row[ns] += sp[DVQP] * vsj__udot(m, r, w->srcw, U) * w->qdot;
+        add_angle(m, w, row, ns, sp[DVQQ] * w->pivot_dq * w->qdot + sp[DVDQ] * curvature * rate);
+        add_x(m, rp, row, n, sp[DVDQ] * w->pivot_dq);
+        row[ns] += sp[DVDQ] * w->pivot_dq * vsj__udot(m, rp, w->srcw, UD);
     }
 }
 
@@ -537,6 +599,8 @@ void vsj__eval_ledger_rows(const vsj_model *m, vsj_work *w, const double *y, con
         add_x(m, rr, row, n, sp[SPTAU]);
         row[ns] = -sp[STIFF] * vsj__udot(m, rr, w->srcw, U) * sp[RATE]
                   + sp[SPTAU] * vsj__udot(m, rr, w->srcw, UD);
+        add_angle(m, w, row, ns, sp[RATE] * sp[DTQ] * w->pivot_dq);
     }
-    /* the pivot's work (dV/dq q') and the end stops' rows stay zero */
+    pivot_work_rows(m, w, y, row);
+    /* the end stops' rows stay zero */
 }

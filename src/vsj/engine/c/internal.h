@@ -9,7 +9,9 @@
 /* columns of the work arrays */
 enum { U = 0, UD = 1, SG = 2, SRCF = 3, SRCTAU = 4, SRCW = 5 };        /* srcw, per source */
 enum { SLIP = 0, TORQUE = 1, EXTRA = 2, FRW = 3 };                     /* frw, per friction */
-enum { DEFL = 0, RATE = 1, SPTAU = 2, STIFF = 3, ENERGY = 4, DVDQ = 5, SPW = 6 }; /* spw */
+/* spw, per spring; DTQ, DVQQ, DVQP: d tau/dq, d(dV/dq)/dq, d(dV/dq)/dphi (the Jacobian's) */
+enum { DEFL = 0, RATE = 1, SPTAU = 2, STIFF = 3, ENERGY = 4, DVDQ = 5, DTQ = 6, DVQQ = 7, DVQP = 8,
+       SPW = 9 };
 
 /* Scratch of the time-stepper (timestep.c); sized for the model at vsj_work_new. */
 typedef struct ts_work {
@@ -85,6 +87,9 @@ struct vsj_work {
     int64_t *hint;         /* nch: last spline piece used */
     double *chan;          /* nch x 3: value, derivative, integral */
     double *chan_dd;       /* nch: second derivative (the Rosenbrock steps' time terms) */
+    double *brk;           /* nch: each channel's next corner after the run's time */
+    int left;              /* evaluate the inputs' left limits at a knot (a step's end
+                            * on a corner) */
     double *srcw;          /* s x SRCW */
     double *frw;           /* f x FRW */
     double *spw;           /* k x SPW */
@@ -92,6 +97,7 @@ struct vsj_work {
     double *mow;           /* nm x 2: rotor speed, voltage */
     double *gen;           /* n: generalised force */
     double q, qdot;        /* pivot position and rate */
+    double pivot_dq;       /* dq/d(pivot angle) where the Jacobian was last taken */
     double pivot_key[4];   /* angle and pivot parameters of the cached q and cos(angle) */
     double pivot_q, pivot_cos;
     double *spcache;       /* k x 4: each spring law's cache (vsj__spring) */
@@ -134,18 +140,28 @@ VSJ_INTERNAL void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double 
 
 /* The Jacobian of the state's derivatives (the first ns = vsj_n_state components
  * of y; row-major ns x ns in J) and their partial derivative in time (ft), at the
- * point (t, y) of the vsj__eval_derivatives call just before (it reads that call's
- * element speeds, stiffnesses and inputs). Exact for a fixed pivot; the pivot's
- * motion and the speed dependence of friction tables are left out. */
-VSJ_INTERNAL void vsj__eval_jacobian(const vsj_model *m, vsj_work *w, const double *y,
-                                     double *J, double *ft);
+ * point (t, y) of the vsj__eval_derivatives call just before: it reads that call's
+ * element speeds, stiffnesses, pivot and inputs, so it must follow it. The speed
+ * dependence of friction tables and the time dependence of normal-force inputs are
+ * left out. */
+VSJ_INTERNAL void vsj__eval_jacobian(const vsj_model *m, vsj_work *w, double *J, double *ft);
 
 /* The ledger's rows of the Jacobian: each accumulator's rate differentiated in the
  * state and (the last column) in time, vsj_n_acc rows of ns + 1, into rows; from the
  * full-length vsj__eval_derivatives at (t, y) just before and the state's J and ft
- * (vsj__eval_jacobian). The pivot's work is left out, as its motion is in J. */
+ * (vsj__eval_jacobian, which must come between). */
 VSJ_INTERNAL void vsj__eval_ledger_rows(const vsj_model *m, vsj_work *w, const double *y,
                                         const double *J, const double *ft, double *rows);
+
+/* The inputs' corners (breaks.c): the first time after t at which a channel's spline
+ * jumps in value or slope, INFINITY if none (remembered per channel in w->brk, which
+ * vsj__breaks_reset clears when a run begins); and the next step of an adaptive run,
+ * its proposal d->h cut to end on the run's end (*end = 1) or on the next corner
+ * (*end = 2), landing exactly at *t_land. */
+VSJ_INTERNAL double vsj__next_break(const vsj_model *m, vsj_work *w, double t);
+VSJ_INTERNAL void vsj__breaks_reset(const vsj_model *m, vsj_work *w);
+VSJ_INTERNAL double vsj__step_length(const vsj_model *m, vsj_work *w,
+                                     const struct dopri_state *d, int *end, double *t_land);
 
 /* The 64-bit FNV-1a hash of `len` bytes: the checksum of the model files (blob.c,
  * load.c) and of the FMU's serialized states. */
@@ -371,7 +387,7 @@ static inline void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c,
     npieces = m->count[c];
     koff = p0 + c;
     t0 = m->knots[koff];
-    if (t < t0) {
+    if (t < t0 || (w->left && t == t0)) {
         double v = m->coef[4 * p0];
         ch[0] = v;
         ch[1] = 0.0;
@@ -380,16 +396,17 @@ static inline void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c,
     }
     t_last = m->knots[koff + npieces];
     base = 0.0;
-    if (t >= t_last && m->period[2 * c] > 0.0) {
+    if (m->period[2 * c] > 0.0 && (t > t_last || (t == t_last && !w->left))) {
         /* a repeating channel: fold t into its last period, add the whole periods'
-         * integral */
-        double period = m->period[2 * c], turns = floor((t - t_last) / period) + 1.0;
+         * integral (a left limit at a period's end stays in the period before) */
+        double period = m->period[2 * c];
+        double turns = w->left ? ceil((t - t_last) / period) : floor((t - t_last) / period) + 1.0;
         t -= turns * period;
         if (t < t_last - period) /* round-off at a period's end */
             t = t_last - period;
         base = turns * m->period[2 * c + 1];
     }
-    if (t >= t_last) {
+    if (t > t_last || (t == t_last && !w->left)) {
         const double *cf;
         double v;
         p = p0 + npieces - 1;
@@ -407,6 +424,8 @@ static inline void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c,
     while (m->knots[koff + j + 1] <= t)
         j++;
     while (m->knots[koff + j] > t)
+        j--;
+    if (w->left && j > 0 && m->knots[koff + j] == t) /* the piece that ends here */
         j--;
     w->hint[c] = j;
     tau = t - m->knots[koff + j];

@@ -254,6 +254,7 @@ static void layout(vsj_work *w, carver *cv) {
     w->hint = INTS(nch);
     w->chan = DOUBLES(3 * nch);
     w->chan_dd = DOUBLES(nch);
+    w->brk = DOUBLES(nch);
     w->srcw = DOUBLES(SRCW * s);
     w->frw = DOUBLES(FRW * f);
     w->spw = DOUBLES(SPW * k);
@@ -262,7 +263,7 @@ static void layout(vsj_work *w, carver *cv) {
     w->gen = DOUBLES(n);
     w->spcache = DOUBLES(4 * k);
     w->pos0 = DOUBLES(s);
-    w->K = DOUBLES(9 * w->ny_max); /* dopri: 7 rows, rosenbrock: 9 */
+    w->K = DOUBLES(10 * w->ny_max); /* dopri: 7 rows, rosenbrock: 10 (K_ROWS) */
     w->yt = DOUBLES(w->ny_max);
     w->y1 = DOUBLES(w->ny_max);
     w->err = DOUBLES(w->ny_max);

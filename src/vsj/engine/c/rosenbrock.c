@@ -4,12 +4,13 @@
  * The coefficients are Hairer and Wanner's RODAS4 ("Solving Ordinary Differential
  * Equations II", section VI.4): six stages, stiffly accurate and L-stable, so that
  * fast modes the steps do not resolve (a stiff, lightly damped torque sensor) are
- * damped rather than carried along. Each step factorises I/(gamma h) - J once and
- * evaluates the model five times; its first evaluation is the previous step's end
- * point. J and the time derivative df/dt are analytic (vsj__eval_jacobian: the
- * friction slopes, spring stiffnesses, motors and the sources' accelerations).
- * Where J is only approximate (a moving pivot) the error control still holds; the
- * steps are shorter. As x' = v, the linear systems reduce to the speeds and motor
+ * damped rather than carried along. Each step factorises I/(gamma h) - J once,
+ * evaluates the model at five stages (its first stage takes the previous step's end
+ * point) and, accepted, once more at its end point. J and the time derivative df/dt are analytic (vsj__eval_jacobian: the
+ * friction slopes, spring stiffnesses, the pivot's motion, motors and the
+ * sources' accelerations). Where J is only approximate (a friction table's speed
+ * dependence, a normal-force input's time dependence) the error control still holds;
+ * the steps are shorter. As x' = v, the linear systems reduce to the speeds and motor
  * currents.
  *
  * The energy ledger's accumulators (components n_state .. ny-1) ride along as in
@@ -50,8 +51,10 @@ static const double D[STAGES] = {0.25, -0.1043, 0.1035, -0.0362, 0.0, 0.0};
  * is the error estimate */
 
 /* work rows of K (each ny long): the derivatives at the step's start, the stages'
- * g, a stage's derivatives, the derivatives at the start of the last accepted step */
-enum { F_NOW = 0, G1 = 1, F_STAGE = G1 + STAGES, F_START = F_STAGE + 1, K_ROWS = F_START + 1 };
+ * g, a stage's derivatives, the derivatives at the start and at the end of the last
+ * accepted step (seen from inside it: the inputs' left limits on a corner) */
+enum { F_NOW = 0, G1 = 1, F_STAGE = G1 + STAGES, F_START = F_STAGE + 1, F_END = F_START + 1,
+       K_ROWS = F_END + 1 };
 
 static double dmin(double a, double b) { return a < b ? a : b; }
 static double dmax(double a, double b) { return a > b ? a : b; }
@@ -59,7 +62,7 @@ static double dmax(double a, double b) { return a > b ? a : b; }
 /* J and df/dt at (t, y), from the evaluation there just made; with the ledger
  * (ny > ns, a full-length evaluation) the accumulators' rows too. */
 static void refresh_jacobian(const vsj_model *m, vsj_work *w, const dopri_state *d) {
-    vsj__eval_jacobian(m, w, w->y, w->jac, w->ft);
+    vsj__eval_jacobian(m, w, w->jac, w->ft);
     if (d->ny > vsj_n_state(m))
         vsj__eval_ledger_rows(m, w, w->y, w->jac, w->ft, w->jacc);
 }
@@ -73,7 +76,7 @@ int vsj__ros_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t ny
     memset(d, 0, sizeof *d);
     d->status = VSJ_BAD_ARGUMENT;
     d->rosenbrock = 1;
-    if (!vsj__fits(m, w) || ny > w->ny_max || ny < ns || n_err > ns || n_err < 0
+    if (!vsj__fits(m, w) || (ny != ns && ny != ns + vsj_n_acc(m)) || n_err > ns || n_err < 0
         || vsj__rigid_stop(m) || !(t_end >= t0) || !(rtol > 0.0) || !(atol > 0.0)
         || !(h_max > 0.0) || max_steps < 1)
         return d->status;
@@ -87,6 +90,7 @@ int vsj__ros_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t ny
     d->t_end = t_end;
     memcpy(w->y, y0, (size_t)ny * sizeof(double));
     memcpy(w->yo, y0, (size_t)ny * sizeof(double));
+    vsj__breaks_reset(m, w);
     w->status = VSJ_OK;
     vsj__eval_derivatives(m, w, t0, w->y, ny, K + ny * F_NOW);
     d->status = w->status;
@@ -153,9 +157,9 @@ static int failed(vsj_work *w) {
     return bad;
 }
 
-static int reject(vsj_work *w, dopri_state *d, double factor) {
+static int reject(vsj_work *w, dopri_state *d, double shrink) {
     w->status = VSJ_OK;
-    d->h *= factor;
+    d->h *= shrink;
     d->rejected++;
     d->rejected_last = 1;
     return 0;
@@ -165,7 +169,8 @@ static int reject(vsj_work *w, dopri_state *d, double factor) {
  * `count` components into out. */
 static void hermite(const vsj_work *w, const dopri_state *d, double theta, int64_t count,
                     double *out) {
-    const double *yo = w->yo, *y = w->y, *fo = w->K + d->ny * F_START, *f1 = w->K;
+    const double *yo = w->yo, *y = w->y, *fo = w->K + d->ny * F_START;
+    const double *f1 = w->K + d->ny * F_END;
     double h = d->h_prev, th1 = theta - 1.0;
     int64_t i;
     for (i = 0; i < count; i++) {
@@ -178,14 +183,11 @@ static void hermite(const vsj_work *w, const dopri_state *d, double theta, int64
 int vsj__ros_attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
     int64_t ny = d->ny, ns = vsj_n_state(m), i;
     double *K = w->K, *y = w->y, *yt = w->yt, *y1 = w->y1, *err = w->err;
-    double *g[STAGES], h = d->h, e, fac, gh;
-    int last = 0, bad = 0, end_status, st, j;
+    double *g[STAGES], h, e, fac, gh, t_land;
+    int end, bad = 0, end_status, st, j;
     for (st = 0; st < STAGES; st++)
         g[st] = K + ny * (G1 + st);
-    if (d->t + h >= d->t_end) {
-        h = d->t_end - d->t;
-        last = 1;
-    }
+    h = vsj__step_length(m, w, d, &end, &t_land);
     gh = GAMMA * h;
     d->steps++;
     if (!factor(m, w, gh))
@@ -200,7 +202,10 @@ int vsj__ros_attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
                 yt[i] = total;
             }
             f = K + ny * F_STAGE;
-            vsj__eval_derivatives(m, w, d->t + CT[st] * h, yt, ny, K + ny * F_STAGE);
+            w->left = end == 2 && CT[st] == 1.0; /* a step ending on a corner sees its left */
+            vsj__eval_derivatives(m, w, CT[st] == 1.0 ? t_land : d->t + CT[st] * h, yt, ny,
+                                  K + ny * F_STAGE);
+            w->left = 0;
             bad |= failed(w);
         }
         stage(m, w, ny, f, h, gh, D[st], C[st], (const double *const *)g, st, g[st]);
@@ -220,7 +225,13 @@ int vsj__ros_attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
     if (e > 1.0)
         return reject(w, d, dmin(fac, 0.9));
     /* the end point: the next step's first evaluation (the ledger's rates too) */
-    vsj__eval_derivatives(m, w, d->t + h, y1, ny, K + ny * F_STAGE);
+    if (end == 2) { /* on a corner: the step's own end for its interpolant */
+        w->left = 1;
+        vsj__eval_derivatives(m, w, t_land, y1, ny, K + ny * F_END);
+        w->left = 0;
+        w->status = VSJ_OK;
+    }
+    vsj__eval_derivatives(m, w, t_land, y1, ny, K + ny * F_STAGE);
     end_status = w->status;
     if (end_status == VSJ_NOT_FINITE)
         return reject(w, d, 0.1);
@@ -228,9 +239,11 @@ int vsj__ros_attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
     memcpy(K + ny * F_START, K + ny * F_NOW, (size_t)ny * sizeof(double));
     memcpy(y, y1, (size_t)ny * sizeof(double));
     memcpy(K + ny * F_NOW, K + ny * F_STAGE, (size_t)ny * sizeof(double));
+    if (end != 2)
+        memcpy(K + ny * F_END, K + ny * F_NOW, (size_t)ny * sizeof(double));
     d->t_prev = d->t;
     d->h_prev = h;
-    d->t = last ? d->t_end : d->t + h;
+    d->t = t_land;
     refresh_jacobian(m, w, d);
     if (end_status != VSJ_OK) { /* a physical limit was crossed at the new point */
         d->status = end_status;
@@ -245,7 +258,8 @@ int vsj__ros_attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
     if (d->rejected_last)
         fac = dmin(fac, 1.0);
     d->rejected_last = 0;
-    d->h = dmin(h * fac, d->h_max);
+    if (end != 2) /* a step cut short by a corner says nothing of the next */
+        d->h = dmin(h * fac, d->h_max);
     return 1;
 }
 

@@ -167,9 +167,8 @@ int vsj_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y, 
  * vsj_n_state of them, or the state and the ledger's accumulators; J: row-major
  * ny x vsj_n_state, as the accumulators' rates do not depend on the accumulators)
  * and their partial derivative in time, ft (ny values): the Rosenbrock scheme's
- * linearisation. Exact for a fixed pivot and friction levels that are constants;
- * the pivot mechanism's motion, the speed dependence of friction tables and the
- * time dependence of normal-force inputs are left out. Returns the status of the
+ * linearisation. Exact where friction levels are constants: the speed dependence
+ * of friction tables and the time dependence of normal-force inputs are left out. Returns the status of the
  * evaluation at (t, y). */
 int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, int64_t ny,
                  double *J, double *ft);
