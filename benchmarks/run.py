@@ -54,6 +54,7 @@ from vsj.simulate import (InitialState, SimulationOptions, prepare, simulate,  #
                           simulate_batch)
 
 ACCURACY = 1e-6  # rad, on theta_x
+ATOL = 1e-3  # every tolerance-driven method: atol = ATOL * rtol (rad, rad/s)
 DURATION = 10.0
 SAMPLE = 0.01
 BATCH_REPEAT = 5  # batches of 1000 runs of each kind, best of five
@@ -158,7 +159,7 @@ def main() -> int:
     schemes = {}
     for solver in ("dopri", "rosenbrock"):
         for rtol in tolerances(-2, -7):
-            atol = rtol * 1e-3
+            atol = rtol * ATOL
             run, _ = vsj_core(structure, inputs, case, rtol, atol, False, solver)
             err = np.max(np.abs(theta_x_of(structure, run(), t_out, inputs, case) - theta_ref))
             if err <= ACCURACY:
@@ -187,7 +188,7 @@ def main() -> int:
     rhs = ref.python_rhs(consts)
     for srtol in tolerances(-2, -9):
         sol = solve_ivp(rhs, (0, DURATION), np.zeros(4), method="LSODA", rtol=srtol,
-                        atol=srtol * 1e-2, t_eval=t_out)
+                        atol=srtol * ATOL, t_eval=t_out)
         err_scipy = np.max(np.abs(ref.theta_x(sol.y[:2].T, t_out, consts) - theta_ref))
         if err_scipy <= ACCURACY:
             break
@@ -198,7 +199,7 @@ def main() -> int:
     # CVODES), which steps over the stiff friction slopes that bound an explicit step
     for brtol in tolerances(-2, -9):
         sol = solve_ivp(rhs, (0, DURATION), np.zeros(4), method="BDF", rtol=brtol,
-                        atol=brtol * 1e-2, t_eval=t_out)
+                        atol=brtol * ATOL, t_eval=t_out)
         err_bdf = np.max(np.abs(ref.theta_x(sol.y[:2].T, t_out, consts) - theta_ref))
         if err_bdf <= ACCURACY:
             bdf_evals = sol.nfev
@@ -210,7 +211,7 @@ def main() -> int:
     cvodes_missing = ref.cvodes_available()
     if cvodes_missing is None:
         for crtol in tolerances(-2, -9):
-            states, cvodes_evals = ref.compiled_cvodes(consts, crtol, crtol * 1e-2, t_out)
+            states, cvodes_evals = ref.compiled_cvodes(consts, crtol, crtol * ATOL, t_out)
             err_cvodes = np.max(np.abs(ref.theta_x(states[:, :2], t_out, consts) - theta_ref))
             if err_cvodes <= ACCURACY:
                 break
@@ -240,13 +241,13 @@ def main() -> int:
     # a ratio of two times taken in different moments would carry that drift
     timed = {
         "scipy": (lambda: solve_ivp(rhs, (0, DURATION), np.zeros(4), method="LSODA",
-                                    rtol=srtol, atol=srtol * 1e-2, t_eval=t_out), 1),
+                                    rtol=srtol, atol=srtol * ATOL, t_eval=t_out), 1),
         "bdf": (lambda: solve_ivp(rhs, (0, DURATION), np.zeros(4), method="BDF",
-                                  rtol=brtol, atol=brtol * 1e-2, t_eval=t_out), 1),
+                                  rtol=brtol, atol=brtol * ATOL, t_eval=t_out), 1),
         "rk4": (lambda: ref.compiled_rk4(consts, h_rk4, DURATION, every), 7),
         **{(solver, kind): (s[kind], 7 if kind != "full" else 3)
            for solver, s in schemes.items() for kind in ("core", "ledger", "full")},
-        **({"cvodes": (lambda: ref.compiled_cvodes(consts, crtol, crtol * 1e-2, t_out), 7)}
+        **({"cvodes": (lambda: ref.compiled_cvodes(consts, crtol, crtol * ATOL, t_out), 7)}
            if cvodes_missing is None else {}),
         1e-3: (lambda: stick_run(1e-3), 5),
         "stiction core": (lambda: stick_run(1e-3, ledger=False), 5),
@@ -291,7 +292,7 @@ def main() -> int:
     initials = [InitialState(q=q) for q in qs]
     s = schemes[fastest]
     kinds = {f"smooth ({fastest})": SimulationOptions(solver=fastest, rtol=s["rtol"],
-                                                     atol=1e-3 * s["rtol"],
+                                                     atol=ATOL * s["rtol"],
                                                      output_step=SAMPLE),
              "true stiction": SimulationOptions(friction="stiction", output_step=SAMPLE)}
     wall = dict.fromkeys(kinds, math.inf)

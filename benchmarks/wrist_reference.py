@@ -151,8 +151,11 @@ def cvodes_available() -> str | None:
     try:
         _library("wrist_cvodes", ("sundials_cvodes", "sundials_nvecserial"))
     except subprocess.CalledProcessError as exc:
+        lines = exc.stderr.decode(errors="replace").strip().splitlines()
         return ("CVODES not available (Debian: apt-get install libsundials-dev): "
-                + exc.stderr.decode(errors="replace").strip().splitlines()[0])
+                + (lines[0] if lines else f"the compiler exited with {exc.returncode}"))
+    except OSError as exc:  # built, but the library does not load
+        return f"CVODES not available: {exc}"
     return None
 
 

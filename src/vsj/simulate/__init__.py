@@ -13,9 +13,10 @@ Three solvers:
     speed (viscous, arctan, sign, slope);
 ``rosenbrock``
     adaptive linearly implicit Rosenbrock 4(3) (RODAS4) with the model's
-    Jacobian, for the same laws: their steep slopes near zero speed bound an
-    explicit step, not this one, which is the faster at loose tolerances (about
-    1e-4 and looser; tighter, dopri's higher order wins);
+    Jacobian, for the same laws: stiff parts (the friction laws' steep slopes
+    near zero speed, DC motors' armature circuits) bound an explicit step, not
+    this one. On fig 4.15 it is the faster at tolerances of about 1e-4 and
+    looser (tighter, dopri's higher order wins); with DC motors at any;
 ``timestep``
     fixed-step, linearly implicit, with exact Coulomb stiction impulses solved
     jointly for every element at each step (`vsj.engine.timestep`); required
