@@ -469,8 +469,9 @@ const char *fmu__not_a_wrist(fmu *f) {
     if (f->model.n_springs != 2 || !find_pivot(f))
         return "the model file is not a wrist (two springs and one pivot drive)";
     f->scheme = f->loaded->scheme;
-    if (f->scheme.method != VSJ_METHOD_DOPRI && f->scheme.method != VSJ_METHOD_TIMESTEP) {
-        return "the model file's solver must be dopri or the time-stepper";
+    if (f->scheme.method != VSJ_METHOD_DOPRI && f->scheme.method != VSJ_METHOD_ROSENBROCK
+        && f->scheme.method != VSJ_METHOD_TIMESTEP) {
+        return "the model file's solver must be dopri, rosenbrock or the time-stepper";
     }
     return NULL;
 }

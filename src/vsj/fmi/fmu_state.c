@@ -45,7 +45,7 @@ static snapshot *new_snapshot(const fmu *f) {
     st->inputs = (double *)malloc((size_t)(f->ni + 1) * sizeof(double));
     st->values = (double *)malloc((size_t)(f->n_parameters + 1) * sizeof(double));
     st->record = (double *)malloc((size_t)f->at.size * sizeof(double));
-    st->history = (unsigned char *)calloc(f->history_size + 1, 1); /* dopri keeps none: zeros */
+    st->history = (unsigned char *)calloc(f->history_size + 1, 1); /* the adaptive schemes keep none: zeros */
     if (!st->s || !st->inputs || !st->values || !st->record || !st->history) {
         free_snapshot(st);
         return NULL;
