@@ -355,11 +355,14 @@ def test_bad_calls_are_errors_with_a_logged_reason(wrist_fmu, unzipped):
 # -- the same scenario through FMPy and through vsj simulate ---------------------------------
 
 def held_table(names, times, commands):
-    """FMPy's input for commands held from times[k] to times[k + 1]: two rows per change."""
-    rows = []
-    for k in range(len(times) - 1):
-        rows.append((times[k], *commands[k]))
-        rows.append((times[k + 1], *commands[k]))
+    """FMPy's input for commands held from times[k] to times[k + 1], communication points
+    ``times`` a step apart: one row per point. FMPy sets the inputs at the start of each
+    communication step, at the very time of a row (its interpolation weights there are 0
+    and 1: the row's values exactly), and the FMU holds them over the step. (FMPy's mark
+    of a jump, two rows at the same time, would make it scan its list of input events
+    from the start at every step, a cost quadratic in the steps.)"""
+    rows = [(times[k], *commands[k]) for k in range(len(times) - 1)]
+    rows.append((times[-1], *commands[-1]))
     return np.array(rows, dtype=[("time", float)] + [(n, float) for n in names])
 
 
