@@ -34,9 +34,12 @@ figures: $(STAMP)
 	cp build/figures/reproduction/fig-4.15.png docs/fig-4.15.png
 	cp build/figures/msl/msl-friction.png docs/msl-friction.png
 
-# one worker per core, a test file to a worker
+# one worker per core, a test file to a worker, the costliest files first (in the order
+# tests/conftest.py collects them). The workers already fill the cores, so OpenBLAS runs
+# on one thread in each: its threads would only wait on a busy core for the other
+# worker, spinning (CPU time taken from that worker, no wall time gained)
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n auto --dist loadfile
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n auto --dist loadfile --no-loadscope-reorder
 
 # the engine under AddressSanitizer and UndefinedBehaviorSanitizer (also run by make test)
 sanitize: $(STAMP)

@@ -114,6 +114,28 @@ def wrist_fmu_file(tmp_path_factory):
     return built
 
 
+#: The test files that hold most of a session's work (the identification studies, the
+#: sanitizer job, the FMUs, the reproduction, the streamed runs, the README's commands),
+#: costliest first. They are collected first (`pytest_collection_modifyitems`), and
+#: ``make test`` keeps that order when it hands files to its workers (xdist's
+#: --no-loadscope-reorder; by default xdist starts with the files of most tests, which
+#: leaves the long single studies to the end): the session ends on short files, with
+#: every worker busy until then.
+FIRST = ("test_identify_wrist.py", "test_identify_wrist_calibration.py", "test_sanitizers.py",
+         "test_fmu.py", "test_reproduce_honest.py", "test_streaming.py", "test_readme.py")
+
+
+def pytest_collection_modifyitems(config, items):
+    """The files of `FIRST` first, in its order; the others after them, as collected."""
+    here = os.path.dirname(__file__)
+    missing = [name for name in FIRST if not os.path.exists(os.path.join(here, name))]
+    if missing:
+        raise pytest.UsageError(f"conftest.FIRST names test files that do not exist: "
+                                f"{', '.join(missing)}")
+    rank = {name: k for k, name in enumerate(FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(FIRST)))  # stable
+
+
 def override(params, **values):
     """``params`` with ``section__key=value`` overrides (value texts with units)."""
     return params.with_overrides({k.replace("__", "."): v for k, v in values.items()},

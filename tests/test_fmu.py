@@ -355,11 +355,14 @@ def test_bad_calls_are_errors_with_a_logged_reason(wrist_fmu, unzipped):
 # -- the same scenario through FMPy and through vsj simulate ---------------------------------
 
 def held_table(names, times, commands):
-    """FMPy's input for commands held from times[k] to times[k + 1]: two rows per change."""
-    rows = []
-    for k in range(len(times) - 1):
-        rows.append((times[k], *commands[k]))
-        rows.append((times[k + 1], *commands[k]))
+    """FMPy's input for commands held from times[k] to times[k + 1], communication points
+    ``times`` a step apart: one row per point. FMPy sets the inputs at the start of each
+    communication step, at the very time of a row (its interpolation weights there are 0
+    and 1: the row's values exactly), and the FMU holds them over the step. (FMPy's mark
+    of a jump, two rows at the same time, would make it scan its list of input events
+    from the start at every step, a cost quadratic in the steps.)"""
+    rows = [(times[k], *commands[k]) for k in range(len(times) - 1)]
+    rows.append((times[-1], *commands[-1]))
     return np.array(rows, dtype=[("time", float)] + [(n, float) for n in names])
 
 
@@ -566,3 +569,28 @@ def test_win64_dll_exports_every_fmi2_function_and_builds_warning_free(cross_che
     assert exported == declared  # the engine's own functions stay inside
     imported = set(re.findall(r"DLL Name: (\S+)", text))
     assert imported <= {"KERNEL32.dll", "msvcrt.dll"}  # nothing an importer lacks
+
+
+def test_the_binary_is_compiled_once_per_process_for_the_same_files(tmp_path):
+    """`fmu.compile_binary` keeps what it compiled (`fmu._COMPILED`): a second build of this
+    process gets the same bytes, file mode and compiler's words; the key digests every
+    file the binary is compiled from, so an edited source or header is compiled anew."""
+    first, second = tmp_path / "first.so", tmp_path / "second.so"
+    said = fmu.compile_binary("linux64", first)
+    assert fmu.compile_binary("linux64", second) == said
+    assert first.read_bytes() == second.read_bytes()
+    assert first.stat().st_mode == second.stat().st_mode
+    assert [key[0] for key in fmu._COMPILED].count("linux64") == 1  # one compile, kept
+    copies = []
+    for path in fmu._source_paths():
+        copies.append(tmp_path / "sources" / path.name)
+        copies[-1].parent.mkdir(exist_ok=True)
+        shutil.copy(path, copies[-1])
+    digest = fmu._sources_digest(copies)
+    for edited in (next(p for p in copies if p.suffix == ".h"),
+                   next(p for p in copies if p.suffix == ".c")):
+        original = edited.read_bytes()
+        edited.write_bytes(original + b"\n")
+        assert fmu._sources_digest(copies) != digest, edited.name
+        edited.write_bytes(original)
+    assert fmu._sources_digest(copies) == digest

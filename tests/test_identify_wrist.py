@@ -3,11 +3,11 @@ truth (`vsj.synth.wrist`); its standard errors away from the defaults (issue 30)
 checked in ``test_identify_wrist_calibration.py``.
 
 Cost: the logs are 8-10 s (the issue's benchmark uses 60 s), the truth is simulated with the
-fit's own step (0.5 ms with true stiction) so that the time-stepper's discretisation error
-does not masquerade as a bias, and the coverage check runs `SEEDS` seeds here; the
-calibration test uses 3 s logs, three parameters and a 1 ms step for its 30 fits. The full
-study (eight parameters, three sensor settings, 10 seeds each, 20 s logs) is
-``benchmarks/identify_wrist_coverage.py``.
+fit's own step so that the time-stepper's discretisation error does not masquerade as a
+bias, the coverage fits take a 1 ms step (`COVERAGE_STEP`) and the coverage check runs
+`SEEDS` seeds here; the calibration test uses 3 s logs, three parameters and a 1 ms step
+for its 30 fits. The full study (eight parameters, three sensor settings, 10 seeds each,
+20 s logs) is ``benchmarks/identify_wrist_coverage.py``.
 """
 
 import json
@@ -38,6 +38,11 @@ SEEDS = (11, 12, 13)
 Z_LIMIT, COVERAGE, SPREAD_RANGE = 3.0, 0.9, (0.56, 1.5)
 #: Length [s] of the fitted logs: the coverage study's (benchmarks/identify_wrist_coverage.py).
 LOG_DURATION = 10.0
+#: The time-stepper's step [s] in the coverage fits and in their truth, twice the default
+#: (`Setup.step`), as in the calibration test: what the coverage checks (the standard
+#: errors against the estimates' scatter, the delays, the optimum) does not depend on the
+#: step when the truth is simulated at the fit's own, and the fits cost half as much.
+COVERAGE_STEP = 1e-3
 #: "Within a few points": held-out fit % against fitting fit %.
 HELD_OUT_POINTS = 3.0
 
@@ -70,6 +75,11 @@ def experiment(duration=8.0, both_axes=True):
     return WE.Experiment(duration=duration, signals=signals, q=-0.004, step=5e-4)
 
 
+def coverage_experiment():
+    """The experiment of the coverage fits: `LOG_DURATION` s, simulated at `COVERAGE_STEP`."""
+    return replace(experiment(duration=LOG_DURATION), step=COVERAGE_STEP)
+
+
 def log_of(data, name):
     return Measurement(name, {k: v[0] for k, v in data.columns.items()},
                        {k: v[1] for k, v in data.columns.items()}, data.comments)
@@ -80,17 +90,17 @@ def truth_run(truth):
     """The noise-free run of the coverage experiment: every log below is this run with
     its own seed's sensor noise (`synth.wrist` adds the noise after the run, and the run
     does not depend on the seed), so it is simulated once."""
-    return synth.wrist_run(experiment(duration=LOG_DURATION), truth)
+    return synth.wrist_run(coverage_experiment(), truth)
 
 
 @pytest.fixture(scope="module")
 def fits(truth, truth_run):
-    e = experiment(duration=LOG_DURATION)
+    e = coverage_experiment()
     held_out = log_of(synth.wrist(e, truth, seed=99, run=truth_run), "held-out.csv")
     out = []
     for seed in SEEDS:
         log = log_of(synth.wrist(e, truth, seed=seed, run=truth_run), f"seed{seed}.csv")
-        out.append(fit_wrist([log], truth, Setup(free=FREE), starts=1,
+        out.append(fit_wrist([log], truth, Setup(free=FREE, step=COVERAGE_STEP), starts=1,
                              validate=[held_out] if seed == SEEDS[0] else ()))
     return out
 
@@ -127,9 +137,9 @@ def test_held_out_log_fits_as_well_as_the_fitting_log(fits):
 
 
 def test_starting_thirty_percent_off_reaches_the_same_optimum(fits, truth, truth_run):
-    log = log_of(synth.wrist(experiment(duration=LOG_DURATION), truth, seed=SEEDS[0],
-                             run=truth_run), "off.csv")
-    off = fit_wrist([log], truth, Setup(free=FREE), starts=1,
+    log = log_of(synth.wrist(coverage_experiment(), truth, seed=SEEDS[0], run=truth_run),
+                 "off.csv")
+    off = fit_wrist([log], truth, Setup(free=FREE, step=COVERAGE_STEP), starts=1,
                     start={n: truth[n] * (1.3 if i % 2 else 0.7) for i, n in enumerate(FREE)})
     ref = fits[0]
     # 30 % off is tens to hundreds of standard errors away; the same optimum is within one (true
@@ -166,12 +176,12 @@ def test_the_design_beats_a_plain_sine(truth):
     assert d.logdet > d.reference_logdet
     assert np.exp(np.mean(np.log([d.stderr[n] for n in free]))) < \
         np.exp(np.mean(np.log([min(d.reference_stderr[n], 1e300) for n in free])))
-    # achieved: fit both on a synthetic log
+    # achieved: fit both on a synthetic log (the fit at the step of its truth)
     achieved = []
     for e in (d.experiment, d.reference):
         e = replace(e, step=1e-3)
         log = log_of(synth.wrist(e, truth, seed=3), "d.csv")
-        fit = fit_wrist([log], truth, Setup(free=free), starts=1)
+        fit = fit_wrist([log], truth, Setup(free=free, step=e.step), starts=1)
         achieved.append({x.name: x.stderr for x in fit.estimates})
     got, sine = achieved
     assert np.mean(np.log([got[n] for n in free])) < np.mean(np.log([sine[n] for n in free]))

@@ -379,24 +379,50 @@ def compiler(kind: str = "linux64") -> str | None:
     return shutil.which("x86_64-w64-mingw32-gcc")
 
 
+#: The binaries this process compiled: (platform, compiler, flags, digest of the
+#: sources) -> (the binary's bytes, its file mode, what the compiler said). The binary
+#: is the engine and its FMI layer only (the model and its parameters are resources of
+#: the FMU), so a process that builds several FMUs (the cross-check, a script exporting
+#: several parameter sets, the tests) compiles the same sources once.
+_COMPILED: dict[tuple, tuple[bytes, int, str]] = {}
+
+
+def _sources_digest(paths: list[Path]) -> str:
+    """SHA-256 over the names and bytes of ``paths`` (headers included)."""
+    digest = hashlib.sha256()
+    for path in paths:
+        digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()
+
+
 def compile_binary(kind: str, out: Path) -> str:
     """Build the FMU's binary for ``kind`` (linux64 or win64) into ``out``; returns
-    what the compiler said (empty: no warning under -Wall -Wextra)."""
+    what the compiler said (empty: no warning under -Wall -Wextra). The same sources,
+    compiler and flags give the same binary: compiled once per process (`_COMPILED`)."""
     cc = compiler(kind)
     if cc is None:
         raise InputError(f"vsj fmu: no C compiler for {kind}")
-    sources = [str(p) for p in _source_paths() if p.suffix == ".c"]
+    paths = _source_paths()
+    sources = [str(p) for p in paths if p.suffix == ".c"]
     flags = ["-std=c99", "-O2", "-Wall", "-Wextra", "-shared", "-I", str(_engine_dir()),
              "-I", str(_fmi_dir())]
     if kind == "linux64":
         flags += ["-fPIC", "-fvisibility=hidden"]
     else:
         flags += ["-static-libgcc"]
+    key = (kind, shutil.which(cc), tuple(flags), _sources_digest(paths))
+    if key in _COMPILED:
+        binary, mode, said = _COMPILED[key]
+        Path(out).write_bytes(binary)
+        os.chmod(out, mode)
+        return said
     done = subprocess.run([cc, *flags, "-o", str(out), *sources, "-lm"], capture_output=True,
                           text=True, check=False)
     if done.returncode != 0:
         raise InputError(f"vsj fmu: building the {kind} binary failed:\n{done.stderr[-2000:]}")
-    return done.stderr.strip()
+    said = done.stderr.strip()
+    _COMPILED[key] = (Path(out).read_bytes(), os.stat(out).st_mode & 0o7777, said)
+    return said
 
 
 METHODS = ("auto", "timestep", "dopri", "rosenbrock")
