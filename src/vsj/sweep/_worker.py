@@ -5,10 +5,11 @@ already imported (more than a second per process otherwise). Importing this modu
 that effect and no other. A chunk converts no units through pint (the scenario's
 units are among those `vsj.units` defines, and the parameter set arrives resolved), so
 pint's registry is not built here; a rare unit that needs it is converted on demand.
+Nor is scipy.stats: the job arrives with its pass-through parameters found
+(`vsj.sweep.runner.probed`), so a worker draws no probe values.
 """
 
 import scipy.linalg  # noqa: F401  (input splines: vsj.inputs.spline_pieces)
-import scipy.stats  # noqa: F401  (probe values of sampled parameters)
 
 from .. import scenario  # noqa: F401
 from . import runner, sampling  # noqa: F401

@@ -21,8 +21,8 @@ import hashlib
 import math
 import pickle
 import time
-from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -57,6 +57,10 @@ class Job:
     scenario_origin: str
     #: the parameter set as resolved where the sweep starts (``extends`` followed there)
     params: Parameters
+    #: the varied parameters that reach the compiled arrays unchanged, and where
+    #: (`Prepared.passthrough`), found once where the sweep starts (`probed`) so that
+    #: workers do not each compile the probes again; None: each process finds them
+    passthrough: Mapping[str, Slots] | None = field(default=None, compare=False, repr=False)
 
     @cached_property
     def key(self) -> str:
@@ -84,6 +88,25 @@ class ChunkResult:
     def failed(self) -> int:
         """Number of the chunk's runs that did not succeed."""
         return int(np.count_nonzero(self.status != core.OK))
+
+    @classmethod
+    def joined(cls, parts: Sequence[ChunkResult]) -> ChunkResult:
+        """The result of the runs of ``parts`` (results of consecutive runs, in any
+        order) as one: their arrays concatenated, their kernel times summed."""
+        parts = sorted(parts, key=lambda part: part.start)
+        for before, after in zip(parts, parts[1:]):
+            end = before.start + len(before.status)
+            if after.start != end:
+                raise ValueError(f"ChunkResult.joined: the part from run {after.start} does "
+                                 f"not follow the runs {before.start} to {end - 1}")
+        if len(parts) == 1:
+            return parts[0]
+        return cls(parts[0].start, np.concatenate([p.kept for p in parts]),
+                   np.concatenate([p.metrics for p in parts]),
+                   np.concatenate([p.status for p in parts]),
+                   [m for p in parts for m in p.messages],
+                   np.concatenate([p.steps for p in parts]),
+                   sum(p.kernel_time for p in parts))
 
 
 class _Memo:
@@ -128,6 +151,8 @@ class Prepared:
         self.base_model = base
         self.scheme = Scheme.of(self.solver, case.options)
         self._shared: dict[bytes, _Compiled | None] = {}
+        if job.passthrough is not None:
+            self.passthrough = dict(job.passthrough)
         self.u0 = Engine(base).source_speeds(0.0)
         step = case.options.output_step
         n_out = math.floor(self.duration / step + 1e-9) + 1
@@ -337,6 +362,13 @@ def pick_case(scen, spec: SweepSpec):
 
 
 _PREPARED: dict[str, Prepared] = {}
+
+
+def probed(job: Job) -> Job:
+    """``job`` carrying its pass-through parameters (`Prepared.passthrough`), found here
+    once for every worker (they depend on the job only, as the draws do)."""
+    return job if job.passthrough is not None else replace(
+        job, passthrough=prepared(job).passthrough)
 
 
 def prepared(job: Job) -> Prepared:
