@@ -37,7 +37,7 @@ from ..errors import InputError, read_text
 from ..params import Parameters, _relations
 from ..simulate import InitialState, choose_solver
 from ..simulate.signals import Block, catalogue
-from .metrics import Context, Evaluator, Expression
+from .metrics import Context, Evaluator, Expression, sampled
 from .sampling import to_values
 from .spec import Q, SweepSpec, spec_of
 
@@ -111,11 +111,13 @@ class ChunkResult:
 
 class _Memo:
     """An input signal whose spline pieces are made once (they do not depend on the
-    parameters, and making them is most of the cost of compiling a model)."""
+    parameters, and making them is most of the cost of compiling a model), and whose
+    initial angle (a position source's, taken by every run's initial state) too."""
 
     def __init__(self, signal):
         self._signal = signal
         self._pieces = {}
+        self._initial = None
 
     def __getattr__(self, name):
         return getattr(self._signal, name)
@@ -124,6 +126,11 @@ class _Memo:
         if t_end not in self._pieces:
             self._pieces[t_end] = self._signal.pieces(t_end)
         return self._pieces[t_end]
+
+    def initial_angle(self) -> float:
+        if self._initial is None:
+            self._initial = self._signal.initial_angle()
+        return self._initial
 
 
 class Prepared:
@@ -163,6 +170,7 @@ class Prepared:
                              f"multiple of the scenario's output_step ({step:g} s)")
         self.stride = round(ratio)
         self.t_out = np.arange(0, n_out, self.stride) * step
+        self.t_out.flags.writeable = False  # shared by every run and metric
         # the signals of `vsj simulate` (ports aside), less those a batch run of the
         # time-stepper cannot give (the stiction impulses are sampled by single runs only)
         table = catalogue(structure, ports=False)
@@ -482,7 +490,7 @@ def _measure(p: Prepared, run: _Run, states: np.ndarray, transitions: int,
             if name in p.recipes:
                 cache[name] = np.ascontiguousarray(p.recipes[name].values(block))
             else:
-                cache[name] = np.broadcast_to(p.derived[name](context), p.t_out.shape)
+                cache[name] = sampled(p.derived[name](context), p.t_out.shape)
         return cache[name]
 
     context = Context(p.t_out, signal, values, transitions)
