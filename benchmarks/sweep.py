@@ -198,8 +198,11 @@ def main() -> int:
     print(f"workers at which each saturates, {full_chunk}-run chunks: scheduler "
           f"{chunk_work / overhead:.0f}, client {chunk_work / store_cost:.0f}, both "
           f"{chunk_work / (overhead + store_cost):.0f}")
-    print(f"targets: sweep >= 90 % of kernel: {rates['sweep'] / rates['kernel']:.0%}; "
-          f"dask >= 80 %: {rates['dask'] / rates['kernel']:.0%}")
+    # issue 32's acceptance: the 1e5-run Monte Carlo at >= 95 % of the bare kernel's
+    # speed, locally and on a Dask LocalCluster
+    print(f"targets (issue 32, at {FULL_RUNS} runs): sweep >= 95 % of kernel: "
+          f"{rates['sweep'] / rates['kernel']:.0%}; dask >= 95 %: "
+          f"{rates['dask'] / rates['kernel']:.0%}")
     return 0
 
 

@@ -132,6 +132,57 @@ def test_chunk_size_and_worker_processes_do_not_change_the_results(reference, sp
     _same(reference, out)
 
 
+def test_the_last_chunks_run_as_shorter_tasks_whose_parts_join_to_the_chunk(spec_file):
+    from vsj.sweep import runner
+
+    chunk, runs = 63, 1000
+    chunks = [(i, a, np.arange(a, min(runs, a + chunk))) for i, a in
+              enumerate(range(0, runs, chunk))]
+    plan = schedulers.tasks(chunks, 2)
+    # every run once, in order, each task inside its own chunk
+    assert np.array_equal(np.concatenate([v for _, _, v in plan]), np.arange(runs))
+    assert all(v[0] == a and a // chunk == i == v[-1] // chunk for i, a, v in plan)
+    # whole chunks while many runs are left, then ever shorter parts, the last ones
+    # a chunk cut into the most parts allowed
+    sizes = [len(v) for _, _, v in plan]
+    assert sizes[:len(chunks) // 2] == [chunk] * (len(chunks) // 2)
+    longest = [max(len(v) for i, _, v in plan if i == k) for k in range(len(chunks))]
+    assert longest == sorted(longest, reverse=True)
+    assert sizes[-1] <= math.ceil(chunk / schedulers.MAX_PARTS)
+    assert max(sum(i == k for i, _, _ in plan) for k in range(len(chunks))) \
+        == schedulers.MAX_PARTS
+    assert schedulers.tasks(chunks, 1) == chunks  # one worker waits for nobody
+
+    # parts run apart and joined carry the bits of the chunk run whole
+    job = runner.job_for(sweep.load(spec_file))
+    values = sampling.design(sweep.load(spec_file))[0][:4]
+    whole = runner.run_chunk(job, 0, values, threads=1)
+    parts = [runner.run_chunk(job, a, values[a:b], threads=1) for a, b in ((2, 4), (0, 1),
+                                                                          (1, 2))]
+    joined = runner.ChunkResult.joined(parts)
+    assert joined.start == 0 and joined.messages == whole.messages
+    for name in ("kept", "metrics", "status", "steps"):
+        assert getattr(joined, name).tobytes() == getattr(whole, name).tobytes(), name
+    with pytest.raises(ValueError, match="from run 2 does not follow the runs 0 to 0"):
+        runner.ChunkResult.joined([parts[0], parts[1]])
+
+
+def test_workers_take_the_pass_through_parameters_found_where_the_sweep_starts(
+        spec_file, monkeypatch):
+    from vsj.sweep import runner
+
+    job = runner.probed(runner.job_for(sweep.load(spec_file)))
+    assert set(job.passthrough) == {"transmission.stiction"}
+    assert job.key == runner.job_for(sweep.load(spec_file)).key
+
+    def no_probe(self, values):
+        raise AssertionError("a worker compiled a probe")
+
+    monkeypatch.setattr(runner.Prepared, "_probe_arrays", no_probe)
+    fresh = runner.Prepared(job)  # as a worker process makes it
+    assert fresh.passthrough.keys() == job.passthrough.keys()
+
+
 def test_a_local_dask_cluster_gives_the_same_zarr(reference, spec_file, tmp_path):
     pytest.importorskip("dask.distributed")
     out = tmp_path / "out"

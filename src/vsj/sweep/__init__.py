@@ -27,7 +27,7 @@ from ..errors import InputError
 from ..output import OutputError, atomic_write, file_record
 from ..progress import progress
 from . import analysis, schedulers, store
-from .runner import describe, job_for
+from .runner import describe, job_for, probed
 from .sampling import design, sensitivity_problem
 from .spec import SweepSpec, load, loads, run_count, spec_of, with_method, within_pivot_range
 
@@ -171,7 +171,7 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
     storing = 0.0
     bar = None
     # the workers start on their first chunks while this process makes the store
-    running = schedulers.execute(job, todo, scheduler, workers)
+    running = schedulers.execute(probed(job), todo, scheduler, workers)
     try:
         if record is None:
             make(directory.zarr)

@@ -114,10 +114,9 @@ class Expression:
                     self._fail(f"{name} takes 1 argument, got {len(args)}")
                 (arg,) = args
                 if name == "integral":
-                    return (lambda c: _integral(np.broadcast_to(arg(c), c.time.shape),
-                                                c.time)), False
+                    return (lambda c: _integral(sampled(arg(c), c.time.shape), c.time)), False
                 reduce = REDUCTIONS[name]
-                return (lambda c: float(reduce(np.broadcast_to(arg(c), c.time.shape)))), False
+                return (lambda c: float(reduce(sampled(arg(c), c.time.shape)))), False
             self._fail(f"unknown function {name!r}; allowed: "
                        f"{', '.join(sorted([*ELEMENTWISE, *REDUCTIONS, *TIMED]))}")
         self._fail(f"{type(node).__name__} is not allowed; write arithmetic (+ - * / **) of "
@@ -143,6 +142,14 @@ class Expression:
 
     def __call__(self, context: Context):
         return self._fn(context)
+
+
+def sampled(value, shape: tuple) -> np.ndarray:
+    """``value`` (an array or a number) as an array of ``shape``: itself if it is one
+    already (read, never written), else broadcast (a read-only view)."""
+    if isinstance(value, np.ndarray) and value.shape == shape:
+        return value
+    return np.broadcast_to(value, shape)
 
 
 def _integral(values: np.ndarray, time: np.ndarray) -> float:
@@ -221,10 +228,15 @@ class Evaluator:
 
     def _window(self, time: np.ndarray) -> np.ndarray:
         """The samples inside [start, stop] (every run of a sweep has the same times)."""
-        if self._times is None or not np.array_equal(self._times[0], time):
+        seen = None if self._times is None else self._times[0]
+        if seen is None or not (seen is time or np.array_equal(seen, time)):
             start = self.options.get("start", -math.inf)
             stop = self.options.get("stop", math.inf)
-            self._times = (time.copy(), (time >= start - 1e-12) & (time <= stop + 1e-12), None)
+            # an array that cannot change is kept as it is: the next run's is the same
+            # object (`vsj.sweep.runner.Prepared.t_out`), known equal without a comparison
+            fixed = not time.flags.writeable and time.base is None
+            self._times = (time if fixed else time.copy(),
+                           (time >= start - 1e-12) & (time <= stop + 1e-12), None)
         return self._times[1]
 
     def _projection(self, t: np.ndarray) -> np.ndarray:
@@ -251,11 +263,11 @@ class Evaluator:
         t = c.time[window]
         if len(t) == 0:
             return math.nan
-        s = np.broadcast_to(self.expressions["signal"](c), c.time.shape)[window]
+        s = sampled(self.expressions["signal"](c), c.time.shape)[window]
         if kind == "energy_dissipated":
             return -_integral(s, t)
         if kind in ("tracking_rms", "tracking_peak", "lag"):
-            r = np.broadcast_to(self.expressions["reference"](c), c.time.shape)[window]
+            r = sampled(self.expressions["reference"](c), c.time.shape)[window]
             if kind == "lag":
                 return _lag(s, r, self._projection(t))
             s = s - r

@@ -21,8 +21,8 @@ import hashlib
 import math
 import pickle
 import time
-from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -37,7 +37,7 @@ from ..errors import InputError, read_text
 from ..params import Parameters, _relations
 from ..simulate import InitialState, choose_solver
 from ..simulate.signals import Block, catalogue
-from .metrics import Context, Evaluator, Expression
+from .metrics import Context, Evaluator, Expression, sampled
 from .sampling import to_values
 from .spec import Q, SweepSpec, spec_of
 
@@ -57,6 +57,10 @@ class Job:
     scenario_origin: str
     #: the parameter set as resolved where the sweep starts (``extends`` followed there)
     params: Parameters
+    #: the varied parameters that reach the compiled arrays unchanged, and where
+    #: (`Prepared.passthrough`), found once where the sweep starts (`probed`) so that
+    #: workers do not each compile the probes again; None: each process finds them
+    passthrough: Mapping[str, Slots] | None = field(default=None, compare=False, repr=False)
 
     @cached_property
     def key(self) -> str:
@@ -85,14 +89,35 @@ class ChunkResult:
         """Number of the chunk's runs that did not succeed."""
         return int(np.count_nonzero(self.status != core.OK))
 
+    @classmethod
+    def joined(cls, parts: Sequence[ChunkResult]) -> ChunkResult:
+        """The result of the runs of ``parts`` (results of consecutive runs, in any
+        order) as one: their arrays concatenated, their kernel times summed."""
+        parts = sorted(parts, key=lambda part: part.start)
+        for before, after in zip(parts, parts[1:]):
+            end = before.start + len(before.status)
+            if after.start != end:
+                raise ValueError(f"ChunkResult.joined: the part from run {after.start} does "
+                                 f"not follow the runs {before.start} to {end - 1}")
+        if len(parts) == 1:
+            return parts[0]
+        return cls(parts[0].start, np.concatenate([p.kept for p in parts]),
+                   np.concatenate([p.metrics for p in parts]),
+                   np.concatenate([p.status for p in parts]),
+                   [m for p in parts for m in p.messages],
+                   np.concatenate([p.steps for p in parts]),
+                   sum(p.kernel_time for p in parts))
+
 
 class _Memo:
     """An input signal whose spline pieces are made once (they do not depend on the
-    parameters, and making them is most of the cost of compiling a model)."""
+    parameters, and making them is most of the cost of compiling a model), and whose
+    initial angle (a position source's, taken by every run's initial state) too."""
 
     def __init__(self, signal):
         self._signal = signal
         self._pieces = {}
+        self._initial = None
 
     def __getattr__(self, name):
         return getattr(self._signal, name)
@@ -101,6 +126,11 @@ class _Memo:
         if t_end not in self._pieces:
             self._pieces[t_end] = self._signal.pieces(t_end)
         return self._pieces[t_end]
+
+    def initial_angle(self) -> float:
+        if self._initial is None:
+            self._initial = self._signal.initial_angle()
+        return self._initial
 
 
 class Prepared:
@@ -128,6 +158,8 @@ class Prepared:
         self.base_model = base
         self.scheme = Scheme.of(self.solver, case.options)
         self._shared: dict[bytes, _Compiled | None] = {}
+        if job.passthrough is not None:
+            self.passthrough = dict(job.passthrough)
         self.u0 = Engine(base).source_speeds(0.0)
         step = case.options.output_step
         n_out = math.floor(self.duration / step + 1e-9) + 1
@@ -138,6 +170,7 @@ class Prepared:
                              f"multiple of the scenario's output_step ({step:g} s)")
         self.stride = round(ratio)
         self.t_out = np.arange(0, n_out, self.stride) * step
+        self.t_out.flags.writeable = False  # shared by every run and metric
         # the signals of `vsj simulate` (ports aside), less those a batch run of the
         # time-stepper cannot give (the stiction impulses are sampled by single runs only)
         table = catalogue(structure, ports=False)
@@ -339,6 +372,13 @@ def pick_case(scen, spec: SweepSpec):
 _PREPARED: dict[str, Prepared] = {}
 
 
+def probed(job: Job) -> Job:
+    """``job`` carrying its pass-through parameters (`Prepared.passthrough`), found here
+    once for every worker (they depend on the job only, as the draws do)."""
+    return job if job.passthrough is not None else replace(
+        job, passthrough=prepared(job).passthrough)
+
+
 def prepared(job: Job) -> Prepared:
     """The `Prepared` of ``job`` in this process (made once; it holds no run's state)."""
     if job.key not in _PREPARED:
@@ -450,7 +490,7 @@ def _measure(p: Prepared, run: _Run, states: np.ndarray, transitions: int,
             if name in p.recipes:
                 cache[name] = np.ascontiguousarray(p.recipes[name].values(block))
             else:
-                cache[name] = np.broadcast_to(p.derived[name](context), p.t_out.shape)
+                cache[name] = sampled(p.derived[name](context), p.t_out.shape)
         return cache[name]
 
     context = Context(p.t_out, signal, values, transitions)

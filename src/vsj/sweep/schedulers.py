@@ -9,16 +9,24 @@ core; processes keep every core busy with it). ``"local"`` starts a Dask
 ``LocalCluster`` with one single-threaded worker process per core; any other
 text is the address of a running Dask scheduler (``tcp://host:8786``).
 
-`execute` starts the workers and hands them their first chunks at once (so they
+`execute` starts the workers and hands them their first tasks at once (so they
 start up while the caller makes the store), then yields ``(index, ChunkResult)`` as
-chunks finish, keeping at most two chunks per worker in flight, so memory stays
+chunks finish, keeping at most two tasks per worker in flight, so memory stays
 bounded and an interruption loses only those. Close what it returns to stop.
+
+A task is a chunk, or towards the end of a sweep a part of one (`tasks`): handed
+out whole chunks to the last, the workers would not finish together, and all but
+one would wait while it runs its last chunk (half a chunk's time on average, each).
+The parts of a chunk are joined before it is yielded, so the caller sees chunks
+only, and their numbers are those of the chunk run whole (a run depends on its own
+values only, `vsj.sweep.runner`).
 """
 
 from __future__ import annotations
 
+import math
 import multiprocessing
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from ..engine.core import available_cores
@@ -27,6 +35,56 @@ from .runner import ChunkResult, Job, run_chunk
 
 #: Imported once by the fork server the workers are forked from (see the module).
 PRELOAD = ["vsj.sweep._worker"]
+#: Towards the end of a sweep a task holds about the runs left / (GUIDE x workers)
+#: (guided self-scheduling: Polychronopoulos and Kuck, IEEE Trans. Computers 36(12),
+#: 1987, with tasks GUIDE times smaller than theirs): the later the task, the shorter,
+#: so the workers finish within about one short task of each other.
+GUIDE = 4
+#: A chunk is cut into this many parts at most (bounds the tasks' count and so the
+#: scheduler's and the transfers' cost per run).
+MAX_PARTS = 8
+
+
+def tasks(chunks: Sequence[tuple[int, int, object]], workers: int
+          ) -> list[tuple[int, int, object]]:
+    """The tasks ``(chunk index, start, values)`` that run ``chunks`` (index, start,
+    values) on ``workers`` workers, in order: whole chunks while many runs are left,
+    then each chunk cut into equal parts of about the runs left after its start /
+    (`GUIDE` x ``workers``), at most `MAX_PARTS`. A single worker gets the chunks
+    whole (it has nobody to wait for)."""
+    if workers <= 1:
+        return list(chunks)
+    left = sum(len(values) for _, _, values in chunks)
+    out = []
+    for index, start, values in chunks:
+        runs = len(values)
+        target = max(math.ceil(runs / MAX_PARTS), math.ceil(left / (GUIDE * workers)), 1)
+        parts = max(1, min(runs, round(runs / target)))
+        a = 0
+        for k in range(parts):  # the longer parts first
+            b = a + runs // parts + (k < runs % parts)
+            out.append((index, start + a, values[a:b]))
+            a = b
+        left -= runs
+    return out
+
+
+class _Joiner:
+    """Collects the parts of each chunk; `add` returns the chunk once it is whole."""
+
+    def __init__(self, plan: Sequence[tuple[int, int, object]]):
+        self._missing: dict[int, int] = {}
+        for index, _, _ in plan:
+            self._missing[index] = self._missing.get(index, 0) + 1
+        self._parts: dict[int, list[ChunkResult]] = {}
+
+    def add(self, index: int, result: ChunkResult) -> ChunkResult | None:
+        """The whole chunk ``index`` if ``result`` was its last missing part, else None."""
+        self._parts.setdefault(index, []).append(result)
+        self._missing[index] -= 1
+        if self._missing[index]:
+            return None
+        return ChunkResult.joined(self._parts.pop(index))
 
 
 def execute(job: Job, chunks: list[tuple[int, int, object]], scheduler: str | None,
@@ -58,13 +116,16 @@ def _local(job, chunks, workers):
     # this (threaded) process, and no worker importing everything anew
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(PRELOAD)
-    pending = list(reversed(chunks))
+    processes = min(cores, len(chunks))
+    plan = tasks(chunks, processes)
+    joiner = _Joiner(plan)
+    pending = list(reversed(plan))
     running = {}
-    with ProcessPoolExecutor(max_workers=min(cores, len(chunks)), mp_context=context) as pool:
+    with ProcessPoolExecutor(max_workers=processes, mp_context=context) as pool:
         try:
             started = False
             while pending or running:
-                while pending and len(running) < 2 * cores:
+                while pending and len(running) < 2 * processes:
                     index, start, values = pending.pop()
                     running[pool.submit(run_chunk, job, start, values, 1)] = index
                 if not started:
@@ -72,7 +133,10 @@ def _local(job, chunks, workers):
                     yield None
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 for future in done:
-                    yield running.pop(future), future.result()
+                    index = running.pop(future)
+                    whole = joiner.add(index, future.result())
+                    if whole is not None:
+                        yield index, whole
         except BaseException:
             for future in running:
                 future.cancel()
@@ -103,9 +167,12 @@ def _dask(job, chunks, scheduler, workers):
 
     client, cluster = client_for(scheduler, workers)
     try:
-        slots = 2 * max(1, len(client.scheduler_info()["workers"]))
+        count = max(1, len(client.scheduler_info()["workers"]))
+        slots = 2 * count
         shared = client.scatter(job, broadcast=True)
-        pending = list(reversed(chunks))
+        plan = tasks(chunks, count)
+        joiner = _Joiner(plan)
+        pending = list(reversed(plan))
         running = {}
 
         def submit():
@@ -118,10 +185,11 @@ def _dask(job, chunks, scheduler, workers):
         yield None
         for future in queue:
             index = running.pop(future)
-            result = future.result()
+            whole = joiner.add(index, future.result())
             if pending:
                 queue.add(submit())
-            yield index, result
+            if whole is not None:
+                yield index, whole
     finally:
         client.close()
         if cluster is not None:
