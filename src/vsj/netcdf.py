@@ -138,4 +138,5 @@ class ClassicFile:
         count = data.size
         if start + count > int(np.prod(shape, dtype=np.int64)):
             raise ValueError(f"{name}: writing {count} values at {index} overruns {shape}")
-        os.pwrite(self.fd, data.tobytes(), self.begin[name] + start * data.itemsize)
+        # the array's own buffer: tobytes() would copy every block once more
+        os.pwrite(self.fd, data, self.begin[name] + start * data.itemsize)
