@@ -18,12 +18,13 @@ import sys as _sys  # noqa: E402
 
 
 def _the_command() -> bool:
-    """Whether this process is the ``vsj`` command (its script, or ``python -m vsj``
-    while the package is found)."""
-    if _sys.argv[:1] == ["-m"]:
+    """Whether this process is the ``vsj`` command: its script, or ``python -m vsj``
+    (whose ``sys.argv[0]`` is ``-m`` while the package is found)."""
+    first = (getattr(_sys, "argv", None) or [""])[0]
+    if first == "-m":
         argv = list(getattr(_sys, "orig_argv", ()))
         return "-m" in argv and argv[argv.index("-m") + 1:][:1] == ["vsj"]
-    return _os.path.basename(_sys.argv[0]) == "vsj" if _sys.argv else False
+    return _os.path.basename(first) == "vsj"
 
 
 if _the_command():
