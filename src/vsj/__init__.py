@@ -13,6 +13,27 @@ port-based model: sub-models in `vsj.components`, assembled by
 #: The package's version (pyproject.toml reads it from here).
 __version__ = "0.2.0"
 
+import os as _os  # noqa: E402
+import sys as _sys  # noqa: E402
+
+
+def _the_command() -> bool:
+    """Whether this process is the ``vsj`` command: its script, or ``python -m vsj``
+    (whose ``sys.argv[0]`` is ``-m`` while the package is found)."""
+    first = (getattr(_sys, "argv", None) or [""])[0]
+    if first == "-m":
+        argv = list(getattr(_sys, "orig_argv", ()))
+        return "-m" in argv and argv[argv.index("-m") + 1:][:1] == ["vsj"]
+    return _os.path.basename(first) == "vsj"
+
+
+if _the_command():
+    # Before NumPy loads: OpenBLAS, NumPy's BLAS, then starts a thread on every other
+    # core, which spins before it sleeps. vsj runs its work side by side by runs
+    # (cases, batches, sweeps), never by matrix products (too small to share out), so in
+    # the command those threads only take cores from its own. A value set already wins.
+    _os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 from . import inputs, params  # noqa: E402
 from .network import Network  # noqa: E402
 from .simulate import InitialState, Result, SimulationOptions, simulate  # noqa: E402

@@ -20,6 +20,7 @@ data of each variable at the offset its entry gives.
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 from typing import Mapping
@@ -93,6 +94,10 @@ class ClassicFile:
             raise ValueError("variable names must be unique")
         ids = {name: k for k, name in enumerate(self.dims)}
         self.shape = {v.name: tuple(self.dims[d] for d in v.dims) for v in variables}
+        #: elements per step of each index of a variable (its C-order strides), and in all
+        self.strides = {name: tuple(math.prod(shape[k + 1:]) for k in range(len(shape)))
+                        for name, shape in self.shape.items()}
+        self.count = {name: math.prod(shape) for name, shape in self.shape.items()}
         self.size = {}
         for v in variables:
             item = np.dtype(TYPES[v.kind][1]).itemsize
@@ -130,12 +135,14 @@ class ClassicFile:
         """Write ``values`` into variable ``name`` from the element at ``index`` (leading
         indices; the values fill the trailing dimensions in C order, contiguously)."""
         v = self.variables[name]
-        shape = self.shape[name]
         data = np.ascontiguousarray(values, dtype=TYPES[v.kind][1])
-        start = 0
-        for k, i in enumerate(index):
-            start += int(i) * int(np.prod(shape[k + 1:], dtype=np.int64))
+        if len(index) > len(self.shape[name]):
+            raise ValueError(f"{name}: index {index} has more entries than the variable has "
+                             f"dimensions {v.dims}")
+        start = sum(int(i) * step for i, step in zip(index, self.strides[name]))
         count = data.size
-        if start + count > int(np.prod(shape, dtype=np.int64)):
-            raise ValueError(f"{name}: writing {count} values at {index} overruns {shape}")
-        os.pwrite(self.fd, data.tobytes(), self.begin[name] + start * data.itemsize)
+        if start + count > self.count[name]:
+            raise ValueError(f"{name}: writing {count} values at {index} overruns "
+                             f"{self.shape[name]}")
+        # the array's own buffer: tobytes() would copy every block once more
+        os.pwrite(self.fd, data, self.begin[name] + start * data.itemsize)

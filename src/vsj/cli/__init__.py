@@ -14,7 +14,6 @@ from pathlib import Path
 
 from .. import __version__, params
 from ..errors import InputError, SimulationError
-from ..progress import progress
 from ..simulate import catalogue, sample_times
 from ..units import to_si
 from . import control, fit, sweep
@@ -47,8 +46,8 @@ def cmd_simulate(args) -> int:
     0, or 1 if a case failed."""
     # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import scenario as scenarios
-    from ..output import (ResultSet, TrajectoryFile, atomic_write, parameters_record,
-                          trajectory_bytes, write_meta, write_trajectory_csv)
+    from ..output import (ResultSet, TrajectoryFile, parameters_record, trajectory_bytes,
+                          write_meta, write_trajectory_csv)
 
     params = _params(args.params)
     scen = scenarios.load(args.scenario)
@@ -66,11 +65,11 @@ def cmd_simulate(args) -> int:
     out = Path(args.out)
     runs, records = [], []
     with ResultSet(out, "simulate", size=size) as results:
-        with atomic_write(results.path("trajectory.nc"), "w+b") as handle:
+        with results.write("trajectory.nc", "w+b") as handle:
             trajectory = TrajectoryFile(handle, [c.label for c in scen.cases], time, tables)
-            for k, case in enumerate(progress(prepared, desc=f"simulate {scen.name}",
-                                              unit="case")):
-                result = case.run(sink=trajectory.case(k))
+            sinks = [trajectory.case(k) for k in range(len(prepared))]
+            ran = scenarios.run_cases(prepared, sinks=sinks, label=f"simulate {scen.name}")
+            for k, (case, result) in enumerate(zip(prepared, ran)):
                 trajectory.success[k] = int(result.success)
                 runs.append((case.case.label, result))
                 records.append({"label": case.case.label, "success": result.success,

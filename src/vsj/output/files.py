@@ -64,6 +64,7 @@ import stat
 import subprocess
 import sys
 import tempfile
+import threading
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Self
@@ -176,11 +177,50 @@ def _temporary_file(directory: Path, name: str) -> tuple[int, Path | None]:
     return fd, Path(temp)
 
 
+_SYNC_FILE_RANGE_WRITE = 2
+
+
+def start_writeback(fd: int) -> None:
+    """Have the kernel start writing the data of the open file ``fd`` to disk, without
+    waiting for it (Linux ``sync_file_range``; elsewhere nothing). A large file written
+    in parts while other work goes on is then mostly on disk by the time `atomic_write`
+    syncs it, and that sync waits for the rest only."""
+    try:
+        begin = _libc().sync_file_range
+    except (OSError, AttributeError):
+        return
+    begin.argtypes = [ctypes.c_int, ctypes.c_int64, ctypes.c_int64, ctypes.c_uint]
+    begin(fd, 0, 0, _SYNC_FILE_RANGE_WRITE)  # a hint: a failure leaves the sync all to do
+
+
+def _sync_during(fd: int, work) -> None:
+    """``os.fsync(fd)`` in another thread while ``work(fd)`` runs in this one (both wait
+    outside Python's lock: on the disk, and in reading and hashing)."""
+    failed = []
+
+    def sync():
+        try:
+            os.fsync(fd)
+        except OSError as exc:
+            failed.append(exc)
+
+    syncer = threading.Thread(target=sync, name="vsj-fsync")
+    syncer.start()
+    try:
+        work(fd)
+    finally:
+        syncer.join()
+    if failed:
+        raise failed[0]
+
+
 @contextlib.contextmanager
-def atomic_write(path: Path, mode: str = "w"):
+def atomic_write(path: Path, mode: str = "w", *, when_complete=None):
     """Write ``path`` through a temporary file that replaces it on success (see the
     module docstring); the data is on disk (``fsync``) before the rename. ``mode`` is
-    ``"w"``, ``"wb"``, or ``"w+b"`` to read back what was written."""
+    ``"w"``, ``"wb"``, or ``"w+b"`` to read back what was written.
+    ``when_complete(fd)``, if given, is called with the descriptor of the complete file
+    while the sync runs (`ResultSet.write` hashes it then)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, named = _temporary_file(path.parent, path.name)
@@ -191,7 +231,10 @@ def atomic_write(path: Path, mode: str = "w"):
                        newline="" if "b" not in mode else None) as handle:
             yield handle
             handle.flush()
-            os.fsync(handle.fileno())
+            if when_complete is None:
+                os.fsync(handle.fileno())
+            else:
+                _sync_during(handle.fileno(), when_complete)
             if not linked:
                 _link(handle.fileno(), temp)
                 linked = True
@@ -384,15 +427,25 @@ def _lock_holder(fd: int) -> str:
 def file_record(path: Path) -> dict:
     """``{"sha256": ..., "bytes": ...}`` of a regular file (anything else, such as a FIFO
     that would block the read, raises `OSError` before it is read)."""
-    digest = hashlib.sha256()
-    size = 0
     fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
-    with open(fd, "rb") as handle:
+    try:
         if not stat.S_ISREG(os.fstat(fd).st_mode):
             raise OSError(errno.EINVAL, "not a regular file", str(path))
-        while chunk := handle.read(1 << 20):
-            digest.update(chunk)
-            size += len(chunk)
+        return _record_of(fd)
+    finally:
+        os.close(fd)
+
+
+def _record_of(fd: int) -> dict:
+    """`file_record` of the open regular file ``fd``, read from its start (its position
+    is left as it was)."""
+    digest = hashlib.sha256()
+    size = 0
+    buffer = bytearray(1 << 20)
+    view = memoryview(buffer)
+    while count := os.preadv(fd, [buffer], size):
+        digest.update(view[:count])
+        size += count
     return {"sha256": digest.hexdigest(), "bytes": size}
 
 
@@ -717,6 +770,20 @@ class ResultSet:
             raise RuntimeError("a ResultSet is written inside its 'with' block")
         self._written[name] = None
         return self._ensure_staging() / name
+
+    @contextlib.contextmanager
+    def write(self, name: str, mode: str = "wb"):
+        """`atomic_write` of the set's file ``name`` (`path`), hashed for the manifest
+        while its data is synced to disk (`hashes` then has its record at once)."""
+        path = self.path(name)
+
+        def record(fd: int) -> None:
+            info = os.fstat(fd)
+            self._records[name] = ((info.st_ino, info.st_size, info.st_mtime_ns),
+                                   _record_of(fd))
+
+        with atomic_write(path, mode, when_complete=record) as handle:
+            yield handle
 
     @property
     def written(self) -> list[str]:

@@ -22,7 +22,7 @@ from .. import __version__
 from ..netcdf import ClassicFile, Variable
 from ..params import SCHEMA, Parameters
 from ..simulate import Result
-from .files import atomic_write
+from .files import atomic_write, start_writeback
 
 def signals_bound(structure) -> int:
     """At most the number of signals `vsj.simulate.simulate` returns for ``structure``
@@ -280,6 +280,7 @@ class _CaseSink:
                 stop = min(total, start + 2 ** 20)
                 t.file.write(name, np.full(stop - start, np.nan), (self.k, start))
         t.reached[self.k] = samples
+        start_writeback(t.file.fd)  # the case's samples are final: to disk while others run
         return t.time[:samples], {}, self.units
 
 

@@ -157,7 +157,10 @@ def collect(structure: Structure, engine: Engine, layout: Layout, t_out, out, co
             *, ports: bool, table: list[SignalSpec] | None = None
             ) -> tuple[dict[str, np.ndarray], dict[str, str]]:
     """Evaluate every signal at the samples (one compiled pass over the block), then name
-    them: ``(signals, units)`` keyed by signal name."""
+    them: ``(signals, units)`` keyed by signal name. A signal that is one column of the
+    engine's observation is a view of it, not a copy: the sinks copy what they keep
+    (`vsj.simulate.MemorySink` into its arrays, a trajectory file into its own byte
+    order)."""
     table = catalogue(structure, ports=ports) if table is None else table
     if ports is False:
         table = [s for s in table if not s.name.startswith("port.")]
@@ -166,7 +169,7 @@ def collect(structure: Structure, engine: Engine, layout: Layout, t_out, out, co
     if not len(t_out):
         return ({s.name: np.zeros(0) for s in table if not s.name.startswith("port.")},
                 {s.name: s.unit for s in table if not s.name.startswith("port.")})
-    return ({s.name: np.ascontiguousarray(s.values(block)) for s in table},
+    return ({s.name: s.values(block) for s in table},
             {s.name: s.unit for s in table})
 
 
