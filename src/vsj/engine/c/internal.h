@@ -421,7 +421,7 @@ static inline void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c,
     j = w->hint[c];
     if (j < 0 || j >= npieces)
         j = 0;
-    while (m->knots[koff + j + 1] <= t)
+    while (j + 1 < npieces && m->knots[koff + j + 1] <= t) /* t may be t_last (left) */
         j++;
     while (m->knots[koff + j] > t)
         j--;
