@@ -29,10 +29,13 @@ def _the_command() -> bool:
 
 if _the_command():
     # Before NumPy loads: OpenBLAS, NumPy's BLAS, then starts a thread on every other
-    # core, which spins before it sleeps. vsj runs its work side by side by runs
-    # (cases, batches, sweeps), never by matrix products (too small to share out), so in
-    # the command those threads only take cores from its own. A value set already wins.
-    _os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    # core, and by default each spins for a while before it sleeps, after it starts and
+    # after every product it shares. vsj runs its work side by side by runs (cases,
+    # batches, sweeps), so in the command that spinning only takes cores from its own
+    # threads. The shortest wait sends them to sleep at once; they still share the
+    # products they shared, the same way, so every result keeps its bits. A value set
+    # already wins.
+    _os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
 
 from . import inputs, params  # noqa: E402
 from .network import Network  # noqa: E402
