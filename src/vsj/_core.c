@@ -776,9 +776,12 @@ static PyObject *py_observe(PyObject *mod, PyObject *args) {
         release(&t_out);
         return NULL;
     }
-    ny = n_out ? items(&out) / n_out : vsj_n_state(&model->m);
-    if (ny * n_out != items(&out) || ny < vsj_n_state(&model->m)) {
-        PyErr_SetString(PyExc_ValueError, "out: needs one row of at least the state per sample");
+    ny = n_out ? items(&out) / n_out
+               : vsj_n_state(&model->m) + vsj_control_width(&model->m);
+    if (ny * n_out != items(&out)
+        || ny < vsj_n_state(&model->m) + vsj_control_width(&model->m)) {
+        PyErr_SetString(PyExc_ValueError, "out: needs one row of at least the state per sample "
+                                          "(and a controller's columns last)");
         goto fail2;
     }
     if (oc != Py_None

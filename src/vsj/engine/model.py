@@ -28,6 +28,7 @@ from .. import friction as friction_laws
 from ..errors import InputError
 from ..inputs import Constant, Input, engine_pieces
 from ..network import Structure
+from ..control.controller import NO_CONTROLLER_ARRAYS, NO_CONTROLLER_SIZES
 
 from .. import _core
 
@@ -150,9 +151,11 @@ def friction_laws_for(structure: Structure, default: str,
     return laws
 
 
-def input_bank(structure: Structure, inputs: Mapping[str, Input], t_end: float):
+def input_bank(structure: Structure, inputs: Mapping[str, Input], t_end: float,
+               extra: Mapping[str, Input] | None = None):
     """Splines of every input channel, concatenated: (knots, coef, cum, first, count,
-    period). A signal that repeats (`Input.repeats`) within ``t_end`` is splined up to
+    period); the channels of ``extra`` (a controller's references) follow the
+    network's. A signal that repeats (`Input.repeats`) within ``t_end`` is splined up to
     the end of its first whole period only, and the engine repeats that period
     (``period``: its length and the channel's integral over it), so that its memory
     does not grow with the run."""
@@ -161,6 +164,8 @@ def input_bank(structure: Structure, inputs: Mapping[str, Input], t_end: float):
     if unknown:
         raise InputError(f"unknown input channel(s) {', '.join(unknown)}; network "
                          f"{structure.name!r} has {', '.join(channels) or 'none'}")
+    inputs = {**inputs, **(extra or {})}
+    channels = channels + tuple(extra or ())
     source_channels = {s.channel for s in structure.sources}
     knots, coefs, cums, first, count = [np.zeros(0)], [np.zeros((0, 4))], [np.zeros(0)], [], []
     if channels:
@@ -195,9 +200,11 @@ def input_bank(structure: Structure, inputs: Mapping[str, Input], t_end: float):
 def compile_model(structure: Structure, inputs: Mapping[str, Input], t_end: float, *,
                   friction: str = "arctan", friction_overrides: Mapping[str, str] | None = None,
                   slope_width: float = 0.01, source_angles: np.ndarray | None = None,
-                  ) -> tuple[EngineModel, Layout]:
+                  controller=None) -> tuple[EngineModel, Layout]:
     """Arrays for the engine. ``t_end`` bounds the input splines; ``source_angles``
-    are the sources' angles at t = 0 (see `Structure.initial_positions`)."""
+    are the sources' angles at t = 0 (see `Structure.initial_positions`); ``controller``
+    a `vsj.control.CompiledController` the model carries (its references are input
+    channels after the network's)."""
     if not (math.isfinite(slope_width) and slope_width > 0.0):
         raise InputError(f"slope width must be > 0 rad/s, got {slope_width!r}")
     n, s = structure.n, len(structure.sources)
@@ -238,15 +245,18 @@ def compile_model(structure: Structure, inputs: Mapping[str, Input], t_end: floa
     add(pivot_row, [pivot.amplitude, pivot.fixed, 0.0 if pivot.flange is None else 1.0,
                     pivot.q_min, pivot.q_max],
         0)
-    bank = input_bank(structure, inputs, t_end)
+    bank = input_bank(structure, inputs, t_end,
+                      controller.references if controller is not None else None)
     dense = np.array(rows).reshape(len(rows), n + s)
     xp, xc, xv = _csr(dense[:, :n])
     up, uc, uv = _csr(dense[:, n:])
     src_pos0 = np.zeros(s) if source_angles is None else np.asarray(source_angles, dtype=float)
     sizes = dict(n=n, n_sources=s, n_frictions=len(structure.frictions),
                  n_springs=len(structure.springs), n_loads=len(structure.loads),
-                 n_motors=len(structure.motors), n_channels=len(chan), n_rows=len(rows),
+                 n_motors=len(structure.motors), n_channels=len(bank[3]), n_rows=len(rows),
                  n_pieces=len(bank[1]), n_table=len(table))
+    sizes.update(controller.sizes if controller is not None else NO_CONTROLLER_SIZES)
+    ctl_arrays = controller.arrays if controller is not None else NO_CONTROLLER_ARRAYS
     model = EngineModel(
         sizes=sizes, mass=np.ascontiguousarray(mass), Minv=np.ascontiguousarray(Minv),
         rows=np.ascontiguousarray(dense), xp=xp, xc=xc, xv=xv, up=up, uc=uc, uv=uv,
@@ -254,7 +264,8 @@ def compile_model(structure: Structure, inputs: Mapping[str, Input], t_end: floa
         src_ch=_ints([chan[src.channel] for src in structure.sources]),
         src_pos0=np.ascontiguousarray(src_pos0, dtype=float),
         knots=bank[0], coef=bank[1], cum=bank[2], first=bank[3], count=bank[4],
-        period=bank[5], table=np.ascontiguousarray(np.array(table, dtype=float).reshape(-1, 2)))
+        period=bank[5], table=np.ascontiguousarray(np.array(table, dtype=float).reshape(-1, 2)),
+        **ctl_arrays)
     layout = Layout(n=n, n_sources=s, n_frictions=len(structure.frictions),
                     n_springs=len(structure.springs), n_loads=len(structure.loads),
                     n_motors=len(structure.motors))

@@ -22,6 +22,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .. import _core
+from ..control.controller import compile_controller
 from ..errors import InputError
 from ..inputs import Input
 from ..network import Structure
@@ -91,6 +92,20 @@ def initial_state(structure: Structure, inputs: Mapping[str, Input], initial,
 
 
 
+def check_period(period: float, scheme: Scheme, duration: float) -> None:
+    """`InputError` unless a controller of ``period`` [s] can run with ``scheme``: the
+    time-stepper's steps must fit a whole number of times into it."""
+    if scheme.name == "timestep":
+        ratio = period / scheme.step
+        if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * ratio:
+            raise InputError(f"controller period {period:g} s: the time-stepper's step "
+                             f"{scheme.step:g} s must divide it a whole number of times (a "
+                             "controller cannot sample faster than the plant steps)")
+    if period > duration:
+        raise InputError(f"controller period {period:g} s is longer than the run "
+                         f"({duration:g} s): it would sample once")
+
+
 @dataclass(frozen=True)
 class Plan:
     """What to run: a compiled model, its scheme, duration and initial state.
@@ -113,6 +128,8 @@ class Plan:
     #: a retuned plan: the plan it was retuned from and the real arrays it replaced,
     #: so that its checked model shares the others with that plan's (`checked`)
     base: tuple | None = field(default=None, repr=False, compare=False)
+    #: the sampled controller the model carries (`vsj.control.CompiledController`), if any
+    controller: object = field(default=None, repr=False)
 
     @cached_property
     def native(self) -> _core.Model:
@@ -133,21 +150,36 @@ class Plan:
 
     @classmethod
     def compile(cls, structure: Structure, inputs: Mapping[str, Input], duration: float,
-                options, initial, scheme: "Scheme | str", *, held: bool = False) -> "Plan":
+                options, initial, scheme: "Scheme | str", *, held: bool = False,
+                controller=None) -> "Plan":
         """The plan of a run of ``structure`` (inputs, duration, `SimulationOptions`,
         `InitialState`; ``scheme`` a `Scheme` or the name of one, whose settings then
-        come from ``options``). With ``held`` the plan is the step function's
-        (`vsj.stepper`): inputs held over periods of ``duration``, no initial state."""
+        come from ``options``), closed by ``controller`` (a `vsj.control.Controller`) if
+        given. With ``held`` the plan is the step function's (`vsj.stepper`): inputs held
+        over periods of ``duration``, no initial state."""
         if not (math.isfinite(duration) and duration > 0.0):
             raise InputError(f"duration must be > 0 s, got {duration!r}")
         options.validate()
         if isinstance(scheme, str):
             scheme = Scheme.of(scheme, options)
+        compiled = None
+        if controller is not None:
+            if held:
+                raise InputError("the step function holds its inputs itself: a controller "
+                                 "runs in simulations (or close the loop around the stepper "
+                                 "in Python)")
+            compiled = compile_controller(controller, structure, structure.channels())
+            check_period(compiled.period, scheme, duration)
+            driven = set(compiled.channels) & set(inputs)
+            if driven:
+                raise InputError(f"input(s) {', '.join(sorted(driven))} are driven by the "
+                                 "controller; remove them from the inputs")
         model, layout = compile_model(structure, inputs, duration, friction=options.friction,
                                       friction_overrides=options.friction_overrides,
-                                      slope_width=options.slope_width)
+                                      slope_width=options.slope_width, controller=compiled)
         plan = cls(structure, model, layout, scheme, float(duration),
-                   np.zeros(layout.n_state + layout.n_acc), inputs, options)
+                   np.zeros(layout.n_state + layout.n_acc), inputs, options,
+                   controller=compiled)
         return plan if held else plan.started(initial)
 
     def started(self, initial, source_speeds: np.ndarray | None = None, *,
@@ -223,6 +255,8 @@ class Run:
         self.scheme = plan.scheme.code(self.n_err, ledger)
         self.work = work if work is not None else _core.Work(self.native)
         self.t, self.steps, self.rejected = 0.0, 0, 0
+        #: columns a sample row gains with a controller (its bus and actuators)
+        self.extra = plan.controller.width if plan.controller is not None else 0
         self.status = _run(self.native, self.work, self.y, self.scheme, 0.0,
                            begin=(0.0, self.end))[0]
 
@@ -233,7 +267,7 @@ class Run:
         ``finish`` the run goes on to its end (the ledger's)."""
         times = np.ascontiguousarray(times, dtype=float)
         f = self.plan.layout.n_frictions
-        out = np.full((len(times), len(self.y)), np.nan)
+        out = np.full((len(times), len(self.y) + self.extra), np.nan)
         coulomb = np.zeros((len(times), f))
         stuck = np.zeros((len(times), f), dtype=bool)
         if self.status != OK:

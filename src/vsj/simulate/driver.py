@@ -72,11 +72,12 @@ def choose_solver(structure: Structure, options: SimulationOptions) -> str:
 
 
 def prepare(structure: Structure, inputs: Mapping[str, Input], duration: float,
-            options: SimulationOptions, initial: InitialState) -> Plan:
-    """The plan of a run (`vsj.engine.plan.Plan`): the model compiled, its initial
-    state built and checked against the network."""
+            options: SimulationOptions, initial: InitialState, controller=None) -> Plan:
+    """The plan of a run (`vsj.engine.plan.Plan`): the model compiled (with
+    ``controller``, a `vsj.control.Controller`, in the loop), its initial state built and
+    checked against the network."""
     return Plan.compile(structure, inputs, duration, options, initial,
-                        choose_solver(structure, options))
+                        choose_solver(structure, options), controller=controller)
 
 
 #: Memory the samples of one block may take while they are observed and named [bytes]:
@@ -129,7 +130,7 @@ def block_samples(structure: Structure, layout, ports: bool) -> int:
 
 def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float, *,
              options: SimulationOptions | None = None, initial: InitialState | None = None,
-             ports: bool = True, sink=None) -> Result:
+             ports: bool = True, sink=None, controller=None) -> Result:
     """Simulate ``structure`` for ``duration`` seconds.
 
     ``inputs`` maps channel names to `vsj.inputs.Input` (missing channels are
@@ -143,13 +144,18 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
     them to a file (`vsj.output.TrajectoryFile`) keeps memory flat however long the
     run, and its `Result` holds no samples. The blocks do not change the result: the
     engine's steps do not depend on them.
+
+    ``controller`` (a `vsj.control.Controller`) closes the loop: it runs in the engine
+    at its own period, drives the channels its actuators name (leave them out of
+    ``inputs``), and its signals join the result (``control.<name>``,
+    ``actuator.<channel>``).
     """
     inputs, options, initial = check_arguments(structure, inputs, duration, options, initial)
     # the size first: a run too large for memory or disk is refused before anything else
     check_run_size(structure, duration, options, choose_solver(structure, options),
                    in_memory=getattr(sink, "keeps_samples", True), ports=ports)
-    return run_plan(prepare(structure, inputs, duration, options, initial), ports=ports,
-                    sink=sink)
+    return run_plan(prepare(structure, inputs, duration, options, initial, controller),
+                    ports=ports, sink=sink)
 
 
 def run_plan(plan: Plan, *, ports: bool = True, sink=None) -> Result:
@@ -164,7 +170,7 @@ def run_plan(plan: Plan, *, ports: bool = True, sink=None) -> Result:
     layout = plan.layout
     t_out = sample_times(duration, options.output_step)
     n_out = len(t_out)
-    table = catalogue(structure, ports=ports)
+    table = catalogue(structure, ports=ports, controller=plan.controller)
     sink.begin(table, t_out)
     watch = Watch(structure)
     started = _time.perf_counter()
@@ -180,7 +186,7 @@ def run_plan(plan: Plan, *, ports: bool = True, sink=None) -> Result:
             int(np.count_nonzero(~np.isnan(out[:, 0]))) if out.shape[1] else 0
         times, out, coulomb, stuck = times[:valid], out[:valid], coulomb[:valid], stuck[:valid]
         signals, _ = collect(structure, engine, layout, times, out, coulomb, stuck,
-                             ports=ports, table=table)
+                             ports=ports, table=table, controller=plan.controller)
         sink.write(start, signals)
         watch.see(times, signals, out)
         reached = start + valid

@@ -44,6 +44,8 @@ class Block:
     stuck: np.ndarray
     columns: dict
     cache: dict
+    #: a controller's columns of the samples (its bus, then its actuators), if any
+    control: np.ndarray | None = None
 
     def col(self, name: str) -> np.ndarray:
         """The samples of one group of observation columns (rows: samples)."""
@@ -79,12 +81,22 @@ class SignalSpec:
         return bool(self.reads & {"fr_f", "stuck"})
 
 
-def catalogue(structure: Structure, *, ports: bool) -> list[SignalSpec]:
-    """Every signal a run of ``structure`` gives, in the order results list them."""
+def catalogue(structure: Structure, *, ports: bool, controller=None) -> list[SignalSpec]:
+    """Every signal a run of ``structure`` gives, in the order results list them; with
+    ``controller`` (a `vsj.control.CompiledController`) its bus and actuators too."""
     table: list[SignalSpec] = []
 
     def add(name, unit, description, values, *reads):
         table.append(SignalSpec(name, unit, description, values, frozenset(reads)))
+
+    if controller is not None:
+        for j, (name, unit) in enumerate(zip(controller.bus, controller.units)):
+            add(f"control.{name}", unit, f"controller signal {name} (held from its last "
+                f"sample, every {controller.period:g} s)", lambda b, j=j: b.control[:, j])
+        n_bus = len(controller.bus)
+        for j, channel in enumerate(controller.channels):
+            add(f"actuator.{channel}", "1", f"what the controller applies to input {channel} "
+                "(after its limits)", lambda b, j=j: b.control[:, n_bus + j])
 
     named = {s.flange for s in structure.signals}
     probes = list(structure.signals) + [Signal(f, f) for f in structure.free if f not in named]
@@ -154,18 +166,20 @@ def catalogue(structure: Structure, *, ports: bool) -> list[SignalSpec]:
 
 
 def collect(structure: Structure, engine: Engine, layout: Layout, t_out, out, coulomb, stuck,
-            *, ports: bool, table: list[SignalSpec] | None = None
+            *, ports: bool, table: list[SignalSpec] | None = None, controller=None
             ) -> tuple[dict[str, np.ndarray], dict[str, str]]:
     """Evaluate every signal at the samples (one compiled pass over the block), then name
     them: ``(signals, units)`` keyed by signal name. A signal that is one column of the
     engine's observation is a view of it, not a copy: the sinks copy what they keep
     (`vsj.simulate.MemorySink` into its arrays, a trajectory file into its own byte
     order)."""
-    table = catalogue(structure, ports=ports) if table is None else table
+    table = catalogue(structure, ports=ports, controller=controller) if table is None else table
     if ports is False:
         table = [s for s in table if not s.name.startswith("port.")]
+    width = controller.width if controller is not None else 0
     block = Block(raw=engine.observe(t_out, out, coulomb), stuck=stuck,
-                  columns=observation_layout(layout), cache={})
+                  columns=observation_layout(layout), cache={},
+                  control=np.asarray(out)[:, np.asarray(out).shape[1] - width:] if width else None)
     if not len(t_out):
         return ({s.name: np.zeros(0) for s in table if not s.name.startswith("port.")},
                 {s.name: s.unit for s in table if not s.name.startswith("port.")})

@@ -83,6 +83,8 @@ double vsj__next_break(const vsj_model *m, vsj_work *w, double t) {
     int64_t c;
     if (w->held)
         return INFINITY;
+    if (w->ctl_on) /* the controller's next sample */
+        best = w->ctl_next;
     for (c = 0; c < m->n_channels; c++) {
         if (!(w->brk[c] > t + margin)) /* passed (or never found): look again */
             w->brk[c] = channel_break(m, c, t, margin);
@@ -107,7 +109,7 @@ double vsj__step_length(const vsj_model *m, vsj_work *w, const dopri_state *d, i
         *end = 1;
         *t_land = d->t_end;
     }
-    if (t_break < *t_land) {
+    if (t_break <= *t_land) { /* landing on it from the left: as if cut short */
         h = t_break - d->t;
         *end = 2;
         *t_land = t_break;

@@ -67,6 +67,8 @@ static void sample_step(const vsj_work *w, const dopri_state *d, const double *t
         double *row = out + out_cols * *i_out;
         for (i = 0; i < n_keep; i++)
             row[i] = yo[i] + th * ((y[i] - yo[i]) + th1 * (r3[i] + th * (r4[i] + th1 * r5[i])));
+        if (out_cols >= n_keep + w->nbus + w->nact)
+            vsj__control_record(w, row + n_keep);
         (*i_out)++;
     }
 }
@@ -194,6 +196,8 @@ static int attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
     d->h_prev = h;
     d->t = t_land;
     if (end == 2) { /* the next step starts past the corner: its right limit */
+        if (w->ctl_on && d->t == w->ctl_next)
+            vsj__control_sample(m, w, d->t, y);
         vsj__eval_derivatives(m, w, d->t, y, ny, K);
         w->status = VSJ_OK;
     }
@@ -223,6 +227,8 @@ vsj_report vsj__dopri_advance(const vsj_model *m, vsj_work *w, const double *t_o
         while (i_out < n_out && t_out[i_out] <= d->t) {
             for (i = 0; i < n_keep; i++)
                 out[out_cols * i_out + i] = w->y[i];
+            if (out_cols >= n_keep + w->nbus + w->nact)
+                vsj__control_record(w, out + out_cols * i_out + n_keep);
             i_out++;
         }
     if (d->status == VSJ_OK && d->steps > 0 && d->rosenbrock)

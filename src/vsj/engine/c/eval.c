@@ -233,6 +233,7 @@ void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const doub
 int vsj_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y, int64_t ny,
                     double *dy) {
     w->status = VSJ_OK;
+    w->ctl_on = 0; /* the inputs from their splines */
     vsj__eval_derivatives(m, w, t, y, ny, dy);
     return w->status;
 }
@@ -244,6 +245,7 @@ int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, int
     if (!vsj__fits(m, w) || !y || !J || !ft || (ny != ns && ny != ns + na))
         return VSJ_BAD_ARGUMENT;
     w->status = VSJ_OK;
+    w->ctl_on = 0;
     vsj__eval_derivatives(m, w, t, y, ny, w->dy);
     vsj__eval_jacobian(m, w, J, ft);
     if (ny > ns) {
@@ -261,6 +263,7 @@ int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, int
 void vsj_source_signals(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_out,
                         double *angles, double *speeds) {
     int64_t i, j, s = m->n_sources;
+    w->ctl_on = 0;
     for (i = 0; i < n_out; i++) {
         vsj__eval_inputs(m, w, t_out[i]);
         for (j = 0; j < s; j++) {
@@ -275,6 +278,7 @@ void vsj_stored_energy(const vsj_model *m, vsj_work *w, double t, const double *
     int64_t n = m->n, s = m->n_sources, nm = m->n_motors, sz = n + s, i, r, kk, mo;
     int64_t base_m = m->n_frictions + m->n_springs + m->n_loads;
     double kin = 0.0, pot = 0.0, ind = 0.0;
+    w->ctl_on = 0;
     vsj__eval_inputs(m, w, t);
     eval_springs(m, w, y);
     for (i = 0; i < sz; i++) {
@@ -310,12 +314,15 @@ int vsj_observe(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_
     static const int src_cols[3] = {SG, U, UD};
     static const int spring_cols[5] = {DEFL, RATE, SPTAU, ENERGY, STIFF};
     int status = VSJ_OK;
-    if (ny < ns)
+    if (ny < ns + vsj_control_width(m))
         return VSJ_BAD_ARGUMENT;
+    w->ctl_on = 0;
     for (i = 0; i < n_out; i++) {
         const double *y = out + ny * i;
         double *row = raw + width * i;
         int64_t p = 0, c;
+        if (m->n_acts > 0) /* the actuators' values that held at the sample */
+            vsj__control_hold(m, w, y + ny - m->n_acts);
         for (e = 0; e < f; e++)
             w->frw[FRW * e + EXTRA] = coulomb ? coulomb[f * i + e] : 0.0;
         /* evaluated at full length (source torques and every element), which

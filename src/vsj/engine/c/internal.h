@@ -120,6 +120,18 @@ struct vsj_work {
     int64_t run_ny, run_steps;
     double run_end;
     int run_status;
+    /* the controller (control.c): its sizes, whether the model has one, the samples
+     * taken, the run's start and the next sample's time, the noise generator's state;
+     * bus (nbus), block states (ncs) and their next values, a block's inputs (nbus at
+     * most), the sensors' delay lines (ndel), the actuators' held values (nact), and
+     * the actuator driving each input channel (-1: none) */
+    int64_t nref, nmeas, nblk, nact, nbus, ncs, ndel;
+    int ctl_on;
+    int64_t ctl_k;
+    double ctl_t0, ctl_next;
+    uint64_t ctl_rng;
+    double *ctl_bus, *ctl_x, *ctl_x1, *ctl_in, *ctl_delay, *ctl_u;
+    int64_t *ctl_drive;
     /* stepper scratch */
     double *sy, *sk, *sacc;
     ts_work ts;
@@ -133,6 +145,22 @@ struct vsj_work {
 #else
 #define VSJ_INTERNAL
 #endif
+
+/* A model check's failure: the message formatted into `message` (of `size` bytes);
+ * returns VSJ_BAD_ARGUMENT (model.c). */
+VSJ_INTERNAL int vsj__fail(char *message, size_t size, const char *format, ...);
+
+/* The controller (control.c): its part of vsj_check_model; at a run's start (t0, the
+ * state y) its first sample; at a sample's time (w->ctl_next, which the schemes land
+ * on) the next; and a sample row's controller columns (vsj_control_width). */
+VSJ_INTERNAL int vsj__control_check(const vsj_model *m, char *message, size_t size);
+VSJ_INTERNAL void vsj__control_begin(const vsj_model *m, vsj_work *w, double t0,
+                                     const double *y);
+VSJ_INTERNAL void vsj__control_sample(const vsj_model *m, vsj_work *w, double t,
+                                      const double *y);
+VSJ_INTERNAL void vsj__control_record(const vsj_work *w, double *row);
+/* The driven channels held at the actuators' values u (vsj_observe's rows end with them). */
+VSJ_INTERNAL void vsj__control_hold(const vsj_model *m, vsj_work *w, const double *u);
 
 /* evaluation (eval.c) */
 VSJ_INTERNAL void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y,
@@ -282,7 +310,9 @@ static inline const double *vsj__row(const vsj_model *m, int64_t r) {
 static inline int vsj__fits(const vsj_model *m, const vsj_work *w) {
     return m && w && m->n == w->n && m->n_sources == w->s && m->n_frictions == w->f
            && m->n_springs == w->k && m->n_loads == w->nl && m->n_motors == w->nm
-           && m->n_channels == w->nch && m->n_rows == w->rows;
+           && m->n_channels == w->nch && m->n_rows == w->rows && m->n_refs == w->nref
+           && m->n_meas == w->nmeas && m->n_blocks == w->nblk && m->n_acts == w->nact
+           && m->n_bus == w->nbus && m->n_cstate == w->ncs && m->n_delay == w->ndel;
 }
 
 /* The coefficient of a friction table (rows first .. first + rows - 1 of
@@ -374,6 +404,13 @@ static inline void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c,
     double *ch = w->chan + 3 * c;
     int64_t p0, npieces, koff, j, p;
     double t0, t_last, tau, c0, c1, c2, c3, base;
+    if (w->ctl_on && w->ctl_drive[c] >= 0) { /* driven by the controller, held */
+        ch[0] = w->ctl_u[w->ctl_drive[c]];
+        ch[1] = 0.0;
+        ch[2] = 0.0; /* no source is driven: the integral is never read */
+        w->chan_dd[c] = 0.0;
+        return;
+    }
     if (w->held) { /* held over a control period, from t = 0 */
         double v = w->held[c];
         ch[0] = v;

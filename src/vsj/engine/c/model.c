@@ -7,7 +7,7 @@
 
 #include "internal.h"
 
-static int fail(char *message, size_t size, const char *format, ...) {
+int vsj__fail(char *message, size_t size, const char *format, ...) {
     if (message && size) {
         va_list args;
         va_start(args, format);
@@ -22,7 +22,7 @@ static int finite_array(const double *a, int64_t len, const char *name, char *me
     int64_t i;
     for (i = 0; i < len; i++)
         if (!isfinite(a[i]))
-            return fail(message, size, "model array %s: entry %lld is %g (not finite)", name,
+            return vsj__fail(message, size, "model array %s: entry %lld is %g (not finite)", name,
                         (long long)i, a[i]);
     return VSJ_OK;
 }
@@ -33,16 +33,16 @@ static int csr(const int64_t *ptr, const int64_t *col, const double *val, int64_
                int64_t cols, const char *name, char *message, size_t size) {
     int64_t r, k;
     if (ptr[0] != 0)
-        return fail(message, size, "model array %sp: first pointer must be 0, got %lld", name,
+        return vsj__fail(message, size, "model array %sp: first pointer must be 0, got %lld", name,
                     (long long)ptr[0]);
     for (r = 0; r < rows; r++)
         if (ptr[r + 1] < ptr[r])
-            return fail(message, size, "model array %sp: pointers must not decrease (row %lld)",
+            return vsj__fail(message, size, "model array %sp: pointers must not decrease (row %lld)",
                         name, (long long)r);
     for (r = 0; r < rows; r++)
         for (k = ptr[r]; k < ptr[r + 1]; k++)
             if (col[k] < 0 || col[k] >= cols)
-                return fail(message, size,
+                return vsj__fail(message, size,
                             "model array %sc: column %lld of row %lld is outside 0..%lld", name,
                             (long long)col[k], (long long)r, (long long)(cols - 1));
     return finite_array(val, ptr[rows], name[0] == 'x' ? "xv" : "uv", message, size);
@@ -58,12 +58,12 @@ static int mass_matrix(const vsj_model *m, char *message, size_t size) {
     for (i = 0; i < sz; i++)
         for (j = 0; j < i; j++)
             if (fabs(m->mass[sz * i + j] - m->mass[sz * j + i]) > 1e-12 * big)
-                return fail(message, size, "model array mass: not symmetric (entries %lld, %lld)",
+                return vsj__fail(message, size, "model array mass: not symmetric (entries %lld, %lld)",
                             (long long)i, (long long)j);
     for (i = 0; i < n; i++) {
         double inv_big = 0.0;
         if (!(m->mass[sz * i + i] > 0.0))
-            return fail(message, size, "model array mass: diagonal entry %lld must be > 0 (a "
+            return vsj__fail(message, size, "model array mass: diagonal entry %lld must be > 0 (a "
                         "free coordinate without inertia)", (long long)i);
         for (j = 0; j < n; j++)
             inv_big = fabs(m->Minv[n * i + j]) > inv_big ? fabs(m->Minv[n * i + j]) : inv_big;
@@ -74,7 +74,7 @@ static int mass_matrix(const vsj_model *m, char *message, size_t size) {
                 scale += fabs(m->mass[sz * i + r] * m->Minv[n * r + j]);
             }
             if (fabs(product - (i == j ? 1.0 : 0.0)) > 1e-8 * (1.0 + scale))
-                return fail(message, size, "model arrays mass and Minv: Minv is not the inverse "
+                return vsj__fail(message, size, "model arrays mass and Minv: Minv is not the inverse "
                             "of mass's free block (row %lld, column %lld)", (long long)i,
                             (long long)j);
         }
@@ -86,7 +86,7 @@ int vsj_check_model(const vsj_model *m, char *message, size_t size) {
     int64_t n, s, f, k, nl, nm, nch, rows, sz, i, c, r;
     int status;
     if (!m)
-        return fail(message, size, "no model");
+        return vsj__fail(message, size, "no model");
     n = m->n;
     s = m->n_sources;
     f = m->n_frictions;
@@ -96,18 +96,18 @@ int vsj_check_model(const vsj_model *m, char *message, size_t size) {
     nch = m->n_channels;
     rows = m->n_rows;
     if (n < 0 || s < 0 || f < 0 || k < 0 || nl < 0 || nm < 0 || nch < 0 || m->n_pieces < 0)
-        return fail(message, size, "model sizes must be >= 0");
+        return vsj__fail(message, size, "model sizes must be >= 0");
     if (rows != f + k + nl + nm + 1)
-        return fail(message, size,
+        return vsj__fail(message, size,
                     "model: n_rows must be n_frictions + n_springs + n_loads + n_motors + 1 = "
                     "%lld, got %lld", (long long)(f + k + nl + nm + 1), (long long)rows);
     if (m->n_pieces < nch)
-        return fail(message, size, "model: %lld spline pieces for %lld channels",
+        return vsj__fail(message, size, "model: %lld spline pieces for %lld channels",
                     (long long)m->n_pieces, (long long)nch);
     if (!m->mass || !m->Minv || !m->xp || !m->xc || !m->xv || !m->up || !m->uc || !m->uv
         || !m->par || !m->code || !m->src_ch || !m->src_pos0 || !m->knots || !m->coef
         || !m->cum || !m->first || !m->count)
-        return fail(message, size, "model: an array pointer is NULL");
+        return vsj__fail(message, size, "model: an array pointer is NULL");
     sz = n + s;
     if ((status = finite_array(m->mass, sz * sz, "mass", message, size)) != VSJ_OK)
         return status;
@@ -132,59 +132,59 @@ int vsj_check_model(const vsj_model *m, char *message, size_t size) {
             if (rigid)
                 continue;
             if (range ? isnan(v) : !isfinite(v))
-                return fail(message, size, "model array par: row %lld column %lld is %g",
+                return vsj__fail(message, size, "model array par: row %lld column %lld is %g",
                             (long long)r, (long long)c, v);
         }
     if (m->n_table < 0 || (m->n_table > 0 && !m->table))
-        return fail(message, size, "model: the friction table is missing");
+        return vsj__fail(message, size, "model: the friction table is missing");
     if ((status = finite_array(m->table, 2 * m->n_table, "table", message, size)) != VSJ_OK)
         return status;
     for (r = 0; r < f; r++) {
         const double *p = m->par + VSJ_NPAR * r;
         double first = p[VSJ_F_TABLE], count = p[VSJ_F_ROWS], ch = p[VSJ_F_CHANNEL];
         if (m->code[r] < VSJ_VISCOUS || m->code[r] >= VSJ_N_FRICTION_LAWS)
-            return fail(message, size, "model: friction row %lld has unknown law %lld",
+            return vsj__fail(message, size, "model: friction row %lld has unknown law %lld",
                         (long long)r, (long long)m->code[r]);
         if (m->code[r] == VSJ_SLOPE && !(p[VSJ_F_WIDTH] > 0.0))
-            return fail(message, size, "model: friction row %lld: slope width must be > 0",
+            return vsj__fail(message, size, "model: friction row %lld: slope width must be > 0",
                         (long long)r);
         if (!(p[VSJ_F_PEAK] >= 1.0))
-            return fail(message, size, "model: friction row %lld: peak must be >= 1, got %g",
+            return vsj__fail(message, size, "model: friction row %lld: peak must be >= 1, got %g",
                         (long long)r, p[VSJ_F_PEAK]);
         if (p[VSJ_F_TRAPEZOIDAL] != 0.0 && p[VSJ_F_TRAPEZOIDAL] != 1.0)
-            return fail(message, size, "model: friction row %lld: the trapezoidal flag must be "
+            return vsj__fail(message, size, "model: friction row %lld: the trapezoidal flag must be "
                         "0 or 1, got %g", (long long)r, p[VSJ_F_TRAPEZOIDAL]);
         if (ch != floor(ch) || ch < -1.0 || ch >= (double)nch)
-            return fail(message, size, "model: friction row %lld reads input channel %g of "
+            return vsj__fail(message, size, "model: friction row %lld reads input channel %g of "
                         "%lld", (long long)r, ch, (long long)nch);
         if (first != floor(first) || count != floor(count) || first < 0.0 || count < 0.0
             || count > (double)m->n_table || first > (double)m->n_table - count)
-            return fail(message, size, "model: friction row %lld: table rows %g..%g outside "
+            return vsj__fail(message, size, "model: friction row %lld: table rows %g..%g outside "
                         "0..%lld", (long long)r, first, first + count - 1,
                         (long long)(m->n_table - 1));
         for (i = (int64_t)first; i < (int64_t)(first + count); i++) {
             const double *row = m->table + 2 * i;
             if (row[0] < 0.0 || row[1] < 0.0 || (i > (int64_t)first && !(row[0] > row[-2])))
-                return fail(message, size, "model: friction row %lld: its table needs speeds "
+                return vsj__fail(message, size, "model: friction row %lld: its table needs speeds "
                             ">= 0 that increase and coefficients >= 0 (table row %lld)",
                             (long long)r, (long long)i);
         }
     }
     for (r = f; r < f + k; r++)
         if (m->code[r] < VSJ_LINEAR || m->code[r] >= VSJ_N_SPRING_LAWS)
-            return fail(message, size, "model: spring row %lld has unknown law %lld",
+            return vsj__fail(message, size, "model: spring row %lld has unknown law %lld",
                         (long long)r, (long long)m->code[r]);
     for (r = f + k; r < f + k + nl + nm; r++)
         if (m->code[r] < 0 || m->code[r] >= nch)
-            return fail(message, size, "model: row %lld reads input channel %lld of %lld",
+            return vsj__fail(message, size, "model: row %lld reads input channel %lld of %lld",
                         (long long)r, (long long)m->code[r], (long long)nch);
     for (r = f + k + nl; r < f + k + nl + nm; r++)
         if (!(m->par[VSJ_NPAR * r + 1] > 0.0))
-            return fail(message, size, "model: motor row %lld: inductance must be > 0",
+            return vsj__fail(message, size, "model: motor row %lld: inductance must be > 0",
                         (long long)r);
     for (i = 0; i < s; i++)
         if (m->src_ch[i] < 0 || m->src_ch[i] >= nch)
-            return fail(message, size, "model: source %lld reads input channel %lld of %lld",
+            return vsj__fail(message, size, "model: source %lld reads input channel %lld of %lld",
                         (long long)i, (long long)m->src_ch[i], (long long)nch);
     if ((status = finite_array(m->src_pos0, s, "src_pos0", message, size)) != VSJ_OK)
         return status;
@@ -197,16 +197,16 @@ int vsj_check_model(const vsj_model *m, char *message, size_t size) {
     for (c = 0; c < nch; c++) {
         int64_t p0 = m->first[c], cnt = m->count[c], j;
         if (cnt < 1 || p0 < 0 || cnt > m->n_pieces || p0 > m->n_pieces - cnt)
-            return fail(message, size,
+            return vsj__fail(message, size,
                         "model: channel %lld has pieces %lld..%lld outside 0..%lld",
                         (long long)c, (long long)p0, (long long)(p0 + cnt - 1),
                         (long long)(m->n_pieces - 1));
         for (j = 0; j < cnt; j++)
             if (!(m->knots[p0 + c + j + 1] > m->knots[p0 + c + j]))
-                return fail(message, size, "model: knots of channel %lld must increase",
+                return vsj__fail(message, size, "model: knots of channel %lld must increase",
                             (long long)c);
     }
-    return VSJ_OK;
+    return vsj__control_check(m, message, size);
 }
 
 /* ---- the work -------------------------------------------------------------- */
@@ -366,6 +366,13 @@ static void layout(vsj_work *w, carver *cv) {
     t->om0 = DOUBLES(nm);
     t->charge = DOUBLES(nm);
     t->heat = DOUBLES(nm);
+    w->ctl_bus = DOUBLES(w->nbus);
+    w->ctl_x = DOUBLES(w->ncs);
+    w->ctl_x1 = DOUBLES(w->ncs);
+    w->ctl_in = DOUBLES(w->nbus);
+    w->ctl_delay = DOUBLES(w->ndel);
+    w->ctl_u = DOUBLES(w->nact);
+    w->ctl_drive = INTS(nch);
     t->mid_ch = INTS(nch);
     t->mid_src = INTS(s);
     t->end_ch = INTS(nch);
@@ -376,7 +383,9 @@ vsj_work *vsj_work_new(const vsj_model *m) {
     vsj_work *w;
     carver cv = {NULL, 0};
     if (!m || m->n < 0 || m->n_sources < 0 || m->n_frictions < 0 || m->n_springs < 0
-        || m->n_loads < 0 || m->n_motors < 0 || m->n_channels < 0)
+        || m->n_loads < 0 || m->n_motors < 0 || m->n_channels < 0 || m->n_refs < 0
+        || m->n_meas < 0 || m->n_blocks < 0 || m->n_acts < 0 || m->n_bus < 0 || m->n_cstate < 0
+        || m->n_delay < 0)
         return NULL;
     w = (vsj_work *)calloc(1, sizeof(vsj_work));
     if (!w)
@@ -389,6 +398,13 @@ vsj_work *vsj_work_new(const vsj_model *m) {
     w->nm = m->n_motors;
     w->nch = m->n_channels;
     w->rows = m->n_rows;
+    w->nref = m->n_refs;
+    w->nmeas = m->n_meas;
+    w->nblk = m->n_blocks;
+    w->nact = m->n_acts;
+    w->nbus = m->n_bus;
+    w->ncs = m->n_cstate;
+    w->ndel = m->n_delay;
     w->ny_max = vsj_n_state(m) + vsj_n_acc(m) + m->n_sources;
     layout(w, &cv);
     w->block = calloc(1, cv.used + 32u);

@@ -244,6 +244,12 @@ int vsj__ros_attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
     d->t_prev = d->t;
     d->h_prev = h;
     d->t = t_land;
+    if (end == 2 && w->ctl_on && d->t == w->ctl_next) { /* the controller's sample: the
+                                                         * next step's start anew */
+        vsj__control_sample(m, w, d->t, y);
+        vsj__eval_derivatives(m, w, d->t, y, ny, K + ny * F_NOW);
+        w->status = VSJ_OK;
+    }
     refresh_jacobian(m, w, d);
     if (end_status != VSJ_OK) { /* a physical limit was crossed at the new point */
         d->status = end_status;
@@ -269,6 +275,8 @@ void vsj__ros_sample(const vsj_work *w, const dopri_state *d, const double *t_ou
     while (*i_out < n_out && t_out[*i_out] <= d->t) {
         hermite(w, d, (t_out[*i_out] - d->t_prev) / d->h_prev, n_keep,
                 out + out_cols * *i_out);
+        if (out_cols >= n_keep + w->nbus + w->nact)
+            vsj__control_record(w, out + out_cols * *i_out + n_keep);
         (*i_out)++;
     }
 }

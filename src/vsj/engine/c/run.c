@@ -22,6 +22,13 @@ int vsj_begin(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, const d
     w->run_end = t_end;
     w->run_steps = 0;
     w->run_status = VSJ_BAD_ARGUMENT;
+    if (m->n_acts > 0 && scheme->method == VSJ_METHOD_TIMESTEP) {
+        /* the samples on the steps' grid: the period a whole number of steps */
+        double ratio = m->ctl[VSJ_CTL_PERIOD] / scheme->h;
+        if (!(ratio >= 1.0 - 1e-9) || fabs(ratio - floor(ratio + 0.5)) > 1e-9 * ratio)
+            return VSJ_BAD_ARGUMENT;
+    }
+    vsj__control_begin(m, w, t0, y0);
     if (scheme->method == VSJ_METHOD_DOPRI) {
         status = vsj__dopri_begin(m, w, y0, ny, t0, t_end, scheme->rtol, scheme->atol,
                                  scheme->h_max, scheme->max_steps, scheme->n_err);

@@ -18,6 +18,7 @@ int64_t vsj_step_state_size(const vsj_model *m) {
 /* Hold the inputs over the period and start the sources at s[base:]. */
 static void hold(const vsj_model *m, vsj_work *w, const double *s, const double *inputs) {
     w->held = inputs;
+    w->ctl_on = 0;
     memcpy(w->pos0, s + 2 * m->n + m->n_motors, (size_t)m->n_sources * sizeof(double));
 }
 
@@ -224,8 +225,8 @@ static int step_ledger(const vsj_model *m, vsj_work *w, const vsj_scheme *sc, do
 int vsj_step(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, double *s,
              const double *inputs, double dt, double *ledger) {
     int method;
-    if (!scheme || !s || !inputs || !vsj__fits(m, w) || !(dt > 0.0))
-        return VSJ_BAD_ARGUMENT;
+    if (!scheme || !s || !inputs || !vsj__fits(m, w) || !(dt > 0.0) || m->n_acts > 0)
+        return VSJ_BAD_ARGUMENT; /* a controller runs in vsj_begin/vsj_advance's runs */
     method = scheme->method;
     if (method == VSJ_METHOD_TIMESTEP) {
         if (!(scheme->h > 0.0) || !(dt / scheme->h <= VSJ_MAX_PERIOD_STEPS))

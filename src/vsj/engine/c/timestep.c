@@ -484,6 +484,8 @@ static void sample(const vsj_model *m, const vsj_work *w, const vsj_samples *smp
     int64_t j, k, nf = m->n_frictions;
     for (j = 0; j < n_col; j++)
         smp->out[smp->out_cols * i_out + j] = y[j];
+    if (smp->out_cols >= n_col + w->nbus + w->nact)
+        vsj__control_record(w, smp->out + smp->out_cols * i_out + n_col);
     if (smp->coulomb)
         for (k = 0; k < t->n_watched; k++) {
             int64_t e = t->watched[k];
@@ -1022,6 +1024,8 @@ vsj_report vsj__ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_
             status = VSJ_NOT_FINITE;
             break;
         }
+        if (w->ctl_on && tnow >= w->ctl_next - 1e-9 * h) /* on the grid (vsj_begin) */
+            vsj__control_sample(m, w, tnow, y);
         while (i_out < n_out && smp->t[i_out] <= tnow + 0.5 * h) {
             sample(m, w, smp, i_out, y, n_col);
             i_out++;

@@ -46,6 +46,49 @@ extern "C" {
 /* Columns of a row of `vsj_model.par`. */
 #define VSJ_NPAR 9
 
+/* ---- the controller (control.c) ----------------------------------------------
+ * A model may carry a sampled controller: every `ctl[VSJ_CTL_PERIOD]` seconds from a
+ * run's start it reads its sensors, runs its blocks in order and sets its actuators,
+ * whose values then hold until the next sample (zero-order hold) while the plant
+ * runs on its own scheme. Its signals sit on one bus: the references (input channels
+ * ref_ch, evaluated at the sample), the measurements, then each block's outputs. A
+ * block's inputs and an actuator's command are rows over the bus; a block reads the
+ * outputs of earlier blocks only. An actuator replaces the input channel it drives (a
+ * load's torque or a motor's voltage) and is clipped to its limits; a motor's current
+ * limit bounds its voltage so that (V - k_t omega) / R stays within it. */
+#define VSJ_NCTL 2
+enum vsj_ctl_par { VSJ_CTL_PERIOD = 0, VSJ_CTL_SEED = 1 };
+/* What a sensor measures: an angle (meas_row times the generalised and source
+ * angles), a speed (the same row times their speeds), a motor's current, the pivot
+ * position q [m]. */
+enum vsj_sensor { VSJ_SENSE_ANGLE = 0, VSJ_SENSE_SPEED = 1, VSJ_SENSE_CURRENT = 2,
+                  VSJ_SENSE_PIVOT = 3, VSJ_N_SENSORS };
+/* A sensor's row of meas_par: resolution (the reading is the nearest multiple; 0:
+ * exact), standard deviation of its Gaussian noise, delay in samples (whole), motor
+ * (VSJ_SENSE_CURRENT: index among the motors). */
+#define VSJ_NMEAS 4
+enum vsj_meas_par { VSJ_M_RESOLUTION = 0, VSJ_M_NOISE = 1, VSJ_M_DELAY = 2, VSJ_M_MOTOR = 3 };
+/* A block's row of blk: kind, inputs, outputs, states, first parameter, first input row. */
+#define VSJ_NBLK 6
+enum vsj_blk { VSJ_B_KIND = 0, VSJ_B_IN = 1, VSJ_B_OUT = 2, VSJ_B_STATES = 3, VSJ_B_PAR = 4,
+               VSJ_B_ROW = 5 };
+/* PID (Modelica's LimPID, sampled): inputs set-point, measurement, feed-forward; one
+ * output; states: integrator, derivative filter. Linear: x+ = A x + B u, y = C x + D u. */
+enum vsj_block_kind { VSJ_BLOCK_PID = 0, VSJ_BLOCK_LINEAR = 1, VSJ_N_BLOCKS };
+/* A PID's parameters: gain k, integral time Ti (inf: none), derivative time Td (0: none),
+ * Nd (derivative filter: time constant Td / Nd), set-point weights wp (proportional) and
+ * wd (derivative), output limits, Ni (back-calculation's tracking time Ni Ti), anti-windup
+ * (0 none, 1 back-calculation, 2 clamping). */
+#define VSJ_NPID 10
+enum vsj_pid { VSJ_PID_K = 0, VSJ_PID_TI = 1, VSJ_PID_TD = 2, VSJ_PID_ND = 3, VSJ_PID_WP = 4,
+               VSJ_PID_WD = 5, VSJ_PID_YMIN = 6, VSJ_PID_YMAX = 7, VSJ_PID_NI = 8,
+               VSJ_PID_WINDUP = 9 };
+/* An actuator's row of act_par: offset added to its command, lower and upper limit
+ * (the channel's unit), current limit [A] (inf: none) and its motor (index among the
+ * motors, -1: none). */
+#define VSJ_NACT 5
+enum vsj_act { VSJ_A_OFFSET = 0, VSJ_A_LO = 1, VSJ_A_HI = 2, VSJ_A_CURRENT = 3, VSJ_A_MOTOR = 4 };
+
 /* Status of a computation. */
 enum vsj_status {
     VSJ_OK = 0,
@@ -115,6 +158,10 @@ int vsj_check_model(const vsj_model *m, char *message, size_t size);
  * the same sizes may be used with it. */
 vsj_work *vsj_work_new(const vsj_model *m);
 void vsj_work_free(vsj_work *w);
+
+/* Columns a sample row gains with a controller (0 without): its bus (n_bus) and its
+ * actuators' values (n_acts), as they hold from the sample's time on. */
+int64_t vsj_control_width(const vsj_model *m);
 
 /* Lengths of the state vector without and with the ledger's accumulators. */
 int64_t vsj_n_state(const vsj_model *m);
@@ -191,7 +238,9 @@ int64_t vsj_observation_width(const vsj_model *m);
  * columns into `raw`: x, v, i, a, source angles, speeds and accelerations, q,
  * dq/dt, friction slips and torques, spring deflections, rates, torques,
  * energies and stiffnesses, source torques, load torques and speeds, motor
- * speeds and voltages. */
+ * speeds and voltages. A model with a controller: each row ends with the
+ * vsj_control_width columns a run's samples carry (ny counts them), whose actuator
+ * values the driven channels take. */
 int vsj_observe(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_out,
                 const double *out, int64_t ny, const double *coulomb, double *raw);
 
@@ -205,7 +254,8 @@ typedef struct vsj_report {
     int64_t rejected;    /* adaptive solver: rejected steps */
 } vsj_report;
 
-/* Sampling of the time-stepper: state rows (out_cols leading components) and,
+/* Samples of a run: state rows (out_cols leading components; a model with a
+ * controller writes its vsj_control_width columns after the state's) and,
  * if `coulomb` is not NULL, the Coulomb torque of each friction element and
  * whether it held (rows of n_frictions). */
 typedef struct vsj_samples {

@@ -27,7 +27,16 @@
     X(n_channels, "input channels")                                                     \
     X(n_rows, "element rows: frictions, springs, loads, motors, then the pivot")        \
     X(n_pieces, "cubic spline pieces of all input channels")                            \
-    X(n_table, "rows of the friction tables")
+    X(n_table, "rows of the friction tables")                                          \
+    X(n_refs, "controller: reference channels")                                          \
+    X(n_meas, "controller: measured signals (sensors)")                                  \
+    X(n_blocks, "controller: blocks (PID, discrete linear system)")                      \
+    X(n_acts, "controller: actuators (input channels it drives)")                        \
+    X(n_bus, "controller: signals on its bus: references, measurements, blocks' outputs") \
+    X(n_cstate, "controller: states of its blocks")                                      \
+    X(n_delay, "controller: samples its sensors' delay lines hold")                      \
+    X(n_blk_in, "controller: input rows of all blocks")                                  \
+    X(n_blk_par, "controller: parameters of all blocks")
 
 #define VSJ_ARRAYS(X)                                                                          \
     X(mass, VSJ_REAL, (M->n + M->n_sources) * (M->n + M->n_sources),                           \
@@ -54,7 +63,22 @@
     X(period, VSJ_REAL, 2 * M->n_channels,                                                     \
       "each channel's period once it repeats (0: it does not; its pieces end with one "        \
       "period) and its integral over one period")                                              \
-    X(table, VSJ_REAL, 2 * M->n_table, "friction tables: rows of (slip speed, coefficient)")
+    X(table, VSJ_REAL, 2 * M->n_table, "friction tables: rows of (slip speed, coefficient)")   \
+    X(ctl, VSJ_REAL, M->n_acts > 0 ? VSJ_NCTL : 0,                                             \
+      "controller: sample period [s], noise seed (control.c); none without actuators")        \
+    X(ref_ch, VSJ_INT, M->n_refs, "input channel of each reference")                          \
+    X(meas_kind, VSJ_INT, M->n_meas, "what each sensor measures (enum vsj_sensor)")           \
+    X(meas_row, VSJ_REAL, M->n_meas * (M->n + M->n_sources),                                   \
+      "sensor's angle (speed) as a row over the generalised and the source angles (speeds)")  \
+    X(meas_par, VSJ_REAL, M->n_meas * VSJ_NMEAS,                                               \
+      "sensor's resolution, noise, delay, motor (enum vsj_meas_par)")                         \
+    X(blk, VSJ_INT, M->n_blocks * VSJ_NBLK, "each block's kind and sizes (enum vsj_blk)")     \
+    X(blk_in, VSJ_REAL, M->n_blk_in * M->n_bus, "block inputs: rows over the bus")            \
+    X(blk_par, VSJ_REAL, M->n_blk_par, "blocks' parameters (PID: enum vsj_pid; linear: A, B, " \
+      "C, D row-major)")                                                                       \
+    X(act_ch, VSJ_INT, M->n_acts, "input channel each actuator drives (a load or a motor)")   \
+    X(act_row, VSJ_REAL, M->n_acts * M->n_bus, "each actuator's command as a row over the bus") \
+    X(act_par, VSJ_REAL, M->n_acts * VSJ_NACT, "actuator's offset and limits (enum vsj_act)")
 
 /* The laws, each one line, its code its place in the table (from 0):
  * X(NAME, name, description); the enums vsj_friction_law and vsj_spring_law (vsj.h)
