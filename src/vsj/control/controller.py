@@ -22,7 +22,7 @@ from typing import Mapping, Union
 import numpy as np
 
 from ..errors import InputError
-from ..inputs import Input, as_inputs
+from ..inputs import as_inputs
 from ..network import Structure
 
 #: A bus signal, or a weighted sum of bus signals.
