@@ -380,6 +380,8 @@ void vsj__control_sample(const vsj_model *m, vsj_work *w, double t, const double
     int64_t i, b, out = m->n_refs + m->n_meas;
     double dt = m->ctl[VSJ_CTL_PERIOD];
     int left = w->left;
+    vsj__control_record(w, INFINITY, w->ctl_before); /* what held up to now */
+    w->ctl_last = t;
     w->left = 0;
     vsj__eval_inputs(m, w, t); /* references and sources at the sample, from the right */
     w->left = left;
@@ -417,12 +419,19 @@ void vsj__control_begin(const vsj_model *m, vsj_work *w, double t0, const double
     w->ctl_rng = (uint64_t)m->ctl[VSJ_CTL_SEED];
     w->ctl_k = 0;
     w->ctl_t0 = t0;
+    w->ctl_last = -INFINITY;
+    w->ctl_tol = 1e-9 * m->ctl[VSJ_CTL_PERIOD];
+    memset(w->ctl_bus, 0, (size_t)m->n_bus * sizeof(double));
     vsj__control_sample(m, w, t0, y);
 }
 
-void vsj__control_record(const vsj_work *w, double *row) {
+void vsj__control_record(const vsj_work *w, double t, double *row) {
     if (!w->ctl_on)
         return;
+    if (t < w->ctl_last - w->ctl_tol) { /* inside the step that ended on the last sample */
+        memcpy(row, w->ctl_before, (size_t)(w->nbus + w->nact) * sizeof(double));
+        return;
+    }
     memcpy(row, w->ctl_bus, (size_t)w->nbus * sizeof(double));
     memcpy(row + w->nbus, w->ctl_u, (size_t)w->nact * sizeof(double));
 }

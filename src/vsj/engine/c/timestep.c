@@ -485,7 +485,7 @@ static void sample(const vsj_model *m, const vsj_work *w, const vsj_samples *smp
     for (j = 0; j < n_col; j++)
         smp->out[smp->out_cols * i_out + j] = y[j];
     if (smp->out_cols >= n_col + w->nbus + w->nact)
-        vsj__control_record(w, smp->out + smp->out_cols * i_out + n_col);
+        vsj__control_record(w, smp->t[i_out], smp->out + smp->out_cols * i_out + n_col);
     if (smp->coulomb)
         for (k = 0; k < t->n_watched; k++) {
             int64_t e = t->watched[k];
