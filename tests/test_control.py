@@ -224,7 +224,7 @@ def test_batches_and_blocks_give_the_bits_of_a_single_run():
     second, _, _ = split.advance(times[77:], finish=True)
     assert np.array_equal(np.vstack([first, second]), whole)
     batch = run_batch([plan, plan], times, threads=2)
-    assert np.array_equal(batch.states[1], whole[:, :plan.layout.n_state])
+    assert np.array_equal(batch.states[1], whole)  # the state, then the controller's columns
 
 
 def test_the_stepper_refuses_a_controller():
@@ -283,3 +283,22 @@ def test_the_engine_refuses_a_block_that_reads_a_later_output():
     blk_in[0, -1] = 1.0  # the PID's set-point reads its own output
     with pytest.raises(ValueError, match="reads references, measurements and earlier"):
         native(plan.model._replace(blk_in=blk_in.reshape(-1)))
+
+
+def test_simulate_batch_closes_each_runs_loop():
+    from vsj.simulate import simulate_batch
+
+    structure = motor_axis().assemble()
+    opts = SimulationOptions(friction="viscous", output_step=PERIOD)
+    starts = [InitialState(), InitialState(angles={"load.flange": 0.5})]
+    batch = simulate_batch(structure, {}, 0.2, initials=starts, options=opts,
+                           controller=position_pid(), threads=2)
+    assert batch.success.all()
+    for r, start in enumerate(starts):
+        single = simulate(structure, {}, 0.2, options=opts, initial=start,
+                          controller=position_pid(), ports=False)
+        # the same plan run alone: the same steps, the same bits
+        assert np.array_equal(batch["actuator.v"][r], single["actuator.v"])
+        assert np.array_equal(batch["angle"][r], single["angle"])
+    assert not np.array_equal(batch["control.u"][0], batch["control.u"][1])
+    assert "actuator.v" in batch.to_xarray()

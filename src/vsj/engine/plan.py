@@ -299,7 +299,8 @@ class Batch:
     """The states of many runs of plans of one network on one sample grid."""
 
     time: np.ndarray
-    states: np.ndarray          # (runs, samples, n_state), NaN where a run did not reach
+    #: (runs, samples, n_state + a controller's columns), NaN where a run did not reach
+    states: np.ndarray
     y_end: np.ndarray           # (runs, n_state)
     status: np.ndarray          # engine status per run
     stop_time: np.ndarray
@@ -309,7 +310,8 @@ class Batch:
 
 def run_batch(plans: Sequence[Plan], times: np.ndarray, *, threads: int | None = None,
               progress=None) -> Batch:
-    """Run ``plans`` (one network's sizes; no ledger), sampled at ``times``, on
+    """Run ``plans`` (one network's sizes and controller; no ledger), sampled at ``times``
+    (the states, then a controller's bus and actuators), on
     ``threads`` threads (default: every core), one plan at a time as they free up; the
     results do not depend on the number of threads. ``progress``, if given, is called
     with the number of runs finished after each."""
@@ -318,7 +320,8 @@ def run_batch(plans: Sequence[Plan], times: np.ndarray, *, threads: int | None =
         raise InputError("run_batch: no plans to run")
     times = np.ascontiguousarray(times, dtype=float)
     n_state = plans[0].layout.n_state
-    states = np.full((runs, len(times), n_state), np.nan)
+    extra = plans[0].controller.width if plans[0].controller is not None else 0
+    states = np.full((runs, len(times), n_state + extra), np.nan)
     y_end = np.zeros((runs, n_state))
     status = np.zeros(runs, dtype=np.int64)
     stop = np.zeros(runs)
@@ -336,7 +339,7 @@ def run_batch(plans: Sequence[Plan], times: np.ndarray, *, threads: int | None =
             run = Run(plan, ledger=False, end=max(plan.duration, float(times[-1])), work=work,
                       checked=checked)
             out, _, _ = run.advance(times, finish=True)
-            states[r] = out[:, :n_state]
+            states[r] = out if not extra else np.hstack([out[:, :n_state], out[:, -extra:]])
             y_end[r] = run.y[:n_state]
             status[r], stop[r], steps[r] = run.status, run.t, run.steps
             flips[r] = int(run.transitions().sum())
