@@ -302,3 +302,39 @@ def test_simulate_batch_closes_each_runs_loop():
         assert np.array_equal(batch["angle"][r], single["angle"])
     assert not np.array_equal(batch["control.u"][0], batch["control.u"][1])
     assert "actuator.v" in batch.to_xarray()
+
+
+def test_a_python_callback_closes_the_same_loop_as_the_engines_pid():
+    from vsj.control.callback import run_callback
+    from vsj.stepper import Stepper
+
+    settings = dict(k=40.0, Ti=0.05, Td=0.005, Nd=10.0, wp=1.0, wd=0.0, y_min=-12.0,
+                    y_max=12.0, Ni=0.9)
+    reference = Step(1.0, 0.01)
+    state = {"xi": 0.0, "xd": None}
+
+    def pid(t, signals):  # the sampled LimPID, back-calculation, as in `limpid`
+        r, y = float(reference.value(t)), signals["angle"]
+        e = r - y
+        if state["xd"] is None:
+            state["xd"] = -y
+        d = settings["Nd"] * (-y - state["xd"])
+        state["xd"] = -y + (state["xd"] + y) * math.exp(-PERIOD * settings["Nd"] / settings["Td"])
+        u = settings["k"] * (e + state["xi"] + d)
+        lim = min(max(u, -12.0), 12.0)
+        state["xi"] += PERIOD * (e + (lim - u) / (settings["k"] * settings["Ni"])) / settings["Ti"]
+        return {"v": lim}
+
+    stepper = Stepper(motor_axis().assemble(), PERIOD,
+                      options=SimulationOptions(friction="viscous"))
+    by_python = run_callback(stepper, pid, 0.3)
+    assert by_python.success and by_python.per_call > 0
+    in_c = run(position_pid(**settings), output_step=PERIOD)
+    # two dopri integrations at rtol 1e-8 of the same held voltages: they agree to the
+    # solver's tolerance over the run's 1 rad
+    assert np.max(np.abs(by_python["angle"] - in_c["angle"])) < 100 * SimulationOptions().rtol
+    # the voltages: the angles' difference through gains up to k Nd = 400 V/rad
+    gain = settings["k"] * settings["Nd"]
+    assert np.max(np.abs(by_python["v"] - in_c["actuator.v"])) < gain * 100 * SimulationOptions().rtol
+    with pytest.raises(InputError, match="unknown channel 'volts'"):
+        run_callback(stepper, lambda t, s: {"volts": 1.0}, 0.01)
