@@ -227,13 +227,6 @@ def test_batches_and_blocks_give_the_bits_of_a_single_run():
     assert np.array_equal(batch.states[1], whole)  # the state, then the controller's columns
 
 
-def test_the_stepper_refuses_a_controller():
-    structure = motor_axis().assemble()
-    with pytest.raises(InputError, match="step function"):
-        Plan.compile(structure, {}, PERIOD, SimulationOptions(), InitialState(), "dopri",
-                     held=True, controller=position_pid())
-
-
 @pytest.mark.parametrize("change, message", [
     (dict(period=-1e-3), "period must be a finite number > 0"),
     (dict(actuators=()), "drives nothing"),
@@ -338,3 +331,33 @@ def test_a_python_callback_closes_the_same_loop_as_the_engines_pid():
     assert np.max(np.abs(by_python["v"] - in_c["actuator.v"])) < gain * 100 * SimulationOptions().rtol
     with pytest.raises(InputError, match="unknown channel 'volts'"):
         run_callback(stepper, lambda t, s: {"volts": 1.0}, 0.01)
+
+
+@pytest.mark.parametrize("method", ["dopri", "timestep"])
+def test_the_step_function_runs_the_controller_at_its_own_period(method):
+    from vsj.stepper import Stepper
+
+    options = SimulationOptions(friction="viscous", step=PERIOD / 10)
+    # periods of five controller samples: the controller samples inside each call
+    stepper = Stepper(motor_axis().assemble(), 5 * PERIOD, options=options, method=method,
+                      controller=position_pid())
+    assert stepper.input_names[-1] == "ref.r"
+    state = stepper.initial_state()
+    angles = []
+    for k in range(60):
+        t = k * 5 * PERIOD
+        stepper.step(state, {"ref.r": float(Step(1.0, 0.01).value(t))}, out=state)
+        angles.append(stepper.signals(state, None)["angle"])
+    values = stepper.control_values()
+    assert set(values) == {"control.r", "control.angle", "control.u", "actuator.v"}
+    whole = run(position_pid(), solver=method, duration=0.3, output_step=5 * PERIOD,
+                step=PERIOD / 10)
+    # the reference is held over each 5 ms period as the stepper's input, the run's
+    # spline steps at 10 ms on the same grid: the same loop; dopri runs agree to the
+    # solver's tolerance, the time-stepper's to round-off (the same steps)
+    tol = 100 * SimulationOptions().rtol if method == "dopri" else 1e-12
+    assert np.max(np.abs(np.array(angles) - whole["angle"][1:])) < tol
+    stepper.reset_controller()
+    with pytest.raises(InputError, match="whole number of controller periods"):
+        Stepper(motor_axis().assemble(), 2.5 * PERIOD, options=options,
+                controller=position_pid())

@@ -92,16 +92,26 @@ def initial_state(structure: Structure, inputs: Mapping[str, Input], initial,
 
 
 
-def check_period(period: float, scheme: Scheme, duration: float) -> None:
+def check_period(period: float, scheme: Scheme, duration: float, *, held: bool = False) -> None:
     """`InputError` unless a controller of ``period`` [s] can run with ``scheme``: the
-    time-stepper's steps must fit a whole number of times into it."""
+    time-stepper's steps must fit a whole number of times into it; and in the step
+    function (``held``, periods of ``duration``) it must fit a whole number of times into
+    each period (rk4's: once)."""
+    if held:
+        ratio = duration / period
+        if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * ratio:
+            raise InputError(f"controller period {period:g} s: the step function's period "
+                             f"{duration:g} s must be a whole number of controller periods")
+        if scheme.name == "rk4" and abs(ratio - 1.0) > 1e-9:
+            raise InputError(f"controller period {period:g} s: rk4 steps hold one controller "
+                             f"sample a period; use a step function period of {period:g} s")
     if scheme.name == "timestep":
         ratio = period / scheme.step
         if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * ratio:
             raise InputError(f"controller period {period:g} s: the time-stepper's step "
                              f"{scheme.step:g} s must divide it a whole number of times (a "
                              "controller cannot sample faster than the plant steps)")
-    if period > duration:
+    if period > duration and not held:
         raise InputError(f"controller period {period:g} s is longer than the run "
                          f"({duration:g} s): it would sample once")
 
@@ -164,14 +174,10 @@ class Plan:
             scheme = Scheme.of(scheme, options)
         compiled = None
         if controller is not None:
-            if held:
-                raise InputError("the step function holds its inputs itself: a controller "
-                                 "runs in simulations (or close the loop around the stepper "
-                                 "in Python)")
             compiled = compile_controller(controller, structure, structure.channels())
-            check_period(compiled.period, scheme, duration)
+            check_period(compiled.period, scheme, duration, held=held)
             driven = set(compiled.channels) & set(inputs)
-            if driven:
+            if driven and not held:  # held: every channel is an input, driven ones ignored
                 raise InputError(f"input(s) {', '.join(sorted(driven))} are driven by the "
                                  "controller; remove them from the inputs")
         model, layout = compile_model(structure, inputs, duration, friction=options.friction,

@@ -126,8 +126,9 @@ struct vsj_work {
      * most), the sensors' delay lines (ndel), the actuators' held values (nact), and
      * the actuator driving each input channel (-1: none) */
     int64_t nref, nmeas, nblk, nact, nbus, ncs, ndel;
-    int ctl_on;
-    int64_t ctl_k;
+    int ctl_on, ctl_started;
+    int64_t ctl_k, ctl_k0; /* samples taken, and when the run (or period) began */
+    double ctl_stop;       /* no sample at or after this time (a held period's end) */
     double ctl_t0, ctl_next, ctl_last; /* ctl_last: the last sample's time */
     double ctl_tol;        /* times this close to a sample's are the sample's */
     uint64_t ctl_rng;
@@ -163,6 +164,11 @@ VSJ_INTERNAL void vsj__control_sample(const vsj_model *m, vsj_work *w, double t,
 VSJ_INTERNAL void vsj__control_record(const vsj_work *w, double t, double *row);
 /* The driven channels held at the actuators' values u (vsj_observe's rows end with them). */
 VSJ_INTERNAL void vsj__control_hold(const vsj_model *m, vsj_work *w, const double *u);
+/* A held period of the step function from the state y (engine form), dt long: the
+ * controller samples at its start and every period within (its state goes on from
+ * the last call's, or starts afresh after vsj_control_reset). */
+VSJ_INTERNAL void vsj__control_period(const vsj_model *m, vsj_work *w, const double *y,
+                                      double dt);
 
 /* evaluation (eval.c) */
 VSJ_INTERNAL void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y,
