@@ -201,6 +201,9 @@ def test_a_linear_block_runs_python_controls_discrete_system():
     # python-control's state space and the engine's sums: a few ulps per sample,
     # accumulated over a stable system's memory
     assert np.max(np.abs(r["control.u"][rows] - response)) < 1e-10 * np.max(np.abs(response))
+    # an integrator's pole sits on the unit circle: a PI as a transfer function runs
+    pi = Linear("pi", control.tf([2.0, -1.9], [1.0, -1.0], PERIOD), ("r",), ("u",))
+    assert pi.matrices(PERIOD)[0].shape == (1, 1)
 
 
 def test_stiction_and_a_controller_close_the_ledger():

@@ -34,10 +34,10 @@ the voltage it commands; while an actuator clips it (limits, current limit), the
 estimate drifts from the plant, as it would on the robot.
 
 A stable loop may need an unstable compensator (the controller alone, without the plant,
-diverging); `vsj.control.Linear` runs only stable ones, so a design is checked for both
-and refused otherwise (`StateFeedback.check`). For this wrist, an estimator from the
-motor encoders alone tends to give such a compensator; measuring the output angles too
-(``theta_x``, ``theta_y``) gives a stable one.
+diverging): for this wrist, an estimator from the motor encoders alone tends to give
+one; measuring the output angles too (``theta_x``, ``theta_y``) gives a stable one. A
+design is checked for the loop it closes on its plant (`StateFeedback.check`), and its
+`Linear` block then runs whatever its compensator's own poles (``allow_unstable``).
 
 **Gain scheduling over the stiffness setting.** The elastic elements' stiffness, and so
 the plant, changes with the pivot position ``q``. `GainSchedule` holds designs made at a
@@ -379,20 +379,13 @@ class StateFeedback:
         return np.linalg.eigvals(np.vstack([top, bottom]))
 
     def check(self) -> "StateFeedback":
-        """Itself, after checking that the loop it closes on its plant and the
-        compensator itself are stable (`InputError` otherwise: the engine runs only a
-        stable compensator, `vsj.control.Linear`)."""
+        """Itself, after checking that the loop it closes on its plant is stable
+        (`InputError` otherwise); the compensator alone may be unstable."""
         where = f"state feedback ({self.method})"
         rho = np.max(np.abs(self.closed_loop_poles()))
         if not rho < 1.0 - STABILITY_MARGIN:
             raise InputError(f"{where}: the closed loop is unstable (an eigenvalue of modulus "
                              f"{rho:.6g} >= 1)")
-        comp = np.max(np.abs(np.linalg.eigvals(self.compensator().A)), initial=0.0)
-        if not comp < 1.0 - STABILITY_MARGIN:
-            raise InputError(f"{where}: the loop is stable but the compensator itself is not "
-                             f"(an eigenvalue of modulus {comp:.6g} >= 1), and the engine "
-                             "runs only stable linear blocks; make the observer faster or "
-                             "weigh the inputs more")
         return self
 
     # -- the controller
@@ -479,7 +472,7 @@ class StateFeedback:
             D = np.hstack([D, -(D @ offset)[:, None]])
         system = control.ss(comp.A, B, comp.C, D, self.period)
         outputs = tuple(f"{name}.{c}" for c in self.controlled)
-        block = Linear(name, system, tuple(inputs), outputs)
+        block = Linear(name, system, tuple(inputs), outputs, allow_unstable=True)  # loop checked
         acts = tuple(Actuator(c, out, offset=float(u0), limits=limits.get(c),
                               current_limit=current_limit)
                      for c, out, u0 in zip(self.controlled, outputs, self.u0))
