@@ -40,6 +40,69 @@ offset, start, fade_in, stop), ``step`` (height, start, offset), ``table``
 ramp, start: plateaus joined by ramps), ``position`` (signal: an angle whose derivative drives a velocity
 source) and ``circle`` (radius, period, fade_in, axis: a position input).
 
+A ``[controller]`` table closes the loop (`vsj.control`): a sampled controller with
+its rate, references (the value kinds above), sensors, blocks (PIDs with the semantics
+of Modelica's LimPID, discrete linear systems) and actuators, on one bus of named
+signals. It drives DC motors' voltages or loads' torques, so the wrist needs
+``[model] motors = "dc"`` (voltage_1, voltage_2) and ``pivot_drive = "dc"``
+(voltage_s). Example::
+
+    network = "wrist"
+    duration = "1 s"
+
+    [model]
+    motors = "dc"
+    pivot_drive = "dc"
+
+    [controller]
+    rate = "1 kHz"                    # or period = "1 ms"; seed = 0 (sensor noise)
+
+    [controller.references.m1]        # a kind of [inputs], in its signal's unit
+    kind = "step"
+    height = "0.2 rad"
+
+    [[controller.sensors]]
+    signal = "motor_1"                # quantity = "angle" | "speed" | "current" | "q"
+    counts_per_revolution = 4096      # or resolution, in the reading's unit
+    noise = "0.1 mrad"                # standard deviation
+    delay = 1                         # samples
+
+    [[controller.sensors]]
+    signal = "motor_2"
+
+    [[controller.pid]]
+    name = "u1"                       # its output on the bus
+    setpoint = "m1"
+    measurement = "motor_1"           # or a weighted sum { motor_1 = 0.5, motor_2 = 0.5 }
+    k = "40 V/rad"                    # (what it drives) / (what it measures)
+    Ti = "0.1 s"                      # also Td, Nd, wp, wd, y_min, y_max, Ni, anti_windup,
+                                      # feed_forward
+
+    [[controller.linear]]             # x+ = A x + B u, y = C x + D u at the rate
+    name = "u2"
+    inputs = [{ m1 = 1.0, motor_2 = -1.0 }]
+    unit = "V/rad"                    # of its numbers (SI without it)
+    num = [350.0, -316.666655]        # or A, B, C, D (D alone: a static gain)
+    den = [1.0, -0.3333333]
+
+    [[controller.actuators]]
+    channel = "voltage_1"             # a motor's voltage or a load's torque
+    command = "u1"
+    limits = ["-12 V", "12 V"]        # default: the motor's voltage_limit
+    current_limit = "1 A"
+
+    [[controller.actuators]]
+    channel = "voltage_2"
+    command = "u2"
+
+Each signal on the bus has a unit: a sensor's that of what it reads, an actuator's
+command that of its channel, and the others follow from where signals meet (a PID's
+set-point shares its measurement's unit, its output the unit of what reads it, a
+weighted sum's terms share one), so that every gain is checked against (its output's
+unit) / (its input's). A case changes an entry of a controller's arrays by its name
+(``[cases.controller.pid.u1]``; sensors by their bus name, actuators by channel), or
+replaces a whole array.
+
 Every value is checked as it is read: its type, unit and range. `prepare_case`
 then builds and compiles each case without running it, so whatever a run would
 refuse (an initial angle of no flange, an input signal too large for memory) is
@@ -453,31 +516,7 @@ def parse_inputs(case: Case, net: Network) -> dict[str, Input]:
 
 
 # ----------------------------------------------------------------------- the controller
-#
-# A scenario's [controller] table declares a sampled controller (vsj.control) in the
-# words of its Python API, with units:
-#
-#     [controller]
-#     rate = "1 kHz"                     # or period = "1 ms"
-#     [controller.references.m1]         # same kinds as [inputs]
-#     kind = "step"
-#     height = "0.2 rad"
-#     [[controller.sensors]]
-#     signal = "motor_1"                 # quantity = "angle" | "speed" | "current" | "q"
-#     [[controller.pid]]
-#     name = "u1"
-#     setpoint = "m1"
-#     measurement = "motor_1"
-#     k = "40 V/rad"
-#     [[controller.actuators]]
-#     channel = "voltage_1"
-#     command = "u1"
-#
-# Every signal on the controller's bus has a unit: a sensor's is that of what it
-# measures, an actuator's command that of its channel (V, N m). The others follow from
-# where signals meet: a PID's set-point shares its measurement's unit and its output
-# the unit of what reads it, a weighted sum's terms share one unit. A reference is
-# written in the unit so found, a PID's gain in (its output's unit)/(its measurement's).
+# The [controller] table (see the module's docstring) in the words of vsj.control.
 
 CONTROLLER_KEYS = {"rate", "period", "seed", "references", "sensors", "pid", "linear",
                    "actuators"}
@@ -707,20 +746,19 @@ def _check_period(period: float, pw: Where, case: Case, solver: str) -> None:
     whole number of times, and it samples more than once and fewer times than the run
     may take steps."""
     options, duration = case.options, case.duration
+    step_key = case.where.key("solver").key("step").path
     if solver == "timestep":
         ratio = period / options.step
         if ratio < 1.0 - 1e-9:
             raise InputError(f"{pw}: the controller samples every {period:g} s, more often "
-                             f"than the time-stepper steps ({case.where.key('solver').key('step').path}"
-                             f" = {options.step:g} s); sample at most once a step, or step "
-                             "shorter")
+                             f"than the time-stepper steps ({step_key} = {options.step:g} s); "
+                             "sample at most once a step, or step shorter")
         # the engine's own test (engine/plan.py check_period): a whole number to round-off
         if abs(ratio - round(ratio)) > 1e-9 * ratio:
             raise InputError(f"{pw}: the controller's period {period:g} s is not a whole "
-                             f"number of the time-stepper's steps "
-                             f"({case.where.key('solver').key('step').path} = {options.step:g} "
-                             "s); "
-                             "the plant would see its commands change inside a step")
+                             f"number of the time-stepper's steps ({step_key} = "
+                             f"{options.step:g} s); the plant would see its commands change "
+                             "inside a step")
     if period > duration:
         raise InputError(f"{pw}: the controller's period {period:g} s is longer than the run "
                          f"({duration:g} s): it would sample once")
@@ -969,6 +1007,81 @@ def _in_order(blocks: list[_Block], where: Where) -> list[_Block]:
     return order
 
 
+def _check_bus(refs: Mapping, sensors: list, blocks: list[_Block], actuators: list,
+               where: Where) -> None:
+    """Every name once on the controller's bus, each channel driven once, every name
+    read known."""
+    origin: dict[str, Where] = {}
+    named = ([(n, where.key("references").key(n)) for n in refs]
+             + [(s.label, w) for s, w in sensors]
+             + [(o, b.where) for b in blocks for o in b.outputs])
+    for name, w in named:
+        if name in origin:
+            raise InputError(f"{w}: the name {name!r} is already taken on the controller's "
+                             f"bus (by {origin[name].path}); give each signal its own name")
+        origin[name] = w
+    driven: dict[str, Where] = {}
+    for _, aw, channel, _ in actuators:
+        if channel in driven:
+            raise InputError(f"{aw.key('channel')}: {channel!r} is driven by "
+                             f"{driven[channel].path} already")
+        driven[channel] = aw
+    reads = [(b.where.key(k), c) for b in blocks for k, c in b.reads.items()]
+    reads += [(aw.key("command"), command) for _, aw, _, command in actuators]
+    for rw, combination in reads:
+        for term in _terms(combination):
+            if term not in origin:
+                raise InputError(f"{rw}: unknown signal {term!r}; the controller's signals "
+                                 f"are {', '.join(origin)} (references, sensors by name, "
+                                 "blocks' outputs)")
+
+
+def _bus_units(sensors: list, blocks: list[_Block], actuators: list,
+               channel_units: Mapping[str, str]) -> _Units:
+    """The units of the bus: fixed by the sensors and the actuators' channels, shared
+    where signals meet."""
+    units = _Units()
+    for sensor, sw in sensors:
+        units.fix(sensor.label, SENSOR_UNITS[sensor.quantity], f"sensor {sensor.label!r}", sw)
+    for _, aw, channel, command in actuators:
+        for term in _terms(command):
+            units.fix(term, channel_units[channel], f"it drives {channel!r}", aw.key("command"))
+    for b in blocks:
+        if b.kind == "pid":
+            units.join(_terms(b.reads["setpoint"]) + _terms(b.reads["measurement"]), b.where,
+                       "a PID's setpoint and measurement")
+            units.join([b.name] + _terms(b.reads.get("feed_forward", {})), b.where,
+                       "a PID's output and feed_forward")
+        else:
+            for key, c in b.reads.items():
+                units.join(_terms(c), b.where.key(key), "the terms of an input")
+    for b in blocks:
+        if b.kind == "pid" and units.of(_terms(b.reads["measurement"])[0]) is None:
+            raise InputError(f"{b.where.key('measurement')}: its unit is unknown (it reads "
+                             "no sensor); a PID measures through a sensor")
+    return units
+
+
+def _actuator(entry: Mapping, aw: Where, channel: str, command: Combination, unit: str,
+              structure: Structure) -> Actuator:
+    limits = None
+    if "limits" in entry:
+        value = entry["limits"]
+        if not isinstance(value, list) or len(value) != 2:
+            raise InputError(f"{aw.key('limits')}: expected [low, high] in {_shown(unit)}, "
+                             f"got {value!r}")
+        limits = tuple(to_si(v, unit, where=f"{aw.key('limits')}[{j}]")
+                       for j, v in enumerate(value))
+        if not limits[0] < limits[1]:
+            raise InputError(f"{aw.key('limits')}: low < high needed, got {value!r}")
+    current = _quantity(entry, "current_limit", "A", aw, math.inf, positive=True)
+    if math.isfinite(current) and channel not in {m.channel for m in structure.motors}:
+        raise InputError(f"{aw.key('current_limit')}: a current limit needs a motor's "
+                         f"voltage; {channel!r} is a load's torque (limit it by limits)")
+    return Actuator(channel, command, offset=_quantity(entry, "offset", unit, aw, 0.0),
+                    limits=limits, current_limit=current)
+
+
 def controller_from_table(case: Case, net: Network, structure: Structure
                           ) -> Controller | None:
     """The case's [controller] table as a `vsj.control.Controller` for its network, every
@@ -992,53 +1105,10 @@ def controller_from_table(case: Case, net: Network, structure: Structure
         aw = where.key(f"actuators[{i}]")
         actuators.append((entry, aw, _actuator_channel(entry, aw, net, case),
                           _combination(entry, "command", aw)))
-    # every name once on the bus, every name read known
-    origin: dict[str, Where] = {}
-    named = ([(n, where.key("references").key(n)) for n in refs]
-             + [(s.label, w) for s, w in sensors]
-             + [(o, b.where) for b in blocks for o in b.outputs])
-    for name, w in named:
-        if name in origin:
-            raise InputError(f"{w}: the name {name!r} is already taken on the controller's "
-                             f"bus (by {origin[name].path}); give each signal its own name")
-        origin[name] = w
-    driven = {}
-    for entry, aw, channel, command in actuators:
-        if channel in driven:
-            raise InputError(f"{aw.key('channel')}: {channel!r} is driven by "
-                             f"{driven[channel].path} already")
-        driven[channel] = aw
-    reads = [(b.where.key(k), c) for b in blocks for k, c in b.reads.items()]
-    reads += [(aw.key("command"), command) for _, aw, _, command in actuators]
-    for rw, combination in reads:
-        for term in _terms(combination):
-            if term not in origin:
-                raise InputError(f"{rw}: unknown signal {term!r}; the controller's signals "
-                                 f"are {', '.join(origin)} (references, sensors by name, "
-                                 "blocks' outputs)")
+    _check_bus(refs, sensors, blocks, actuators, where)
     blocks = _in_order(blocks, where)
-    # units: fixed by sensors and actuators, shared where signals meet
-    units = _Units()
     channel_units, _ = _channel_units(net)
-    for sensor, sw in sensors:
-        units.fix(sensor.label, SENSOR_UNITS[sensor.quantity], f"sensor {sensor.label!r}", sw)
-    for entry, aw, channel, command in actuators:
-        for term in _terms(command):
-            units.fix(term, channel_units[channel], f"it drives {channel!r}", aw.key("command"))
-        units.join(_terms(command), aw.key("command"), "the terms of a command")
-    for b in blocks:
-        if b.kind == "pid":
-            units.join(_terms(b.reads["setpoint"]) + _terms(b.reads["measurement"]), b.where,
-                       "a PID's setpoint and measurement")
-            units.join([b.name] + _terms(b.reads.get("feed_forward", {})), b.where,
-                       "a PID's output and feed_forward")
-        else:
-            for key, c in b.reads.items():
-                units.join(_terms(c), b.where.key(key), "the terms of an input")
-    for b in blocks:
-        if b.kind == "pid" and units.of(_terms(b.reads["measurement"])[0]) is None:
-            raise InputError(f"{b.where.key('measurement')}: its unit is unknown (it reads "
-                             "no sensor); a PID measures through a sensor")
+    units = _bus_units(sensors, blocks, actuators, channel_units)
     built = [(_pid if b.kind == "pid" else _linear)(b, units, period) for b in blocks]
     references = {}
     for name, spec in refs.items():
@@ -1051,32 +1121,14 @@ def controller_from_table(case: Case, net: Network, structure: Structure
         references[name] = parse_input(spec, unit, rw)
         with _context(rw):
             references[name].knots(case.duration)
-    acts = []
-    for entry, aw, channel, command in actuators:
-        unit = channel_units[channel]
-        limits = None
-        if "limits" in entry:
-            value = entry["limits"]
-            if not isinstance(value, list) or len(value) != 2:
-                raise InputError(f"{aw.key('limits')}: expected [low, high] in "
-                                 f"{_shown(unit)}, got {value!r}")
-            limits = tuple(to_si(v, unit, where=f"{aw.key('limits')}[{j}]")
-                           for j, v in enumerate(value))
-            if not limits[0] < limits[1]:
-                raise InputError(f"{aw.key('limits')}: low < high needed, got {value!r}")
-        current = _quantity(entry, "current_limit", "A", aw, math.inf, positive=True)
-        if math.isfinite(current) and channel not in {m.channel for m in structure.motors}:
-            raise InputError(f"{aw.key('current_limit')}: a current limit needs a motor's "
-                             f"voltage; {channel!r} is a load's torque (limit it by limits)")
-        acts.append(Actuator(channel, command, offset=_quantity(entry, "offset", unit, aw, 0.0),
-                             limits=limits, current_limit=current))
-    controller = Controller(period=period, actuators=tuple(acts),
+    acts = tuple(_actuator(entry, aw, channel, command, channel_units[channel], structure)
+                 for entry, aw, channel, command in actuators)
+    controller = Controller(period=period, actuators=acts,
                             sensors=tuple(s for s, _ in sensors), blocks=tuple(built),
                             references=references, seed=seed)
     with _context(where):  # what the engine's compiler checks besides (its own words)
         compile_controller(controller, structure, structure.channels())
     return controller
-
 
 def loads(text: str, origin: str) -> Scenario:
     """Parse scenario text; ``origin`` names it in messages."""
