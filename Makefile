@@ -59,6 +59,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
 	$(BIN)/python benchmarks/friction_laws.py
 	$(BIN)/python benchmarks/step_cost.py
+	$(BIN)/python benchmarks/control.py
 	$(BIN)/python benchmarks/msl.py
 	$(BIN)/python benchmarks/identify_wrist.py
 	$(BIN)/python benchmarks/sweep.py $${VSJ_SWEEP_RUNS:-3000}

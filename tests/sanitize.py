@@ -4,7 +4,8 @@ Builds the extension and the C example with ``-fsanitize=address,undefined``
 into a scratch directory, then, in a process that preloads the sanitizer
 runtime, runs what the engine does for users: every regression scenario
 (smooth, stiction, both elastic models, benches), the MSL drive trains
-(clutches, brakes, breakaway peaks), the FMU through FMPy (its refusals and
+(clutches, brakes, breakaway peaks), sampled controllers in every scheme, the FMU
+through FMPy (its refusals and
 checks included), batches on two threads with
 both solvers, the step function with all three methods, the C example on
 good and bad model files, and the binding's refusal of bad arrays. Any
@@ -145,6 +146,18 @@ for name, build in msl.EXAMPLES.items():
     r = example.simulate(1e-3)
     assert r.success and msl.check(example, r, msl.reference(example)).passed, name
     print("msl", name, flush=True)
+sys.path.insert(0, sys.argv[2] + "/tests")         # controllers: every scheme, each part
+import test_control as control_tests
+for solver in ("dopri", "rosenbrock", "timestep"):
+    control_tests.test_actuators_hold_between_samples_and_change_only_at_them(solver)
+for check in ("test_sensors_quantise_delay_and_add_seeded_noise",
+              "test_a_linear_block_runs_python_controls_discrete_system",
+              "test_a_current_limit_bounds_the_voltage_by_the_back_emf",
+              "test_stiction_and_a_controller_close_the_ledger",
+              "test_batches_and_blocks_give_the_bits_of_a_single_run",
+              "test_the_engine_refuses_a_block_that_reads_a_later_output"):
+    getattr(control_tests, check)()
+print("controllers", flush=True)
 scen = scenarios.load("fig-4.15")
 prep = scenarios.prepare_case(scen, scen.cases[0], params)
 structure, inputs = prep.structure, prep.inputs
@@ -297,7 +310,11 @@ def main(argv: list[str]) -> int:
     scratch.mkdir(parents=True, exist_ok=True)
     pkg, example = build(scratch)
     env = dict(os.environ)
-    env["LD_PRELOAD"] = runtime(compiler())
+    # and the C++ runtime with it: an extension that throws C++ exceptions (matplotlib's
+    # font module, which python-control imports) needs it loaded when ASan starts
+    cxx = subprocess.run([compiler(), "-print-file-name=libstdc++.so.6"], capture_output=True,
+                         text=True).stdout.strip()
+    env["LD_PRELOAD"] = " ".join([runtime(compiler())] + ([cxx] if Path(cxx).is_file() else []))
     # Python's allocator keeps memory at exit by design: leak reports would be its own
     env["ASAN_OPTIONS"] = "detect_leaks=0:abort_on_error=1"
     env["UBSAN_OPTIONS"] = "halt_on_error=1:print_stacktrace=1"

@@ -747,6 +747,43 @@ static PyObject *py_transitions(PyObject *mod, PyObject *args) {
     Py_RETURN_NONE;
 }
 
+/* control_values(model, work, out): a controller's bus and actuators as they hold now
+ * (vsj_control_width values); control_reset(model, work): the step function's
+ * controller starts afresh at the next step */
+static PyObject *py_control_values(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    PyObject *oo;
+    arg o;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "O!O!O:control_values", &ModelType, &model, &WorkType, &work,
+                          &oo))
+        return NULL;
+    if (get(oo, &o, DOUBLES, 1, (Py_ssize_t)vsj_control_width(&model->m), "out") < 0)
+        return NULL;
+    if (take(work, &model->m) < 0) {
+        release(&o);
+        return NULL;
+    }
+    vsj_control_values(&model->m, work->w, (double *)o.view.buf);
+    give_back(work);
+    release(&o);
+    Py_RETURN_NONE;
+}
+
+static PyObject *py_control_reset(PyObject *mod, PyObject *args) {
+    ModelObject *model;
+    WorkObject *work;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "O!O!:control_reset", &ModelType, &model, &WorkType, &work))
+        return NULL;
+    if (take(work, &model->m) < 0)
+        return NULL;
+    vsj_control_reset(work->w);
+    give_back(work);
+    Py_RETURN_NONE;
+}
+
 /* observe(model, work, t_out, out, coulomb or None, raw) */
 static PyObject *py_observe(PyObject *mod, PyObject *args) {
     ModelObject *model;
@@ -1258,6 +1295,10 @@ static PyMethodDef methods[] = {
      "The engine's one entry point for integrating: start, sample and finish a run, or "
      "advance the step function by a held period."},
     {"transitions", py_transitions, METH_VARARGS, "The time-stepper's stick-phase counts."},
+    {"control_values", py_control_values, METH_VARARGS,
+     "A controller's bus and actuators as they hold now."},
+    {"control_reset", py_control_reset, METH_VARARGS,
+     "Start the step function's controller afresh at its next step."},
     {"observe", py_observe, METH_VARARGS, "Every internal signal at samples (vsj_observe)."},
     {"derivatives", py_derivatives, METH_VARARGS, "dy/dt (vsj_derivatives)."},
     {"jacobian", py_jacobian, METH_VARARGS,

@@ -107,7 +107,7 @@ class Stepper:
 
     def __init__(self, structure: Structure, period: float = 1e-3, *,
                  options: SimulationOptions | None = None, method: str = "dopri",
-                 substeps: int = 4, max_steps: int = 100_000):
+                 substeps: int = 4, max_steps: int = 100_000, controller=None):
         options = options or SimulationOptions()
         options.validate()
         if not (math.isfinite(period) and period > 0.0):
@@ -138,12 +138,16 @@ class Stepper:
         self.rtol = float(options.rtol)
         self.atol = float(options.atol)
         self.step_size = float(options.step)
-        self.input_names = structure.channels()
-        held = {ch: Constant(0.0) for ch in self.input_names}
+        held = {ch: Constant(0.0) for ch in structure.channels()}
         scheme = replace(Scheme.of(method, options), max_steps=self.max_steps,
                          substeps=substeps)
         self.plan = Plan.compile(structure, held, self.period, options, None, scheme,
-                                 held=True)
+                                 held=True, controller=controller)
+        #: the compiled controller (`vsj.control.CompiledController`), if any
+        self.controller = self.plan.controller
+        # a controller's references are inputs too, after the network's channels
+        self.input_names = structure.channels() + (
+            tuple(self.controller.references) if self.controller is not None else ())
         self.layout = self.plan.layout
         self.use_model(self.plan.model)
         n, nm, s = self.layout.n, self.layout.n_motors, self.layout.n_sources
@@ -221,9 +225,10 @@ class Stepper:
         speeds; with ``inputs``, velocity sources already run at their speeds).
         """
         u = self.input_vector(inputs)
-        held = {ch: Constant(float(v)) for ch, v in zip(self.input_names, u)}
+        held = {ch: Constant(float(v)) for ch, v in zip(self.structure.channels(), u)}
         plan = prepare(self.structure, held, self.period, self.options,
                        initial or InitialState())
+        self.reset_controller()
         model, layout, y0 = plan.model, plan.layout, plan.y0
         n, nm = layout.n, layout.n_motors
         state = np.empty(self.n_state)
@@ -233,6 +238,24 @@ class Stepper:
         us = u[self.model.src_ch]
         state[n:2 * n] = self.model.mass[:n, :n] @ y0[n:2 * n] + self.model.mass[:n, n:] @ us
         return state
+
+    def reset_controller(self) -> None:
+        """Start the controller afresh at the next `step` (block states zero, delay lines
+        refilled, noise from its seed); `initial_state` does it too. The controller's
+        state lives in the stepper: it closes one loop at a time."""
+        if self.controller is not None:
+            _core.control_reset(self._c, self._work)
+
+    def control_values(self) -> dict[str, float]:
+        """The controller's signals as they hold now (after the last `step`'s last sample):
+        ``control.<name>`` of its bus and ``actuator.<channel>``; empty without one."""
+        if self.controller is None:
+            return {}
+        out = np.empty(self.controller.width)
+        _core.control_values(self._c, self._work, out)
+        names = ([f"control.{n}" for n in self.controller.bus]
+                 + [f"actuator.{c}" for c in self.controller.channels])
+        return dict(zip(names, out.tolist()))
 
     def speeds(self, state, inputs) -> np.ndarray:
         """Generalised speeds ``v = M^-1 (p - M_su u)`` [rad/s] of the free coordinates."""
@@ -390,6 +413,8 @@ class Stepper:
 
 
 def _channel_unit(structure: Structure, channel: str) -> str:
+    if channel.startswith("ref."):  # a controller's reference: its measurement's unit
+        return "1"
     if any(src.channel == channel for src in structure.sources):
         return "rad/s"
     if any(m.channel == channel for m in structure.motors):

@@ -3,6 +3,12 @@
 `Controller` declares one (its period, `Sensor` s, blocks `PID` and `Linear`, and
 `Actuator` s); `vsj.simulate.simulate` and every driver of a `vsj.engine.Plan` run it.
 See `vsj.control.controller` for the semantics.
+
+`vsj.control.design` designs observer-based state feedback (`lqr`, `pole_placement`,
+with a `Kalman` or `Luenberger` estimator) on vsj's linear models with python-control,
+schedules it over the stiffness setting (`GainSchedule`) and gives it as a
+`Controller`; `pid_statespace` is a `PID` as a python-control system. Those names load
+python-control (slow to import) on first use.
 """
 
 from .controller import (
@@ -15,5 +21,19 @@ from .controller import (
     compile_controller,
 )
 
-__all__ = ["Actuator", "CompiledController", "Controller", "Linear", "PID", "Sensor",
-           "compile_controller"]
+#: names of vsj.control.design, imported on first use (it imports python-control)
+_DESIGN = ("GainSchedule", "Kalman", "Luenberger", "StateFeedback", "discretize", "lqr",
+           "pid_statespace", "pole_placement")
+
+
+def __getattr__(name):
+    if name in _DESIGN:
+        from . import design  # lazy: python-control takes ~1 s to import
+
+        return getattr(design, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = ["Actuator", "CompiledController", "Controller", "GainSchedule", "Kalman",
+           "Linear", "Luenberger", "PID", "Sensor", "StateFeedback", "compile_controller",
+           "discretize", "lqr", "pid_statespace", "pole_placement"]

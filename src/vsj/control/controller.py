@@ -144,12 +144,17 @@ class Linear:
     controller's period: ``system`` a python-control ``StateSpace`` or ``TransferFunction``
     with that sample time (a static gain may be a plain matrix ``D``). ``inputs`` are bus
     combinations (one per input of the system), ``outputs`` the names of its outputs on
-    the bus."""
+    the bus. A system whose own poles lie outside the unit circle is refused (most
+    often a continuous design's coefficients given as discrete ones) unless
+    ``allow_unstable``: some stable loops need a compensator unstable on its own (an
+    observer-based design; `vsj.control.design` checks its loop and sets it). Poles on
+    the circle (an integrator) are allowed."""
 
     name: str
     system: object
     inputs: tuple
     outputs: tuple
+    allow_unstable: bool = False
 
     def matrices(self, period: float) -> tuple[np.ndarray, ...]:
         """``(A, B, C, D)`` checked: sample time equal to the period, sizes that match the
@@ -188,9 +193,14 @@ class Linear:
         for name, m in zip("ABCD", (A, B, C, D)):
             if not np.all(np.isfinite(m)):
                 raise InputError(f"{where}: matrix {name} is not finite")
-        if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
+        # the circle's own poles (integrators) come out of a conversion to state space
+        # within a few ulps of modulus 1
+        radius = np.max(np.abs(np.linalg.eigvals(A))) if A.size else 0.0
+        if radius > 1.0 + 1e-9 and not self.allow_unstable:
             raise InputError(f"{where}: the controller itself is unstable (an eigenvalue of A "
-                             f"of modulus {np.max(np.abs(np.linalg.eigvals(A))):.6g} >= 1)")
+                             f"of modulus {radius:.6g} > 1; a continuous design's coefficients "
+                             "given as discrete?); if the loop it closes is stable, say "
+                             "allow_unstable=True")
         return A, B, C, D
 
 

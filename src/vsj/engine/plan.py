@@ -92,16 +92,26 @@ def initial_state(structure: Structure, inputs: Mapping[str, Input], initial,
 
 
 
-def check_period(period: float, scheme: Scheme, duration: float) -> None:
+def check_period(period: float, scheme: Scheme, duration: float, *, held: bool = False) -> None:
     """`InputError` unless a controller of ``period`` [s] can run with ``scheme``: the
-    time-stepper's steps must fit a whole number of times into it."""
+    time-stepper's steps must fit a whole number of times into it; and in the step
+    function (``held``, periods of ``duration``) it must fit a whole number of times into
+    each period (rk4's: once)."""
+    if held:
+        ratio = duration / period
+        if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * ratio:
+            raise InputError(f"controller period {period:g} s: the step function's period "
+                             f"{duration:g} s must be a whole number of controller periods")
+        if scheme.name == "rk4" and abs(ratio - 1.0) > 1e-9:
+            raise InputError(f"controller period {period:g} s: rk4 steps hold one controller "
+                             f"sample a period; use a step function period of {period:g} s")
     if scheme.name == "timestep":
         ratio = period / scheme.step
         if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * ratio:
             raise InputError(f"controller period {period:g} s: the time-stepper's step "
                              f"{scheme.step:g} s must divide it a whole number of times (a "
                              "controller cannot sample faster than the plant steps)")
-    if period > duration:
+    if period > duration and not held:
         raise InputError(f"controller period {period:g} s is longer than the run "
                          f"({duration:g} s): it would sample once")
 
@@ -164,14 +174,10 @@ class Plan:
             scheme = Scheme.of(scheme, options)
         compiled = None
         if controller is not None:
-            if held:
-                raise InputError("the step function holds its inputs itself: a controller "
-                                 "runs in simulations (or close the loop around the stepper "
-                                 "in Python)")
             compiled = compile_controller(controller, structure, structure.channels())
-            check_period(compiled.period, scheme, duration)
+            check_period(compiled.period, scheme, duration, held=held)
             driven = set(compiled.channels) & set(inputs)
-            if driven:
+            if driven and not held:  # held: every channel is an input, driven ones ignored
                 raise InputError(f"input(s) {', '.join(sorted(driven))} are driven by the "
                                  "controller; remove them from the inputs")
         model, layout = compile_model(structure, inputs, duration, friction=options.friction,
@@ -299,7 +305,8 @@ class Batch:
     """The states of many runs of plans of one network on one sample grid."""
 
     time: np.ndarray
-    states: np.ndarray          # (runs, samples, n_state), NaN where a run did not reach
+    #: (runs, samples, n_state + a controller's columns), NaN where a run did not reach
+    states: np.ndarray
     y_end: np.ndarray           # (runs, n_state)
     status: np.ndarray          # engine status per run
     stop_time: np.ndarray
@@ -309,7 +316,8 @@ class Batch:
 
 def run_batch(plans: Sequence[Plan], times: np.ndarray, *, threads: int | None = None,
               progress=None) -> Batch:
-    """Run ``plans`` (one network's sizes; no ledger), sampled at ``times``, on
+    """Run ``plans`` (one network's sizes and controller; no ledger), sampled at ``times``
+    (the states, then a controller's bus and actuators), on
     ``threads`` threads (default: every core), one plan at a time as they free up; the
     results do not depend on the number of threads. ``progress``, if given, is called
     with the number of runs finished after each."""
@@ -318,7 +326,8 @@ def run_batch(plans: Sequence[Plan], times: np.ndarray, *, threads: int | None =
         raise InputError("run_batch: no plans to run")
     times = np.ascontiguousarray(times, dtype=float)
     n_state = plans[0].layout.n_state
-    states = np.full((runs, len(times), n_state), np.nan)
+    extra = plans[0].controller.width if plans[0].controller is not None else 0
+    states = np.full((runs, len(times), n_state + extra), np.nan)
     y_end = np.zeros((runs, n_state))
     status = np.zeros(runs, dtype=np.int64)
     stop = np.zeros(runs)
@@ -336,7 +345,7 @@ def run_batch(plans: Sequence[Plan], times: np.ndarray, *, threads: int | None =
             run = Run(plan, ledger=False, end=max(plan.duration, float(times[-1])), work=work,
                       checked=checked)
             out, _, _ = run.advance(times, finish=True)
-            states[r] = out[:, :n_state]
+            states[r] = out if not extra else np.hstack([out[:, :n_state], out[:, -extra:]])
             y_end[r] = run.y[:n_state]
             status[r], stop[r], steps[r] = run.status, run.t, run.steps
             flips[r] = int(run.transitions().sum())

@@ -38,10 +38,18 @@ def _same_topology(base, layout, model, layout_r, r: int) -> None:
                              f"parameters (run the others separately)")
 
 
+def control_names(controller) -> list[str]:
+    """The signal names of a compiled controller's columns (bus, then actuators)."""
+    if controller is None:
+        return []
+    return ([f"control.{name}" for name in controller.bus]
+            + [f"actuator.{channel}" for channel in controller.channels])
+
+
 def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: float, *,
                    initials: list[InitialState], options: SimulationOptions | None = None,
                    structures: list[Structure] | None = None,
-                   threads: int | None = None) -> BatchResult:
+                   threads: int | None = None, controller=None) -> BatchResult:
     """Run one model many times in parallel, on every core.
 
     Each run starts from its own `InitialState` (a sweep over the pivot
@@ -49,7 +57,9 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
     may also differ in every parameter. All runs share inputs, duration and
     options. Only the states are integrated and sampled (no energy ledger); use
     `BatchResult.angle` and `speed`. ``threads`` (default: every core) share
-    the runs; the results do not depend on their number.
+    the runs; the results do not depend on their number. ``controller`` (a
+    `vsj.control.Controller`) closes each run's loop; its signals are
+    ``batch["control.<name>"]`` and ``batch["actuator.<channel>"]``.
     """
     inputs, options, _ = check_arguments(structure, inputs, duration, options, None)
     if not initials or not all(isinstance(i, InitialState) for i in initials):
@@ -57,7 +67,7 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
     if structures is not None and len(structures) != len(initials):
         raise InputError(f"simulate_batch: {len(structures)} structures for {len(initials)} runs")
     solver = choose_solver(structure, options)
-    plan = prepare(structure, inputs, duration, options, InitialState())
+    plan = prepare(structure, inputs, duration, options, InitialState(), controller)
     base, layout = plan.model, plan.layout
     engine = plan.engine()
     u0 = engine.source_speeds(0.0)
@@ -83,7 +93,11 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
     messages = [STATUS_TEXT[int(s)] if s == core.OK else
                 f"{STATUS_TEXT[int(s)]} at t = {t_stop[r]:.6g} s" for r, s in enumerate(status)]
     sigma, speeds = engine.source_signals(t_out)
-    return BatchResult(time=t_out, states=outs, state_names=state_names(structure),
+    n_state = layout.n_state
+    return BatchResult(time=t_out, states=outs[:, :, :n_state],
+                       control=outs[:, :, n_state:] if plan.controller is not None else None,
+                       control_names=control_names(plan.controller),
+                       state_names=state_names(structure),
                        success=status == core.OK, messages=messages, stop_time=t_stop,
                        steps=steps, transitions=flips, wall_time=wall, solver=solver,
                        structure=structure,

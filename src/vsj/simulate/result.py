@@ -94,6 +94,9 @@ class BatchResult:
     structure: Structure = field(repr=False)
     source_angles: np.ndarray = field(repr=False)
     source_speeds: np.ndarray = field(repr=False)
+    #: a controller's bus and actuators (runs, samples, signals), named by control_names
+    control: np.ndarray | None = field(default=None, repr=False)
+    control_names: list = field(default_factory=list, repr=False)
 
     def angle(self, flange: str) -> np.ndarray:
         """Angle [rad] of a flange, shape (runs, samples)."""
@@ -119,10 +122,13 @@ class BatchResult:
     def columns(self) -> list[str]:
         """Every signal a batch gives: each angle [rad] and its ``.speed`` [rad/s], spelt
         as in `Result` (``theta_x``, ``theta_x.speed``)."""
-        return [name + suffix for name in self._flanges() for suffix in ("", ".speed")]
+        return ([name + suffix for name in self._flanges() for suffix in ("", ".speed")]
+                + list(self.control_names))
 
     def __getitem__(self, name: str) -> np.ndarray:
         """A signal by its `Result` name, shape (runs, samples)."""
+        if name in self.control_names:
+            return self.control[:, :, self.control_names.index(name)]
         base, speed = (name[:-len(".speed")], True) if name.endswith(".speed") else (name, False)
         flange = self._flanges().get(base)
         if flange is None:
@@ -139,7 +145,8 @@ class BatchResult:
         from .. import __version__  # circle: vsj imports vsj.simulate, which imports this
 
         data = {name: (("run", "time"), self[name],
-                       {"units": "rad/s" if name.endswith(".speed") else "rad"})
+                       {"units": "1" if name in self.control_names else
+                        "rad/s" if name.endswith(".speed") else "rad"})
                 for name in self.columns()}
         data["success"] = ("run", self.success.astype(np.int8))
         data["message"] = ("run", np.array(self.messages, dtype=str))

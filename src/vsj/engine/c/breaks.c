@@ -81,10 +81,10 @@ static double channel_break(const vsj_model *m, int64_t c, double t, double marg
 double vsj__next_break(const vsj_model *m, vsj_work *w, double t) {
     double best = INFINITY, margin = 1e-12 * vsj__dmax(1.0, fabs(t));
     int64_t c;
-    if (w->held)
-        return INFINITY;
     if (w->ctl_on) /* the controller's next sample */
         best = w->ctl_next;
+    if (w->held) /* held inputs have no corners */
+        return best;
     for (c = 0; c < m->n_channels; c++) {
         if (!(w->brk[c] > t + margin)) /* passed (or never found): look again */
             w->brk[c] = channel_break(m, c, t, margin);

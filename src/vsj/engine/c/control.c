@@ -380,6 +380,8 @@ void vsj__control_sample(const vsj_model *m, vsj_work *w, double t, const double
     int64_t i, b, out = m->n_refs + m->n_meas;
     double dt = m->ctl[VSJ_CTL_PERIOD];
     int left = w->left;
+    vsj__control_record(w, INFINITY, w->ctl_before); /* what held up to now */
+    w->ctl_last = t;
     w->left = 0;
     vsj__eval_inputs(m, w, t); /* references and sources at the sample, from the right */
     w->left = left;
@@ -394,7 +396,46 @@ void vsj__control_sample(const vsj_model *m, vsj_work *w, double t, const double
         memcpy(w->ctl_x, w->ctl_x1, (size_t)m->n_cstate * sizeof(double));
     set_actuators(m, w, y);
     w->ctl_k++;
-    w->ctl_next = w->ctl_t0 + (double)w->ctl_k * dt;
+    w->ctl_next = w->ctl_t0 + (double)(w->ctl_k - w->ctl_k0) * dt;
+    if (w->ctl_next >= w->ctl_stop - w->ctl_tol)
+        w->ctl_next = INFINITY;
+}
+
+/* A fresh controller: block states zero, the first sample next (its delay lines then
+ * fill with its readings), the noise from the seed. */
+static void restart(const vsj_model *m, vsj_work *w) {
+    vsj__control_hold(m, w, NULL);
+    memset(w->ctl_x, 0, (size_t)m->n_cstate * sizeof(double));
+    memset(w->ctl_bus, 0, (size_t)m->n_bus * sizeof(double));
+    w->ctl_rng = (uint64_t)m->ctl[VSJ_CTL_SEED];
+    w->ctl_k = 0;
+    w->ctl_tol = 1e-9 * m->ctl[VSJ_CTL_PERIOD];
+    w->ctl_started = 1;
+}
+
+void vsj__control_period(const vsj_model *m, vsj_work *w, const double *y, double dt) {
+    if (!w->ctl_started)
+        restart(m, w);
+    w->ctl_on = 1;
+    w->ctl_t0 = 0.0;
+    w->ctl_k0 = w->ctl_k;
+    w->ctl_stop = dt;
+    w->ctl_last = -INFINITY;
+    vsj__control_sample(m, w, 0.0, y);
+}
+
+void vsj_control_reset(vsj_work *w) {
+    if (w)
+        w->ctl_started = 0;
+}
+
+int64_t vsj_control_values(const vsj_model *m, const vsj_work *w, double *out) {
+    int64_t width = vsj_control_width(m);
+    if (!vsj__fits(m, w) || width == 0)
+        return 0;
+    memcpy(out, w->ctl_bus, (size_t)m->n_bus * sizeof(double));
+    memcpy(out + m->n_bus, w->ctl_u, (size_t)m->n_acts * sizeof(double));
+    return width;
 }
 
 void vsj__control_hold(const vsj_model *m, vsj_work *w, const double *u) {
@@ -413,16 +454,22 @@ void vsj__control_begin(const vsj_model *m, vsj_work *w, double t0, const double
     vsj__control_hold(m, w, NULL);
     if (!w->ctl_on)
         return;
-    memset(w->ctl_x, 0, (size_t)(m->n_cstate > 0 ? m->n_cstate : 0) * sizeof(double));
-    w->ctl_rng = (uint64_t)m->ctl[VSJ_CTL_SEED];
-    w->ctl_k = 0;
+    restart(m, w);
+    w->ctl_started = 0; /* a step function's controller starts afresh after a run */
     w->ctl_t0 = t0;
+    w->ctl_k0 = 0;
+    w->ctl_stop = INFINITY;
+    w->ctl_last = -INFINITY;
     vsj__control_sample(m, w, t0, y);
 }
 
-void vsj__control_record(const vsj_work *w, double *row) {
+void vsj__control_record(const vsj_work *w, double t, double *row) {
     if (!w->ctl_on)
         return;
+    if (t < w->ctl_last - w->ctl_tol) { /* inside the step that ended on the last sample */
+        memcpy(row, w->ctl_before, (size_t)(w->nbus + w->nact) * sizeof(double));
+        return;
+    }
     memcpy(row, w->ctl_bus, (size_t)w->nbus * sizeof(double));
     memcpy(row + w->nbus, w->ctl_u, (size_t)w->nact * sizeof(double));
 }

@@ -68,7 +68,7 @@ static void sample_step(const vsj_work *w, const dopri_state *d, const double *t
         for (i = 0; i < n_keep; i++)
             row[i] = yo[i] + th * ((y[i] - yo[i]) + th1 * (r3[i] + th * (r4[i] + th1 * r5[i])));
         if (out_cols >= n_keep + w->nbus + w->nact)
-            vsj__control_record(w, row + n_keep);
+            vsj__control_record(w, t_out[*i_out], row + n_keep);
         (*i_out)++;
     }
 }
@@ -228,7 +228,7 @@ vsj_report vsj__dopri_advance(const vsj_model *m, vsj_work *w, const double *t_o
             for (i = 0; i < n_keep; i++)
                 out[out_cols * i_out + i] = w->y[i];
             if (out_cols >= n_keep + w->nbus + w->nact)
-                vsj__control_record(w, out + out_cols * i_out + n_keep);
+                vsj__control_record(w, t_out[i_out], out + out_cols * i_out + n_keep);
             i_out++;
         }
     if (d->status == VSJ_OK && d->steps > 0 && d->rosenbrock)

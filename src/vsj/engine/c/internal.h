@@ -126,11 +126,14 @@ struct vsj_work {
      * most), the sensors' delay lines (ndel), the actuators' held values (nact), and
      * the actuator driving each input channel (-1: none) */
     int64_t nref, nmeas, nblk, nact, nbus, ncs, ndel;
-    int ctl_on;
-    int64_t ctl_k;
-    double ctl_t0, ctl_next;
+    int ctl_on, ctl_started;
+    int64_t ctl_k, ctl_k0; /* samples taken, and when the run (or period) began */
+    double ctl_stop;       /* no sample at or after this time (a held period's end) */
+    double ctl_t0, ctl_next, ctl_last; /* ctl_last: the last sample's time */
+    double ctl_tol;        /* times this close to a sample's are the sample's */
     uint64_t ctl_rng;
     double *ctl_bus, *ctl_x, *ctl_x1, *ctl_in, *ctl_delay, *ctl_u;
+    double *ctl_before;    /* bus and actuators as they held before the last sample */
     int64_t *ctl_drive;
     /* stepper scratch */
     double *sy, *sk, *sacc;
@@ -158,9 +161,14 @@ VSJ_INTERNAL void vsj__control_begin(const vsj_model *m, vsj_work *w, double t0,
                                      const double *y);
 VSJ_INTERNAL void vsj__control_sample(const vsj_model *m, vsj_work *w, double t,
                                       const double *y);
-VSJ_INTERNAL void vsj__control_record(const vsj_work *w, double *row);
+VSJ_INTERNAL void vsj__control_record(const vsj_work *w, double t, double *row);
 /* The driven channels held at the actuators' values u (vsj_observe's rows end with them). */
 VSJ_INTERNAL void vsj__control_hold(const vsj_model *m, vsj_work *w, const double *u);
+/* A held period of the step function from the state y (engine form), dt long: the
+ * controller samples at its start and every period within (its state goes on from
+ * the last call's, or starts afresh after vsj_control_reset). */
+VSJ_INTERNAL void vsj__control_period(const vsj_model *m, vsj_work *w, const double *y,
+                                      double dt);
 
 /* evaluation (eval.c) */
 VSJ_INTERNAL void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y,

@@ -372,6 +372,7 @@ static void layout(vsj_work *w, carver *cv) {
     w->ctl_in = DOUBLES(w->nbus);
     w->ctl_delay = DOUBLES(w->ndel);
     w->ctl_u = DOUBLES(w->nact);
+    w->ctl_before = DOUBLES(w->nbus + w->nact);
     w->ctl_drive = INTS(nch);
     t->mid_ch = INTS(nch);
     t->mid_src = INTS(s);

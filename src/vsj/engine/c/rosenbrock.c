@@ -276,7 +276,7 @@ void vsj__ros_sample(const vsj_work *w, const dopri_state *d, const double *t_ou
         hermite(w, d, (t_out[*i_out] - d->t_prev) / d->h_prev, n_keep,
                 out + out_cols * *i_out);
         if (out_cols >= n_keep + w->nbus + w->nact)
-            vsj__control_record(w, out + out_cols * *i_out + n_keep);
+            vsj__control_record(w, t_out[*i_out], out + out_cols * *i_out + n_keep);
         (*i_out)++;
     }
 }

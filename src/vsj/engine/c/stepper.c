@@ -15,11 +15,24 @@ int64_t vsj_step_state_size(const vsj_model *m) {
     return 2 * m->n + m->n_motors + m->n_sources;
 }
 
-/* Hold the inputs over the period and start the sources at s[base:]. */
+/* Hold the inputs over the period and start the sources at s[base:]; a controller
+ * (whose actuators override the channels they drive) is off until the period begins
+ * (begin_period). */
 static void hold(const vsj_model *m, vsj_work *w, const double *s, const double *inputs) {
     w->held = inputs;
     w->ctl_on = 0;
     memcpy(w->pos0, s + 2 * m->n + m->n_motors, (size_t)m->n_sources * sizeof(double));
+}
+
+/* The engine state y of s (to_engine), and a model's controller sampled at the
+ * period's start. */
+static void to_engine(const vsj_model *m, const double *s, const double *inputs, double *y);
+static void begin_period(const vsj_model *m, vsj_work *w, const double *s, const double *inputs,
+                         double dt, double *y) {
+    hold(m, w, s, inputs);
+    to_engine(m, s, inputs, y);
+    if (m->n_acts > 0)
+        vsj__control_period(m, w, y, dt);
 }
 
 /* Engine state [x, v, i] from [x, p, i, ...]: v = M^-1 (p - M_su u). */
@@ -93,8 +106,7 @@ static int step_adaptive(const vsj_model *m, vsj_work *w, const vsj_scheme *sc, 
     vsj_report rep;
     if (!vsj__fits(m, w) || !(dt > 0.0))
         return VSJ_BAD_ARGUMENT;
-    hold(m, w, s, inputs);
-    to_engine(m, s, inputs, w->sy);
+    begin_period(m, w, s, inputs, dt, w->sy);
     rep = vsj__adaptive(m, w, sc->method, w->sy, ny, 0.0, dt, sc->rtol, sc->atol, sc->max_steps,
                         ny);
     w->held = NULL;
@@ -114,8 +126,7 @@ static int step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *in
     if (!vsj__fits(m, w) || !(dt > 0.0) || substeps < 1 || substeps > VSJ_MAX_PERIOD_STEPS
         || vsj__rigid_stop(m))
         return VSJ_BAD_ARGUMENT;
-    hold(m, w, s, inputs);
-    to_engine(m, s, inputs, y);
+    begin_period(m, w, s, inputs, dt, y);
     memset(k, 0, (size_t)ny * sizeof(double));
     h = dt / (double)substeps;
     w->status = VSJ_OK;
@@ -156,8 +167,7 @@ static int step_timestep(const vsj_model *m, vsj_work *w, double *s, const doubl
     if (!vsj__fits(m, w) || !(dt > 0.0) || !(h > 0.0) || !(dt / h <= VSJ_MAX_PERIOD_STEPS))
         return VSJ_BAD_ARGUMENT;
     steps = (int64_t)ceil(dt / h - 1e-9);
-    hold(m, w, s, inputs);
-    to_engine(m, s, inputs, w->sy);
+    begin_period(m, w, s, inputs, dt, w->sy);
     status = vsj__ts_begin(m, w, w->sy, 0.0);
     rep = vsj__ts_advance(m, w, w->sy, dt, h, steps, 0, NULL);
     w->held = NULL;
@@ -189,7 +199,7 @@ int vsj_step_rate(const vsj_model *m, vsj_work *w, const double *s, const double
         ds[2 * n + i] = w->sk[2 * n + i];
     for (j = 0; j < m->n_sources; j++)
         ds[ny + j] = inputs[m->src_ch[j]];
-    status = w->status;
+    status = w->status; /* (a controller's channels: as `inputs` give them) */
     w->held = NULL;
     return status;
 }
@@ -200,8 +210,7 @@ static int step_ledger(const vsj_model *m, vsj_work *w, const vsj_scheme *sc, do
     int64_t nstate = vsj_n_state(m), nacc = vsj_n_acc(m), ny = nstate + nacc;
     int status;
     vsj_report rep;
-    hold(m, w, s, inputs);
-    to_engine(m, s, inputs, w->sy);
+    begin_period(m, w, s, inputs, dt, w->sy);
     memset(w->sy + nstate, 0, (size_t)nacc * sizeof(double));
     if (sc->method == VSJ_METHOD_DOPRI || sc->method == VSJ_METHOD_ROSENBROCK) {
         rep = vsj__adaptive(m, w, sc->method, w->sy, ny, 0.0, dt, sc->rtol, sc->atol,
@@ -225,9 +234,18 @@ static int step_ledger(const vsj_model *m, vsj_work *w, const vsj_scheme *sc, do
 int vsj_step(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, double *s,
              const double *inputs, double dt, double *ledger) {
     int method;
-    if (!scheme || !s || !inputs || !vsj__fits(m, w) || !(dt > 0.0) || m->n_acts > 0)
-        return VSJ_BAD_ARGUMENT; /* a controller runs in vsj_begin/vsj_advance's runs */
+    if (!scheme || !s || !inputs || !vsj__fits(m, w) || !(dt > 0.0))
+        return VSJ_BAD_ARGUMENT;
     method = scheme->method;
+    if (m->n_acts > 0) { /* the controller's samples: a whole number per period (rk4: one),
+                          * on the time-stepper's grid */
+        double per = dt / m->ctl[VSJ_CTL_PERIOD], steps = m->ctl[VSJ_CTL_PERIOD] / scheme->h;
+        if (!(per >= 1.0 - 1e-9) || fabs(per - floor(per + 0.5)) > 1e-9 * per
+            || (method == VSJ_METHOD_RK4 && fabs(per - 1.0) > 1e-9)
+            || (method == VSJ_METHOD_TIMESTEP
+                && (!(steps >= 1.0 - 1e-9) || fabs(steps - floor(steps + 0.5)) > 1e-9 * steps)))
+            return VSJ_BAD_ARGUMENT;
+    }
     if (method == VSJ_METHOD_TIMESTEP) {
         if (!(scheme->h > 0.0) || !(dt / scheme->h <= VSJ_MAX_PERIOD_STEPS))
             return VSJ_BAD_ARGUMENT;

@@ -313,7 +313,7 @@ static void levels_and_lists(const vsj_model *m, ts_work *t) {
 }
 
 /* At mid-step only the loads, the motor voltages and the pivot's sources are read; a
- * load or voltage constant in time keeps its value from t = 0. At step end only the
+ * load or voltage constant in time (and not a controller's) keeps its value from t = 0. At step end only the
  * sources' channels are read. */
 static void channel_lists(const vsj_model *m, ts_work *t) {
     int64_t nf = m->n_frictions, r_load = nf + m->n_springs, r_piv = m->n_rows - 1;
@@ -325,6 +325,8 @@ static void channel_lists(const vsj_model *m, ts_work *t) {
         int steady = m->count[ch] == 1 && cf[1] == 0.0 && cf[2] == 0.0 && cf[3] == 0.0;
         t->wanted[ch] = !steady;
     }
+    for (k = 0; k < m->n_acts; k++) /* a controller's: held values that change */
+        t->wanted[m->act_ch[k]] = 1;
     for (e = 0; e < nf; e++) /* the normal forces of clutches and brakes */
         if (vsj__row(m, e)[VSJ_F_CHANNEL] >= 0.0)
             t->wanted[(int64_t)vsj__row(m, e)[VSJ_F_CHANNEL]] = 1;
@@ -485,7 +487,7 @@ static void sample(const vsj_model *m, const vsj_work *w, const vsj_samples *smp
     for (j = 0; j < n_col; j++)
         smp->out[smp->out_cols * i_out + j] = y[j];
     if (smp->out_cols >= n_col + w->nbus + w->nact)
-        vsj__control_record(w, smp->out + smp->out_cols * i_out + n_col);
+        vsj__control_record(w, smp->t[i_out], smp->out + smp->out_cols * i_out + n_col);
     if (smp->coulomb)
         for (k = 0; k < t->n_watched; k++) {
             int64_t e = t->watched[k];

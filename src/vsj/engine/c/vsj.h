@@ -163,6 +163,14 @@ void vsj_work_free(vsj_work *w);
  * actuators' values (n_acts), as they hold from the sample's time on. */
 int64_t vsj_control_width(const vsj_model *m);
 
+/* The controller's signals as they hold now: its bus and its actuators' values
+ * (vsj_control_width of them into out; returns that number, 0 without a controller). */
+int64_t vsj_control_values(const vsj_model *m, const vsj_work *w, double *out);
+/* Restart the step function's controller: its next vsj_step samples it afresh (block
+ * states zero, delay lines refilled, the noise from its seed). A run (vsj_begin)
+ * always starts it afresh. */
+void vsj_control_reset(vsj_work *w);
+
 /* Lengths of the state vector without and with the ledger's accumulators. */
 int64_t vsj_n_state(const vsj_model *m);
 int64_t vsj_n_acc(const vsj_model *m);
@@ -347,7 +355,12 @@ int64_t vsj_step_state_size(const vsj_model *m);
 /* The most steps (rk4 substeps, time-stepper steps) one call may take. */
 #define VSJ_MAX_PERIOD_STEPS 10000000
 
-/* Advance s in place by one period dt with `inputs` held, by `scheme`: dopri or
+/* Advance s in place by one period dt with `inputs` held, by `scheme`. A model with a
+ * controller samples it at the period's start and every controller period within (dt
+ * a whole number of them; rk4: one; the time-stepper's step dividing each), its
+ * actuators overriding the inputs they drive, its references the inputs' values; its
+ * state lives in the work and goes on from one call to the next (vsj_control_reset).
+ * Schemes: dopri or
  * rosenbrock (rtol, atol, max_steps), rk4 (substeps; no rigid end stops, no ledger) or the time-stepper
  * (h; its stick/slip history is kept in the work from one period to the next). If
  * `ledger` is not NULL it receives the energy ledger over the period (vsj_n_acc
