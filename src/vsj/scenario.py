@@ -99,7 +99,9 @@ Each signal on the bus has a unit: a sensor's that of what it reads, an actuator
 command that of its channel, and the others follow from where signals meet (a PID's
 set-point shares its measurement's unit, its output the unit of what reads it, a
 weighted sum's terms share one), so that every gain is checked against (its output's
-unit) / (its input's). A case changes an entry of a controller's arrays by its name
+unit) / (its input's). A linear block's own poles may lie on the unit circle (an
+integrator); outside it only with ``allow_unstable = true`` (a compensator whose loop
+is stable). A case changes an entry of a controller's arrays by its name
 (``[cases.controller.pid.u1]``; sensors by their bus name, actuators by channel), or
 replaces a whole array.
 
@@ -524,7 +526,8 @@ SENSOR_KEYS = {"signal", "quantity", "name", "counts_per_revolution", "resolutio
                "delay"}
 PID_KEYS = {"name", "setpoint", "measurement", "feed_forward", "k", "Ti", "Td", "Nd", "wp",
             "wd", "y_min", "y_max", "Ni", "anti_windup"}
-LINEAR_KEYS = {"name", "inputs", "outputs", "A", "B", "C", "D", "num", "den", "unit"}
+LINEAR_KEYS = {"name", "inputs", "outputs", "A", "B", "C", "D", "num", "den", "unit",
+               "allow_unstable"}
 ACTUATOR_KEYS = {"channel", "command", "offset", "limits", "current_limit"}
 #: The arrays of tables of [controller], their keys, and the key that names an entry
 #: (a case changes an entry by that name: [cases.controller.pid.u1]).
@@ -885,6 +888,10 @@ def _linear(block: _Block, units: _Units, period: float) -> Linear:
     if ("num" in entry or "den" in entry) == any(k in entry for k in "ABCD"):
         raise InputError(f"{where}: give a transfer function (num, den) or matrices (A, B, "
                          "C, D; D alone for a static gain), not both and not neither")
+    allowed = entry.get("allow_unstable", False)
+    if not isinstance(allowed, bool):
+        raise InputError(f"{where.key('allow_unstable')}: expected true or false, got "
+                         f"{allowed!r}")
     scale = 1.0
     if "unit" in entry:
         ins = {units.of(t) for c in block.reads.values() for t in _terms(c)}
@@ -914,7 +921,7 @@ def _linear(block: _Block, units: _Units, period: float) -> Linear:
         if len(np.trim_zeros(num, "f")) > len(den):
             raise InputError(f"{where.key('num')}: the transfer function is improper (num of "
                              "higher degree than den): it would need future inputs")
-        _stable(np.roots(den), where.key("den"))
+        _stable(np.roots(den), where.key("den"), allowed)
         system = control.tf([scale * v for v in num], den, period)
     else:
         D = _matrix(entry, "D", where) if "D" in entry else None
@@ -938,22 +945,26 @@ def _linear(block: _Block, units: _Units, period: float) -> Linear:
                     raise InputError(f"{where.key(key)}: {m.shape[0]} x {m.shape[1]}; "
                                      f"{shape[0]} x {shape[1]} needed ({n} states, {n_in} "
                                      f"input(s), {n_out} output(s))")
-            _stable(np.linalg.eigvals(A), where.key("A"))
+            _stable(np.linalg.eigvals(A), where.key("A"), allowed)
             system = control.ss(A, B, scale * C, scale * D, period)
-    linear = Linear(block.name, system, tuple(block.reads.values()), block.outputs)
+    linear = Linear(block.name, system, tuple(block.reads.values()), block.outputs,
+                    allow_unstable=allowed)
     with _context(where):
         linear.matrices(period)
     return linear
 
 
-def _stable(poles: np.ndarray, where: Where) -> None:
-    """A linear block's own poles inside the unit circle (it runs open loop between its
-    inputs and outputs; the plant cannot stabilise a controller's own growth)."""
+def _stable(poles: np.ndarray, where: Where, allowed: bool) -> None:
+    """A linear block's own poles on or inside the unit circle (an integrator's at z = 1
+    included), unless the file says ``allow_unstable = true``: outside it the block grows
+    by itself, which only a loop that it stabilises can hold (vsj.control.Linear)."""
     largest = float(np.max(np.abs(poles))) if len(poles) else 0.0
-    if not largest < 1.0:
-        raise InputError(f"{where}: a pole of modulus {largest:.6g} >= 1: the controller "
-                         "itself is unstable (a pole on the unit circle, such as an "
-                         "integrator's at z = 1, counts too: use a PID for integral action)")
+    # the engine's own bound (Linear.matrices): the circle's poles within round-off
+    if largest > 1.0 + 1e-9 and not allowed:
+        raise InputError(f"{where}: a pole of modulus {largest:.6g} > 1: the controller "
+                         "itself is unstable (a continuous design's coefficients given as "
+                         "discrete ones?); if the loop it closes is stable, say "
+                         "allow_unstable = true")
 
 
 def _blocks(table: Mapping, where: Where) -> list[_Block]:
