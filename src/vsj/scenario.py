@@ -40,6 +40,71 @@ offset, start, fade_in, stop), ``step`` (height, start, offset), ``table``
 ramp, start: plateaus joined by ramps), ``position`` (signal: an angle whose derivative drives a velocity
 source) and ``circle`` (radius, period, fade_in, axis: a position input).
 
+A ``[controller]`` table closes the loop (`vsj.control`): a sampled controller with
+its rate, references (the value kinds above), sensors, blocks (PIDs with the semantics
+of Modelica's LimPID, discrete linear systems) and actuators, on one bus of named
+signals. It drives DC motors' voltages or loads' torques, so the wrist needs
+``[model] motors = "dc"`` (voltage_1, voltage_2) and ``pivot_drive = "dc"``
+(voltage_s). Example::
+
+    network = "wrist"
+    duration = "1 s"
+
+    [model]
+    motors = "dc"
+    pivot_drive = "dc"
+
+    [controller]
+    rate = "1 kHz"                    # or period = "1 ms"; seed = 0 (sensor noise)
+
+    [controller.references.m1]        # a kind of [inputs], in its signal's unit
+    kind = "step"
+    height = "0.2 rad"
+
+    [[controller.sensors]]
+    signal = "motor_1"                # quantity = "angle" | "speed" | "current" | "q"
+    counts_per_revolution = 4096      # or resolution, in the reading's unit
+    noise = "0.1 mrad"                # standard deviation
+    delay = 1                         # samples
+
+    [[controller.sensors]]
+    signal = "motor_2"
+
+    [[controller.pid]]
+    name = "u1"                       # its output on the bus
+    setpoint = "m1"
+    measurement = "motor_1"           # or a weighted sum { motor_1 = 0.5, motor_2 = 0.5 }
+    k = "40 V/rad"                    # (what it drives) / (what it measures)
+    Ti = "0.1 s"                      # also Td, Nd, wp, wd, y_min, y_max, Ni, anti_windup,
+                                      # feed_forward
+
+    [[controller.linear]]             # x+ = A x + B u, y = C x + D u at the rate
+    name = "u2"
+    inputs = [{ m1 = 1.0, motor_2 = -1.0 }]
+    unit = "V/rad"                    # of its numbers (SI without it)
+    num = [350.0, -316.666655]        # or A, B, C, D (D alone: a static gain)
+    den = [1.0, -0.3333333]
+
+    [[controller.actuators]]
+    channel = "voltage_1"             # a motor's voltage or a load's torque
+    command = "u1"
+    limits = ["-12 V", "12 V"]        # default: the motor's voltage_limit
+    current_limit = "1 A"
+
+    [[controller.actuators]]
+    channel = "voltage_2"
+    command = "u2"
+
+Each signal on the bus has a unit: a sensor's that of what it reads, an actuator's
+command that of its channel, and the others follow from where signals meet (a PID's
+set-point shares its measurement's unit, its output the unit of what reads it, a
+weighted sum's terms share one), so that every gain is checked against (its output's
+unit) / (its input's). A linear block's own poles may lie on the unit circle (an
+integrator); outside it only with ``allow_unstable = true`` (a compensator whose loop
+is stable). A case changes an entry of a controller's arrays by its name
+(``[cases.controller.pid.u1]``; sensors by their bus name, actuators by channel), or
+replaces a whole array.
+
 Every value is checked as it is read: its type, unit and range. `prepare_case`
 then builds and compiles each case without running it, so whatever a run would
 refuse (an initial angle of no flange, an input signal too large for memory) is
@@ -60,8 +125,12 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+import numpy as np
+
 from . import benches
 from .components.planetary import MESH_RELATIONS
+from .control import PID, Actuator, Controller, Linear, Sensor, compile_controller
+from .control.controller import ANTI_WINDUP, Combination
 from .errors import InputError, read_text
 from .friction import law_code
 from .inputs import Constant, Input, Position, Sine, Step, Table, circle
@@ -86,8 +155,9 @@ from .units import to_si
 from .wrist import DRIVES, ELASTIC_MODELS, WristOptions, build_wrist
 
 TOP_KEYS = {"name", "description", "network", "duration", "model", "bench", "solver",
-            "initial", "inputs", "params", "cases"}
-CASE_KEYS = {"label", "model", "bench", "solver", "initial", "inputs", "params", "duration"}
+            "initial", "inputs", "params", "controller", "cases"}
+CASE_KEYS = {"label", "model", "bench", "solver", "initial", "inputs", "params", "duration",
+             "controller"}
 NETWORKS = ("wrist", "planetary-bench", "elastic-bench")
 MODEL_KEYS = {"elastic", "motors", "pivot_drive", "end_effector", "linear_stiffness", "fixed_q",
               "mesh_relation"}
@@ -139,6 +209,8 @@ class Case:
     initial: InitialState
     params: Mapping[str, Any]
     where: Where
+    #: the [controller] table as written (checked against the network by `prepare_case`)
+    controller: Mapping | None = None
 
 
 @dataclass(frozen=True)
@@ -420,10 +492,13 @@ def _case(table: Mapping, label: str, where: Where) -> Case:
     initial = InitialState(angles=_quantities(init, "angles", "rad", iw),
                            speeds=_quantities(init, "speeds", "rad/s", iw), q=q0,
                            currents=_quantities(init, "currents", "A", iw))
+    controller = table.get("controller")
+    if controller is not None:
+        _controller_shape(controller, where.key("controller"))
     return Case(label=label, network=network, build=build,
                 inputs=dict(_table(table, "inputs", where)), duration=duration,
                 options=options, initial=initial, params=dict(_table(table, "params", where)),
-                where=where)
+                where=where, controller=controller)
 
 
 def parse_inputs(case: Case, net: Network) -> dict[str, Input]:
@@ -441,6 +516,630 @@ def parse_inputs(case: Case, net: Network) -> dict[str, Input]:
             out[channel].knots(case.duration)
     return out
 
+
+# ----------------------------------------------------------------------- the controller
+# The [controller] table (see the module's docstring) in the words of vsj.control.
+
+CONTROLLER_KEYS = {"rate", "period", "seed", "references", "sensors", "pid", "linear",
+                   "actuators"}
+SENSOR_KEYS = {"signal", "quantity", "name", "counts_per_revolution", "resolution", "noise",
+               "delay"}
+PID_KEYS = {"name", "setpoint", "measurement", "feed_forward", "k", "Ti", "Td", "Nd", "wp",
+            "wd", "y_min", "y_max", "Ni", "anti_windup"}
+LINEAR_KEYS = {"name", "inputs", "outputs", "A", "B", "C", "D", "num", "den", "unit",
+               "allow_unstable"}
+ACTUATOR_KEYS = {"channel", "command", "offset", "limits", "current_limit"}
+#: The arrays of tables of [controller], their keys, and the key that names an entry
+#: (a case changes an entry by that name: [cases.controller.pid.u1]).
+CONTROLLER_ARRAYS = {"sensors": (SENSOR_KEYS, "name"), "pid": (PID_KEYS, "name"),
+                     "linear": (LINEAR_KEYS, "name"), "actuators": (ACTUATOR_KEYS, "channel")}
+#: What a sensor reads, by its quantity (vsj.control.QUANTITIES).
+SENSOR_UNITS = {"angle": "rad", "speed": "rad/s", "current": "A", "q": "m"}
+#: The kinds of [inputs] a reference may take: those that give a value over time (a
+#: position or circle input is a velocity source's angle).
+REFERENCE_KINDS = tuple(k for k in INPUT_KINDS if k not in ("position", "circle"))
+
+
+def _controller_shape(table: Mapping, where: Where) -> None:
+    """The [controller] table's keys, and its arrays' entries' keys (values are read by
+    `controller_from_table`, which needs the network)."""
+    _check_keys(table, CONTROLLER_KEYS, where)
+    for key, (allowed, _) in CONTROLLER_ARRAYS.items():
+        entries = table.get(key, [])
+        if not isinstance(entries, list):
+            raise InputError(f"{where.key(key)}: must be an array of tables ([[controller."
+                             f"{key}]]), got {type(entries).__name__} {entries!r}")
+        for i, entry in enumerate(entries):
+            _check_keys(entry, allowed, where.key(f"{key}[{i}]"))
+    references = _table(table, "references", where)
+    for name, spec in references.items():
+        rw = where.key("references").key(name)
+        if not isinstance(spec, Mapping) or spec.get("kind") not in REFERENCE_KINDS:
+            got = spec.get("kind") if isinstance(spec, Mapping) else spec
+            raise InputError(f"{rw}: a reference is a table with a 'kind' of "
+                             f"{', '.join(REFERENCE_KINDS)}, got {got!r}")
+        _check_keys(spec, INPUT_KINDS[spec["kind"]], rw)
+    if not table.get("actuators"):
+        raise InputError(f"{where}: the controller drives nothing; give at least one "
+                         "[[controller.actuators]] (channel and command)")
+
+
+def _entry_name(entry, key: str) -> str | None:
+    """The name a case uses for an entry of the [controller] array ``key``."""
+    if not isinstance(entry, Mapping):
+        return None
+    if key == "sensors" and "name" not in entry:
+        signal, quantity = entry.get("signal", ""), entry.get("quantity", "angle")
+        if not isinstance(signal, str) or not isinstance(quantity, str):
+            return None
+        return Sensor(signal, quantity).label
+    name = entry.get(CONTROLLER_ARRAYS[key][1])
+    return name if isinstance(name, str) else None
+
+
+def _merge_controller(base, over, where: Where):
+    """A case's [controller] over the scenario's: tables merge key by key; an array is
+    replaced by an array, or changed entry by entry by a table of its entries' names
+    (``[cases.controller.pid.u1] k = "60 V/rad"``)."""
+    if not isinstance(base, Mapping) or not isinstance(over, Mapping):
+        return copy.deepcopy(over)
+    by_name = {k: v for k, v in over.items()
+               if k in CONTROLLER_ARRAYS and isinstance(v, Mapping)}
+    out = _merge(base, {k: v for k, v in over.items() if k not in by_name})
+    for key, changes in by_name.items():
+        entries = copy.deepcopy(base.get(key, []))
+        if not isinstance(entries, list):
+            raise InputError(f"{where.key(key)}: the scenario's controller has no array "
+                             f"[[controller.{key}]] whose entries this could change")
+        names = [_entry_name(e, key) for e in entries]
+        for name, change in changes.items():
+            cw = where.key(key).key(name)
+            if name not in names:
+                raise InputError(f"{cw}: the scenario's controller has no {key} entry named "
+                                 f"{name!r}; it has {', '.join(map(repr, names)) or 'none'}")
+            if not isinstance(change, Mapping):
+                raise InputError(f"{cw}: expected a table of the keys to change, got "
+                                 f"{change!r}")
+            entries[names.index(name)].update(copy.deepcopy(dict(change)))
+        out[key] = entries
+    return out
+
+
+def _whole(table: Mapping, key: str, where: Where, default: int, *, low: int = 0,
+           high: int | None = None, what: str = "a whole number") -> int:
+    value = table.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int) or value < low \
+            or (high is not None and value > high):
+        bound = f">= {low}" if high is None else f"from {low} to {high}"
+        raise InputError(f"{where.key(key)}: expected {what} {bound}, got {value!r}")
+    return value
+
+
+def _name(table: Mapping, key: str, where: Where) -> str:
+    value = table.get(key)
+    if not isinstance(value, str) or not value.strip():
+        raise InputError(f"{where.key(key) if key in table else where}: "
+                         f"{'missing ' + repr(key) if key not in table else 'expected a name'}"
+                         f" (text in quotes){'' if key not in table else f', got {value!r}'}")
+    return value
+
+
+def _combination(table: Mapping, key: str, where: Where) -> Combination:
+    """``table[key]``: a bus signal's name, or a table of names with their weights (plain
+    numbers)."""
+    if key not in table:
+        raise InputError(f"{where}: missing {key!r} (a signal's name, or a table of names "
+                         "with weights such as { m1 = 1.0, motor_1 = -1.0 })")
+    return _combination_value(table[key], where.key(key))
+
+
+def _combination_value(value, where: Where) -> Combination:
+    if isinstance(value, str) and value.strip():
+        return value
+    if isinstance(value, Mapping) and value:
+        for name, weight in value.items():
+            if isinstance(weight, bool) or not isinstance(weight, (int, float)) \
+                    or not math.isfinite(weight):
+                raise InputError(f"{where.key(name)}: a weight is a finite plain number, got "
+                                 f"{weight!r}")
+        return {name: float(weight) for name, weight in value.items()}
+    raise InputError(f"{where}: expected a signal's name or a table of names with weights "
+                     f"({{ m1 = 1.0, motor_1 = -1.0 }}), got {value!r}")
+
+
+def _terms(combination: Combination) -> list[str]:
+    return [combination] if isinstance(combination, str) else list(combination)
+
+
+def _matrix(table: Mapping, key: str, where: Where) -> np.ndarray:
+    """A matrix written as a list of rows of plain numbers (a 1x1 one as a number)."""
+    value = table[key]
+    kw = where.key(key)
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        value = [[value]]
+    if not isinstance(value, list) or not all(isinstance(r, list) for r in value):
+        raise InputError(f"{kw}: expected a matrix as a list of rows ([[1.0, 0.0], [0.0, "
+                         f"1.0]]), got {value!r}")
+    widths = {len(r) for r in value}
+    if len(widths) > 1:
+        raise InputError(f"{kw}: its rows have different lengths ({sorted(widths)})")
+    rows = []
+    for i, row in enumerate(value):
+        rows.append(_numbers(row, kw.key(f"[{i}]")) if row else [])
+    return np.array(rows, dtype=float).reshape(len(value), widths.pop() if widths else 0)
+
+
+@dataclass
+class _Block:
+    """A [[controller.pid]] or [[controller.linear]] entry before its units are known."""
+
+    kind: str
+    entry: Mapping
+    where: Where
+    name: str
+    outputs: tuple[str, ...]
+    reads: dict  # key path under the entry -> combination
+
+
+class _Units:
+    """Units of the bus's signals, joined where signals meet (union-find): each class of
+    names that must share a unit, with the unit once known and what fixed it."""
+
+    def __init__(self):
+        self.parent: dict[str, str] = {}
+        self.unit: dict[str, tuple[str, str]] = {}  # root -> (unit, what fixed it)
+
+    def find(self, name: str) -> str:
+        self.parent.setdefault(name, name)
+        while self.parent[name] != name:
+            self.parent[name] = self.parent[self.parent[name]]
+            name = self.parent[name]
+        return name
+
+    def of(self, name: str) -> str | None:
+        return self.unit.get(self.find(name), (None, ""))[0]
+
+    def fix(self, name: str, unit: str, because: str, where: Where) -> None:
+        root = self.find(name)
+        known = self.unit.get(root)
+        if known is not None and known[0] != unit:
+            raise InputError(f"{where}: {name!r} would be in {_shown(unit)} ({because}) but is "
+                             f"in {_shown(known[0])} ({known[1]})")
+        self.unit.setdefault(root, (unit, because))
+
+    def join(self, names, where: Where, what: str) -> None:
+        names = list(names)
+        for other in names[1:]:
+            a, b = self.find(names[0]), self.find(other)
+            if a == b:
+                continue
+            ua, ub = self.unit.get(a), self.unit.get(b)
+            if ua is not None and ub is not None and ua[0] != ub[0]:
+                raise InputError(f"{where}: {what} must share a unit, but {names[0]!r} is in "
+                                 f"{_shown(ua[0])} ({ua[1]}) and {other!r} in "
+                                 f"{_shown(ub[0])} ({ub[1]})")
+            self.parent[b] = a
+            if ua is None and ub is not None:
+                self.unit[a] = ub
+            self.unit.pop(b, None)
+
+
+def _shown(unit: str) -> str:
+    return unit.replace("*", " ")
+
+
+def _ratio(top: str, bottom: str) -> str:
+    """The unit ``top`` per ``bottom``, as text `to_si` reads (``V/(rad/s)``)."""
+    bottom = _shown(bottom)
+    return f"{_shown(top)}/{bottom}" if bottom.isalpha() else f"{_shown(top)}/({bottom})"
+
+
+def _period(table: Mapping, where: Where) -> tuple[float, Where]:
+    """The controller's period [s] from ``rate`` or ``period``, and the key it came from."""
+    if ("rate" in table) == ("period" in table):
+        raise InputError(f"{where}: give either rate (such as \"1 kHz\") or period (such as "
+                         "\"1 ms\"), " + ("not both" if "rate" in table else "one of them"))
+    if "rate" in table:
+        return 1.0 / _quantity(table, "rate", "Hz", where, positive=True), where.key("rate")
+    return _quantity(table, "period", "s", where, positive=True), where.key("period")
+
+
+def _check_period(period: float, pw: Where, case: Case, solver: str) -> None:
+    """A controller of ``period`` against the case's run: the time-stepper's steps fit it a
+    whole number of times, and it samples more than once and fewer times than the run
+    may take steps."""
+    options, duration = case.options, case.duration
+    step_key = case.where.key("solver").key("step").path
+    if solver == "timestep":
+        ratio = period / options.step
+        if ratio < 1.0 - 1e-9:
+            raise InputError(f"{pw}: the controller samples every {period:g} s, more often "
+                             f"than the time-stepper steps ({step_key} = {options.step:g} s); "
+                             "sample at most once a step, or step shorter")
+        # the engine's own test (engine/plan.py check_period): a whole number to round-off
+        if abs(ratio - round(ratio)) > 1e-9 * ratio:
+            raise InputError(f"{pw}: the controller's period {period:g} s is not a whole "
+                             f"number of the time-stepper's steps ({step_key} = "
+                             f"{options.step:g} s); the plant would see its commands change "
+                             "inside a step")
+    if period > duration:
+        raise InputError(f"{pw}: the controller's period {period:g} s is longer than the run "
+                         f"({duration:g} s): it would sample once")
+    if solver != "timestep" and duration / period > options.max_steps:
+        raise InputError(f"{pw}: {duration / period:.3g} samples, each ending a step, are more "
+                         f"than the run's {case.where.key('solver').key('max_steps').path} = "
+                         f"{options.max_steps}")
+
+
+def _sensor(entry: Mapping, where: Where, structure: Structure) -> Sensor:
+    """One [[controller.sensors]] entry, its signal checked against the network."""
+    quantity = _choice(entry, "quantity", tuple(SENSOR_UNITS), where, "angle")
+    unit = SENSOR_UNITS[quantity]
+    if quantity == "q":
+        signal = _text(entry, "signal", where, "q")
+        if signal != "q":
+            raise InputError(f"{where.key('signal')}: the pivot position q is the only "
+                             f"signal of quantity 'q', got {signal!r}")
+        if structure.pivot.flange is None and not structure.springs:
+            raise InputError(f"{where.key('quantity')}: network {structure.name!r} has no "
+                             "pivot to measure")
+        signal = ""
+    else:
+        signal = _name(entry, "signal", where)
+        if quantity == "current":
+            motors = [m.name for m in structure.motors]
+            if signal not in motors:
+                raise InputError(f"{where.key('signal')}: {signal!r} is not a DC motor of "
+                                 f"this network; its motors: {', '.join(motors) or 'none'}"
+                                 f"{_DC_HINT if not motors else ''}")
+        else:
+            signals = {s.name: s.flange for s in structure.signals}
+            try:
+                structure.index(signals.get(signal, signal))
+            except (KeyError, ValueError, InputError):
+                raise InputError(f"{where.key('signal')}: unknown signal {signal!r}; the "
+                                 f"network's signals: {', '.join(signals)} (or a flange "
+                                 "by name)") from None
+    if "counts_per_revolution" in entry:
+        if quantity != "angle":
+            raise InputError(f"{where.key('counts_per_revolution')}: an encoder measures an "
+                             f"angle, not a {quantity} (give resolution in {unit} instead)")
+        if "resolution" in entry:
+            raise InputError(f"{where}: give counts_per_revolution or resolution, not both")
+        resolution = 2 * math.pi / _whole(entry, "counts_per_revolution", where, 0, low=1,
+                                          what="a whole number of counts")
+    else:
+        resolution = _quantity(entry, "resolution", unit, where, 0.0, nonnegative=True)
+    name = _text(entry, "name", where, "")
+    if "name" in entry and not name.strip():
+        raise InputError(f"{where.key('name')}: expected a name, got {name!r}")
+    return Sensor(signal, quantity, resolution=resolution,
+                  noise=_quantity(entry, "noise", unit, where, 0.0, nonnegative=True),
+                  delay=_whole(entry, "delay", where, 0, high=10 ** 9,
+                               what="a whole number of samples"), name=name)
+
+
+_DC_HINT = ("; to drive the wrist's motors, give it DC motors: [model] motors = \"dc\" "
+            "(voltage_1, voltage_2) and pivot_drive = \"dc\" (voltage_s)")
+
+
+def _actuator_channel(entry: Mapping, where: Where, net: Network, case: Case) -> str:
+    """The channel an actuator drives, checked: a DC motor's voltage or a load's torque."""
+    channel = _name(entry, "channel", where)
+    cw = where.key("channel")
+    structure_parts = net.parts()
+    sources = {s.channel for s in structure_parts.sources}
+    drivable = sorted([m.channel for m in structure_parts.motors]
+                      + [ld.channel for ld in structure_parts.loads])
+    if channel in drivable:
+        if channel in case.inputs:
+            raise InputError(f"{case.where.key('inputs').key(channel)}: the controller drives "
+                             f"{channel!r} ({cw.path}); remove it from the inputs")
+        return channel
+    if channel in sources:
+        why = (f"{channel!r} is a velocity source (its speed is imposed; a controller drives "
+               "a DC motor's voltage or a load's torque)")
+    elif channel.startswith("voltage_"):
+        why = f"this {case.network} network has no motor voltage {channel!r}"
+    else:
+        why = f"the {case.network} network has no input {channel!r} a controller can drive"
+    hint = _DC_HINT if case.network == "wrist" and (channel in sources
+                                                   or channel.startswith("voltage_")) else ""
+    raise InputError(f"{cw}: {why}{hint}; this network's drivable inputs: "
+                     f"{', '.join(drivable) or 'none'}")
+
+
+def _pid(block: _Block, units: _Units, period: float) -> PID:
+    entry, where = block.entry, block.where
+    out, meas = units.of(block.name), units.of(_terms(block.reads["measurement"])[0])
+    if out is None:
+        raise InputError(f"{where}: the output {block.name!r} drives no actuator and feeds "
+                         "no block that fixes its unit, so the unit of k cannot be checked; "
+                         "name it in an actuator's command or another block's input")
+    gain = _ratio(out, meas)
+    if "k" not in entry:
+        raise InputError(f"{where}: missing 'k' (unit {gain}: what it drives over what it "
+                         "measures)")
+    pid = PID(block.name, block.reads["setpoint"], block.reads["measurement"],
+              k=to_si(entry["k"], gain, where=f"{where.key('k')} (unit {gain}: its output "
+                      f"{block.name!r} over its measurement)"),
+              Ti=_quantity(entry, "Ti", "s", where, math.inf, positive=True),
+              Td=_quantity(entry, "Td", "s", where, 0.0, nonnegative=True),
+              Nd=_quantity(entry, "Nd", "1", where, 10.0, positive=True),
+              wp=_quantity(entry, "wp", "1", where, 1.0),
+              wd=_quantity(entry, "wd", "1", where, 0.0),
+              y_min=_quantity(entry, "y_min", out, where, -math.inf),
+              y_max=_quantity(entry, "y_max", out, where, math.inf),
+              Ni=_quantity(entry, "Ni", "1", where, 0.9, positive=True),
+              anti_windup=_choice(entry, "anti_windup", tuple(ANTI_WINDUP), where,
+                                  "back-calculation"),
+              feed_forward=block.reads.get("feed_forward", {}))
+    if not pid.y_min < pid.y_max:
+        raise InputError(f"{where}: y_min = {entry.get('y_min')!r} must be below y_max = "
+                         f"{entry.get('y_max')!r}")
+    with _context(where):
+        pid.parameters(period)
+    return pid
+
+
+def _linear(block: _Block, units: _Units, period: float) -> Linear:
+    entry, where = block.entry, block.where
+    n_in, n_out = len(block.reads), len(block.outputs)
+    if ("num" in entry or "den" in entry) == any(k in entry for k in "ABCD"):
+        raise InputError(f"{where}: give a transfer function (num, den) or matrices (A, B, "
+                         "C, D; D alone for a static gain), not both and not neither")
+    allowed = entry.get("allow_unstable", False)
+    if not isinstance(allowed, bool):
+        raise InputError(f"{where.key('allow_unstable')}: expected true or false, got "
+                         f"{allowed!r}")
+    scale = 1.0
+    if "unit" in entry:
+        ins = {units.of(t) for c in block.reads.values() for t in _terms(c)}
+        outs = {units.of(o) for o in block.outputs}
+        if None in outs or len(outs) > 1 or None in ins or len(ins) > 1:
+            raise InputError(f"{where.key('unit')}: one unit for the block needs its inputs "
+                             "to share a known unit and its outputs to share one (outputs: "
+                             f"{', '.join(_shown(u) if u else '?' for u in sorted(outs, key=str))})"
+                             "; leave unit out to give the numbers in SI")
+        gain = _ratio(outs.pop(), ins.pop())
+        scale = to_si(f"1 {_text(entry, 'unit', where, '')}", gain,
+                      where=f"{where.key('unit')} (unit {gain}: its outputs over its inputs)")
+    import control  # lazy: python-control takes ~1 s to import; only linear blocks need it
+
+    if "num" in entry or "den" in entry:
+        if n_in != 1 or n_out != 1:
+            raise InputError(f"{where}: a transfer function (num, den) has one input and one "
+                             f"output; this block names {n_in} and {n_out} (give A, B, C, D)")
+        for key in ("num", "den"):
+            if key not in entry:
+                raise InputError(f"{where}: missing {key!r} (coefficients in descending "
+                                 "powers of z)")
+        num = _numbers(entry["num"], where.key("num"))
+        den = _numbers(entry["den"], where.key("den"))
+        if den[0] == 0.0:
+            raise InputError(f"{where.key('den')}: the leading coefficient must not be 0")
+        if len(np.trim_zeros(num, "f")) > len(den):
+            raise InputError(f"{where.key('num')}: the transfer function is improper (num of "
+                             "higher degree than den): it would need future inputs")
+        _stable(np.roots(den), where.key("den"), allowed)
+        system = control.tf([scale * v for v in num], den, period)
+    else:
+        D = _matrix(entry, "D", where) if "D" in entry else None
+        if D is None:
+            raise InputError(f"{where}: missing 'D' (a static gain is D alone)")
+        if D.shape != (n_out, n_in):
+            raise InputError(f"{where.key('D')}: {D.shape[0]} x {D.shape[1]}; the block has "
+                             f"{n_out} output(s) and {n_in} input(s)")
+        given = [k for k in "ABC" if k in entry]
+        if not given:
+            system = scale * D
+        else:
+            if len(given) < 3:
+                raise InputError(f"{where}: give A, B and C together (or D alone), got "
+                                 f"{', '.join(given)}")
+            A, B, C = (_matrix(entry, k, where) for k in "ABC")
+            n = A.shape[0]
+            for key, m, shape in (("A", A, (n, n)), ("B", B, (n, n_in)),
+                                  ("C", C, (n_out, n))):
+                if m.shape != shape:
+                    raise InputError(f"{where.key(key)}: {m.shape[0]} x {m.shape[1]}; "
+                                     f"{shape[0]} x {shape[1]} needed ({n} states, {n_in} "
+                                     f"input(s), {n_out} output(s))")
+            _stable(np.linalg.eigvals(A), where.key("A"), allowed)
+            system = control.ss(A, B, scale * C, scale * D, period)
+    linear = Linear(block.name, system, tuple(block.reads.values()), block.outputs,
+                    allow_unstable=allowed)
+    with _context(where):
+        linear.matrices(period)
+    return linear
+
+
+def _stable(poles: np.ndarray, where: Where, allowed: bool) -> None:
+    """A linear block's own poles on or inside the unit circle (an integrator's at z = 1
+    included), unless the file says ``allow_unstable = true``: outside it the block grows
+    by itself, which only a loop that it stabilises can hold (vsj.control.Linear)."""
+    largest = float(np.max(np.abs(poles))) if len(poles) else 0.0
+    # the engine's own bound (Linear.matrices): the circle's poles within round-off
+    if largest > 1.0 + 1e-9 and not allowed:
+        raise InputError(f"{where}: a pole of modulus {largest:.6g} > 1: the controller "
+                         "itself is unstable (a continuous design's coefficients given as "
+                         "discrete ones?); if the loop it closes is stable, say "
+                         "allow_unstable = true")
+
+
+def _blocks(table: Mapping, where: Where) -> list[_Block]:
+    blocks = []
+    for i, entry in enumerate(table.get("pid", [])):
+        bw = where.key(f"pid[{i}]")
+        reads = {"setpoint": _combination(entry, "setpoint", bw),
+                 "measurement": _combination(entry, "measurement", bw)}
+        if "feed_forward" in entry:
+            reads["feed_forward"] = _combination(entry, "feed_forward", bw)
+        name = _name(entry, "name", bw)
+        blocks.append(_Block("pid", entry, bw, name, (name,), reads))
+    for i, entry in enumerate(table.get("linear", [])):
+        bw = where.key(f"linear[{i}]")
+        name = _name(entry, "name", bw)
+        inputs = entry.get("inputs")
+        if not isinstance(inputs, list) or not inputs:
+            raise InputError(f"{bw.key('inputs') if 'inputs' in entry else bw}: "
+                             f"{'missing ' if 'inputs' not in entry else ''}'inputs': a list "
+                             "of signals' names or weighted sums, one per input of the "
+                             "system" + (f", got {inputs!r}" if 'inputs' in entry else ""))
+        reads = {f"inputs[{j}]": _combination_value(c, bw.key(f"inputs[{j}]"))
+                 for j, c in enumerate(inputs)}
+        outputs = entry.get("outputs", [name])
+        if not isinstance(outputs, list) or not outputs \
+                or not all(isinstance(o, str) and o.strip() for o in outputs):
+            raise InputError(f"{bw.key('outputs')}: a list of names, one per output of the "
+                             f"system, got {outputs!r}")
+        blocks.append(_Block("linear", entry, bw, name, tuple(outputs), reads))
+    return blocks
+
+
+def _in_order(blocks: list[_Block], where: Where) -> list[_Block]:
+    """The blocks in an order in which each reads only outputs of blocks before it (in
+    the file's order where that is free); a loop is refused."""
+    made = {o: b for b in blocks for o in b.outputs}
+    done, order, todo = set(), [], list(blocks)
+    while todo:
+        for b in todo:
+            needs = {id(made[t]) for c in b.reads.values() for t in _terms(c) if t in made}
+            if needs <= done:
+                order.append(b)
+                done.add(id(b))
+                todo.remove(b)
+                break
+        else:
+            raise InputError(f"{where}: the blocks {', '.join(repr(b.name) for b in todo)} "
+                             "read each other's outputs in a loop; a sampled controller needs "
+                             "an order in which each block reads only references, sensors and "
+                             "blocks before it")
+    return order
+
+
+def _check_bus(refs: Mapping, sensors: list, blocks: list[_Block], actuators: list,
+               where: Where) -> None:
+    """Every name once on the controller's bus, each channel driven once, every name
+    read known."""
+    origin: dict[str, Where] = {}
+    named = ([(n, where.key("references").key(n)) for n in refs]
+             + [(s.label, w) for s, w in sensors]
+             + [(o, b.where) for b in blocks for o in b.outputs])
+    for name, w in named:
+        if name in origin:
+            raise InputError(f"{w}: the name {name!r} is already taken on the controller's "
+                             f"bus (by {origin[name].path}); give each signal its own name")
+        origin[name] = w
+    driven: dict[str, Where] = {}
+    for _, aw, channel, _ in actuators:
+        if channel in driven:
+            raise InputError(f"{aw.key('channel')}: {channel!r} is driven by "
+                             f"{driven[channel].path} already")
+        driven[channel] = aw
+    reads = [(b.where.key(k), c) for b in blocks for k, c in b.reads.items()]
+    reads += [(aw.key("command"), command) for _, aw, _, command in actuators]
+    for rw, combination in reads:
+        for term in _terms(combination):
+            if term not in origin:
+                raise InputError(f"{rw}: unknown signal {term!r}; the controller's signals "
+                                 f"are {', '.join(origin)} (references, sensors by name, "
+                                 "blocks' outputs)")
+
+
+def _bus_units(sensors: list, blocks: list[_Block], actuators: list,
+               channel_units: Mapping[str, str]) -> _Units:
+    """The units of the bus: fixed by the sensors and the actuators' channels, shared
+    where signals meet."""
+    units = _Units()
+    for sensor, sw in sensors:
+        units.fix(sensor.label, SENSOR_UNITS[sensor.quantity], f"sensor {sensor.label!r}", sw)
+    for _, aw, channel, command in actuators:
+        for term in _terms(command):
+            units.fix(term, channel_units[channel], f"it drives {channel!r}", aw.key("command"))
+    for b in blocks:
+        if b.kind == "pid":
+            units.join(_terms(b.reads["setpoint"]) + _terms(b.reads["measurement"]), b.where,
+                       "a PID's setpoint and measurement")
+            units.join([b.name] + _terms(b.reads.get("feed_forward", {})), b.where,
+                       "a PID's output and feed_forward")
+        else:
+            for key, c in b.reads.items():
+                units.join(_terms(c), b.where.key(key), "the terms of an input")
+    for b in blocks:
+        if b.kind == "pid" and units.of(_terms(b.reads["measurement"])[0]) is None:
+            raise InputError(f"{b.where.key('measurement')}: its unit is unknown (it reads "
+                             "no sensor); a PID measures through a sensor")
+    return units
+
+
+def _actuator(entry: Mapping, aw: Where, channel: str, command: Combination, unit: str,
+              structure: Structure) -> Actuator:
+    limits = None
+    if "limits" in entry:
+        value = entry["limits"]
+        if not isinstance(value, list) or len(value) != 2:
+            raise InputError(f"{aw.key('limits')}: expected [low, high] in {_shown(unit)}, "
+                             f"got {value!r}")
+        limits = tuple(to_si(v, unit, where=f"{aw.key('limits')}[{j}]")
+                       for j, v in enumerate(value))
+        if not limits[0] < limits[1]:
+            raise InputError(f"{aw.key('limits')}: low < high needed, got {value!r}")
+    current = _quantity(entry, "current_limit", "A", aw, math.inf, positive=True)
+    if math.isfinite(current) and channel not in {m.channel for m in structure.motors}:
+        raise InputError(f"{aw.key('current_limit')}: a current limit needs a motor's "
+                         f"voltage; {channel!r} is a load's torque (limit it by limits)")
+    return Actuator(channel, command, offset=_quantity(entry, "offset", unit, aw, 0.0),
+                    limits=limits, current_limit=current)
+
+
+def controller_from_table(case: Case, net: Network, structure: Structure
+                          ) -> Controller | None:
+    """The case's [controller] table as a `vsj.control.Controller` for its network, every
+    value, unit and name checked (the file and key path in every message); None if the
+    case has no controller."""
+    table = case.controller
+    if table is None:
+        return None
+    where = case.where.key("controller")
+    period, pw = _period(table, where)
+    with _context(case.where.key("solver")):
+        solver = choose_solver(structure, case.options)
+    _check_period(period, pw, case, solver)
+    seed = _whole(table, "seed", where, 0, high=2 ** 53 - 1)
+    refs = _table(table, "references", where)
+    sensors = [(_sensor(e, where.key(f"sensors[{i}]"), structure), where.key(f"sensors[{i}]"))
+               for i, e in enumerate(table.get("sensors", []))]
+    blocks = _blocks(table, where)
+    actuators = []
+    for i, entry in enumerate(table["actuators"]):
+        aw = where.key(f"actuators[{i}]")
+        actuators.append((entry, aw, _actuator_channel(entry, aw, net, case),
+                          _combination(entry, "command", aw)))
+    _check_bus(refs, sensors, blocks, actuators, where)
+    blocks = _in_order(blocks, where)
+    channel_units, _ = _channel_units(net)
+    units = _bus_units(sensors, blocks, actuators, channel_units)
+    built = [(_pid if b.kind == "pid" else _linear)(b, units, period) for b in blocks]
+    references = {}
+    for name, spec in refs.items():
+        rw = where.key("references").key(name)
+        unit = units.of(name)
+        if unit is None:
+            raise InputError(f"{rw}: no block or actuator reads this reference in a way that "
+                             "gives it a unit (compare it with a sensor's reading in a PID's "
+                             "setpoint or a weighted sum)")
+        references[name] = parse_input(spec, unit, rw)
+        with _context(rw):
+            references[name].knots(case.duration)
+    acts = tuple(_actuator(entry, aw, channel, command, channel_units[channel], structure)
+                 for entry, aw, channel, command in actuators)
+    controller = Controller(period=period, actuators=acts,
+                            sensors=tuple(s for s, _ in sensors), blocks=tuple(built),
+                            references=references, seed=seed)
+    with _context(where):  # what the engine's compiler checks besides (its own words)
+        compile_controller(controller, structure, structure.channels())
+    return controller
 
 def loads(text: str, origin: str) -> Scenario:
     """Parse scenario text; ``origin`` names it in messages."""
@@ -467,7 +1166,10 @@ def loads(text: str, origin: str) -> Scenario:
         if label in labels:
             raise InputError(f"{where.key('label')}: duplicate label {label!r}")
         labels.add(label)
-        merged = _merge(base, {k: v for k, v in entry.items() if k != "label"})
+        merged = _merge(base, {k: v for k, v in entry.items() if k not in ("label", "controller")})
+        if "controller" in entry:
+            merged["controller"] = _merge_controller(base.get("controller"), entry["controller"],
+                                                     where.key("controller"))
         cases.append(_case(merged, label, where))
     return Scenario(name=name, description=description, origin=origin, cases=tuple(cases),
                     table=table)
@@ -504,6 +1206,8 @@ class Prepared:
     structure: Structure
     inputs: Mapping[str, Input]
     plan: Plan  # the run of the case, compiled (`vsj.engine.plan.Plan`)
+    #: the case's [controller], closing the loop in the plan (`vsj.control.Controller`)
+    controller: Controller | None = None
 
     def run(self, *, duration: float | None = None, ports: bool = True, sink=None) -> Result:
         """Simulate the case (for ``duration`` instead of its own, if given; its samples
@@ -511,7 +1215,8 @@ class Prepared:
         if duration is None or duration == self.case.duration:
             return run_plan(self.plan, ports=ports, sink=sink)
         return simulate(self.structure, self.inputs, duration, options=self.case.options,
-                        initial=self.case.initial, ports=ports, sink=sink)
+                        initial=self.case.initial, ports=ports, sink=sink,
+                        controller=self.controller)
 
 
 def prepare_case(scenario: Scenario, case: Case, params: Parameters, *,
@@ -536,10 +1241,11 @@ def prepare_case(scenario: Scenario, case: Case, params: Parameters, *,
     with _context(where.key("solver")):
         check_run_size(structure, case.duration, options, choose_solver(structure, options),
                        in_memory=in_memory)
+    controller = controller_from_table(case, net, structure)
     with _context(where):  # the initial state against the network, and the compiled inputs
-        plan = prepare(structure, inputs, case.duration, options, case.initial)
+        plan = prepare(structure, inputs, case.duration, options, case.initial, controller)
     return Prepared(case=case, params=resolved, network=net, structure=structure,
-                    inputs=inputs, plan=plan)
+                    inputs=inputs, plan=plan, controller=controller)
 
 
 @dataclass(frozen=True)

@@ -59,7 +59,8 @@ def cmd_simulate(args) -> int:
                          "that they fit one trajectory file")
     (duration, output_step), = grids
     time = sample_times(duration, output_step)
-    tables = [catalogue(p.structure, ports=True) for p in prepared]
+    tables = [catalogue(p.structure, ports=True, controller=p.plan.controller)
+              for p in prepared]
     size = trajectory_bytes(len(time), len({s.name for t in tables for s in t}),
                             len(scen.cases), csv=args.csv, plot=args.plot)
     out = Path(args.out)
