@@ -45,7 +45,7 @@ def test_the_binding_has_one_function_that_advances_time():
     instant = {"derivatives", "friction_torque", "jacobian", "observation_width", "observe",
                "solve_impulses", "source_signals", "spring_extensions", "spring_geometry",
                "spring_law", "status_text", "step_rate", "stored_energy", "transitions",
-               "solve_tridiagonal",
+               "solve_tridiagonal", "control_values", "control_reset",
                "ts_prepare"}
     functions = {n for n in dir(_core) if callable(getattr(_core, n)) and not n[0].isupper()
                  and not n.startswith("_")}

@@ -1134,9 +1134,13 @@ def controller_from_table(case: Case, net: Network, structure: Structure
             references[name].knots(case.duration)
     acts = tuple(_actuator(entry, aw, channel, command, channel_units[channel], structure)
                  for entry, aw, channel, command in actuators)
+    names = list(references) + [s.label for s, _ in sensors]
+    names += [n for b in built for n in ((b.name,) if isinstance(b, PID) else b.outputs)]
+    known = {name: units.of(name).replace("*", " ") for name in names
+             if units.of(name) is not None}
     controller = Controller(period=period, actuators=acts,
                             sensors=tuple(s for s, _ in sensors), blocks=tuple(built),
-                            references=references, seed=seed)
+                            references=references, seed=seed, units=known)
     with _context(where):  # what the engine's compiler checks besides (its own words)
         compile_controller(controller, structure, structure.channels())
     return controller

@@ -225,8 +225,9 @@ Block = Union[PID, Linear]
 @dataclass(frozen=True)
 class Controller:
     """A sampled controller: its ``period`` [s], ``sensors``, ``blocks`` (run in order),
-    ``actuators``, ``references`` (bus name -> `vsj.inputs.Input` or number) and the
-    ``seed`` of its sensors' noise."""
+    ``actuators``, ``references`` (bus name -> `vsj.inputs.Input` or number), the
+    ``seed`` of its sensors' noise and, optionally, the ``units`` of bus signals (name ->
+    unit, for the results; a sensor's reading has its quantity's unit without it)."""
 
     period: float
     actuators: tuple
@@ -234,6 +235,7 @@ class Controller:
     blocks: tuple = ()
     references: Mapping[str, object] = field(default_factory=dict)
     seed: int = 0
+    units: Mapping[str, str] = field(default_factory=dict)
 
     def bus(self) -> list[str]:
         """Names on the bus, in order: references, readings, blocks' outputs."""
@@ -256,6 +258,7 @@ class CompiledController:
     units: tuple
     channels: tuple          # the channel each actuator drives
     period: float
+    channel_units: tuple = ()  # the unit of each actuator's channel
 
     @property
     def width(self) -> int:
@@ -405,7 +408,7 @@ def compile_controller(controller: Controller, structure: Structure,
         for name in outputs:
             known[name] = len(known)
             units.append("1")
-    act_ch, act_rows, act_par = [], [], []
+    act_ch, act_rows, act_par, act_units = [], [], [], []
     for act in controller.actuators:
         if not isinstance(act, Actuator):
             raise InputError(f"controller actuator: must be a vsj.control.Actuator, got "
@@ -417,6 +420,7 @@ def compile_controller(controller: Controller, structure: Structure,
         act_ch.append(channels.index(act.channel))
         act_rows.append(row)
         act_par.append(par)
+        act_units.append(unit)
     n_net = len(channels)
     arrays = {
         "ctl": np.array([period, float(seed)]),
@@ -435,11 +439,17 @@ def compile_controller(controller: Controller, structure: Structure,
                  n_bus=width, n_cstate=n_state,
                  n_delay=int(sum(s.delay for s in controller.sensors)),
                  n_blk_in=len(blk_in), n_blk_par=int(arrays["blk_par"].size))
+    given = dict(controller.units)
+    unknown = sorted(set(given) - set(names))
+    if unknown:
+        raise InputError(f"controller units: no bus signal {', '.join(map(repr, unknown))}; the "
+                         f"bus has {', '.join(names)}")
+    units = [given.get(name, unit) for name, unit in zip(names, units)]
     return CompiledController(sizes=sizes, arrays=arrays,
                               references={f"ref.{k}": v for k, v in refs.items()},
                               bus=tuple(names), units=tuple(units),
                               channels=tuple(a.channel for a in controller.actuators),
-                              period=period)
+                              period=period, channel_units=tuple(act_units))
 
 
 #: The engine's arrays and sizes of a model without a controller.

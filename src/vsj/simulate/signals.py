@@ -94,8 +94,8 @@ def catalogue(structure: Structure, *, ports: bool, controller=None) -> list[Sig
             add(f"control.{name}", unit, f"controller signal {name} (held from its last "
                 f"sample, every {controller.period:g} s)", lambda b, j=j: b.control[:, j])
         n_bus = len(controller.bus)
-        for j, channel in enumerate(controller.channels):
-            add(f"actuator.{channel}", "1", f"what the controller applies to input {channel} "
+        for j, (channel, unit) in enumerate(zip(controller.channels, controller.channel_units)):
+            add(f"actuator.{channel}", unit, f"what the controller applies to input {channel} "
                 "(after its limits)", lambda b, j=j: b.control[:, n_bus + j])
 
     named = {s.flange for s in structure.signals}
