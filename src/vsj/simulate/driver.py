@@ -117,14 +117,15 @@ class MemorySink:
                 self.units)
 
 
-def block_samples(structure: Structure, layout, ports: bool) -> int:
+def block_samples(structure: Structure, layout, ports: bool, extra: int = 0) -> int:
     """Samples per block: as many as fit `BLOCK_BYTES` with the state rows, the
-    engine's observation and the named signals of each sample."""
+    engine's observation and the named signals of each sample (and ``extra`` columns
+    of a controller's, in the rows and as signals)."""
     from ..output import signals_bound  # circle: vsj.output imports vsj.simulate
 
     width = 2 * layout.n_state + layout.n_acc + 4 * (layout.n + layout.n_sources) \
         + 8 * (layout.n_frictions + layout.n_springs + layout.n_motors) + 4 \
-        + signals_bound(structure) * (1 if ports else 1)
+        + signals_bound(structure) * (1 if ports else 1) + 2 * extra
     return max(1, BLOCK_BYTES // (8 * width))
 
 
@@ -165,8 +166,9 @@ def run_plan(plan: Plan, *, ports: bool = True, sink=None) -> Result:
     structure, options, duration = plan.structure, plan.options, plan.duration
     solver = plan.scheme.name
     sink = MemorySink() if sink is None else sink
+    extra = plan.controller.width if plan.controller is not None else 0
     check_run_size(structure, duration, options, solver,
-                   in_memory=getattr(sink, "keeps_samples", True), ports=ports)
+                   in_memory=getattr(sink, "keeps_samples", True), ports=ports, extra=extra)
     layout = plan.layout
     t_out = sample_times(duration, options.output_step)
     n_out = len(t_out)
@@ -177,7 +179,7 @@ def run_plan(plan: Plan, *, ports: bool = True, sink=None) -> Result:
     engine = plan.engine()
     # the last sample may lie past the duration by the grid's round-off: the run reaches it
     run = plan.start(until=float(t_out[-1]))
-    per_block = block_samples(structure, layout, ports)
+    per_block = block_samples(structure, layout, ports, extra)
     reached, status = 0, core.OK
     for start in range(0, n_out, per_block):
         times = t_out[start:start + per_block]
@@ -279,7 +281,8 @@ def available_memory() -> tuple[float, str]:
 
 
 def check_run_size(structure: Structure, duration: float, options: SimulationOptions,
-                   solver: str, *, in_memory: bool = True, ports: bool = True) -> None:
+                   solver: str, *, in_memory: bool = True, ports: bool = True,
+                   extra: int = 0) -> None:
     """`InputError` before anything is allocated when a run's steps exceed
     ``max_steps`` or do not land on the samples, or its samples would not fit in the
     memory this process may take (`available_memory`): all of them for a run kept in
@@ -302,7 +305,7 @@ def check_run_size(structure: Structure, duration: float, options: SimulationOpt
     from ..output import signals_bound  # circle: vsj.output imports vsj.simulate
 
     samples = math.floor(duration / options.output_step + 1e-9) + 1
-    width = signals_bound(structure)
+    width = signals_bound(structure) + extra  # a controller's signals too
     need = 3.0 * BLOCK_BYTES + (samples * width * 8.0 if in_memory else 0.0)
     available, limit = available_memory()
     if need > 0.8 * available:
