@@ -9,6 +9,15 @@ with a `Kalman` or `Luenberger` estimator) on vsj's linear models with python-co
 schedules it over the stiffness setting (`GainSchedule`) and gives it as a
 `Controller`; `pid_statespace` is a `PID` as a python-control system. Those names load
 python-control (slow to import) on first use.
+
+`vsj.control.wrist` builds controllers in the wrist's own coordinates (end-effector
+angles and pivot position): `wrist_controller` (position control through the motors'
+encoders), `impedance_controller` (a virtual spring-damper at the end-effector, in
+series with the VSM's springs), and the discrete `virtual_spring_damper` with its
+`passivity_bound`.
+
+`vsj.control.callback.run_callback` closes the loop with a Python function, through the
+step function, for prototyping.
 """
 
 from .controller import (
@@ -19,6 +28,20 @@ from .controller import (
     Linear,
     Sensor,
     compile_controller,
+)
+from .wrist import (
+    MotorPID,
+    MotorPlant,
+    WristKinematics,
+    closed_loop_stiffness,
+    impedance_controller,
+    mechanical_stiffness,
+    motor_plants,
+    passivity_bound,
+    virtual_spring_damper,
+    virtual_stiffness_for,
+    wrist_controller,
+    wrist_kinematics,
 )
 
 #: names of vsj.control.design, imported on first use (it imports python-control)
@@ -35,5 +58,8 @@ def __getattr__(name):
 
 
 __all__ = ["Actuator", "CompiledController", "Controller", "GainSchedule", "Kalman",
-           "Linear", "Luenberger", "PID", "Sensor", "StateFeedback", "compile_controller",
-           "discretize", "lqr", "pid_statespace", "pole_placement"]
+           "Linear", "Luenberger", "MotorPID", "MotorPlant", "PID", "Sensor", "StateFeedback",
+           "WristKinematics", "closed_loop_stiffness", "compile_controller", "discretize",
+           "impedance_controller", "lqr", "mechanical_stiffness", "motor_plants",
+           "passivity_bound", "pid_statespace", "pole_placement", "virtual_spring_damper",
+           "virtual_stiffness_for", "wrist_controller", "wrist_kinematics"]
