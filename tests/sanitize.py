@@ -150,6 +150,8 @@ sys.path.insert(0, sys.argv[2] + "/tests")         # controllers: every scheme, 
 import test_control as control_tests
 for solver in ("dopri", "rosenbrock", "timestep"):
     control_tests.test_actuators_hold_between_samples_and_change_only_at_them(solver)
+for method in ("dopri", "timestep"):                # the step function's controller
+    control_tests.test_the_step_function_runs_the_controller_at_its_own_period(method)
 for check in ("test_sensors_quantise_delay_and_add_seeded_noise",
               "test_a_linear_block_runs_python_controls_discrete_system",
               "test_a_current_limit_bounds_the_voltage_by_the_back_emf",
