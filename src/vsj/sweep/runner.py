@@ -30,6 +30,7 @@ import numpy as np
 
 from ..engine import STATUS_TEXT, Engine, compile_model, core, observation_layout
 from ..engine.plan import Plan, Scheme, initial_state, run_batch
+from ..control import compile_controller
 from ..engine.retune import RETUNABLE, Slots, find_passthrough, retune
 from .. import params as params_module
 from .. import scenario as scenarios
@@ -147,6 +148,9 @@ class Prepared:
         resolved, structure, inputs = prepared.params, prepared.structure, prepared.inputs
         self.base_params = resolved
         self.structure = structure
+        #: the case's controller (its arrays compiled with each run's network)
+        self.controller = prepared.controller
+        self.compiled_controller = prepared.plan.controller
         self.inputs = {k: _Memo(v) for k, v in inputs.items()}
         self.options = case.options
         self.duration = case.duration
@@ -173,7 +177,7 @@ class Prepared:
         self.t_out.flags.writeable = False  # shared by every run and metric
         # the signals of `vsj simulate` (ports aside), less those a batch run of the
         # time-stepper cannot give (the stiction impulses are sampled by single runs only)
-        table = catalogue(structure, ports=False)
+        table = catalogue(structure, ports=False, controller=self.compiled_controller)
         single_only = {spec.name for spec in table
                        if self.solver == "timestep" and spec.needs_impulses}
         self.recipes = {spec.name: spec for spec in table if spec.name not in single_only}
@@ -219,7 +223,7 @@ class Prepared:
             return found[1]
         plan = Plan(structure, model, self.layout, self.scheme, self.duration,
                     np.zeros(self.layout.n_state + self.layout.n_acc), self.inputs,
-                    self.options)
+                    self.options, controller=self.compiled_controller)
         if keep:
             if len(origins) > MAX_SHARED:  # as many as the shared models kept, and the base
                 origins.clear()
@@ -228,9 +232,12 @@ class Prepared:
 
     def _compile(self, structure):
         o = self.options
+        # a controller's arrays follow the network (its sensors' rows, its motors' limits)
+        controller = (compile_controller(self.controller, structure, structure.channels())
+                      if self.controller is not None else None)
         return compile_model(structure, self.inputs, self.duration, friction=o.friction,
                              friction_overrides=o.friction_overrides,
-                             slope_width=o.slope_width)
+                             slope_width=o.slope_width, controller=controller)
 
     @cached_property
     def passthrough(self) -> dict[str, Slots]:
@@ -480,8 +487,10 @@ def _measure(p: Prepared, run: _Run, states: np.ndarray, transitions: int,
     else:
         raw = engine.observe(p.t_out, states, np.zeros((len(p.t_out), p.layout.n_frictions)))
     # batch runs sample no stick states: friction.*.stuck is 0 (dopri) or not offered
+    n_state = p.layout.n_state
     block = Block(raw=raw, stuck=np.zeros((len(p.t_out), p.layout.n_frictions), dtype=bool),
-                  columns=p.columns, cache={})
+                  columns=p.columns, cache={},
+                  control=states[:, n_state:] if p.compiled_controller is not None else None)
     cache: dict[str, np.ndarray] = {}
     values = run.params.values
 
