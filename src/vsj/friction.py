@@ -58,13 +58,22 @@ LINEAR_TREATMENTS = {
 }
 
 
+#: The law of the environment's contacts (`vsj.components.Contact`): an element's own,
+#: not one a run chooses for its friction.
+CONTACT = "contact"
+#: The laws a run (or an element) may choose for its friction.
+RUN_LAWS = tuple(name for name in LAWS if name != CONTACT)
+
+
 def law_code(name: str) -> int:
-    """The engine's code of a friction law; `InputError` names the choices."""
-    try:
+    """The engine's code of a friction law a run or an element may choose; `InputError`
+    names the choices."""
+    if name != CONTACT and isinstance(name, str) and name in LAWS:
         return LAWS[name]
-    except (KeyError, TypeError):
-        raise InputError(f"unknown friction law {name!r}; choose one of "
-                         f"{', '.join(LAWS)}") from None
+    choices = ", ".join(n for n in LAWS if n != CONTACT)
+    raise InputError(f"unknown friction law {name!r}; choose one of {choices}"
+                     + (" (contact is the environment's law: vsj.components.Contact)"
+                        if name == CONTACT else ""))
 
 
 def torque(law: str, speeds, *, viscous=0.0, stiction=0.0, sharpness=1.0, width=1e-3):

@@ -70,6 +70,10 @@ class Friction:
     time-stepper integrates its viscous part with the trapezoidal rule, as it
     does springs, so an oscillator keeps second-order accuracy; other
     elements' viscous parts take implicit Euler, which damps however stiff.
+
+    ``contact`` makes it a contact of the environment instead (law ``contact``,
+    `vsj.components.Contact`): ``(stiffness, exponent, damping, gap)``, ``speed`` then
+    the row of its penetration [m per unit of each flange's angle].
     """
 
     name: str
@@ -82,6 +86,7 @@ class Friction:
     normal: str | None = None
     table: tuple[tuple[float, float], ...] | None = None
     damper: bool = False
+    contact: tuple[float, float, float, float] | None = None
 
     @property
     def coulomb(self) -> float:

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from .. import params
 from ..errors import InputError, SimulationError
-from ..friction import LAWS
+from ..friction import RUN_LAWS
 from ..friction import LINEAR_TREATMENTS as FRICTION_TREATMENTS
 from ..simulate import InitialState, SimulationOptions
 from ..stepper import METHODS
@@ -279,7 +279,7 @@ def register(sub) -> None:
                    help="replace --out even if vsj did not write it")
     p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
     _add_wrist_arguments(p, ELASTIC_MODELS, DRIVES, pivot_drive=True)
-    p.add_argument("--friction", default="arctan", choices=list(LAWS),
+    p.add_argument("--friction", default="arctan", choices=list(RUN_LAWS),
                    help="friction law (default arctan)")
     p.add_argument("--method", choices=list(METHODS),
                    help="step function: dopri or rosenbrock (adaptive), rk4 (fixed cost) or "
@@ -314,7 +314,7 @@ def register(sub) -> None:
                         "vsj_wrist_in.csv, vsj_wrist_ref.csv, vsj_wrist_ref.opt, README.md)")
     p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
     _add_wrist_arguments(p, ELASTIC_MODELS, DRIVES, pivot_drive=True)
-    p.add_argument("--friction", default="stiction", choices=list(LAWS),
+    p.add_argument("--friction", default="stiction", choices=list(RUN_LAWS),
                    help="friction law (default stiction: the time-stepper)")
     # the FMU runs the step methods that keep an energy ledger (not rk4); vsj.fmu, not
     # imported here, checks the same list

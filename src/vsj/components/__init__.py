@@ -10,6 +10,7 @@ from .basic import (
     VelocitySource,
 )
 from .clutch import Brake, Clutch
+from .contact import Contact
 from .differential import Differential
 from .elastic_element import ElasticElement
 from .motor import DCMotor
@@ -18,7 +19,7 @@ from .planetary import IdealPlanetary, PlanetaryGearModule
 from .transmission import Transmission
 
 __all__ = [
-    "Bearing", "Brake", "Clutch", "DCMotor", "Differential", "ElasticElement", "Fixed",
+    "Bearing", "Brake", "Clutch", "Contact", "DCMotor", "Differential", "ElasticElement", "Fixed",
     "FixedPivot", "IdealGear", "IdealPlanetary", "Inertia", "PivotMechanism",
     "PlanetaryGearModule", "SpringDamper", "TorqueSource", "Transmission", "VelocitySource",
 ]

@@ -137,6 +137,9 @@ def friction_laws_for(structure: Structure, default: str,
     friction_laws.law_code(default)
     laws = []
     for element in structure.frictions:
+        if element.contact is not None:  # a contact keeps its law whatever the run's
+            laws.append(friction_laws.CONTACT)
+            continue
         law = element.law or default
         for pattern, name in (overrides or {}).items():
             friction_laws.law_code(name)
@@ -226,6 +229,11 @@ def compile_model(structure: Structure, inputs: Mapping[str, Input], t_end: floa
 
     table: list[tuple[float, float]] = []
     for element, row, law in zip(structure.frictions, structure.friction_rows, laws):
+        if element.contact is not None:  # vsj_contact_par: damping, stiffness, exponent, gap
+            stiffness, exponent, damping, gap = element.contact
+            add(row @ AB, [damping, stiffness, exponent, gap, 1.0, -1, 0, 0, 0.0],
+                friction_laws.LAWS[friction_laws.CONTACT])
+            continue
         mu = list(element.table or ())
         add(row @ AB, [element.viscous, element.k, element.sharpness, slope_width,
                        element.peak, -1 if element.normal is None else chan[element.normal],

@@ -82,6 +82,15 @@ def initial_state(structure: Structure, inputs: Mapping[str, Input], initial,
         else:
             angles[structure.pivot.flange] = structure.pivot_angle_for(initial.q)
     x0, sigma0 = structure.initial_positions(angles)
+    for e, element in enumerate(structure.frictions):  # contacts start apart or touching
+        if element.contact is not None:
+            row = structure.friction_rows[e]
+            depth = float(row @ structure.A @ x0 + row @ structure.B @ sigma0
+                          - element.contact[3])
+            if depth > 1e-12 * max(1.0, abs(element.contact[3])):
+                raise InputError(f"contact {element.name!r} starts penetrated by {depth:.6g} m "
+                                 "(its surface lies inside the start's position: move it, "
+                                 "or start the run elsewhere)")
     v0 = structure.initial_speeds(initial.speeds, source_speeds)
     motor_names = [m.name for m in structure.motors]
     unknown = sorted(set(initial.currents) - set(motor_names))

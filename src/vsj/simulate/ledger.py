@@ -7,6 +7,24 @@ import numpy as np
 from ..engine import Engine, Layout
 from ..network import Structure
 from ..springs import GEOMETRIC_REPORT
+from .signals import contact_energy, contact_rows
+
+
+def contact_energies(structure: Structure, engine: Engine, y, t: float) -> dict[int, float]:
+    """The elastic energy [J] of each contact of the environment (by friction element
+    index) at state ``y`` and time ``t``."""
+    out = {}
+    n = structure.n
+    sigma = None
+    for e, fr in enumerate(structure.frictions):
+        if fr.contact is None:
+            continue
+        if sigma is None:
+            sigma = engine.source_signals(np.array([t]))[0][0]
+        rx, ru = contact_rows(structure, e)
+        k_c, n_c, _, gap = fr.contact
+        out[e] = float(contact_energy(rx @ y[:n] + ru @ sigma - gap, k_c, n_c))
+    return out
 
 
 def ledger(structure: Structure, engine: Engine, layout: Layout, y0, y_end, duration):
@@ -27,7 +45,15 @@ def ledger(structure: Structure, engine: Engine, layout: Layout, y0, y_end, dura
     if structure.pivot.flange is not None:
         work_in["pivot (non-backdrivable) on springs"] = pivot_work
     dissipated = {f"friction {fr.name}": float(acc[slices["friction"]][e])
-                  for e, fr in enumerate(structure.frictions)}
+                  for e, fr in enumerate(structure.frictions) if fr.contact is None}
+    # a contact's accumulator is the work its force took from the mechanism: what it
+    # holds at the end (its elastic energy) and what it dissipated
+    held0, held1 = (contact_energies(structure, engine, y[:n_state], t)
+                    for y, t in ((y0, 0.0), (y_end, duration)))
+    for e, fr in enumerate(structure.frictions):
+        if fr.contact is not None:
+            dissipated[f"contact {fr.name}"] = float(acc[slices["friction"]][e]
+                                                     - (held1[e] - held0[e]))
     for j, mo in enumerate(structure.motors):
         dissipated[f"resistance {mo.name}"] = float(acc[slices["resistance"]][j])
     stops = acc[slices["stops"]]
@@ -36,6 +62,8 @@ def ledger(structure: Structure, engine: Engine, layout: Layout, y0, y_end, dura
             dissipated[f"end stop {sp.name}"] = float(stops[k])
     stored = {"kinetic": float(kin1 - kin0), "springs": float(pot1 - pot0),
               "inductors": float(ind1 - ind0)}
+    if held0:
+        stored["contacts"] = float(sum(held1.values()) - sum(held0.values()))
     nonconservative = {}
     for k, sp in enumerate(structure.springs):
         if sp.law == GEOMETRIC_REPORT:
@@ -50,7 +78,8 @@ def ledger(structure: Structure, engine: Engine, layout: Layout, y0, y_end, dura
     residual = total_in - total_stored - total_diss
     # the energy in play: what flowed in or out, or what the mechanism holds (a run
     # that rests under a load does almost no work, but its springs hold energy)
-    held = max(abs(kin0) + abs(pot0) + abs(ind0), abs(kin1) + abs(pot1) + abs(ind1))
+    held = max(abs(kin0) + abs(pot0) + abs(ind0) + sum(held0.values()),
+               abs(kin1) + abs(pot1) + abs(ind1) + sum(held1.values()))
     scale = max(sum(abs(v) for v in work_in.values()), sum(abs(v) for v in dissipated.values()),
                 abs(total_stored), held, 1e-300)
     return {"work_in": work_in, "stored_change": stored, "dissipated": dissipated,

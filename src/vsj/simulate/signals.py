@@ -28,6 +28,20 @@ def rows(samples: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     return np.einsum(spec, samples, matrix, optimize=False)
 
 
+def contact_rows(structure: Structure, e: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(row_x, row_sigma)``: friction element e's row over the generalised and the
+    source angles (a contact's penetration, before its gap)."""
+    row = structure.friction_rows[e]
+    return row @ structure.A, row @ structure.B
+
+
+def contact_energy(d, stiffness: float, exponent: float):
+    """Elastic energy [J] of a Hunt-Crossley contact at penetration ``d`` [m]:
+    k d^(n+1) / (n+1) where it is compressed, 0 apart."""
+    d = np.maximum(np.asarray(d, dtype=float), 0.0)
+    return stiffness * d ** (exponent + 1.0) / (exponent + 1.0)
+
+
 def state_names(structure: Structure) -> list[str]:
     """Names of the engine's state components: each free flange's angle and speed, then
     each motor's armature current."""
@@ -132,6 +146,24 @@ def catalogue(structure: Structure, *, ports: bool, controller=None) -> list[Sig
         add(f"motor.{mo.name}.power", "W", f"electric power into motor {mo.name}",
             lambda b, j=j: b.col("mo_V")[:, j] * b.col("current")[:, j], "current", "mo_V")
     for e, fr in enumerate(structure.frictions):
+        if fr.contact is not None:  # the environment's contacts: force, penetration
+            rx, ru = contact_rows(structure, e)
+            k_c, n_c, _, gap = fr.contact
+            add(f"contact.{fr.name}.force", "N", f"force of contact {fr.name} (>= 0)",
+                lambda b, e=e: b.col("fr_f")[:, e], "fr_f")
+            add(f"contact.{fr.name}.penetration", "m", f"penetration of contact {fr.name} "
+                "(negative: apart by that distance)",
+                lambda b, rx=rx, ru=ru, gap=gap: rows(b.col("x"), rx) + rows(b.col("sigma"), ru)
+                - gap, "x", "sigma")
+            add(f"contact.{fr.name}.rate", "m/s", f"rate of penetration of contact {fr.name}",
+                lambda b, e=e: b.col("fr_s")[:, e], "fr_s")
+            add(f"contact.{fr.name}.power", "W", f"power into contact {fr.name}",
+                lambda b, e=e: b.col("fr_f")[:, e] * b.col("fr_s")[:, e], "fr_f", "fr_s")
+            add(f"contact.{fr.name}.energy", "J", f"elastic energy stored in contact {fr.name}",
+                lambda b, rx=rx, ru=ru, gap=gap, k_c=k_c, n_c=n_c: contact_energy(
+                    rows(b.col("x"), rx) + rows(b.col("sigma"), ru) - gap, k_c, n_c),
+                "x", "sigma")
+            continue
         add(f"friction.{fr.name}.slip", "rad/s", f"slip speed of friction element {fr.name}",
             lambda b, e=e: b.col("fr_s")[:, e], "fr_s")
         # the resistive torque: the one exception to the port convention (vsj.ports)

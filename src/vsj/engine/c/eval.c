@@ -143,6 +143,9 @@ static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int fu
         level = vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1];
         if (m->code[e] == VSJ_ARCTAN) /* vsj__friction's arctan law, sharing the arctangent */
             torque = p[0] * slip + level * memo_atan(&memo, p[2] * slip);
+        else if (m->code[e] == VSJ_CONTACT)
+            torque = vsj__contact(p, vsj__penetration(m, w, e, y), slip,
+                                  &w->frw[FRW * e + DSLIP], &w->frw[FRW * e + DPOS]);
         else
             torque = vsj__friction(m->code[e], p[0], level, p[2], p[3], slip, NULL);
         if (m->code[e] == VSJ_STICTION)
@@ -414,6 +417,17 @@ static void pivot_motion(const vsj_model *m, vsj_work *w) {
     }
 }
 
+/* Friction element e's slope in its slip at `slip`: its law's, a contact's as its
+ * evaluation left it (it depends on the penetration too). */
+static double friction_slope(const vsj_model *m, const vsj_work *w, int64_t e, double slip) {
+    const double *p = vsj__row(m, e);
+    if (m->code[e] == VSJ_CONTACT)
+        return w->frw[FRW * e + DSLIP];
+    return vsj__friction_slope(
+        m->code[e], p[0], vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1],
+        p[2], p[3], slip);
+}
+
 /* The generalised forces' derivatives in the state (x, v, motor currents) and in
  * time, into jg (n x (ns + 1), the time in the last column). */
 static void force_derivatives(const vsj_model *m, vsj_work *w, double *jg) {
@@ -430,16 +444,20 @@ static void force_derivatives(const vsj_model *m, vsj_work *w, double *jg) {
             add_angle(m, w, jg + cols * m->xc[i], ns, m->xv[i] * dtq * w->pivot_dq);
         }
     }
-    for (e = 0; e < f; e++) { /* torque -f(s), s = X v + U u */
-        const double *p = vsj__row(m, e);
-        double slip = w->frw[FRW * e + SLIP], level, slope;
+    for (e = 0; e < f; e++) { /* torque -f(s), s = X v + U u; a contact's, f(s, d) */
+        double slip = w->frw[FRW * e + SLIP], slope;
         if (m->xp[e + 1] == m->xp[e])
             continue;
-        level = vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1];
-        slope = vsj__friction_slope(m->code[e], p[0], level, p[2], p[3], slip);
+        slope = friction_slope(m, w, e, slip);
         add_outer(m, e, jg, cols, n, -slope);
         for (i = m->xp[e]; i < m->xp[e + 1]; i++)
             jg[cols * m->xc[i] + ns] -= slope * vsj__udot(m, e, w->srcw, UD) * m->xv[i];
+        if (m->code[e] == VSJ_CONTACT) { /* and its position: d = X x + U sigma - gap */
+            double dpos = w->frw[FRW * e + DPOS];
+            add_outer(m, e, jg, cols, 0, -dpos);
+            for (i = m->xp[e]; i < m->xp[e + 1]; i++)
+                jg[cols * m->xc[i] + ns] -= dpos * vsj__udot(m, e, w->srcw, U) * m->xv[i];
+        }
     }
     for (ld = 0; ld < nl; ld++) { /* a torque input */
         int64_t r = f + k + ld;
@@ -507,17 +525,19 @@ static void source_force_derivatives(const vsj_model *m, const vsj_work *w, doub
         }
     }
     for (e = 0; e < f; e++) { /* - tau, tau = f(slip) */
-        const double *p = vsj__row(m, e);
         double slip = w->frw[FRW * e + SLIP], slope;
         if (m->up[e + 1] == m->up[e])
             continue;
-        slope = vsj__friction_slope(
-            m->code[e], p[0], vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1],
-            p[2], p[3], slip);
+        slope = friction_slope(m, w, e, slip);
         for (c = m->up[e]; c < m->up[e + 1]; c++) {
             double *row = dF + cols * m->uc[c];
             add_x(m, e, row, n, -slope * m->uv[c]);
             row[ns] -= slope * vsj__udot(m, e, w->srcw, UD) * m->uv[c];
+            if (m->code[e] == VSJ_CONTACT) {
+                double dpos = w->frw[FRW * e + DPOS];
+                add_x(m, e, row, 0, -dpos * m->uv[c]);
+                row[ns] -= dpos * vsj__udot(m, e, w->srcw, U) * m->uv[c];
+            }
         }
     }
     for (ld = 0; ld < nl; ld++) { /* + a torque input */
@@ -588,14 +608,16 @@ void vsj__eval_ledger_rows(const vsj_model *m, vsj_work *w, const double *y, con
         row[ns] = w->chan[3 * m->code[base_m + mo] + 1] * y[2 * n + mo];
     }
     for (e = 0; e < f; e++, row += cols) { /* tau slip */
-        const double *p = vsj__row(m, e);
         double slip = w->frw[FRW * e + SLIP], slope, dp;
-        slope = vsj__friction_slope(
-            m->code[e], p[0], vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1],
-            p[2], p[3], slip);
+        slope = friction_slope(m, w, e, slip);
         dp = slope * slip + w->frw[FRW * e + TORQUE];
         add_x(m, e, row, n, dp);
         row[ns] = dp * vsj__udot(m, e, w->srcw, UD);
+        if (m->code[e] == VSJ_CONTACT) { /* the force's position: slip dF/dd */
+            double dpos = w->frw[FRW * e + DPOS];
+            add_x(m, e, row, 0, slip * dpos);
+            row[ns] += slip * dpos * vsj__udot(m, e, w->srcw, U);
+        }
     }
     for (mo = 0; mo < nm; mo++, row += cols) /* R i^2 */
         row[2 * n + mo] = 2.0 * vsj__row(m, base_m + mo)[0] * y[2 * n + mo];

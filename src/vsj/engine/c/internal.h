@@ -8,7 +8,9 @@
 
 /* columns of the work arrays */
 enum { U = 0, UD = 1, SG = 2, SRCF = 3, SRCTAU = 4, SRCW = 5 };        /* srcw, per source */
-enum { SLIP = 0, TORQUE = 1, EXTRA = 2, FRW = 3 };                     /* frw, per friction */
+/* frw, per friction; DSLIP, DPOS: a contact's force's derivatives in its slip and its
+ * penetration (the Jacobian's; other laws' slopes follow from their slip) */
+enum { SLIP = 0, TORQUE = 1, EXTRA = 2, DSLIP = 3, DPOS = 4, FRW = 5 };
 /* spw, per spring; DTQ, DVQQ, DVQP: d tau/dq, d(dV/dq)/dq, d(dV/dq)/dphi (the Jacobian's) */
 enum { DEFL = 0, RATE = 1, SPTAU = 2, STIFF = 3, ENERGY = 4, DVDQ = 5, DTQ = 6, DVQQ = 7, DVQP = 8,
        SPW = 9 };
@@ -366,6 +368,24 @@ static inline int vsj__varying(const vsj_model *m, int64_t e) {
     return p[VSJ_F_PEAK] != 1.0 || p[VSJ_F_CHANNEL] >= 0.0 || p[VSJ_F_ROWS] > 0.0;
 }
 
+/* A contact's force (VSJ_CONTACT; p its row: lambda, k, n, gap) at penetration d and
+ * its rate s: Hunt and Crossley's k d^n + lambda d^n s, never pulling (0 where that is
+ * negative, or apart, d <= 0), and its derivatives in s and d. */
+static inline double vsj__contact(const double *p, double d, double s, double *dfds,
+                                  double *dfdd) {
+    double lam = p[VSJ_C_DAMPING], k = p[VSJ_C_STIFFNESS], n = p[VSJ_C_EXPONENT], dn, f;
+    *dfds = *dfdd = 0.0;
+    if (!(d > 0.0))
+        return 0.0;
+    dn = n == 1.0 ? d : pow(d, n);
+    f = dn * (k + lam * s);
+    if (!(f > 0.0))
+        return 0.0;
+    *dfds = lam * dn;
+    *dfdd = n * dn / d * (k + lam * s);
+    return f;
+}
+
 /* The slope df/ds of a friction law at s (vsj__friction's, without its torque). */
 static inline double vsj__friction_slope(int64_t law, double b, double k, double kb, double w,
                                          double s) {
@@ -526,6 +546,12 @@ static inline double vsj__udotv(const vsj_model *m, int64_t r, const double *vec
     for (k = m->up[r]; k < m->up[r + 1]; k++)
         acc += m->uv[k] * vec[m->uc[k]];
     return acc;
+}
+
+/* The penetration of contact row e at the positions x (the sources' angles in srcw). */
+static inline double vsj__penetration(const vsj_model *m, const vsj_work *w, int64_t e,
+                                      const double *x) {
+    return vsj__xdot(m, e, x) + vsj__udot(m, e, w->srcw, SG) - m->par[VSJ_NPAR * e + VSJ_C_GAP];
 }
 
 static inline void vsj__xadd(const vsj_model *m, int64_t r, double *vec, double scale) {

@@ -15,6 +15,11 @@
 
 double vsj_friction_torque(int law, double b, double k, double kb, double w, double s,
                            double *slope) {
+    if (law == VSJ_CONTACT) { /* its force needs the penetration: vsj_derivatives */
+        if (slope)
+            *slope = 0.0;
+        return 0.0;
+    }
     return vsj__friction(law, b, k, kb, w, s, slope);
 }
 

@@ -145,6 +145,13 @@ int vsj_check_model(const vsj_model *m, char *message, size_t size) {
         if (m->code[r] < VSJ_VISCOUS || m->code[r] >= VSJ_N_FRICTION_LAWS)
             return vsj__fail(message, size, "model: friction row %lld has unknown law %lld",
                         (long long)r, (long long)m->code[r]);
+        if (m->code[r] == VSJ_CONTACT
+            && (!(p[VSJ_C_DAMPING] >= 0.0) || !(p[VSJ_C_STIFFNESS] >= 0.0)
+                || !(p[VSJ_C_EXPONENT] >= 1.0) || p[VSJ_F_PEAK] != 1.0 || ch != -1.0
+                || count != 0.0))
+            return vsj__fail(message, size, "model: contact row %lld: needs damping >= 0, "
+                             "stiffness >= 0, exponent >= 1, peak 1, no channel and no table",
+                             (long long)r);
         if (m->code[r] == VSJ_SLOPE && !(p[VSJ_F_WIDTH] > 0.0))
             return vsj__fail(message, size, "model: friction row %lld: slope width must be > 0",
                         (long long)r);

@@ -601,6 +601,11 @@ static void assemble_springs(const vsj_model *m, vsj_work *w, double hs) {
 
 /* Friction's smooth parts: the dampers' half at the step's start, the non-linear laws
  * linearised about the start's slip (implicit Euler); then the loads' torques. */
+/* The penetration of contact e at the step's start. */
+static double contact_depth(const vsj_model *m, const ts_work *t, int64_t e) {
+    return vsj__xdot(m, e, t->x) + vsj__udotv(m, e, t->sg0) - vsj__row(m, e)[VSJ_C_GAP];
+}
+
 static void assemble_friction(const vsj_model *m, vsj_work *w, double hs) {
     ts_work *t = &w->ts;
     int64_t i, e, ld, r_load = m->n_frictions + m->n_springs;
@@ -615,6 +620,22 @@ static void assemble_friction(const vsj_model *m, vsj_work *w, double hs) {
         e = t->nonlinear[i];
         p = vsj__row(m, e);
         se = t->slip[e];
+        if (m->code[e] == VSJ_CONTACT) {
+            /* f(s, d) at the step's middle, linearised about its start: the positions
+             * move by the trapezoidal rule, so the mid-step penetration is d0 + hs (s0 +
+             * s1) / 4 and the mid-step rate (s0 + s1) / 2; the ledger books the force
+             * over the mid-step slip, so a linear contact keeps its energy exactly, and
+             * the damping is the trapezoidal rule's, as a damper's */
+            double dfdd, fs;
+            fe = vsj__contact(p, contact_depth(m, t, e), se, &fs, &dfdd);
+            dfe = 0.5 * fs + 0.25 * hs * dfdd;
+            t->f0[e] = fe + 0.5 * hs * dfdd * se; /* f0 + df0 (s1 - s0): the step's force */
+            t->df0[e] = dfe;
+            cnst = fe + 0.25 * hs * dfdd * se - 0.5 * fs * se + dfe * vsj__udotv(m, e, t->u1);
+            vsj__xadd(m, e, t->r, -hs * cnst);
+            outer(m, e, t->H, hs * dfe);
+            continue;
+        }
         fe = vsj__friction(m->code[e], p[0],
                            vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, se, 0) : p[1],
                            p[2], p[3], se, &dfe);

@@ -193,9 +193,19 @@ enum vsj_friction_par {
     VSJ_F_VISCOUS = 0, VSJ_F_STICTION = 1, VSJ_F_SHARPNESS = 2, VSJ_F_WIDTH = 3,
     VSJ_F_PEAK = 4, VSJ_F_CHANNEL = 5, VSJ_F_TABLE = 6, VSJ_F_ROWS = 7, VSJ_F_TRAPEZOIDAL = 8
 };
+/* A contact's row (law VSJ_CONTACT: an element of the environment, vsj.environment):
+ * its row is the contact's penetration in metres per unit of its coordinates, positive
+ * into the contact; its force [N] is the "torque" the element resists with, its slip the
+ * penetration's rate. Columns: damping lambda [s/m], stiffness k [N/m^n], exponent n >= 1,
+ * gap [m] (the penetration is the row's position minus the gap); the rest as a friction
+ * element's defaults (peak 1, no channel, no table). */
+enum vsj_contact_par {
+    VSJ_C_DAMPING = 0, VSJ_C_STIFFNESS = 1, VSJ_C_EXPONENT = 2, VSJ_C_GAP = 3
+};
 
 /* Smooth part of a friction law at slip speed s: returns f(s), with its slope
- * in *slope if not NULL. For VSJ_STICTION this is the viscous part only. */
+ * in *slope if not NULL. For VSJ_STICTION this is the viscous part only; for
+ * VSJ_CONTACT 0 (its force depends on its penetration too: vsj_derivatives). */
 double vsj_friction_torque(int law, double b, double k, double kb, double w, double s,
                            double *slope);
 

@@ -89,7 +89,9 @@
     X(ARCTAN, "arctan", "b s + k atan(k_b s), report eq 3.17")                          \
     X(SIGN, "sign", "b s + k pi/2 sign(s), eq 3.18")                                    \
     X(SLOPE, "slope", "b s + k pi/2 clip(s / w, -1, 1), fig 4.8")                       \
-    X(STICTION, "stiction", "b s plus a Coulomb impulse decided by the time-stepper")
+    X(STICTION, "stiction", "b s plus a Coulomb impulse decided by the time-stepper")      \
+    X(CONTACT, "contact", "Hunt-Crossley contact: max(0, k d^n + lambda d^n s) for a "    \
+      "penetration d > 0 (the row's position past its gap), 0 apart")
 
 #define VSJ_SPRING_LAWS(X)                                                              \
     X(LINEAR, "linear", "par: k")                                                       \
