@@ -160,6 +160,13 @@ for check in ("test_sensors_quantise_delay_and_add_seeded_noise",
               "test_the_engine_refuses_a_block_that_reads_a_later_output"):
     getattr(control_tests, check)()
 print("controllers", flush=True)
+import test_contact as contact_tests               # contacts: every scheme, stiction
+for solver in ("dopri", "rosenbrock"):
+    contact_tests.test_a_linear_contact_gives_the_closed_form_peak_and_duration(solver)
+contact_tests.test_the_time_stepper_keeps_a_linear_contacts_energy_to_second_order()
+contact_tests.test_a_joint_held_against_a_wall_by_stiction_does_not_creep("stiction")
+contact_tests.test_the_ledger_closes_with_contacts_a_controller_and_stiction_at_the_default_step()
+print("contacts", flush=True)
 scen = scenarios.load("fig-4.15")
 prep = scenarios.prepare_case(scen, scen.cases[0], params)
 structure, inputs = prep.structure, prep.inputs
