@@ -23,8 +23,9 @@ from vsj.output import (MANIFEST, OutputError, ResultSet, clear_staging, read_ma
                         signals_bound, trajectory_bytes, verify)
 
 
-def _short(duration: str) -> str:
-    return SHORT_SCENARIO.replace('duration = "0.3 s"', f'duration = "{duration}"')
+def _short(duration: str, output_step: str = "10 ms") -> str:
+    return SHORT_SCENARIO.replace('duration = "0.3 s"', f'duration = "{duration}"').replace(
+        'output_step = "10 ms"', f'output_step = "{output_step}"')
 
 
 #: How long a killed run's watchdog may take to clear what the run left (it needs a few
@@ -39,9 +40,9 @@ SETTLE_TIMEOUT = 20.0
 WRITING_KILLS = 16
 
 
-def scenario(tmp_path, duration="0.3 s", name="scen.toml"):
+def scenario(tmp_path, duration="0.3 s", name="scen.toml", output_step="10 ms"):
     path = tmp_path / name
-    path.write_text(_short(duration))
+    path.write_text(_short(duration, output_step))
     return path
 
 
@@ -163,8 +164,10 @@ def test_a_killed_run_leaves_the_complete_old_or_new_set(tmp_path):
     them), against a complete old set and against no directory at all: afterwards the
     directory holds exactly the old set or exactly the new one (every byte of the old; the
     new one's data and hashes), and nothing hidden is left beside or in it."""
+    # the new set is sampled finely, so that its writing lasts tens of milliseconds
+    # however fast the build: a kill aimed at it cannot all but miss a writing of a few
     old_scenario, new_scenario = scenario(tmp_path, "0.3 s", "old.toml"), \
-        scenario(tmp_path, "0.5 s", "new.toml")
+        scenario(tmp_path, "0.5 s", "new.toml", output_step="1 ms")
     parent = tmp_path / "work"
     parent.mkdir()
     out = parent / "out"
