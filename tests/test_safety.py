@@ -1,0 +1,234 @@
+"""Safety figures (issue 34): the ISO/TS 15066 body model and its closed forms.
+
+Every case is derivable by hand: a half-sine force pulse (peak F0, impulse 2 F0 T/pi,
+duration T), a free mass pushed by it, two masses meeting through a linear spring. The
+tolerances come from the trapezoidal rule's error on the sample grid (each derived where
+it is used) or from the ODE solver's tolerance.
+"""
+
+import math
+import re
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from vsj.errors import InputError
+from vsj.safety import (
+    REGIONS,
+    Tip,
+    reduced_mass,
+    region,
+    robot_effective_mass,
+    series_stiffness,
+    transfer_energy_limit,
+    transient_speed_limit,
+    verdict,
+)
+from vsj.safety.iso_ts_15066 import TRANSCRIPTIONS
+
+#: relative tolerance of the ODE solves below (rtol 1e-11, atol scaled to the states):
+#: their peaks and integrals are right to about 1e-9; 1e-7 leaves room
+SOLVER_RTOL = 1e-7
+
+
+def half_sine(t, start, duration, peak):
+    """``peak sin(pi (t - start)/duration)`` on the pulse, zero elsewhere."""
+    phase = (t - start) / duration
+    return np.where((phase > 0) & (phase < 1), peak * np.sin(np.pi * phase), 0.0)
+
+
+# -- the ISO/TS 15066 body model ---------------------------------------------------------
+
+def cited_transcriptions(text):
+    """The transcription keys a source text names (``S1``, ranges ``S1-S3`` expanded)."""
+    keys = set()
+    for first, last in re.findall(r"S(\d)(?:-S(\d))?", text):
+        keys |= {f"S{i}" for i in range(int(first), int(last or first) + 1)}
+    return keys
+
+
+def test_every_value_cites_its_table_row_and_a_transcription_that_gives_it():
+    """Each number of the body model names the standard's table and row and the
+    transcriptions it was read from (and those exist)."""
+    for reg in REGIONS.values():
+        for name in ("effective_mass", "spring_constant"):
+            assert reg.sources[name].startswith("ISO/TS 15066:2016 Table A.3, row "
+                                                f"'{reg.title}'"), name
+        for name in ("quasi_static_force", "transient_force_factor",
+                     "transient_pressure_factor"):
+            assert reg.sources[name].startswith("ISO/TS 15066:2016 Table A.2, row "
+                                                f"'{reg.title}'"), name
+        cited = list(reg.sources.values()) + [a.source for a in reg.areas.values()]
+        for text in cited:
+            keys = cited_transcriptions(text)
+            assert keys and keys <= set(TRANSCRIPTIONS), text
+        for area in reg.areas.values():
+            assert area.source.startswith(f"ISO/TS 15066:2016 Table A.2, region "
+                                          f"'{reg.title}', area '{area.title}'")
+
+
+def test_the_tables_numbers_arrive_in_si():
+    """Tables A.2 and A.3 give N/cm^2 and N/mm: the model holds Pa and N/m (a slip of
+    the conversion would shift every speed limit by sqrt(1000))."""
+    hand, arm = REGIONS["hand"], REGIONS["lower_arm"]
+    assert (hand.effective_mass, hand.spring_constant, hand.quasi_static_force) == \
+        (0.6, 75e3, 140.0)
+    assert (arm.effective_mass, arm.spring_constant, arm.quasi_static_force) == \
+        (2.0, 40e3, 160.0)
+    assert hand.areas["thenar_eminence"].quasi_static_pressure == 200e4
+    assert arm.areas["radial_bone"].quasi_static_pressure == 190e4
+
+
+def test_transient_limits_are_twice_the_quasi_static_ones():
+    """Table A.2 note c: transient contact may reach twice the quasi-static force and
+    pressure, for both regions and every area."""
+    for reg in REGIONS.values():
+        assert reg.permissible_force("transient") == 2 * reg.permissible_force("quasi-static")
+        for name in reg.areas:
+            assert reg.permissible_pressure(name, "transient") == \
+                2 * reg.permissible_pressure(name, "quasi-static")
+    assert REGIONS["hand"].permissible_force() == 280.0  # the default is transient
+
+
+def test_the_most_sensitive_area_has_the_lowest_pressure_limit():
+    for reg in REGIONS.values():
+        lowest = min(a.quasi_static_pressure for a in reg.areas.values())
+        assert reg.most_sensitive_area.quasi_static_pressure == lowest
+        assert reg.permissible_pressure(contact="quasi-static") == lowest
+
+
+def test_reduced_and_robot_effective_mass():
+    """Eq A.3 and A.4 by hand."""
+    assert reduced_mass(0.6, 0.6) == pytest.approx(0.3, rel=1e-15)
+    assert reduced_mass(2.0, 6.0) == pytest.approx(1.5, rel=1e-15)
+    assert reduced_mass(2.0, math.inf) == 2.0
+    assert robot_effective_mass(10.0, 1.0) == 6.0
+    assert robot_effective_mass(10.0) == 5.0
+
+
+def test_series_stiffness():
+    assert series_stiffness(3.0, 6.0) == pytest.approx(2.0, rel=1e-15)
+    assert series_stiffness(75e3, math.inf) == 75e3
+    assert series_stiffness(math.inf) == math.inf
+
+
+def test_speed_limit_by_hand():
+    """A 0.6 kg robot on the hand: mu = 0.3 kg, sqrt(mu k) = 150 kg/s, so the transient
+    280 N allow 28/15 m/s, and the energy mu v^2/2 equals F^2/(2k) (eq A.1, A.2)."""
+    limit = transient_speed_limit("hand", 0.6)
+    assert limit.reduced_mass == pytest.approx(0.3, rel=1e-15)
+    assert limit.speed == pytest.approx(28 / 15, rel=1e-14)
+    assert limit.limited_by == "force" and limit.by_pressure is None
+    assert limit.energy == pytest.approx(280.0 ** 2 / (2 * 75e3), rel=1e-14)
+    assert transfer_energy_limit("hand") == pytest.approx(limit.energy, rel=1e-14)
+    quasi = transient_speed_limit("hand", 0.6, contact="quasi-static")
+    assert quasi.speed == pytest.approx(limit.speed / 2, rel=1e-14)
+
+
+def test_a_small_contact_area_makes_pressure_the_limit():
+    """On 0.1 cm^2 the hand's most sensitive area (190 N/cm^2, 380 transient) bears
+    38 N: the speed falls to 38/150 m/s and the pressure sets it (eq A.6)."""
+    limit = transient_speed_limit("hand", 0.6, contact_area=1e-5)
+    assert limit.by_pressure == pytest.approx(38 / 150, rel=1e-14)
+    assert limit.speed == limit.by_pressure and limit.limited_by == "pressure"
+    palm = transient_speed_limit("hand", 0.6, contact_area=1e-5, area="palm")
+    assert palm.by_pressure == pytest.approx(52 / 150, rel=1e-14)
+    assert transfer_energy_limit("hand", contact_area=1e-5) == \
+        pytest.approx(38.0 ** 2 / (2 * 75e3), rel=1e-14)
+
+
+def two_body_peak_force(speed, body_mass, robot_mass, stiffness):
+    """Peak spring force when a robot mass at ``speed`` meets a resting body through a
+    linear spring, integrated numerically (no closed form used)."""
+    def rhs(t, y):
+        x_r, v_r, x_h, v_h = y
+        f = stiffness * max(x_r - x_h, 0.0)
+        return [v_r, -f / robot_mass, v_h, f / body_mass]
+
+    def separated(t, y):
+        return y[0] - y[2]
+    separated.terminal, separated.direction = True, -1
+    omega = math.sqrt(stiffness / reduced_mass(body_mass, robot_mass))
+    scale = speed / omega
+    sol = solve_ivp(rhs, (0.0, 2 * math.pi / omega), [0.0, speed, 0.0, 0.0], method="DOP853",
+                    rtol=1e-11, atol=[1e-13 * scale, 1e-13 * speed] * 2, events=separated,
+                    dense_output=True)
+    assert sol.success
+    t = np.linspace(0.0, sol.t[-1], 20001)
+    y = sol.sol(t)
+    return stiffness * np.max(y[0] - y[2]), sol.t[-1]
+
+
+@pytest.mark.parametrize("body, robot_mass, stiffness", [
+    ("hand", 0.6, None), ("lower_arm", 4.0, None), ("hand", 1.5, 20e3)])
+def test_the_speed_limit_brings_the_peak_force_to_the_limit(body, robot_mass, stiffness):
+    """Twin: two masses integrated through a linear spring at the closed-form speed limit
+    reach exactly the permissible transient force, in half a period of the reduced mass."""
+    reg = region(body)
+    limit = transient_speed_limit(body, robot_mass, stiffness)
+    peak, end = two_body_peak_force(limit.speed, reg.effective_mass, robot_mass,
+                                    limit.stiffness)
+    # 20001 points over the half period put one within pi/40000 of phase from the peak,
+    # where a sine is down by (pi/40000)^2/2 = 3e-9
+    assert peak == pytest.approx(reg.permissible_force(), rel=SOLVER_RTOL + 1e-8)
+    assert end == pytest.approx(math.pi * math.sqrt(limit.reduced_mass / limit.stiffness),
+                                rel=SOLVER_RTOL)
+
+
+def test_a_softer_contact_allows_a_faster_robot():
+    """Comparing stiffness settings: a joint compliance in series with the hand's spring
+    lowers the stiffness at the contact, and the speed limit grows as 1/sqrt(k)."""
+    stiff = transient_speed_limit("hand", 1.0)
+    k_soft = series_stiffness(REGIONS["hand"].spring_constant, 25e3)
+    soft = transient_speed_limit("hand", 1.0, stiffness=k_soft)
+    assert soft.speed / stiff.speed == pytest.approx(math.sqrt(75e3 / k_soft), rel=1e-14)
+    assert soft.speed / stiff.speed == pytest.approx(2.0, rel=1e-14)  # k_soft = 75e3/4
+
+
+def test_verdict_by_hand():
+    hand = verdict("hand", 200.0)
+    assert hand.passed and hand.force_limit == 280.0 and hand.pressure is None
+    assert not verdict("hand", 200.0, contact="quasi-static").passed
+    assert verdict("hand", 280.0).passed  # a maximum permissible value is permitted
+    arm = verdict("lower_arm", 100.0, peak_pressure=370e4)
+    assert arm.area in ("forearm_muscle", "arm_nerve") and arm.pressure_limit == 360e4
+    assert not arm.passed and arm.force_ratio == pytest.approx(100 / 320, rel=1e-15)
+    assert verdict("lower_arm", 100.0, peak_pressure=370e4, area="radial_bone").passed
+    assert "OVER the limit" in str(arm) and "within the limits" in str(hand)
+
+
+def test_tip_pressure():
+    """A flat tip spreads the force over its area; a sphere of radius R in Hertz contact
+    touches pi R d, so a linear contact F = k d presses k/(pi R) at every depth."""
+    assert Tip.flat(2e-4).pressure(100.0) == pytest.approx(5e5, rel=1e-15)
+    sphere = Tip.sphere(0.01)
+    depth = np.array([1e-4, 1e-3, 5e-3])
+    assert sphere.pressure(3e4 * depth, depth) == pytest.approx(3e4 / (math.pi * 0.01),
+                                                                rel=1e-14)
+    assert sphere.area(0.02) == pytest.approx(math.pi * 1e-4, rel=1e-15)  # fully in
+    assert sphere.pressure(5.0, 0.0) == math.inf  # a force on a point
+
+
+# -- bad input -------------------------------------------------------------------------
+
+@pytest.mark.parametrize("call, words", [
+    (lambda: region("foot"), "region 'foot' is not known; known regions: hand, lower_arm"),
+    (lambda: verdict("elbow", 10.0), "region 'elbow'"),
+    (lambda: reduced_mass(-0.6, 1.0), "body_mass must be > 0"),
+    (lambda: reduced_mass(0.6, 0.0), "robot_mass must be > 0"),
+    (lambda: transient_speed_limit("hand", -1.0), "robot_mass must be > 0"),
+    (lambda: transient_speed_limit("hand", 1.0, stiffness=math.nan), "stiffness must be a "
+                                                                        "finite number"),
+    (lambda: transient_speed_limit("hand", 1.0, area="palm"), "needs contact_area"),
+    (lambda: robot_effective_mass(10.0, -1.0), "payload must be >= 0"),
+    (lambda: verdict("hand", 10.0, 1e6, area="knee"), "body area 'knee' is not an area"),
+    (lambda: verdict("hand", 10.0, contact="clamped"), "contact must be one of"),
+    (lambda: verdict("hand", math.nan), "peak_force must be a finite number"),
+    (lambda: Tip.sphere(-0.01), "radius must be > 0"),
+    (lambda: Tip("cone", 0.01), "kind must be 'flat' or 'sphere'"),
+])
+def test_bad_input_is_refused_by_name(call, words):
+    with pytest.raises(InputError) as caught:
+        call()
+    assert words in str(caught.value)
