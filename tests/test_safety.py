@@ -1,4 +1,5 @@
-"""Safety figures (issue 34): the ISO/TS 15066 body model and its closed forms.
+"""Safety figures (issue 34): the ISO/TS 15066 body model and its closed forms, and
+contact events from sampled signals.
 
 Every case is derivable by hand: a half-sine force pulse (peak F0, impulse 2 F0 T/pi,
 duration T), a free mass pushed by it, two masses meeting through a linear spring. The
@@ -17,6 +18,7 @@ from vsj.errors import InputError
 from vsj.safety import (
     REGIONS,
     Tip,
+    contact_events,
     reduced_mass,
     region,
     robot_effective_mass,
@@ -210,7 +212,129 @@ def test_tip_pressure():
     assert sphere.pressure(5.0, 0.0) == math.inf  # a force on a point
 
 
+# -- contact events --------------------------------------------------------------------
+
+def pulse_run(step=1e-4, start=0.0123, duration=0.0301, peak=150.0, end=0.08):
+    """A half-sine force pulse sampled on a grid its ends do not fall on."""
+    t = np.arange(0.0, end, step)
+    return t, half_sine(t, start, duration, peak)
+
+
+def test_a_half_sine_pulse_is_one_event_with_its_peak_impulse_and_duration():
+    step, start, duration, peak = 1e-4, 0.0123, 0.0301, 150.0
+    t, f = pulse_run(step, start, duration, peak)
+    [event] = contact_events(t, f)
+    assert not event.cut_at_start and not event.cut_at_end
+    assert event.resolution == pytest.approx(step, rel=1e-9)
+    # the nearest sample is at most h/2 from the peak, where sin falls by 1 - cos(pi h/2T)
+    assert peak * math.cos(math.pi * step / (2 * duration)) <= event.peak_force <= peak
+    assert abs(event.peak_time - (start + duration / 2)) <= step / 2
+    # trapezoid: (pi h/T)^2/12 relative inside the pulse, plus a kink at each end where
+    # the rule is off by at most slope h^2/8 = pi F0 h^2/(8T): (5/24)(pi h/T)^2 in all
+    tol = (math.pi * step / duration) ** 2 / 4
+    assert event.impulse == pytest.approx(2 * peak * duration / math.pi, rel=tol)
+    shortest, longest = event.duration_bounds
+    assert shortest <= duration <= longest and longest - shortest <= 2 * step + 1e-12
+    assert abs(event.duration - duration) <= event.resolution
+    assert abs(event.start - start) <= step / 2 + 1e-12
+
+
+def test_no_contact_no_events():
+    t = np.linspace(0.0, 1.0, 101)
+    assert contact_events(t, np.zeros_like(t)) == []
+
+
+def test_an_event_cut_by_the_end_of_the_run():
+    """A pulse still on when the run stops: flagged, its longest duration unknown, its
+    impulse the integral so far, F0 T/pi (1 - cos(pi tau/T)) for tau in contact."""
+    step, start, duration, peak = 1e-4, 0.0123, 0.0301, 150.0
+    t, f = pulse_run(step, start, duration, peak, end=0.035)
+    [event] = contact_events(t, f)
+    assert event.cut_at_end and not event.cut_at_start
+    assert event.duration_bounds[1] == math.inf and event.end == t[-1]
+    tau = t[-1] - start
+    exact = peak * duration / math.pi * (1 - math.cos(math.pi * tau / duration))
+    # the same trapezoid bound as a whole pulse's, with one kink instead of two
+    assert event.impulse == pytest.approx(exact, rel=(math.pi * step / duration) ** 2 / 4)
+    late = t >= 0.02
+    [first] = contact_events(t[late] - 0.02, f[late])
+    assert first.cut_at_start and first.start == 0.0 and first.duration_bounds[1] == math.inf
+
+
+def test_two_pulses_are_two_events_in_order():
+    t = np.arange(0.0, 0.2, 1e-4)
+    f = half_sine(t, 0.0203, 0.03, 100.0) + half_sine(t, 0.1107, 0.02, 60.0)
+    first, second = contact_events(t, f)
+    assert first.end < second.start
+    assert first.peak_force > 99.0 and 59.0 < second.peak_force <= 60.0
+    assert second.first > first.last + 1
+
+
+def test_work_and_energy_of_a_free_body_pushed_by_the_pulse():
+    """A free mass m at rest pushed by F0 sin(w t) for T = pi/w reaches v = (F0/(m w))
+    (1 - cos w t): the work of the force, and the body's kinetic energy gain, end at
+    m (2 F0/(m w))^2 / 2."""
+    step, start, duration, peak, mass = 1e-4, 0.0123, 0.0301, 150.0, 0.6
+    t, f = pulse_run(step, start, duration, peak)
+    w = math.pi / duration
+    phase = np.clip(t - start, 0.0, duration)
+    velocity = peak / (mass * w) * (1 - np.cos(w * phase))
+    [event] = contact_events(t, f, body_velocity=velocity,
+                             body_energy=0.5 * mass * velocity ** 2)
+    exact = 0.5 * mass * (2 * peak / (mass * w)) ** 2
+    # F v = (F0^2/(m w))(sin wt - sin 2wt/2): |(F v)''| <= 3 F0^2 w/m gives (pi/8)(w h)^2
+    # inside, and the kink at the end (slope 2 F0^2/m) (1/8)(w h)^2: below (w h)^2
+    assert event.work == pytest.approx(exact, rel=(w * step) ** 2)
+    assert event.energy == event.work and event.energy_kind == "work"
+    # the kinetic energy is sampled, not integrated: its rise is exact at the samples
+    assert event.body_energy_gain == pytest.approx(exact, rel=1e-12)
+    # a body already holding energy (its spring preloaded, say) gains the same
+    [no_work] = contact_events(t, f, body_energy=5.0 + 0.5 * mass * velocity ** 2)
+    assert no_work.energy_kind == "body energy" and no_work.energy == no_work.body_energy_gain
+    assert no_work.body_energy_gain == pytest.approx(exact, rel=1e-12)
+    [bare] = contact_events(t, f)
+    assert bare.energy is None and bare.energy_kind is None
+
+
+def test_joint_deflection_torque_and_end_stop_margin():
+    """Peak |deflection| and |torque| of each element over the event, and the margin to
+    the stop: negative for an element driven past it."""
+    t, f = pulse_run()
+    deflection = np.column_stack([0.5 * f / 150.0, -1.5 * f / 150.0])
+    torque = 2.0 * deflection
+    [event] = contact_events(t, f, deflection=deflection, spring_torque=torque,
+                             end_stop=1.4)
+    big = np.max(f) / 150.0
+    assert event.peak_deflection == pytest.approx((0.5 * big, 1.5 * big), rel=1e-15)
+    assert event.peak_spring_torque == pytest.approx((1.0 * big, 3.0 * big), rel=1e-15)
+    assert event.end_stop_margin == pytest.approx((1.4 - 0.5 * big, 1.4 - 1.5 * big),
+                                                  rel=1e-15)
+    assert event.end_stop_margin[1] < 0 < event.end_stop_margin[0]
+    [single] = contact_events(t, f, deflection=deflection[:, 0], end_stop=[1.0])
+    assert single.end_stop_margin == pytest.approx((1.0 - 0.5 * big,), rel=1e-15)
+
+
+def test_event_pressure_penetration_and_verdict():
+    """A linear contact F = k d under a sphere presses k/(pi R) throughout; the event's
+    verdict checks its peaks against the region."""
+    t, f = pulse_run(peak=300.0)
+    k, radius = 3e4, 0.02  # the deepest point, 1 cm, stays within the radius
+    [event] = contact_events(t, f, penetration=f / k, tip=Tip.sphere(radius))
+    assert event.peak_pressure == pytest.approx(k / (math.pi * radius), rel=1e-14)
+    assert event.peak_penetration == pytest.approx(event.peak_force / k, rel=1e-15)
+    judged = event.verdict("hand")
+    assert judged.force == event.peak_force and judged.pressure == event.peak_pressure
+    assert not judged.passed  # 300 N > 280 N
+    [flat] = contact_events(t, f * 0.5, tip=Tip.flat(1e-4))
+    assert flat.peak_pressure == pytest.approx(flat.peak_force / 1e-4, rel=1e-15)
+    assert flat.verdict("hand", area="palm").passed  # 150 N on 1 cm^2 of 520 N/cm^2
+
+
 # -- bad input -------------------------------------------------------------------------
+
+T = np.linspace(0.0, 0.01, 11)
+F = np.full(11, 1.0)
+
 
 @pytest.mark.parametrize("call, words", [
     (lambda: region("foot"), "region 'foot' is not known; known regions: hand, lower_arm"),
@@ -225,6 +349,18 @@ def test_tip_pressure():
     (lambda: verdict("hand", 10.0, 1e6, area="knee"), "body area 'knee' is not an area"),
     (lambda: verdict("hand", 10.0, contact="clamped"), "contact must be one of"),
     (lambda: verdict("hand", math.nan), "peak_force must be a finite number"),
+    (lambda: contact_events(T, F[:-1]), "force has 10 samples, time has 11"),
+    (lambda: contact_events(T, np.where(np.arange(11) == 6, np.nan, 1.0)), "force[6] is nan"),
+    (lambda: contact_events(T, -F), "force[0] = -1.0 N is negative"),
+    (lambda: contact_events(T[::-1], F), "time must increase strictly"),
+    (lambda: contact_events(T, F, body_velocity=F[:5]), "body_velocity has 5 samples"),
+    (lambda: contact_events(T, F, deflection=np.ones((11, 2, 2))), "deflection must have "
+                                                                      "shape"),
+    (lambda: contact_events(T, F, end_stop=1.4), "end_stop needs the deflection"),
+    (lambda: contact_events(T, F, deflection=np.ones((11, 2)), end_stop=[1.0, 1.0, 1.0]),
+     "end_stop must be one angle"),
+    (lambda: contact_events(T, F, tip=Tip.sphere(0.01)), "needs the penetration"),
+    (lambda: contact_events(T, F, tip="round"), "tip must be a vsj.safety.Tip"),
     (lambda: Tip.sphere(-0.01), "radius must be > 0"),
     (lambda: Tip("cone", 0.01), "kind must be 'flat' or 'sphere'"),
 ])
