@@ -1,5 +1,5 @@
-"""Safety figures (issue 34): the ISO/TS 15066 body model and its closed forms, and
-contact events from sampled signals.
+"""Safety figures (issue 34): the ISO/TS 15066 body model and its closed forms, contact
+events from sampled signals, and the head injury criterion against its closed form.
 
 Every case is derivable by hand: a half-sine force pulse (peak F0, impulse 2 F0 T/pi,
 duration T), a free mass pushed by it, two masses meeting through a linear spring. The
@@ -16,9 +16,15 @@ from scipy.integrate import solve_ivp
 
 from vsj.errors import InputError
 from vsj.safety import (
+    HIC15_WINDOW,
+    HIC36_WINDOW,
     REGIONS,
+    STANDARD_GRAVITY,
     Tip,
     contact_events,
+    hic,
+    hic_half_sine,
+    hic_spring_impact,
     reduced_mass,
     region,
     robot_effective_mass,
@@ -27,6 +33,7 @@ from vsj.safety import (
     transient_speed_limit,
     verdict,
 )
+from vsj.safety.head_injury import OPTIMAL_HALF_ANGLE
 from vsj.safety.iso_ts_15066 import TRANSCRIPTIONS
 
 #: relative tolerance of the ODE solves below (rtol 1e-11, atol scaled to the states):
@@ -330,6 +337,92 @@ def test_event_pressure_penetration_and_verdict():
     assert flat.verdict("hand", area="palm").passed  # 150 N on 1 cm^2 of 520 N/cm^2
 
 
+# -- head injury criterion -------------------------------------------------------------
+
+@pytest.mark.parametrize("window", [HIC36_WINDOW, HIC15_WINDOW, 0.004])
+def test_sampled_hic_matches_the_half_sine_closed_form(window):
+    """On a 10 ms half-sine both long windows keep the unconstrained optimum (0.67 T);
+    4 ms binds. Error budget, w = pi/T: the trapezoid's window integral is off by
+    (w h)^2/12 relative, 2.5 times that in the HIC; a window end on the grid is off by
+    at most h/2, costing 1.25 (w h/2)^2 for a shift and 0.98 (w h/2)^2 for a width
+    change at the optimum: (w h)^2 bounds the sum."""
+    duration, peak, step = 0.01, 800.0, 1e-5
+    t = np.arange(-0.002, duration + 0.002, step)
+    a = half_sine(t, 0.0, duration, peak)
+    numeric, exact = hic(t, a, window), hic_half_sine(peak, duration, window)
+    w = math.pi / duration
+    assert numeric.value == pytest.approx(exact.value, rel=(w * step) ** 2)
+    assert abs(numeric.start - exact.start) <= step and abs(numeric.end - exact.end) <= step
+    assert numeric.end - numeric.start <= window * (1 + 1e-9)
+    if window > duration:
+        span = 2 * OPTIMAL_HALF_ANGLE / w
+        assert exact.end - exact.start == pytest.approx(span, rel=1e-14)
+    else:
+        assert exact.end - exact.start == pytest.approx(window, rel=1e-14)
+
+
+def test_sampled_hic_keeps_the_window_limit_on_an_uneven_grid():
+    """Samples twice as dense in the first half of the pulse: a window of so many samples
+    spans twice as long in the second half, and must still be no longer than W. The
+    grid's error bound is that of its coarser half, (w h)^2."""
+    duration, peak, step, window = 0.01, 800.0, 2e-5, 0.004
+    t = np.concatenate([np.arange(-0.002, 0.005, step / 2), np.arange(0.005, 0.012, step)])
+    numeric = hic(t, half_sine(t, 0.0, duration, peak), window)
+    exact = hic_half_sine(peak, duration, window)
+    assert numeric.end - numeric.start <= window * (1 + 1e-9)
+    assert numeric.value == pytest.approx(exact.value, rel=(math.pi / duration * step) ** 2)
+
+
+def test_half_sine_hic_by_hand():
+    """From the definition: the window [T/4, 3T/4] holds (A T/pi) sqrt(2), a mean of
+    2 sqrt(2) A/pi for T/2; the whole pulse a mean of 2A/pi for T. The optimum (tan x =
+    5x/3) beats both, and a window of T/2 gives the first."""
+    peak, duration, g = 500.0, 0.01, STANDARD_GRAVITY
+    half = duration / 2 * (2 * math.sqrt(2) * peak / (math.pi * g)) ** 2.5
+    whole = duration * (2 * peak / (math.pi * g)) ** 2.5
+    assert hic_half_sine(peak, duration, window=duration / 2).value == \
+        pytest.approx(half, rel=1e-14)
+    best = hic_half_sine(peak, duration, window=HIC15_WINDOW)
+    assert math.tan(OPTIMAL_HALF_ANGLE) == pytest.approx(5 / 3 * OPTIMAL_HALF_ANGLE,
+                                                         rel=1e-14)
+    assert best.value > half and best.value > whole
+    # the optimum needs 0.67 T: a window of the whole pulse does not bind
+    assert hic_half_sine(peak, duration, window=duration).value == best.value
+
+
+def test_spring_impact_hic_matches_a_simulated_impact():
+    """Twin: a robot mass strikes a free head mass through a linear spring (integrated
+    numerically); the sampled HIC of the head's acceleration matches the closed form to
+    the solver's tolerance plus the grid's (w h)^2."""
+    v, m_head, m_robot, k = 1.0, 4.4, 10.0, 150e3
+    mu = reduced_mass(m_head, m_robot)
+    w = math.sqrt(k / mu)
+    duration = math.pi / w
+
+    def rhs(t, y):
+        f = k * max(y[0] - y[2], 0.0)
+        return [y[1], -f / m_robot, y[3], f / m_head]
+
+    sol = solve_ivp(rhs, (0.0, 1.2 * duration), [0.0, v, 0.0, 0.0], method="DOP853",
+                    rtol=1e-11, atol=1e-15, dense_output=True)
+    assert sol.success
+    step = duration / 2000
+    t = np.arange(0.0, 1.2 * duration, step)
+    y = sol.sol(t)
+    accel = k * np.clip(y[0] - y[2], 0.0, None) / m_head
+    exact = hic_spring_impact(v, m_head, k, robot_mass=m_robot)
+    assert hic(t, accel).value == pytest.approx(exact.value, rel=(w * step) ** 2 + SOLVER_RTOL)
+    # the peak acceleration of the closed form, v sqrt(mu k)/m_H: a sample lies within
+    # pi/4000 of phase from the peak, down by (pi/4000)^2/2 = 3e-7
+    assert np.max(accel) == pytest.approx(v * math.sqrt(mu * k) / m_head,
+                                          rel=SOLVER_RTOL + 1e-6)
+
+
+def test_hic_of_no_acceleration_is_zero():
+    t = np.linspace(0.0, 0.1, 1001)
+    assert hic(t, np.zeros_like(t)).value == 0.0
+
+
 # -- bad input -------------------------------------------------------------------------
 
 T = np.linspace(0.0, 0.01, 11)
@@ -363,6 +456,10 @@ F = np.full(11, 1.0)
     (lambda: contact_events(T, F, tip="round"), "tip must be a vsj.safety.Tip"),
     (lambda: Tip.sphere(-0.01), "radius must be > 0"),
     (lambda: Tip("cone", 0.01), "kind must be 'flat' or 'sphere'"),
+    (lambda: hic(T, -F), "acceleration[0] = -1.0 m/s^2 is negative"),
+    (lambda: hic(T, F, window=1e-4), "no window fits"),
+    (lambda: hic_half_sine(100.0, 0.0), "duration must be > 0"),
+    (lambda: hic_spring_impact(1.0, -4.4, 1e5), "body_mass must be > 0"),
 ])
 def test_bad_input_is_refused_by_name(call, words):
     with pytest.raises(InputError) as caught:
