@@ -190,3 +190,37 @@ def test_bad_contacts_are_refused_naming_what_is_wrong():
         simulate(wrist(env), {}, 0.1, initial=InitialState(q=-0.004))
     with pytest.raises(InputError, match="contact is the environment's law"):
         SimulationOptions(friction="contact").validate()
+
+
+def test_the_iso_transient_speed_limit_holds_on_the_stiff_preset():
+    """ISO/TS 15066's largest transient speed for the hand, v = F / sqrt(mu k) with mu
+    the reduced mass of the hand (Table A.3) and the wrist's effective mass at the tip,
+    struck by the wrist at its stiffest setting: the engine's peak force is the
+    permissible transient force."""
+    from vsj import safety
+
+    hand = safety.region("hand")
+    env = Environment(link=L, tip_mass=0.2, contacts=(
+        Body("hand", angle=0.0, mass=hand.effective_mass, stiffness=hand.spring_constant),))
+    params = params_module.load()
+    s = add_environment(build_wrist(params, WristOptions(elastic="exponential")), env).assemble()
+    # the tip's effective mass: the inertia an impulse at the tip meets (the motors, held
+    # by their drives, are behind the elastic elements), 1 / (L^2 r M^-1 r^T)
+    r = s.rows("diff.theta_x")[0]
+    m_inv_r = np.linalg.solve(s.mass_matrix(), r)
+    robot_mass = 1.0 / (L ** 2 * (r @ m_inv_r))
+    limit = safety.transient_speed_limit(hand, robot_mass=robot_mass,
+                                         stiffness=hand.spring_constant)
+    omega = limit.by_force / L
+    speeds = dict(zip(s.free, m_inv_r * omega / (r @ m_inv_r)))  # the tip at that speed
+    stiffest = s.pivot.q_min
+    run = simulate(s, {}, 0.03, initial=InitialState(q=stiffest, speeds=speeds),
+                   options=SimulationOptions(rtol=1e-10, atol=1e-12, output_step=1e-5),
+                   ports=False)
+    assert run.success, run.message
+    assert run["theta_x.speed"][0] * L == pytest.approx(limit.by_force, rel=1e-12)
+    # the closed form holds for two masses and a spring; the wrist's elastic elements
+    # (hundreds of times softer than the hand at the tip) and its held motors add their
+    # forces over the contact's few milliseconds: the issue's 2 %
+    assert run["contact.hand.force"].max() == pytest.approx(
+        hand.permissible_force("transient"), rel=0.02)
