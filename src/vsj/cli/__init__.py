@@ -16,7 +16,7 @@ from .. import __version__, params
 from ..errors import InputError, SimulationError
 from ..simulate import catalogue, sample_times
 from ..units import to_si
-from . import control, fit, sweep
+from . import control, fit, study, sweep
 
 
 def _params(path: str | None):
@@ -277,6 +277,7 @@ def build_parser() -> argparse.ArgumentParser:
     fit.register(sub)
     control.register(sub)
     sweep.register(sub)
+    study.register(sub)
     return parser
 
 

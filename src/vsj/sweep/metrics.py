@@ -243,9 +243,7 @@ class Evaluator:
         """The least-squares projection on sine and cosine at the frequency over the
         window's times ``t`` (2 x samples), made once."""
         if self._times[2] is None:
-            w = 2.0 * math.pi * self.options["frequency"]
-            basis = np.column_stack([np.sin(w * t), np.cos(w * t)])
-            self._times = (*self._times[:2], (np.linalg.pinv(basis), w))
+            self._times = (*self._times[:2], sine_projection(t, self.options["frequency"]))
         return self._times[2]
 
     @property
@@ -280,6 +278,20 @@ class Evaluator:
         if kind == "final":
             return float(s[-1])
         return _settling(s, t, self.options.get("tolerance", 0.02))
+
+
+def sine_projection(t: np.ndarray, frequency: float) -> tuple[np.ndarray, float]:
+    """The least-squares projection on sine and cosine at ``frequency`` [Hz] over the
+    times ``t``: (its pseudo-inverse, 2 x samples; the angular frequency)."""
+    w = 2.0 * math.pi * frequency
+    return np.linalg.pinv(np.column_stack([np.sin(w * t), np.cos(w * t)])), w
+
+
+def phase_lag(t: np.ndarray, signal: np.ndarray, reference: np.ndarray,
+              frequency: float) -> float:
+    """The time [s] ``signal`` lags ``reference`` at ``frequency`` [Hz] over the samples at
+    ``t`` (their phase difference at that frequency over 2 pi f, in (-1/2f, 1/2f])."""
+    return _lag(signal, reference, sine_projection(t, frequency))
 
 
 def _lag(signal, reference, projection) -> float:

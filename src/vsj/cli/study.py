@@ -1,0 +1,81 @@
+"""The ``vsj study`` command: the model studies that go beyond the report (a thin layer
+over `vsj.safety.tradeoff`), each writing its figure, its numbers and a page."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .. import params
+from ..errors import InputError
+from ..output import atomic_write
+from ..safety import tradeoff
+from ..units import to_si
+
+#: The studies, by name: what each shows.
+STUDIES = {
+    "tracking-safety": "fig 4.15's tracking lag in closed loop against the peak force of a "
+                       "collision with a hand surrogate, over the stiffness setting",
+}
+
+
+def _positions(text: str | None, lo: float, hi: float, count: int) -> list[float]:
+    if text is None:
+        return [float(q) for q in np.linspace(lo, hi, count)]
+    values = [to_si(part.strip(), "m", where="option --q") for part in text.split(",")
+              if part.strip()]
+    if not values:
+        raise InputError("option --q: give pivot positions with units, e.g. --q=-2cm,0cm,2cm")
+    return values
+
+
+def cmd_study(args) -> int:
+    """``vsj study NAME``: run a study and write ``NAME.png``, ``NAME.json`` and
+    ``NAME.html`` into ``--out``. Returns the exit code."""
+    if args.name not in STUDIES:
+        raise InputError(f"unknown study {args.name!r}; studies: {', '.join(STUDIES)}")
+    p = params.load(args.params)
+    if args.settings < 2:
+        raise InputError(f"option --settings: at least 2, got {args.settings}")
+    setup = tradeoff.Setup() if not args.quick else tradeoff.Setup(fade_in=1.0, duration=5.0)
+    from ..wrist import WristOptions, build_wrist  # lazy: the wrist for its pivot range
+
+    pivot = build_wrist(p, WristOptions(motors="dc", pivot_drive="dc")).assemble().pivot
+    qs = _positions(args.q, pivot.q_min, pivot.q_max, args.settings)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    print(f"vsj study {args.name}: {len(qs)} stiffness settings, two closed-loop runs each",
+          file=sys.stderr)
+    result = tradeoff.run(p, qs, setup, progress=lambda k: print(
+        f"  q = {100 * qs[k]:.2f} cm done", file=sys.stderr))
+    png = out / f"{args.name}.png"
+    tradeoff.figure(result, png)
+    with atomic_write(out / f"{args.name}.json", "w") as handle:
+        json.dump(result.as_dict(), handle, indent=1)
+    with atomic_write(out / f"{args.name}.html", "w") as handle:
+        handle.write(tradeoff.page(result, png.read_bytes()))
+    print(result.summary())
+    print(f"wrote {png}, {out / (args.name + '.json')}, {out / (args.name + '.html')}")
+    return 0
+
+
+def register(sub) -> None:
+    """Add ``study`` to the ``vsj`` command's subparsers."""
+    p = sub.add_parser(
+        "study", help="model studies beyond the report (safety against tracking, ...)",
+        description="Run a model study and write its figure, numbers (JSON) and page. "
+                    "Studies: " + "; ".join(f"{k}: {v}" for k, v in STUDIES.items()))
+    p.add_argument("name", metavar="STUDY", help=f"one of {', '.join(STUDIES)}")
+    p.add_argument("--params", metavar="FILE", help="parameter set (default: the bundled one)")
+    p.add_argument("--out", default="study", metavar="DIR", help="output directory")
+    p.add_argument("--q", metavar="LENGTHS",
+                   help="pivot positions, comma separated with units (default: --settings "
+                        "evenly over the pivot's range)")
+    p.add_argument("--settings", type=int, default=7, metavar="N",
+                   help="number of stiffness settings over the pivot's range (default 7)")
+    p.add_argument("--quick", action="store_true",
+                   help="shorter runs (one turn less of the circle)")
+    p.set_defaults(func=cmd_study)

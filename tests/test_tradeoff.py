@@ -1,0 +1,60 @@
+"""The tracking-against-safety study (vsj.safety.tradeoff, ``vsj study``): softening the
+joint lags the tracking and lowers a collision's force, as the model says, and the
+command writes its figure, numbers and page."""
+
+import json
+
+import pytest
+
+from vsj.cli import main
+from vsj.errors import InputError
+from vsj.safety import tradeoff
+
+QUICK = tradeoff.Setup(fade_in=1.0, duration=5.0)
+
+
+@pytest.fixture(scope="module")
+def study(params):
+    return tradeoff.run(params, [-0.022, 0.0], QUICK)
+
+
+def test_softening_lags_the_tracking_and_lowers_the_collisions_force(study):
+    stiff, soft = 0, 1
+    assert study.stiffness[stiff] > 10 * study.stiffness[soft]
+    # the softer elastic elements deflect more under the output side's inertia: the
+    # end-effector lags its circle more, and presses the hand less
+    assert study.lag[soft] > 2 * study.lag[stiff] > 0
+    assert study.rms_error[soft] > study.rms_error[stiff]
+    assert 0 < study.peak_force[soft] < study.peak_force[stiff]
+    assert study.transient_limit == 2 * study.quasi_static_limit == 280.0  # Table A.2
+    assert "tracking lag goes from" in study.summary()
+
+
+def test_the_command_writes_the_figure_the_numbers_and_the_page(tmp_path, capsys):
+    out = tmp_path / "study"
+    assert main(["study", "tracking-safety", "--q=-2.2cm,0cm", "--quick",
+                 "--out", str(out)]) == 0
+    numbers = json.loads((out / "tracking-safety.json").read_text())
+    assert numbers["q"] == pytest.approx([-0.022, 0.0])
+    assert len(numbers["peak_force"]) == 2 and numbers["setup"]["duration"] == 5.0
+    page = (out / "tracking-safety.html").read_text()
+    assert "What is new" in page and "<img" in page and "Bicchi and Tonietti" in page
+    assert (out / "tracking-safety.png").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["study", "brachistochrone-x"], "unknown study"),
+    (["study", "tracking-safety", "--q", "5 cm"], "outside the pivot's range"),
+    (["study", "tracking-safety", "--q", "2 s"], "--q"),
+    (["study", "tracking-safety", "--settings", "1"], "at least 2"),
+])
+def test_bad_study_options_exit_2_naming_them(argv, message, tmp_path, capsys):
+    assert main(argv + ["--out", str(tmp_path / "o")]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_a_bad_setup_is_refused(params):
+    with pytest.raises(InputError, match="inset must lie in"):
+        tradeoff.run(params, [0.0], tradeoff.Setup(inset=0.5))
+    with pytest.raises(InputError, match="duration must cover"):
+        tradeoff.run(params, [0.0], tradeoff.Setup(duration=3.0))
