@@ -224,3 +224,30 @@ def test_the_iso_transient_speed_limit_holds_on_the_stiff_preset():
     # forces over the contact's few milliseconds: the issue's 2 %
     assert run["contact.hand.force"].max() == pytest.approx(
         hand.permissible_force("transient"), rel=0.02)
+
+
+def test_the_hic_of_an_engine_impact_on_a_mass_spring_surrogate_is_its_closed_form():
+    """A link strikes a free head surrogate (a mass behind a linear contact spring): the
+    HIC of the body's acceleration in the engine's run equals the closed form of a linear
+    spring impact (a half-sine pulse of the reduced mass's oscillation)."""
+    from vsj import safety
+
+    m_head, k, v = 4.5, 1e5, 1.0  # kg, N/m, m/s
+    net = Network("head")
+    net.add(Inertia("link", J), Inertia("head", m_head * L ** 2),
+            Contact("skin", {"tip": L, "body": -L}, stiffness=k))
+    net.connect("link.flange", "skin.tip").connect("head.flange", "skin.body")
+    dt = 1e-6
+    r = simulate(net.assemble(), {}, 0.02, initial=InitialState(speeds={"link.flange": v / L}),
+                 options=SimulationOptions(rtol=1e-11, atol=1e-13, output_step=dt),
+                 ports=False)
+    assert r.success, r.message
+    acceleration = r["contact.skin.force"] / m_head  # the body's only force
+    touching = np.flatnonzero(acceleration > 0)
+    window = slice(max(touching[0] - 1, 0), touching[-1] + 2)
+    run = safety.hic(r.time[window], acceleration[window])
+    closed = safety.hic_spring_impact(v, m_head, k, robot_mass=M)
+    # the sampled pulse (1e-6 s samples of a ~10 ms pulse) and the integration: the
+    # trapezoid rule's and the window's placement errors, (omega dt)^2 of the value
+    omega = math.sqrt(k / safety.reduced_mass(m_head, M))
+    assert run.value == pytest.approx(closed.value, rel=10 * (omega * dt) ** 2 + 1e-9)
