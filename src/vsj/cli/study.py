@@ -12,13 +12,15 @@ import numpy as np
 from .. import params
 from ..errors import InputError
 from ..output import atomic_write
-from ..safety import tradeoff
+from ..safety import impact, tradeoff
 from ..units import to_si
 
 #: The studies, by name: what each shows.
 STUDIES = {
     "tracking-safety": "fig 4.15's tracking lag in closed loop against the peak force of a "
                        "collision with a hand surrogate, over the stiffness setting",
+    "impact-speed": "the largest impact speed within ISO/TS 15066's transient force for the "
+                    "hand and the lower arm, over the stiffness setting, against a rigid joint",
 }
 
 
@@ -47,16 +49,21 @@ def cmd_study(args) -> int:
     qs = _positions(args.q, pivot.q_min, pivot.q_max, args.settings)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    print(f"vsj study {args.name}: {len(qs)} stiffness settings, two closed-loop runs each",
-          file=sys.stderr)
-    result = tradeoff.run(p, qs, setup, progress=lambda k: print(
-        f"  q = {100 * qs[k]:.2f} cm done", file=sys.stderr))
+    print(f"vsj study {args.name}: {len(qs)} stiffness settings", file=sys.stderr)
+    if args.name == "tracking-safety":
+        module = tradeoff
+        result = tradeoff.run(p, qs, setup, progress=lambda k: print(
+            f"  q = {100 * qs[k]:.2f} cm done", file=sys.stderr))
+    else:
+        module = impact
+        result = impact.run(p, qs, progress=lambda name: print(f"  {name} done",
+                                                                file=sys.stderr))
     png = out / f"{args.name}.png"
-    tradeoff.figure(result, png)
+    module.figure(result, png)
     with atomic_write(out / f"{args.name}.json", "w") as handle:
         json.dump(result.as_dict(), handle, indent=1)
     with atomic_write(out / f"{args.name}.html", "w") as handle:
-        handle.write(tradeoff.page(result, png.read_bytes()))
+        handle.write(module.page(result, png.read_bytes()))
     print(result.summary())
     print(f"wrote {png}, {out / (args.name + '.json')}, {out / (args.name + '.html')}")
     return 0
