@@ -251,3 +251,32 @@ def test_the_hic_of_an_engine_impact_on_a_mass_spring_surrogate_is_its_closed_fo
     # trapezoid rule's and the window's placement errors, (omega dt)^2 of the value
     omega = math.sqrt(k / safety.reduced_mass(m_head, M))
     assert run.value == pytest.approx(closed.value, rel=10 * (omega * dt) ** 2 + 1e-9)
+
+
+def test_a_runs_safety_report_gives_each_events_figures():
+    """`vsj.safety.run_report`: a link strikes a free body once; its event's impulse is the
+    momentum the body took, the work of the contact on it the body's kinetic energy."""
+    from vsj.safety import run_report
+
+    m_body, k = 0.6, 75e3
+    net = Network("strike")
+    net.add(Inertia("link", J), Inertia("hand", m_body * L ** 2),
+            Contact("skin", {"tip": L, "body": -L}, stiffness=k))
+    net.connect("link.flange", "skin.tip").connect("hand.flange", "skin.body")
+    s = net.assemble()
+    r = simulate(s, {}, 0.02, initial=InitialState(speeds={"link.flange": V / L}),
+                 options=SimulationOptions(rtol=1e-11, atol=1e-13, output_step=1e-6),
+                 ports=False)
+    figures = run_report.report(r, s)
+    (event,) = figures["skin"]
+    body_speed = r["hand.flange.speed"][-1] * L
+    # a two-body elastic impact: the body leaves with 2 M V / (M + m_body)
+    assert body_speed == pytest.approx(2 * M * V / (M + m_body), rel=1e-8)
+    # the trapezoid rule over 1e-6 s samples of a smooth pulse: (omega dt)^2 of it
+    omega = math.sqrt(k * (M + m_body) / (M * m_body))
+    tol = (omega * 1e-6) ** 2 + 1e-9
+    assert event["impulse"] == pytest.approx(m_body * body_speed, rel=tol)
+    assert event["energy_kind"] == "work"
+    assert event["energy_to_body"] == pytest.approx(0.5 * m_body * body_speed ** 2, rel=tol)
+    assert event["passed"]["hand"] == (event["peak_force"] <= 280.0)
+    assert run_report.summary(figures)[0].startswith("contact skin: 1 event(s)")

@@ -1,0 +1,99 @@
+"""The safety figures of a run: every contact event of every contact of its environment,
+with the joint's deflections and spring torques, and its verdict against ISO/TS 15066.
+
+`report` reads a run's `vsj.simulate.Result` (its ``contact.<name>.*`` signals, the
+elastic elements' ``spring.*.deflection`` and ``.torque``) with the network it ran;
+`vsj simulate` writes it as ``safety.json`` beside the trajectory of a scenario with an
+``[environment]``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..network import Structure
+from ..springs import end_stop
+from .events import contact_events
+from .iso_ts_15066 import REGIONS, region
+
+
+def _body_velocity(structure: Structure, e: int, result) -> np.ndarray | None:
+    """The speed [m/s] of the body contact ``e`` pushes, in the direction it pushes it:
+    the coordinates its penetration's row weighs negatively (a free body's; a wall has
+    none), through their speed signals (named as a run names them)."""
+    row = structure.friction_rows[e] @ structure.A
+    names = {sig.flange: sig.name for sig in structure.signals}
+    speed = None
+    for i, coefficient in enumerate(row):
+        if coefficient < 0.0:
+            signal = f"{names.get(structure.free[i], structure.free[i])}.speed"
+            if signal not in result.signals:
+                return None
+            term = -coefficient * result[signal]
+            speed = term if speed is None else speed + term
+    return speed
+
+
+def report(result, structure: Structure) -> dict:
+    """Per contact of ``structure``'s environment: its events (peak force, impulse,
+    duration, energy transferred to a body, the joint's peak deflection, spring torque
+    and margin to the end stop) and each event's verdict for the hand and the lower arm
+    (ISO/TS 15066 Table A.2, transient force). JSON-ready; empty without contacts."""
+    # the elastic elements: the springs with an end stop (the figures are against it)
+    springs = [sp for sp in structure.springs if end_stop(sp.law, sp.parameters) is not None
+               and f"spring.{sp.name}.deflection" in result.signals]
+    deflection = np.column_stack([result[f"spring.{sp.name}.deflection"] for sp in springs]) \
+        if springs else None
+    torque = np.column_stack([result[f"spring.{sp.name}.torque"] for sp in springs]) \
+        if springs else None
+    stops = [end_stop(sp.law, sp.parameters)[0] for sp in springs]
+    out = {}
+    for e, element in enumerate(structure.frictions):
+        if element.contact is None:
+            continue
+        name = element.name
+        events = contact_events(result.time, np.maximum(result[f"contact.{name}.force"], 0.0),
+                                penetration=result[f"contact.{name}.penetration"],
+                                body_velocity=_body_velocity(structure, e, result),
+                                deflection=deflection, spring_torque=torque,
+                                end_stop=stops if springs else None)
+        out[name] = [_event(ev, [sp.name for sp in springs]) for ev in events]
+    return out
+
+
+def _event(ev, springs: list[str]) -> dict:
+    entry = {
+        "start": ev.start, "end": ev.end, "duration": ev.duration,
+        "cut_at_end": ev.cut_at_end, "peak_force": ev.peak_force,
+        "peak_time": ev.peak_time, "impulse": ev.impulse,
+        "energy_to_body": ev.energy, "energy_kind": ev.energy_kind,
+        "sample_resolution": ev.resolution,
+    }
+    if springs and ev.peak_deflection is not None:
+        entry["joint"] = {
+            name: {"peak_deflection": float(ev.peak_deflection[j]),
+                   "peak_spring_torque": float(ev.peak_spring_torque[j]),
+                   "end_stop_margin": float(ev.end_stop_margin[j])}
+            for j, name in enumerate(springs)}
+    entry["iso_ts_15066"] = {body: str(ev.verdict(body)) for body in REGIONS}
+    entry["passed"] = {body: bool(ev.verdict(body).passed) for body in REGIONS}
+    return entry
+
+
+def summary(figures: dict) -> list[str]:
+    """One line per contact: its events and worst peak force with the verdicts."""
+    lines = []
+    for name, events in figures.items():
+        if not events:
+            lines.append(f"contact {name}: no contact")
+            continue
+        worst = max(events, key=lambda ev: ev["peak_force"])
+        verdicts = ", ".join(f"{region(b).title.lower()} "
+                             f"{'within' if worst['passed'][b] else 'ABOVE'} the transient limit"
+                             for b in REGIONS)
+        lines.append(f"contact {name}: {len(events)} event(s), peak {worst['peak_force']:.4g} N "
+                     f"at {worst['peak_time']:.4g} s ({verdicts})")
+    return lines
+
+
+__all__ = ["report", "summary"]
