@@ -105,6 +105,38 @@ is stable). A case changes an entry of a controller's arrays by its name
 (``[cases.controller.pid.u1]``; sensors by their bus name, actuators by channel), or
 replaces a whole array.
 
+An ``[environment]`` table puts walls and free bodies at the tip of a link on the
+wrist's end-effector (`vsj.environment`): each a Hunt-Crossley contact (force
+k d^n + lambda d^n d', never pulling) whose force, penetration, power and energy are
+signals (``contact.<name>.force``, ...) and whose energy the ledger books. Example::
+
+    network = "wrist"
+    duration = "1 s"
+
+    [environment]
+    link = "10 cm"                    # from the end-effector's axes to its tip
+    tip_mass = "50 g"
+
+    [[environment.walls]]             # a compliant surface on a rigid backing
+    name = "table"
+    angle = "6 deg"                   # touched where the tip's angle along direction is this
+    direction = "+x"                  # +x, -x, +y, -y, or an angle ("45 deg")
+    stiffness = "2e4 N/m"             # k [N/m^n]; "7.5e4 N/m^1.5" with exponent = 1.5
+    exponent = 1                      # n >= 1
+    damping = "4000 N s/m^2"          # lambda [N s/m^(n+1)], or restitution = 0.8 at
+                                      # impact_speed = "0.25 m/s"
+
+    [[environment.bodies]]            # a mass on a spring and damper to the ground
+    name = "hand"
+    angle = "0.1 rad"
+    direction = "-x"
+    mass = "0.6 kg"
+    stiffness = "75 N/mm"             # the contact (skin and tissue), as for walls
+    support_stiffness = "1 N/mm"      # the support [N/m] and support_damping [N s/m]
+
+A case changes one contact by its name (``[cases.environment.walls.table] stiffness =
+"1e5 N/m"``) or replaces a whole array. A contact that starts penetrated is refused.
+
 Every value is checked as it is read: its type, unit and range. `prepare_case`
 then builds and compiles each case without running it, so whatever a run would
 refuse (an initial angle of no flange, an input signal too large for memory) is
@@ -116,6 +148,7 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 import threading
 import tomllib
 from concurrent.futures import ThreadPoolExecutor
@@ -136,6 +169,7 @@ from .friction import law_code
 from .inputs import Constant, Input, Position, Sine, Step, Table, circle
 from .engine.core import available_cores
 from .engine.plan import Plan
+from .environment import Body, Environment, Wall, add_environment
 from .network import Network, Structure
 from .params import Parameters, default
 from .progress import progress as bar
@@ -155,9 +189,9 @@ from .units import to_si
 from .wrist import DRIVES, ELASTIC_MODELS, WristOptions, build_wrist
 
 TOP_KEYS = {"name", "description", "network", "duration", "model", "bench", "solver",
-            "initial", "inputs", "params", "controller", "cases"}
+            "initial", "inputs", "params", "controller", "environment", "cases"}
 CASE_KEYS = {"label", "model", "bench", "solver", "initial", "inputs", "params", "duration",
-             "controller"}
+             "controller", "environment"}
 NETWORKS = ("wrist", "planetary-bench", "elastic-bench")
 MODEL_KEYS = {"elastic", "motors", "pivot_drive", "end_effector", "linear_stiffness", "fixed_q",
               "mesh_relation"}
@@ -211,6 +245,8 @@ class Case:
     where: Where
     #: the [controller] table as written (checked against the network by `prepare_case`)
     controller: Mapping | None = None
+    #: the [environment] table read (`vsj.environment.Environment`, in ``build``'s network)
+    environment: Environment | None = None
 
 
 @dataclass(frozen=True)
@@ -403,10 +439,14 @@ def _channel_units(net: Network) -> tuple[dict[str, str], set[str]]:
     return units, {s.channel for s in structure_parts.sources}
 
 
-def _network(network: str, model: Mapping, bench: Mapping,
-             where: Where) -> Callable[[Parameters], Network]:
-    """The function that builds the case's network from a parameter set."""
+def _network(network: str, model: Mapping, bench: Mapping, where: Where,
+             environment: Environment | None = None) -> Callable[[Parameters], Network]:
+    """The function that builds the case's network from a parameter set (with the
+    ``environment`` at the wrist's end-effector)."""
     mw, bw = where.key("model"), where.key("bench")
+    if environment is not None and network != "wrist":
+        raise InputError(f"{where.key('environment')}: the {network} has no end-effector to "
+                         "touch an environment; [environment] needs network = \"wrist\"")
     if network == "wrist":
         if bench:
             raise InputError(f"{bw}: only bench networks take a [bench] table")
@@ -422,7 +462,9 @@ def _network(network: str, model: Mapping, bench: Mapping,
             mesh_relation=_choice(model, "mesh_relation", tuple(MESH_RELATIONS), mw, "printed"))
         with _context(mw):
             options.validate()
-        return lambda params: build_wrist(params, options)
+        if environment is None:
+            return lambda params: build_wrist(params, options)
+        return lambda params: add_environment(build_wrist(params, options), environment)
     if model:
         raise InputError(f"{mw}: the {network} takes a [bench] table instead")
     sensor = _quantity(bench, "sensor_stiffness", "N*m", bw, benches.SENSOR_STIFFNESS,
@@ -479,8 +521,11 @@ def _quantities(table: Mapping, key: str, unit: str, where: Where) -> dict[str, 
 def _case(table: Mapping, label: str, where: Where) -> Case:
     network = _choice(table, "network", NETWORKS, where, "wrist")
     duration = _quantity(table, "duration", "s", where, positive=True)
+    environment = None
+    if "environment" in table:
+        environment = environment_from_table(table["environment"], where.key("environment"))
     build = _network(network, _table(table, "model", where), _table(table, "bench", where),
-                     where)
+                     where, environment)
     options = _options(_table(table, "solver", where), where.key("solver"))
     iw = where.key("initial")
     init = _table(table, "initial", where)
@@ -498,7 +543,7 @@ def _case(table: Mapping, label: str, where: Where) -> Case:
     return Case(label=label, network=network, build=build,
                 inputs=dict(_table(table, "inputs", where)), duration=duration,
                 options=options, initial=initial, params=dict(_table(table, "params", where)),
-                where=where, controller=controller)
+                where=where, controller=controller, environment=environment)
 
 
 def parse_inputs(case: Case, net: Network) -> dict[str, Input]:
@@ -1145,6 +1190,264 @@ def controller_from_table(case: Case, net: Network, structure: Structure
         compile_controller(controller, structure, structure.channels())
     return controller
 
+
+# ---------------------------------------------------------------------- the environment
+# The [environment] table (see the module's docstring) in the words of vsj.environment.
+
+ENVIRONMENT_KEYS = {"link", "tip_mass", "walls", "bodies"}
+LAW_KEYS = {"name", "angle", "direction", "stiffness", "exponent", "damping", "restitution",
+            "impact_speed"}
+#: The arrays of contacts of [environment] and their keys (a case changes an entry by its
+#: name: [cases.environment.walls.<name>]).
+ENVIRONMENT_ARRAYS = {"walls": LAW_KEYS,
+                      "bodies": LAW_KEYS | {"mass", "support_stiffness", "support_damping"}}
+#: Directions by name: the axis of the output angle a contact faces [rad].
+DIRECTIONS = {"+x": 0.0, "x": 0.0, "-x": math.pi, "+y": math.pi / 2, "y": math.pi / 2,
+              "-y": -math.pi / 2}
+#: Restitution coefficients `restitution_damping` converts: as e falls to 0 the damping
+#: that gives it nears the one at which the law's force vanishes at the rebound
+#: (alpha e v -> 1), and below about 0.05 the root is the float next to that bound.
+RESTITUTION_RANGE = (0.1, 1.0)
+_CONTACT_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*")
+_LEADING_NUMBER = re.compile(r"\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)(.*?)\s*$")
+# "<force unit>/<length unit>^<power>" with a power that `to_si`'s exponents (one digit)
+# cannot write: a decimal (1.5) or a fraction in parentheses ((3/2))
+_PER_LENGTH = re.compile(r"(?P<top>.*?)\s*/\s*(?P<length>[^\W\d]\w*)\s*(?:\^|\*\*)\s*"
+                         r"(?P<power>\d+(?:\.\d+)?|\(\s*\d+\s*/\s*[1-9]\d*\s*\))")
+
+
+def _gain_drop(x: float) -> float:
+    """x - ln(1 + x), for x > -1, without the cancellation near 0 (its series there)."""
+    if abs(x) < 0.1:  # the series' terms fall by 0.1 each: 30 reach below round-off
+        return sum((-1) ** k * x ** k / k for k in range(2, 32))
+    return x - math.log1p(x)
+
+
+def restitution_damping(stiffness: float, restitution: float, speed: float) -> float:
+    """The Hunt-Crossley damping lambda [N s/m^(n+1)] that gives a free mass striking the
+    contact (``stiffness`` k [N/m^n]) at ``speed`` [m/s] the coefficient of restitution
+    ``restitution`` e (0.1 <= e <= 1), for any exponent n and mass.
+
+    Along the impact the mass's energy equation separates, m v dv / (1 + alpha v) =
+    -k d^n dd with alpha = lambda / k, and the right side integrates to zero between
+    touching and leaving; so alpha v_in is the root a of
+    ``a - ln(1 + a) = -e a - ln(1 - e a)``, whatever n, k and m are. Its first order
+    in (1 - e) is Hunt and Crossley's own ``e = 1 - (2/3) alpha v``, which overstates
+    e by 1 % at e = 0.9 and by 4 % at 0.8; the root is exact. As e falls to 0 the
+    rebound's force 1 + alpha v_out falls to 0 (the law would pull): e stays >= 0.1.
+    """
+    low, high = RESTITUTION_RANGE
+    if not low <= restitution <= high:
+        raise InputError(f"restitution {restitution!r}: must be from {low:g} to {high:g}")
+    if restitution == 1.0:
+        return 0.0
+    e = restitution
+
+    def excess(a: float) -> float:  # > 0 below the root, < 0 above it
+        return _gain_drop(a) - _gain_drop(-e * a)
+
+    # bracket: at a -> 0 the excess is a^2 (1 - e^2) / 2 > 0; at a -> 1/e it falls to -inf
+    lower, upper = 0.0, (1.0 - 1e-15) / e
+    while True:  # bisection to the float spacing: the excess rises then falls once
+        middle = 0.5 * (lower + upper)
+        if middle in (lower, upper):
+            break
+        if excess(middle) > 0.0:
+            lower = middle
+        else:
+            upper = middle
+    return stiffness * lower / speed
+
+
+def _per_length_text(top: str, power: float) -> str:
+    return f"{top}/m" if power == 1.0 else f"{top}/m^{power:g}"
+
+
+def _law_coefficient(entry: Mapping, key: str, where: Where, *, exponent: float,
+                     force_time: bool) -> float:
+    """``entry[key]``: Hunt and Crossley's stiffness k [N/m^n] (or, ``force_time``, their
+    damping lambda [N s/m^(n+1)]) in SI. A non-integer n gives the length a non-integer
+    power, which `to_si`'s grammar does not write: "7.5e4 N/mm^1.5" is read as a force
+    over one length unit to that power (a decimal, or a fraction such as m^(3/2)), the
+    power checked against n."""
+    kw = where.key(key)
+    top, top_si = ("N s", "N*s") if force_time else ("N", "N")
+    power = exponent + (1.0 if force_time else 0.0)
+    expected = _per_length_text(top, power)
+    text = entry[key]
+    why = (f"Hunt and Crossley's {'damping' if force_time else 'stiffness'} with exponent = "
+           f"{exponent:g} is in {expected} (force{' times time' if force_time else ''} over "
+           f"penetration^{power:g})")
+    number = _LEADING_NUMBER.match(text) if isinstance(text, str) else None
+    per = _PER_LENGTH.fullmatch(number.group(2).strip()) if number else None
+    if per is not None and not re.fullmatch(r"\d", per["power"]):
+        numbers = [float(v) for v in re.findall(r"\d+(?:\.\d+)?", per["power"])]
+        written = numbers[0] / numbers[1] if len(numbers) == 2 else numbers[0]
+        if not math.isclose(written, power, rel_tol=1e-12):  # a fraction's rounding
+            raise InputError(f"{kw} = {text!r}: its length is to the power {written:g}; "
+                             f"{why}")
+        scale = to_si(f"1 {per['top']}" if per["top"] else "1", top_si,
+                      where=f"{kw} ({why})")
+        length = to_si(f"1 {per['length']}", "m", where=f"{kw} ({why})")
+        value = float(number.group(1)) * scale / length ** power
+        if not math.isfinite(value):
+            raise InputError(f"{kw} = {text!r}: not a finite number in {expected}")
+        return value
+    if not float(power).is_integer():
+        raise InputError(f"{kw} = {text!r}: {why}; write it as a number and that unit, such "
+                         f"as \"2e4 {expected}\" (a force unit over one length unit to the "
+                         f"power {power:g})")
+    try:
+        return to_si(text, _per_length_text(top_si, power), where=str(kw))
+    except InputError as exc:
+        raise InputError(f"{exc}; {why}") from None
+
+
+def _damping(entry: Mapping, where: Where, stiffness: float, exponent: float) -> float:
+    """The contact's damping lambda [N s/m^(n+1)]: given, or from a coefficient of
+    restitution at an impact speed (`restitution_damping`); 0 without either."""
+    given = [k for k in ("damping", "restitution", "impact_speed") if k in entry]
+    if "damping" in entry:
+        if len(given) > 1:
+            raise InputError(f"{where}: give damping, or restitution with impact_speed, not "
+                             "both")
+        damping = _law_coefficient(entry, "damping", where, exponent=exponent,
+                                   force_time=True)
+        if not damping >= 0.0:
+            raise InputError(f"{where.key('damping')} = {entry['damping']!r}: must be >= 0")
+        return damping
+    if not given:
+        return 0.0
+    if len(given) == 1:
+        missing = ({"restitution", "impact_speed"} - set(given)).pop()
+        raise InputError(f"{where}: {given[0]} needs {missing} (a coefficient of restitution "
+                         "holds at one impact speed: Hunt and Crossley's law gives a speed-"
+                         "dependent one)")
+    restitution = _quantity(entry, "restitution", "1", where)
+    low, high = RESTITUTION_RANGE
+    if not low <= restitution <= high:
+        raise InputError(f"{where.key('restitution')} = {entry['restitution']!r}: must be from "
+                         f"{low:g} to {high:g} (1: no damping)")
+    speed = _quantity(entry, "impact_speed", "m/s", where, positive=True)
+    return restitution_damping(stiffness, restitution, speed)
+
+
+def _contact(entry: Mapping, where: Where, body: bool) -> Wall | Body:
+    """One [[environment.walls]] or [[environment.bodies]] entry, every value checked."""
+    _check_keys(entry, ENVIRONMENT_ARRAYS["bodies" if body else "walls"], where)
+    name = _name(entry, "name", where)
+    if not _CONTACT_NAME.fullmatch(name):
+        raise InputError(f"{where.key('name')}: {name!r} is not a contact's name (letters, "
+                         "digits, _ and -, starting with a letter or _: it names the signals "
+                         "contact.<name>.force, ...)")
+    direction = entry.get("direction", "+x")
+    if isinstance(direction, str) and direction.strip() in DIRECTIONS:
+        direction = DIRECTIONS[direction.strip()]
+    else:
+        try:
+            direction = _quantity(entry, "direction", "rad", where)
+        except InputError as exc:
+            raise InputError(f"{exc}; or name an axis: {', '.join(DIRECTIONS)}") from None
+    exponent = _quantity(entry, "exponent", "1", where, 1.0)
+    if not exponent >= 1.0:
+        raise InputError(f"{where.key('exponent')} = {entry['exponent']!r}: must be >= 1 "
+                         "(Hunt and Crossley's n in k d^n: 1 a linear spring, 1.5 Hertz's "
+                         "sphere on a plane; below 1 the stiffness is infinite at first "
+                         "touch)")
+    if "stiffness" not in entry:
+        raise InputError(f"{where}: missing 'stiffness' (unit "
+                         f"{_per_length_text('N', exponent)}: k of the force k d^n)")
+    stiffness = _law_coefficient(entry, "stiffness", where, exponent=exponent,
+                                 force_time=False)
+    if not stiffness > 0.0:
+        raise InputError(f"{where.key('stiffness')} = {entry['stiffness']!r}: must be > 0")
+    common = dict(name=name, angle=_quantity(entry, "angle", "rad", where),
+                  direction=direction, stiffness=stiffness, exponent=exponent,
+                  damping=_damping(entry, where, stiffness, exponent))
+    if not body:
+        return Wall(**common)
+    if "mass" not in entry:
+        raise InputError(f"{where}: missing 'mass' (unit kg): a body is a mass on its "
+                         "support (the effective mass of the body part it stands for); a "
+                         "fixed surface is a wall ([[environment.walls]])")
+    return Body(**common, mass=_quantity(entry, "mass", "kg", where, positive=True),
+                support_stiffness=_quantity(entry, "support_stiffness", "N/m", where, 0.0,
+                                            nonnegative=True),
+                support_damping=_quantity(entry, "support_damping", "N*s/m", where, 0.0,
+                                          nonnegative=True))
+
+
+def environment_from_table(table: Mapping, where: Where) -> Environment:
+    """The [environment] table as a `vsj.environment.Environment`, every value, unit and
+    name checked (the file and key path in every message): the link's ``link`` and
+    ``tip_mass``, its ``walls`` and ``bodies``."""
+    _check_keys(table, ENVIRONMENT_KEYS, where)
+    contacts, names = [], {}
+    for key in ENVIRONMENT_ARRAYS:
+        entries = table.get(key, [])
+        if not isinstance(entries, list):
+            raise InputError(f"{where.key(key)}: must be an array of tables ([[environment."
+                             f"{key}]]), got {type(entries).__name__} {entries!r}")
+        for i, entry in enumerate(entries):
+            ew = where.key(f"{key}[{i}]")
+            contact = _contact(entry, ew, key == "bodies")
+            if contact.name in names:
+                raise InputError(f"{ew.key('name')}: {contact.name!r} is taken by "
+                                 f"{names[contact.name].path}; each contact has its own name")
+            names[contact.name] = ew
+            contacts.append(contact)
+    environment = Environment(link=_quantity(table, "link", "m", where, positive=True),
+                              contacts=tuple(contacts),
+                              tip_mass=_quantity(table, "tip_mass", "kg", where, 0.0,
+                                                 nonnegative=True))
+    with _context(where):  # the environment's own checks (none should be left)
+        environment.check()
+    return environment
+
+
+def _merge_environment(base, over, where: Where):
+    """A case's [environment] over the scenario's: tables merge key by key; ``walls`` or
+    ``bodies`` is replaced by an array, or changed entry by entry by a table of its
+    contacts' names (``[cases.environment.walls.table] stiffness = "1e5 N/m"``)."""
+    if not isinstance(base, Mapping) or not isinstance(over, Mapping):
+        return copy.deepcopy(over)
+    by_name = {k: v for k, v in over.items()
+               if k in ENVIRONMENT_ARRAYS and isinstance(v, Mapping)}
+    out = _merge(base, {k: v for k, v in over.items() if k not in by_name})
+    for key, changes in by_name.items():
+        entries = copy.deepcopy(base.get(key, []))
+        if not isinstance(entries, list):
+            raise InputError(f"{where.key(key)}: the scenario's environment has no array "
+                             f"[[environment.{key}]] whose entries this could change")
+        names = [e.get("name") if isinstance(e, Mapping) else None for e in entries]
+        for name, change in changes.items():
+            cw = where.key(key).key(name)
+            if name not in names:
+                shown = ", ".join(repr(n) for n in names if n is not None) or "none"
+                raise InputError(f"{cw}: the scenario's environment has no {key} entry named "
+                                 f"{name!r}; it has {shown}")
+            if not isinstance(change, Mapping):
+                raise InputError(f"{cw}: expected a table of the keys to change, got "
+                                 f"{change!r}")
+            entries[names.index(name)].update(copy.deepcopy(dict(change)))
+        out[key] = entries
+    return out
+
+
+def _contact_where(case: Case, message: str) -> Where | None:
+    """The key of the case's contact that ``message`` (the engine's words) is about, or
+    None: the engine names a contact, the file names its entry."""
+    if case.environment is None:
+        return None
+    index = {"walls": 0, "bodies": 0}
+    for contact in case.environment.contacts:
+        key = "bodies" if isinstance(contact, Body) else "walls"
+        if message.startswith(f"contact {contact.name!r} "):
+            return case.where.key("environment").key(f"{key}[{index[key]}]")
+        index[key] += 1
+    return None
+
+
 def loads(text: str, origin: str) -> Scenario:
     """Parse scenario text; ``origin`` names it in messages."""
     try:
@@ -1170,10 +1473,14 @@ def loads(text: str, origin: str) -> Scenario:
         if label in labels:
             raise InputError(f"{where.key('label')}: duplicate label {label!r}")
         labels.add(label)
-        merged = _merge(base, {k: v for k, v in entry.items() if k not in ("label", "controller")})
+        merged = _merge(base, {k: v for k, v in entry.items()
+                               if k not in ("label", "controller", "environment")})
         if "controller" in entry:
             merged["controller"] = _merge_controller(base.get("controller"), entry["controller"],
                                                      where.key("controller"))
+        if "environment" in entry:
+            merged["environment"] = _merge_environment(
+                base.get("environment"), entry["environment"], where.key("environment"))
         cases.append(_case(merged, label, where))
     return Scenario(name=name, description=description, origin=origin, cases=tuple(cases),
                     table=table)
@@ -1246,8 +1553,10 @@ def prepare_case(scenario: Scenario, case: Case, params: Parameters, *,
         check_run_size(structure, case.duration, options, choose_solver(structure, options),
                        in_memory=in_memory)
     controller = controller_from_table(case, net, structure)
-    with _context(where):  # the initial state against the network, and the compiled inputs
+    try:  # the initial state against the network, and the compiled inputs
         plan = prepare(structure, inputs, case.duration, options, case.initial, controller)
+    except InputError as exc:  # a contact that starts penetrated: its key in the file
+        raise InputError(f"{_contact_where(case, str(exc)) or where}: {exc}") from None
     return Prepared(case=case, params=resolved, network=net, structure=structure,
                     inputs=inputs, plan=plan, controller=controller)
 
