@@ -408,8 +408,15 @@ def test_the_wall_example_presses_and_holds_without_creep():
     stuck, smooth = runs["stiction"].signals, runs["smooth"].signals
     held = part["held"]
     assert np.all(stuck["friction.tr_1.friction.stuck"][held] == 1.0)
-    assert np.ptp(stuck["theta_x"][held]) == 0.0  # no creep: not one bit
-    assert np.ptp(stuck["contact.wall.force"][held]) == 0.0
+    # no creep: the held state is solved again every step, so what moves is round-off,
+    # a few ulps of the state per step, at most adding up over the window's steps
+    steps = int(np.count_nonzero(held))
+    assert np.ptp(stuck["theta_x"][held]) <= 4 * steps * np.spacing(
+        np.max(stuck["theta_x"][held]))
+    force_held = stuck["contact.wall.force"][held]
+    # the force is the contact's stiffness times that: 2e4 N/m at the 0.1 m link
+    assert np.ptp(force_held) <= 2e4 * 0.1 * 4 * steps * np.spacing(
+        np.max(stuck["theta_x"][held]))
     # the smooth law creeps while held: a slip speed under any torque (its slope width
     # 0.01 rad/s) moves the tip by far more than round-off (1e-17 rad)
     assert np.ptp(smooth["theta_x"][held]) > 1e-9

@@ -606,6 +606,49 @@ static double contact_depth(const vsj_model *m, const ts_work *t, int64_t e) {
     return vsj__xdot(m, e, t->x) + vsj__udotv(m, e, t->sg0) - vsj__row(m, e)[VSJ_C_GAP];
 }
 
+/* A contact's elastic energy k d^(n+1) / (n+1) (0 apart) and force k d^n. */
+static double contact_energy(const double *p, double d, double *force) {
+    double k = p[VSJ_C_STIFFNESS], n = p[VSJ_C_EXPONENT], dn;
+    if (!(d > 0.0)) {
+        *force = 0.0;
+        return 0.0;
+    }
+    dn = n == 1.0 ? d : pow(d, n);
+    *force = k * dn;
+    return k * dn * d / (n + 1.0);
+}
+
+/* The discrete gradient g = (V(d1) - V(d0)) / (d1 - d0) of a contact's elastic energy
+ * and its derivative in d1, dg = (V'(d1) - g) / (d1 - d0). Where both ends penetrate and
+ * lie within 1e-3 of each other, their Taylor series about d0 instead (the quotients
+ * would cancel: dg's rounding grows as 1 / (d1 - d0)^2): g = F + F' h / 2 + F'' h^2 / 6,
+ * dg = F' / 2 + F'' h / 3 with h = d1 - d0 and F = k d^n. */
+static void contact_gradient(const double *p, double d0, double d1, double *g, double *dg) {
+    double f0, f1, v0 = contact_energy(p, d0, &f0), v1 = contact_energy(p, d1, &f1);
+    double span = d1 - d0, n = p[VSJ_C_EXPONENT];
+    if (d0 > 0.0 && d1 > 0.0 && fabs(span) <= 1e-3 * d0) {
+        double f1d = n * f0 / d0, f2d = (n - 1.0) * f1d / d0; /* F', F'' at d0 */
+        *g = f0 + 0.5 * f1d * span + f2d * span * span / 6.0;
+        *dg = 0.5 * f1d + f2d * span / 3.0;
+        return;
+    }
+    if (span == 0.0) { /* apart, or on the surface, and not moving */
+        *g = f0;
+        *dg = 0.0;
+        return;
+    }
+    *g = (v1 - v0) / span;
+    *dg = (f1 - *g) / span;
+}
+
+/* A contact's damping coefficient lambda d^n at penetration d (0 apart). */
+static double contact_damping(const double *p, double d) {
+    double n = p[VSJ_C_EXPONENT];
+    if (!(d > 0.0))
+        return 0.0;
+    return p[VSJ_C_DAMPING] * (n == 1.0 ? d : pow(d, n));
+}
+
 static void assemble_friction(const vsj_model *m, vsj_work *w, double hs) {
     ts_work *t = &w->ts;
     int64_t i, e, ld, r_load = m->n_frictions + m->n_springs;
@@ -621,17 +664,21 @@ static void assemble_friction(const vsj_model *m, vsj_work *w, double hs) {
         p = vsj__row(m, e);
         se = t->slip[e];
         if (m->code[e] == VSJ_CONTACT) {
-            /* f(s, d) at the step's middle, linearised about its start: the positions
-             * move by the trapezoidal rule, so the mid-step penetration is d0 + hs (s0 +
-             * s1) / 4 and the mid-step rate (s0 + s1) / 2; the ledger books the force
-             * over the mid-step slip, so a linear contact keeps its energy exactly, and
-             * the damping is the trapezoidal rule's, as a damper's */
-            double dfdd, fs;
-            fe = vsj__contact(p, contact_depth(m, t, e), se, &fs, &dfdd);
-            dfe = 0.5 * fs + 0.25 * hs * dfdd;
-            t->f0[e] = fe + 0.5 * hs * dfdd * se; /* f0 + df0 (s1 - s0): the step's force */
+            /* The elastic part as the discrete gradient (V(d1) - V(d0)) / (d1 - d0): the
+             * ledger books the force over the step's displacement d1 - d0 (the positions
+             * move by the trapezoidal rule), so the contact's work is exactly its stored
+             * energy's change, on the steps that touch or leave the surface too. d1 is
+             * d1p + hs (s1 - s0) / 2 about the prediction d1p = d0 + hs s0, linearised
+             * there. The damping part at the mid-step penetration and rate (s0 + s1) / 2,
+             * the trapezoidal rule's, as a damper's. */
+            double d0 = contact_depth(m, t, e), d1p = d0 + hs * se, g, dg, c;
+            contact_gradient(p, d0, d1p, &g, &dg);
+            c = contact_damping(p, 0.5 * (d0 + d1p));
+            dfe = 0.5 * hs * dg + 0.5 * c;
+            fe = g - 0.5 * hs * dg * se + 0.5 * c * se; /* the force is fe + dfe s1 */
+            t->f0[e] = fe + dfe * se;                    /* f0 + df0 (s1 - s0) */
             t->df0[e] = dfe;
-            cnst = fe + 0.25 * hs * dfdd * se - 0.5 * fs * se + dfe * vsj__udotv(m, e, t->u1);
+            cnst = fe + dfe * vsj__udotv(m, e, t->u1);
             vsj__xadd(m, e, t->r, -hs * cnst);
             outer(m, e, t->H, hs * dfe);
             continue;
