@@ -553,3 +553,25 @@ def test_the_ledger_closes_with_contacts_in_closed_loop_with_stiction(model):
         finer = abs(halved.result.ledger["relative_residual"])
         # second order: ratio 4 when the step halves, first order 2: their geometric mean
         assert residual / finer > 2 ** 1.5, (residual, finer)
+
+
+def test_simulate_writes_each_contacts_safety_figures(tmp_path, capsys):
+    """`vsj simulate` of a scenario with an environment puts each case's contact events,
+    with their ISO/TS 15066 verdicts, into meta.json, and prints a line per contact; an
+    event's peak is the largest sample of the contact's force in the trajectory."""
+    import xarray as xr
+
+    out = tmp_path / "hand"
+    assert main(["simulate", str(EXAMPLES / "hand-impact.toml"), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "contact hand:" in printed and "transient limit" in printed
+    meta = json.loads((out / "meta.json").read_text())
+    with xr.open_dataset(out / "trajectory.nc") as ds:
+        for k, case in enumerate(meta["cases"]):
+            events = case["safety"]["hand"]
+            force = ds["contact.hand.force"].values[k]
+            assert max(e["peak_force"] for e in events) == float(np.nanmax(force))
+            first = events[0]
+            assert first["passed"]["hand"] == (first["peak_force"] <= 280.0)  # Table A.2
+            assert first["energy_kind"] == "work" and first["energy_to_body"] > 0
+            assert set(first["joint"]) == {"vsm_1", "vsm_2"}

@@ -80,6 +80,8 @@ def cmd_simulate(args) -> int:
                                 "warnings": list(result.warnings),
                                 "parameters_hash": case.params.hash(),
                                 "parameter_overrides": dict(case.case.params)})
+                if any(f.contact is not None for f in case.structure.frictions):
+                    records[-1]["safety"] = _safety(trajectory, k, case.structure)
             trajectory.close()
             if args.csv:
                 write_trajectory_csv(results.path("trajectory.csv"), trajectory)
@@ -95,9 +97,14 @@ def cmd_simulate(args) -> int:
                          "origin": scen.origin, "definition": dict(scen.table)},
             "parameters": parameters_record(params), "success": ok, "cases": records,
             "files": results.hashes()})
-    for label, result in runs:
+    for (label, result), record in zip(runs, records):
         prefix = f"[{label}] " if len(runs) > 1 else ""
         print(prefix + result.summary().replace("\n", "\n" + prefix))
+        if "safety" in record:
+            from ..safety.run_report import summary  # lazy: only runs with contacts
+
+            for line in summary(record["safety"]):
+                print(prefix + line)
     print(f"wrote {', '.join(str(out / name) for name in results.written)}")
     for label, result in runs:
         for text in result.warnings:
@@ -107,6 +114,22 @@ def cmd_simulate(args) -> int:
         print("simulation failed:\n  " + "\n  ".join(failed), file=sys.stderr)
         return 1
     return 0
+
+
+def _safety(trajectory, k: int, structure) -> dict:
+    """The safety figures (`vsj.safety.run_report`) of case ``k`` of a streamed trajectory:
+    its contact, spring and speed signals read back from the file."""
+    from ..safety.run_report import report  # lazy: only runs with contacts need it
+    from ..simulate import Result
+
+    reached = trajectory.reached[k]
+    wanted = [name for name in trajectory.names(k)
+              if name.startswith("contact.") or name.endswith(".speed")
+              or (name.startswith("spring.") and name.endswith((".deflection", ".torque")))]
+    signals = {name: trajectory.read(name, k, 0, reached) for name in wanted}
+    run = Result(time=trajectory.time[:reached], signals=signals, units={}, ledger={},
+                 success=True, message="", solver={})
+    return report(run, structure)
 
 
 def cmd_scenarios(args) -> int:
