@@ -129,7 +129,8 @@ def add_environment(net: Network, env: Environment, *, theta_x: str = "diff.thet
             raise InputError(f"environment contact {c.name!r}: a single-axis network has no "
                              "theta_y; give it direction 0")
         arms = {"x": L * cos} if theta_y is None else {"x": L * cos, "y": L * sin}
-        arms = {p: a for p, a in arms.items() if a != 0.0}
+        # cos(pi/2), sin(pi) are 1e-17, not 0: an axis the direction does not move is none
+        arms = {p: a for p, a in arms.items() if abs(a) > 1e-12 * L}
         if isinstance(c, Body):
             arms["body"] = -L  # the body's displacement L phi_b opens the gap
         contact = Contact(c.name, arms, stiffness=c.stiffness, exponent=c.exponent,
