@@ -37,6 +37,8 @@ def test_the_command_writes_the_figure_the_numbers_and_the_page(tmp_path, capsys
     numbers = json.loads((out / "tracking-safety.json").read_text())
     assert numbers["q"] == pytest.approx([-0.022, 0.0])
     assert len(numbers["peak_force"]) == 2 and numbers["setup"]["duration"] == 5.0
+    # the reproduction's categories: a prediction the report gives no value for
+    assert (numbers["category"], numbers["verdict"]) == ("prediction", "not compared")
     page = (out / "tracking-safety.html").read_text()
     assert "What is new" in page and "<img" in page and "Bicchi and Tonietti" in page
     assert (out / "tracking-safety.png").stat().st_size > 10_000

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from .. import __version__, params
 from ..errors import InputError, SimulationError
-from ..simulate import catalogue, sample_times
+from ..simulate import Result, catalogue, sample_times
 from ..units import to_si
 from . import control, fit, study, sweep
 
@@ -120,7 +120,6 @@ def _safety(trajectory, k: int, structure) -> dict:
     """The safety figures (`vsj.safety.run_report`) of case ``k`` of a streamed trajectory:
     its contact, spring and speed signals read back from the file."""
     from ..safety.run_report import report  # lazy: only runs with contacts need it
-    from ..simulate import Result
 
     reached = trajectory.reached[k]
     wanted = [name for name in trajectory.names(k)

@@ -12,7 +12,6 @@ import numpy as np
 from .. import params
 from ..errors import InputError
 from ..output import atomic_write
-from ..safety import impact, tradeoff
 from ..units import to_si
 
 #: The studies, by name: what each shows.
@@ -37,12 +36,15 @@ def _positions(text: str | None, lo: float, hi: float, count: int) -> list[float
 def cmd_study(args) -> int:
     """``vsj study NAME``: run a study and write ``NAME.png``, ``NAME.json`` and
     ``NAME.html`` into ``--out``. Returns the exit code."""
+    # lazy: the studies' modules (and the controllers, the environment) are for this command
+    from ..safety import impact, tradeoff
+
     if args.name not in STUDIES:
         raise InputError(f"unknown study {args.name!r}; studies: {', '.join(STUDIES)}")
     p = params.load(args.params)
     if args.settings < 2:
         raise InputError(f"option --settings: at least 2, got {args.settings}")
-    setup = tradeoff.Setup() if not args.quick else tradeoff.Setup(fade_in=1.0, duration=5.0)
+    quick = dict(fade_in=1.0, duration=5.0) if args.quick else {}
     from ..wrist import WristOptions, build_wrist  # lazy: the wrist for its pivot range
 
     pivot = build_wrist(p, WristOptions(motors="dc", pivot_drive="dc")).assemble().pivot
@@ -52,7 +54,7 @@ def cmd_study(args) -> int:
     print(f"vsj study {args.name}: {len(qs)} stiffness settings", file=sys.stderr)
     if args.name == "tracking-safety":
         module = tradeoff
-        result = tradeoff.run(p, qs, setup, progress=lambda k: print(
+        result = tradeoff.run(p, qs, tradeoff.Setup(**quick), progress=lambda k: print(
             f"  q = {100 * qs[k]:.2f} cm done", file=sys.stderr))
     else:
         module = impact

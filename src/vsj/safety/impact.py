@@ -52,8 +52,13 @@ class ImpactLimits:
     rigid_mass: float = 0.0
 
     def as_dict(self) -> dict:
-        """JSON-ready."""
-        return asdict(self)
+        """JSON-ready, with the reproduction's category and verdict: a prediction the
+        report states no value for (`vsj.reproduce.base`)."""
+        from ..reproduce.base import PREDICTION  # lazy: vsj.reproduce imports SciPy
+
+        return {**asdict(self), "category": PREDICTION, "verdict": "not compared",
+                "tests": "an elastic joint decouples the motors' inertia from a collision "
+                         "(Bicchi and Tonietti 2004; Haddadin et al.)"}
 
     def ratio(self, name: str) -> float:
         """How much faster the softest setting may strike than the stiffest, at the same

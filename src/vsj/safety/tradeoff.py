@@ -91,9 +91,15 @@ class Tradeoff:
     quasi_static_limit: float = 0.0
 
     def as_dict(self) -> dict:
-        """JSON-ready."""
+        """JSON-ready, with the reproduction's category and verdict: a prediction the
+        report states no value for (`vsj.reproduce.base`)."""
+        from ..reproduce.base import PREDICTION  # lazy: vsj.reproduce imports SciPy
+
         out = asdict(self)
         out["setup"] = asdict(self.setup)
+        out.update(category=PREDICTION, verdict="not compared",
+                   tests="Bicchi and Tonietti 2004: softness lowers a collision's force "
+                         "at a cost in tracking")
         return out
 
     def summary(self) -> str:
