@@ -284,3 +284,27 @@ def test_a_runs_safety_report_gives_each_events_figures():
     assert event["energy_to_body"] == pytest.approx(0.5 * m_body * body_speed ** 2, rel=tol)
     assert event["passed"]["hand"] == (event["peak_force"] <= 280.0)
     assert run_report.summary(figures)[0].startswith("contact skin: 1 event(s)")
+
+
+def test_the_time_steppers_contact_never_pulls():
+    """A link pressed into a damped contact and then pulled away faster than 1/alpha: the
+    law's force would turn negative (k + lambda d' < 0) and is held at zero; the
+    time-stepper follows the same law as dopri (an adhesive force would leave the link
+    2 % slower)."""
+    from vsj.components import TorqueSource
+
+    k, alpha = 1e4, 5.0
+    net = Network("pull")
+    net.add(Inertia("link", J), Contact("wall", {"tip": L}, stiffness=k, damping=alpha * k),
+            TorqueSource("ext", "tau"))
+    net.connect("link.flange", "wall.tip").connect("link.flange", "ext.flange")
+    tau = Table((0.0, 0.02, 0.0200001, 0.05), (1.0, 1.0, -20.0, -20.0))
+    speeds = {}
+    for solver, step in (("dopri", 1e-5), ("timestep", 1e-6)):
+        r = simulate(net.assemble(), {"tau": tau}, 0.03, ports=False,
+                     options=SimulationOptions(solver=solver, output_step=1e-5, step=step,
+                                               rtol=1e-10, atol=1e-12, friction="viscous"))
+        assert r.success, r.message
+        speeds[solver] = r["link.flange.speed"][np.searchsorted(r.time, 0.025)]
+    # the time-stepper's first order at 1e-6 s over the 25 ms: about 1e-5 of the speed
+    assert speeds["timestep"] == pytest.approx(speeds["dopri"], rel=1e-4)

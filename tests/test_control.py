@@ -184,6 +184,23 @@ def test_a_current_limit_bounds_the_voltage_by_the_back_emf():
     assert np.any(np.abs(v - KT * w) >= R * i_max * (1 - 1e-12))  # and the limit acted
 
 
+def test_the_voltage_limits_win_over_a_current_limit_and_wide_blocks_run():
+    """A back-driven motor's emf would let the current limit ask for far more than the
+    supply: the actuator's limits are applied last. A block with more inputs than the
+    bus has signals (a wide gain row) runs in the engine's scratch."""
+    ctl = Controller(period=PERIOD, sensors=(Sensor("angle", "speed"),),
+                     blocks=(PID("u", {}, "angle.speed", k=1.0, y_min=-12, y_max=12),
+                             Linear("wide", np.full((1, 40), 0.01), inputs=("u",) * 40,
+                                    outputs=("w",))),
+                     actuators=(Actuator("v", {"u": 1.0, "w": 0.0}, limits=(-12.0, 12.0),
+                                         current_limit=1.0),))
+    r = run(ctl, duration=0.2, inputs={"tau": -3.0})
+    assert r.success, r.message
+    assert np.max(np.abs(r["actuator.v"])) <= 12.0
+    assert np.max(np.abs(r["actuator.v"])) == 12.0  # the limit acted
+    assert r["control.w"][-1] == pytest.approx(0.4 * r["control.u"][-1], rel=1e-12)
+
+
 def test_a_linear_block_runs_python_controls_discrete_system():
     # a lead compensator with a pure delay, discretised at the period
     lead = control.c2d(control.tf([0.02, 1.0], [0.002, 1.0]), PERIOD, "tustin")
@@ -271,6 +288,21 @@ def test_the_time_steppers_step_must_divide_the_period():
 def test_an_input_the_controller_drives_is_refused():
     with pytest.raises(InputError, match="driven by the controller"):
         run(position_pid(), inputs={"v": Constant(1.0)}, duration=0.01)
+
+
+def test_the_engine_refuses_block_sizes_beyond_the_models():
+    """Sizes that would overflow the parameter count's arithmetic are refused before any
+    is multiplied (a crafted model through the binding)."""
+    structure = motor_axis().assemble()
+    plan = Plan.compile(structure, {}, 0.01, SimulationOptions(), InitialState(), "dopri",
+                        controller=position_pid())
+    blk = plan.model.blk.copy().reshape(-1, 6)
+    blk[0, 3] = 3 * 2 ** 61  # a block's states
+    with pytest.raises(ValueError, match="do not fit its kind or the model's sizes"):
+        native(plan.model._replace(blk=blk.reshape(-1)))
+    with pytest.raises(InputError, match="controllers of different sizes"):
+        run_batch([plan, Plan.compile(structure, {}, 0.01, SimulationOptions(), InitialState(),
+                                      "dopri")], np.zeros(1))
 
 
 def test_the_engine_refuses_a_block_that_reads_a_later_output():

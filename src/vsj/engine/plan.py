@@ -336,6 +336,9 @@ def run_batch(plans: Sequence[Plan], times: np.ndarray, *, threads: int | None =
     times = np.ascontiguousarray(times, dtype=float)
     n_state = plans[0].layout.n_state
     extra = plans[0].controller.width if plans[0].controller is not None else 0
+    if any((p.controller.width if p.controller is not None else 0) != extra for p in plans):
+        raise InputError("run_batch: the plans carry controllers of different sizes (or some "
+                         "none); a batch runs plans of one network and one controller")
     states = np.full((runs, len(times), n_state + extra), np.nan)
     y_end = np.zeros((runs, n_state))
     status = np.zeros(runs, dtype=np.int64)

@@ -50,10 +50,12 @@ static int check_blocks(const vsj_model *m, char *message, size_t size) {
         if (kind < 0 || kind >= VSJ_N_BLOCKS)
             return vsj__fail(message, size, "controller block %lld: unknown kind %lld",
                              (long long)b, (long long)kind);
-        if (nin < 0 || nout < 1 || ns < 0
+        if (nin < 0 || nout < 1 || ns < 0 || nin > m->n_blk_in - n_in || nout > m->n_bus
+            || ns > m->n_cstate - n_state
             || (kind == VSJ_BLOCK_PID && (nin != 3 || nout != 1 || ns != 2)))
             return vsj__fail(message, size, "controller block %lld: sizes %lld inputs, %lld "
-                             "outputs, %lld states do not fit its kind", (long long)b,
+                             "outputs, %lld states do not fit its kind or the model's sizes",
+                             (long long)b,
                              (long long)nin, (long long)nout, (long long)ns);
         if (d[VSJ_B_PAR] != n_par || d[VSJ_B_ROW] != n_in)
             return vsj__fail(message, size, "controller block %lld: its parameters and input "
@@ -352,9 +354,9 @@ static void run_block(const vsj_model *m, vsj_work *w, int64_t b, int64_t out, d
     }
 }
 
-/* The actuators' commands from the bus, each clipped to its limits and, driving a
- * motor with a current limit, to the voltages that keep the steady current (V - k_t
- * omega) / R within it at the motor's speed now. */
+/* The actuators' commands from the bus: driving a motor with a current limit, clipped
+ * to the voltages that keep the steady current (V - k_t omega) / R within it at the
+ * motor's speed now, then to the actuator's limits (which win where the two disagree). */
 static void set_actuators(const vsj_model *m, vsj_work *w, const double *y) {
     int64_t a, j, f = m->n_frictions + m->n_springs + m->n_loads;
     for (a = 0; a < m->n_acts; a++) {
@@ -362,7 +364,6 @@ static void set_actuators(const vsj_model *m, vsj_work *w, const double *y) {
         double u = p[VSJ_A_OFFSET];
         for (j = 0; j < m->n_bus; j++)
             u += row[j] * w->ctl_bus[j];
-        u = u < p[VSJ_A_LO] ? p[VSJ_A_LO] : (u > p[VSJ_A_HI] ? p[VSJ_A_HI] : u);
         if (p[VSJ_A_MOTOR] >= 0.0 && isfinite(p[VSJ_A_CURRENT])) {
             int64_t r = f + (int64_t)p[VSJ_A_MOTOR];
             const double *mp = vsj__row(m, r);
@@ -370,6 +371,8 @@ static void set_actuators(const vsj_model *m, vsj_work *w, const double *y) {
             double emf = mp[2] * omega, span = mp[0] * p[VSJ_A_CURRENT];
             u = u < emf - span ? emf - span : (u > emf + span ? emf + span : u);
         }
+        /* the limits last: no supply gives more, whatever a back-driven motor's emf */
+        u = u < p[VSJ_A_LO] ? p[VSJ_A_LO] : (u > p[VSJ_A_HI] ? p[VSJ_A_HI] : u);
         w->ctl_u[a] = u;
     }
 }
@@ -414,8 +417,13 @@ static void restart(const vsj_model *m, vsj_work *w) {
 }
 
 void vsj__control_period(const vsj_model *m, vsj_work *w, const double *y, double dt) {
+    int64_t c, a;
     if (!w->ctl_started)
         restart(m, w);
+    for (c = 0; c < m->n_channels; c++) /* this model's actuators (the work may have */
+        w->ctl_drive[c] = -1;             /* stepped another of the same sizes) */
+    for (a = 0; a < m->n_acts; a++)
+        w->ctl_drive[m->act_ch[a]] = a;
     w->ctl_on = 1;
     w->ctl_t0 = 0.0;
     w->ctl_k0 = w->ctl_k;

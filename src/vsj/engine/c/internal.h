@@ -127,7 +127,7 @@ struct vsj_work {
      * bus (nbus), block states (ncs) and their next values, a block's inputs (nbus at
      * most), the sensors' delay lines (ndel), the actuators' held values (nact), and
      * the actuator driving each input channel (-1: none) */
-    int64_t nref, nmeas, nblk, nact, nbus, ncs, ndel;
+    int64_t nref, nmeas, nblk, nact, nbus, ncs, ndel, nbi;
     int ctl_on, ctl_started;
     int64_t ctl_k, ctl_k0; /* samples taken, and when the run (or period) began */
     double ctl_stop;       /* no sample at or after this time (a held period's end) */
@@ -322,7 +322,8 @@ static inline int vsj__fits(const vsj_model *m, const vsj_work *w) {
            && m->n_springs == w->k && m->n_loads == w->nl && m->n_motors == w->nm
            && m->n_channels == w->nch && m->n_rows == w->rows && m->n_refs == w->nref
            && m->n_meas == w->nmeas && m->n_blocks == w->nblk && m->n_acts == w->nact
-           && m->n_bus == w->nbus && m->n_cstate == w->ncs && m->n_delay == w->ndel;
+           && m->n_bus == w->nbus && m->n_cstate == w->ncs && m->n_delay == w->ndel
+           && m->n_blk_in == w->nbi;
 }
 
 /* The coefficient of a friction table (rows first .. first + rows - 1 of

@@ -376,7 +376,7 @@ static void layout(vsj_work *w, carver *cv) {
     w->ctl_bus = DOUBLES(w->nbus);
     w->ctl_x = DOUBLES(w->ncs);
     w->ctl_x1 = DOUBLES(w->ncs);
-    w->ctl_in = DOUBLES(w->nbus);
+    w->ctl_in = DOUBLES(w->nbi); /* a block's inputs: at most all blocks' input rows */
     w->ctl_delay = DOUBLES(w->ndel);
     w->ctl_u = DOUBLES(w->nact);
     w->ctl_before = DOUBLES(w->nbus + w->nact);
@@ -393,7 +393,7 @@ vsj_work *vsj_work_new(const vsj_model *m) {
     if (!m || m->n < 0 || m->n_sources < 0 || m->n_frictions < 0 || m->n_springs < 0
         || m->n_loads < 0 || m->n_motors < 0 || m->n_channels < 0 || m->n_refs < 0
         || m->n_meas < 0 || m->n_blocks < 0 || m->n_acts < 0 || m->n_bus < 0 || m->n_cstate < 0
-        || m->n_delay < 0)
+        || m->n_delay < 0 || m->n_blk_in < 0)
         return NULL;
     w = (vsj_work *)calloc(1, sizeof(vsj_work));
     if (!w)
@@ -413,6 +413,7 @@ vsj_work *vsj_work_new(const vsj_model *m) {
     w->nbus = m->n_bus;
     w->ncs = m->n_cstate;
     w->ndel = m->n_delay;
+    w->nbi = m->n_blk_in;
     w->ny_max = vsj_n_state(m) + vsj_n_acc(m) + m->n_sources;
     layout(w, &cv);
     w->block = calloc(1, cv.used + 32u);

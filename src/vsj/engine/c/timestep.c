@@ -676,6 +676,8 @@ static void assemble_friction(const vsj_model *m, vsj_work *w, double hs) {
             c = contact_damping(p, 0.5 * (d0 + d1p));
             dfe = 0.5 * hs * dg + 0.5 * c;
             fe = g - 0.5 * hs * dg * se + 0.5 * c * se; /* the force is fe + dfe s1 */
+            if (!(g + c * se > 0.0)) /* the predicted force would pull: none, as the law */
+                fe = dfe = 0.0;     /* says (it never pulls) */
             t->f0[e] = fe + dfe * se;                    /* f0 + df0 (s1 - s0) */
             t->df0[e] = dfe;
             cnst = fe + dfe * vsj__udotv(m, e, t->u1);
@@ -1094,7 +1096,7 @@ vsj_report vsj__ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_
             status = VSJ_NOT_FINITE;
             break;
         }
-        if (w->ctl_on && tnow >= w->ctl_next - 1e-9 * h) /* on the grid (vsj_begin) */
+        if (w->ctl_on && tnow >= w->ctl_next - 0.5 * h) /* on the grid (vsj_begin) */
             vsj__control_sample(m, w, tnow, y);
         while (i_out < n_out && smp->t[i_out] <= tnow + 0.5 * h) {
             sample(m, w, smp, i_out, y, n_col);
