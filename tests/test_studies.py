@@ -18,7 +18,10 @@ from vsj.studies import (HAND, AxisModel, BodyModel, Explosive, JointTable, Safe
                          axis_model, explosive_motion, impact, mass_spring_mass_peak,
                          optimise, optimise_wrist, reduced_explosive, safe_and_fast,
                          safe_speeds, verify, write)
-from vsj.studies.brachistochrone import Strategy
+from vsj.studies.brachistochrone import (Strategy, _elastic_problem, _instant_problem,
+                                         _smooth_guess)
+from vsj.studies.collocation import _Transcription
+from vsj.studies.study import RESOLUTION, SOFTENING, _stiff_soft_stiff
 from vsj.studies.explosive import _linear_axis, _linear_run
 from vsj.wrist import WristOptions, build_wrist
 
@@ -181,8 +184,8 @@ def test_a_stiffness_schedule_beats_the_best_fixed_stiffness_on_a_tiny_problem()
     best, schedule = found["best fixed"], found["schedule"]
     # every fixed setting is a schedule, so the schedule can only be faster; it must be
     # faster by more than the controls' smoothing term can move T (SMOOTHING times the
-    # largest squared step of a scaled control, 4e-4 of T)
-    assert schedule.T < best.T * (1 - 4e-4)
+    # largest squared step of a scaled control, 4)
+    assert schedule.T < best.T * (1 - RESOLUTION)
     # and each candidate fixed setting is slower than the best one
     assert min(best.candidates.values()) == pytest.approx(best.T, rel=1e-12)
     q = schedule.q
@@ -192,6 +195,18 @@ def test_a_stiffness_schedule_beats_the_best_fixed_stiffness_on_a_tiny_problem()
     # the schedule respects the pivot's speed: |dq/dt| within its limit at every node
     rate = schedule.solution.controls[:, 1]
     assert np.all(np.abs(rate) <= m.pivot_rate_limit(q)[0] * (1 + 1e-6))
+
+
+def test_what_counts_as_stiff_soft_stiff():
+    """The study's reading of a schedule (q at evenly spaced nodes, higher is softer):
+    soft in the middle three fifths by `SOFTENING` of the range against both outer
+    fifths; a schedule that also softens at the start, or only softens, does not count."""
+    step = 1.5 * SOFTENING  # beyond the threshold, on a range of 1
+    assert _stiff_soft_stiff(np.array([0, 0, step, step, step, step, step, 0, 0, 0.0]), 1.0)
+    assert not _stiff_soft_stiff(np.array([step, 0, step, step, step, step, 0, 0, 0, 0]), 1.0)
+    assert not _stiff_soft_stiff(np.linspace(0.0, 1.0, 10), 1.0)
+    flat = 0.5 * SOFTENING  # below the threshold
+    assert not _stiff_soft_stiff(np.array([0, 0, flat, flat, flat, flat, flat, 0, 0, 0]), 1.0)
 
 
 def test_the_exact_propagation_reproduces_a_motors_step_response():
@@ -205,6 +220,24 @@ def test_the_exact_propagation_reproduces_a_motors_step_response():
     J, C = float(m.mass.sum()), float(m.back_emf.sum())
     expected = m.no_load_speed * (1.0 - np.exp(-t * C / J))
     assert states @ link == pytest.approx(expected, rel=1e-12, abs=1e-12 * m.no_load_speed)
+
+
+def test_the_reduced_models_integration_is_its_exact_solution():
+    """Twin: `AxisModel.simulate` (DOP853, the bicubic joint table) and the exact
+    propagation of the same linear joint by matrix exponentials agree along a bang-bang
+    profile with ramps, over several periods of the elastic mode."""
+    m = tiny_model()
+    q = 0.6
+    times = np.linspace(0.0, 0.12, 9)
+    volts = 24.0 * np.array([1, 1, -1, -1, 1, 1, -1, 0.5, 0.0])
+    F, G, link, deflection = _linear_axis(m, q, rigid=False)
+    exact = _linear_run(F, G, times, volts, 0.12, 40)
+    t = np.linspace(0.0, 0.12, len(exact))
+    states = m.simulate(t, lambda s: float(np.interp(s, times, volts)), lambda s: q)
+    scale = np.max(np.abs(exact), axis=0)
+    # DOP853 at rtol 1e-9 and atol 1e-11 keeps the global error within about a hundred
+    # local tolerances over the run's few hundred steps
+    assert np.max(np.abs(states - exact) / scale) < 1e-6
 
 
 def test_an_elastic_joint_throws_faster_than_its_motors_a_rigid_one_cannot():
@@ -260,3 +293,28 @@ def test_study_inputs_are_refused_with_input_error(params, model):
         verify(params, rigid, SafeMotion(), model=model)
     with pytest.raises(InputError, match="a study's Figure"):
         write("not a figure", ".")
+
+
+def test_the_collocations_jacobians_are_its_constraints_derivatives():
+    """The exact Jacobians SLSQP is given (Simpson defects, path constraints at nodes and
+    midpoints) against central differences, for the rate-limited and the instant
+    schedule on the tiny problem at a perturbed guess."""
+    m = tiny_model()
+    setup = SafeMotion(distance=1.0, link=0.1, body=TINY_BODY, nodes=5, safety_points=6)
+    safe = safe_speeds(m, setup)
+    rng = np.random.default_rng(7)
+    X, U = _smooth_guess(m, setup, 0.1, 5, 0.4)
+    for problem, x, u in ((_elastic_problem(m, setup, safe, (0.0, 1.0), True, 0.1), X, U),
+                          (_instant_problem(m, setup, safe, 0.1), X[:, :4],
+                           np.column_stack([U[:, 0], np.full(6, 0.4)]))):
+        tr = _Transcription(problem, 5, 0.1)
+        y = tr.pack(x + 0.01 * rng.standard_normal(x.shape),
+                    u + 0.01 * rng.standard_normal(u.shape), 0.1)
+        for fn in (tr.defects, tr.path):
+            J = fn(y)[1]
+            step = 1e-6
+            numeric = np.column_stack([(fn(y + step * e)[0] - fn(y - step * e)[0]) / (2 * step)
+                                       for e in np.eye(len(y))])
+            # central differences err by step^2 f''' / 6 (1e-12 on these scaled, order-one
+            # functions) and by round-off eps |f| / step (2e-10)
+            assert np.max(np.abs(J - numeric)) <= 1e-8 * max(1.0, np.max(np.abs(J)))

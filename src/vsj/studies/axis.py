@@ -128,11 +128,17 @@ class JointTable:
 
     def torque(self, delta, q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(tau, dtau/ddelta, dtau/dq)`` at deflections ``delta`` [rad] and pivot
-        positions ``q`` [m] (arrays of one shape): N m, N m/rad, N m/m."""
+        positions ``q`` [m] (arrays of one shape): N m, N m/rad, N m/m. Beyond the
+        table's deflections the torque goes on along its tangent at the edge (the spline
+        itself would hold the edge's value); pivot positions are held to the table's."""
         delta = np.asarray(delta, dtype=float)
         q = np.clip(np.asarray(q, dtype=float), self.q[0], self.q[-1])
+        inside = np.clip(delta, self.deflection[0], self.deflection[-1])
         s = self._spline
-        return (s.ev(delta, q), s.ev(delta, q, dx=1), s.ev(delta, q, dy=1))
+        slope = s.ev(inside, q, dx=1)
+        beyond = delta - inside
+        return (s.ev(inside, q) + slope * beyond, slope,
+                s.ev(inside, q, dy=1) + s.ev(inside, q, dx=1, dy=1) * beyond)
 
     def stiffness(self, q) -> np.ndarray:
         """The joint's stiffness at zero deflection [N m/rad] at pivot positions ``q``

@@ -363,6 +363,30 @@ class Strategy:
         return s[:, 0] - s[:, 1] if s.shape[1] >= 4 else np.full(len(s), np.nan)
 
 
+def with_tip(model: AxisModel, setup: SafeMotion) -> AxisModel:
+    """``model`` with ``setup``'s tip mass on the link (its inertia ``m l^2``): the model
+    the motion is optimised on (the impact model takes the tip mass on its own)."""
+    if setup.tip_mass == 0:
+        return model
+    mass = np.array(model.mass, dtype=float)
+    mass[1, 1] += setup.tip_mass * setup.link ** 2
+    return replace(model, mass=mass)
+
+
+def integrated_error(model: AxisModel, strategy: Strategy) -> float:
+    """The collocation's own error: the strategy's commands (voltage linear between the
+    nodes, and the pivot's path) integrated by `AxisModel.simulate` (DOP853 at rtol
+    1e-9); returns how far theta ends from the collocation's final angle [rad]. The
+    rigid joint returns NaN (its model is not an `AxisModel`)."""
+    sol = strategy.solution
+    if sol.states.shape[1] < 4:
+        return math.nan
+    t, V, q = sol.time, sol.controls[:, 0], strategy.q
+    states = model.simulate(np.array([0.0, sol.T]), lambda s: float(np.interp(s, t, V)),
+                            lambda s: float(np.interp(s, t, q)))
+    return float(states[-1, 1] - sol.states[-1, 1])
+
+
 def _checked(name: str, sol: collocation.Solution, feasibility: float) -> collocation.Solution:
     if not sol.success or sol.constraint_violation > feasibility:
         raise SimulationError(f"safe motion, {name}: the optimiser did not converge "
@@ -396,10 +420,57 @@ def _fixed(model, setup, safe, q, T_guess, start=None) -> collocation.Solution:
     return sol
 
 
+def _converged(sol: collocation.Solution) -> bool:
+    return sol.success and sol.constraint_violation <= FEASIBILITY
+
+
+def _best_fixed(model, setup, safe, T_guess, tried: dict) -> None:
+    """Fill ``tried`` (q -> optimum, holding the stiffest's) with the fixed settings'
+    optima: `SafeMotion.fixed_candidates` settings over the range, each started from the
+    stiffest's optimum; the best of them refined between its neighbours; then the
+    settings of the grid solved again from the best optimum found (a minimum-time problem
+    has local optima, and a neighbour's is often the better start), keeping the faster."""
+    stiffest = tried[model.q_min]
+    grid = [float(q) for q in np.linspace(model.q_min, model.q_max, setup.fixed_candidates)]
+    for q in grid[1:]:
+        sol = _fixed(model, setup, safe, q, T_guess, start=stiffest)
+        if not _converged(sol):
+            sol = _fixed(model, setup, safe, q, T_guess)
+        if _converged(sol):
+            tried[q] = sol
+    qs = sorted(tried)
+    k = int(np.argmin([tried[q].T for q in qs]))
+    lo, hi = qs[max(k - 1, 0)], qs[min(k + 1, len(qs) - 1)]
+    if hi > lo:
+        worst = max(tried[q].T for q in qs)
+
+        def time_at(q):
+            sol = _fixed(model, setup, safe, float(q), T_guess, start=tried[qs[k]])
+            if not _converged(sol):
+                return 2.0 * worst  # not converged there: never taken as the best
+            tried[float(q)] = sol
+            return sol.T
+        # T is flat at its minimum (second order in q), so a thousandth of the range
+        # (42 um on the wrist) finds it to far better than the collocation's accuracy
+        minimize_scalar(time_at, bounds=(lo, hi), method="bounded",
+                        options={"xatol": 1e-3 * (model.q_max - model.q_min), "maxiter": 10})
+    leader = tried[min(tried, key=lambda q: tried[q].T)]
+    for q in grid:
+        if q in tried and tried[q] is not leader:
+            sol = _fixed(model, setup, safe, q, T_guess, start=leader)
+            if _converged(sol) and sol.T < tried[q].T:
+                tried[q] = sol
+
+
 def optimise(model: AxisModel, setup: SafeMotion | None = None,
              strategies=STRATEGIES) -> dict[str, Strategy]:
     """The minimum-time motion of each of ``strategies`` (names of `STRATEGIES`).
-    Returns name -> `Strategy`; `SimulationError` if an optimisation fails."""
+    Returns name -> `Strategy`; `SimulationError` if an optimisation fails.
+
+    A minimum-time problem has local optima, so each elastic strategy starts from what
+    the others found: the fixed settings from the stiffest's optimum and then from the
+    best of them (`_best_fixed`, which may also improve the stiffest's), the schedules
+    from the best fixed setting's."""
     setup = setup or SafeMotion()
     setup.check()
     if not isinstance(model, AxisModel):
@@ -410,10 +481,7 @@ def optimise(model: AxisModel, setup: SafeMotion | None = None,
         raise InputError(f"safe motion: unknown strategies {unknown}; choose from "
                          f"{', '.join(STRATEGIES)}")
     safe = safe_speeds(model, setup)
-    if setup.tip_mass > 0:  # the tip's mass joins the link (the impact model adds its own)
-        mass = np.array(model.mass, dtype=float)
-        mass[1, 1] += setup.tip_mass * setup.link ** 2
-        model = replace(model, mass=mass)
+    model = with_tip(model, setup)
     T_guess = _time_guess(model, setup, float(np.min(safe.speed)))
     out: dict[str, Strategy] = {}
     if "rigid" in strategies:
@@ -421,43 +489,20 @@ def optimise(model: AxisModel, setup: SafeMotion | None = None,
         X, U = _smooth_guess(model, setup, T_guess, setup.nodes, 0.0)
         sol = collocation.solve(problem, setup.nodes, X[:, [1, 3]], U[:, :1], T_guess)
         out["rigid"] = Strategy("rigid", _checked("rigid", sol, FEASIBILITY))
-    stiffest = None
-    if {"stiffest", "best fixed", "schedule", "instant schedule"} & set(strategies):
-        stiffest = _checked("stiffest", _fixed(model, setup, safe, model.q_min, T_guess),
-                            FEASIBILITY)
-        if "stiffest" in strategies:
-            out["stiffest"] = Strategy("stiffest", stiffest)
-    best = stiffest
-    if {"best fixed", "schedule", "instant schedule"} & set(strategies):
-        tried: dict[float, collocation.Solution] = {model.q_min: stiffest}
-        for q in np.linspace(model.q_min, model.q_max, setup.fixed_candidates)[1:]:
-            sol = _fixed(model, setup, safe, float(q), T_guess, start=stiffest)
-            if not (sol.success and sol.constraint_violation <= FEASIBILITY):
-                sol = _fixed(model, setup, safe, float(q), T_guess)
-            if sol.success and sol.constraint_violation <= FEASIBILITY:
-                tried[float(q)] = sol
-        qs = sorted(tried)
-        k = int(np.argmin([tried[q].T for q in qs]))
-        lo, hi = qs[max(k - 1, 0)], qs[min(k + 1, len(qs) - 1)]
-        if hi > lo:
-            worst = max(tried[q].T for q in qs)
-
-            def time_at(q):
-                sol = _fixed(model, setup, safe, float(q), T_guess, start=tried[qs[k]])
-                if not (sol.success and sol.constraint_violation <= FEASIBILITY):
-                    return 2.0 * worst  # not converged there: never taken as the best
-                tried[float(q)] = sol
-                return sol.T
-            # T is flat at its minimum (second order in q), so a thousandth of the range
-            # (42 um on the wrist) finds it to far better than the collocation's accuracy
-            minimize_scalar(time_at, bounds=(lo, hi), method="bounded",
-                            options={"xatol": 1e-3 * (model.q_max - model.q_min),
-                                     "maxiter": 10})
-        q_best = min(tried, key=lambda q: tried[q].T)
-        best = tried[q_best]
-        if "best fixed" in strategies:
-            out["best fixed"] = Strategy("best fixed", best,
-                                         candidates={q: tried[q].T for q in sorted(tried)})
+    elastic = {"stiffest", "best fixed", "schedule", "instant schedule"} & set(strategies)
+    if not elastic:
+        return out
+    stiffest = _checked("stiffest", _fixed(model, setup, safe, model.q_min, T_guess),
+                        FEASIBILITY)
+    tried: dict[float, collocation.Solution] = {model.q_min: stiffest}
+    if elastic - {"stiffest"}:
+        _best_fixed(model, setup, safe, T_guess, tried)
+    if "stiffest" in strategies:
+        out["stiffest"] = Strategy("stiffest", tried[model.q_min])
+    best = tried[min(tried, key=lambda q: tried[q].T)]
+    if "best fixed" in strategies:
+        out["best fixed"] = Strategy("best fixed", best,
+                                     candidates={q: tried[q].T for q in sorted(tried)})
     if "schedule" in strategies:
         problem = _elastic_problem(model, setup, safe, (model.q_min, model.q_max), True,
                                    T_guess)
@@ -472,15 +517,15 @@ def optimise(model: AxisModel, setup: SafeMotion | None = None,
     return out
 
 
-__all__ = ["STRATEGIES", "SafeMotion", "SafeSpeed", "Strategy", "optimise", "safe_speeds"]
-
-
 # -- the optimum on the real wrist ---------------------------------------------------
 
 #: How long the engine's runs go on after the motion's end [s]: the motion is rest to
 #: rest, so what moves after T is the trajectory's error (friction, the reduced model's
 #: neglects) ringing out.
 SETTLE = 0.05
+#: The motors' voltage falls from its last value to zero over this time after T [s]: a
+#: hundredth of the motors' mechanical time constant (about 5 ms).
+OFF_RAMP = 5e-5
 
 
 @dataclass
@@ -489,7 +534,7 @@ class Verification:
 
     The free run: ``time`` [s], the link's ``angle`` [rad] and ``speed`` [rad/s], the
     pivot ``q`` [m]; ``final_error`` [rad] (theta_x at T minus the target) and
-    ``residual`` [rad] (the largest |theta_x - target| after T). The strikes: at each of
+    ``residual`` [rad] (the largest |theta_x - target| after T, the motors at 0 V). The strikes: at each of
     ``instants`` [s] a free hand surrogate (`vsj.environment.Body`, the body's mass and
     contact stiffness) placed where the link is then; ``first_peak`` [N] (the first
     contact's peak), ``peak`` [N] (over the rest of the motion, the motors going on with
@@ -518,7 +563,10 @@ def _commands(strategy: Strategy, structure, kin, params: Parameters):
     sol = strategy.solution
     t = tuple(sol.time)
     signs = np.sign(kin.to_rotors[:2, 0])
-    inputs = {kin.channels[j]: Table(t, tuple(signs[j] * sol.controls[:, 0]))
+    # at T the motion is at rest and nothing loads it: the motors go to 0 V (within
+    # OFF_RAMP of T), as a controller taking over would hold it, not on braking
+    off = (*t, sol.time[-1] + OFF_RAMP)
+    inputs = {kin.channels[j]: Table(off, (*(signs[j] * sol.controls[:, 0]), 0.0))
               for j in range(2)}
     q = sol.states[:, 4]
     if strategy.name == "schedule":
@@ -612,3 +660,7 @@ def verify(params: Parameters, strategy: Strategy, setup: SafeMotion, *,
                         instants=fractions * T, first_peak=np.array(firsts),
                         peak=np.array(peaks), predicted_first=np.array(pred_first),
                         predicted=np.array(pred), touch_speed=np.array(touch))
+
+
+__all__ = ["STRATEGIES", "SafeMotion", "SafeSpeed", "Strategy", "Verification",
+           "integrated_error", "optimise", "safe_speeds", "verify", "with_tip"]

@@ -7,7 +7,8 @@ compressed form: the midpoint state is the cubic's, ``x_c = (x_k + x_k+1)/2 +
 h T (f_k - f_k+1)/8``, and each interval must satisfy Simpson's rule, ``x_k+1 - x_k =
 h T (f_k + 4 f_c + f_k+1)/6``), whose error is fourth order in the step (Betts,
 *Practical Methods for Optimal Control*, 2010, section 4.6). Path constraints hold at
-the nodes; the boundary conditions are bounds on the first and last nodes.
+the nodes and at the intervals' midpoints; the boundary conditions are bounds on the
+first and last nodes.
 
 `solve` takes the dynamics as a function that returns ``f`` and its Jacobians, so the
 constraints' Jacobian is exact and SLSQP (scipy.optimize, sequential quadratic
@@ -133,17 +134,40 @@ class _Transcription:
         return (d / self.sx).ravel(), J / np.tile(self.sx, N)[:, None]
 
     def path(self, y):
-        X, U, _ = self.unpack(y)
+        """Path constraints at the nodes and at the intervals' midpoints (the cubic's
+        state and the controls' mean there), with their Jacobian: on a bound held over an
+        arc (a speed at its limit), midpoints leave the controls no room to ring between
+        the nodes."""
+        X, U, T = self.unpack(y)
         c, Cx, Cu = self.p.path(X, U)
         n1, nc = c.shape
-        J = np.zeros((n1 * nc, self.size))
-        xs, us, _ = self.columns()
+        N, nx = self.N, self.nx
+        f, A, B = self.p.dynamics(X, U)
+        hT = self.h * T
+        xc = (X[:-1] + X[1:]) / 2 + hT * (f[:-1] - f[1:]) / 8
+        uc = (U[:-1] + U[1:]) / 2
+        cm, Cxm, Cum = self.p.path(xc, uc)
+        eye = np.eye(nx)
+        # the midpoint state's dependence on both nodes and T (as in `defects`)
+        blocks = {"xk": eye / 2 + hT / 8 * A[:-1], "xk1": eye / 2 - hT / 8 * A[1:],
+                  "uk": hT / 8 * B[:-1], "uk1": -hT / 8 * B[1:]}
+        dxc_dT = self.h * (f[:-1] - f[1:]) / 8
+        J = np.zeros(((n1 + N) * nc, self.size))
+        xs, us, tcol = self.columns()
         rows = np.arange(n1 * nc).reshape(n1, nc)
         for k in range(n1):
             J[np.ix_(rows[k], xs[k])] = Cx[k]
             J[np.ix_(rows[k], us[k])] = Cu[k]
+        mid = n1 * nc + np.arange(N * nc).reshape(N, nc)
+        for k in range(N):
+            r = mid[k]
+            J[np.ix_(r, xs[k])] = Cxm[k] @ blocks["xk"][k]
+            J[np.ix_(r, xs[k + 1])] = Cxm[k] @ blocks["xk1"][k]
+            J[np.ix_(r, us[k])] = Cxm[k] @ blocks["uk"][k] + Cum[k] / 2
+            J[np.ix_(r, us[k + 1])] = Cxm[k] @ blocks["uk1"][k] + Cum[k] / 2
+            J[r, tcol] = Cxm[k] @ dxc_dT[k]
         J *= self.scale[None, :]
-        return c.ravel(), J
+        return np.concatenate([c.ravel(), cm.ravel()]), J
 
     def bounds(self):
         n1 = self.N + 1

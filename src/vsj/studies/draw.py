@@ -83,11 +83,15 @@ def explosive_motion(data):
     fig = figure(figsize=(14, 8.4), layout="constrained")
     (ax_conv, ax_volt, ax_speed), (ax_defl, ax_sweep, ax_none) = fig.subplots(2, 3)
     ax_none.set_visible(False)
-    history = np.asarray(data["history"])
-    ax_conv.plot(np.arange(len(history)), history, "o-", ms=3)
+    fixed, history = np.asarray(data["history_fixed"]), np.asarray(data["history"])
+    ax_conv.plot(np.arange(len(fixed)), fixed, "o-", ms=3,
+                 label=f"profile at q = {data['fixed_q'] * 100:.1f} cm (from the reduced "
+                       "model's optimum)")
+    ax_conv.plot(len(fixed) - 1 + np.arange(len(history)), history, "s-", ms=3,
+                 label="profile and setting together")
     ax_conv.axhline(1.0, color="k", lw=0.8, ls=":", label="rigid joint (1)")
-    ax_conv.set(xlabel="SLSQP iteration (0: the starting square wave)",
-                ylabel="peak speed / motors' speed limit [-]", title="convergence")
+    ax_conv.set(xlabel="SLSQP iteration", ylabel="peak speed / motors' speed limit [-]",
+                title="convergence", ylim=(0, None))
     t_ms = np.asarray(data["time"]) * 1e3
     ax_volt.plot(t_ms, data["voltage"], "-", lw=1.2, label="applied")
     ax_volt.plot(np.asarray(data["times"]) * 1e3, data["voltages"], "o", ms=4, label="knots")
@@ -106,7 +110,10 @@ def explosive_motion(data):
                 ylim=(0, None))
     sweep = data["sweep"]
     if len(sweep["q"]):
-        ax_sweep.plot(np.asarray(sweep["q"]) * 100, sweep["ratio"], "o-", label="engine")
+        ax_sweep.plot(np.asarray(sweep["q"]) * 100, sweep["ratio"], "o-",
+                      label="engine, fixed setting")
+    ax_sweep.plot([data["q"] * 100], [data["ratio"]], "r*", ms=12,
+                  label="engine, setting optimised")
     ax_sweep.axhline(1.0, color="k", lw=0.8, ls=":", label="rigid joint")
     ax_sweep.axhline(2.0, color="tab:gray", lw=0.8, ls="--", label="hardware VSAs (about 2)")
     ax_sweep.set(xlabel="pivot position q [cm] (stiff to soft)",

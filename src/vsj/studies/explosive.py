@@ -47,8 +47,7 @@ class Explosive:
     """The problem: a voltage profile of ``knots`` values over ``window`` [s] (held at
     its last value for ``tail`` [s] more, where the peak may still come), the pivot at
     ``q`` [m] (None: optimised with the profile), SLSQP for at most ``max_iterations``
-    iterations from the starting profile (a square wave at the joint's natural
-    frequency, see `starting_profile`). ``friction``: the engine's friction law;
+    iterations from the reduced model's optimum (see `optimise_wrist`). ``friction``: the engine's friction law;
     ``output_step`` [s]: the sampling of the run, on which the peak is read."""
 
     window: float = 0.25
@@ -206,12 +205,23 @@ def limits_of(model: AxisModel, params: Parameters, voltages, run: dict, q: floa
 FD_STEP = 1e-3
 
 
+#: Pivot positions (as shares of the range, stiff to soft) at which the reduced model is
+#: optimised to choose where the engine's optimisation of a free q starts.
+REDUCED_SWEEP = np.linspace(0.0, 1.0, 8)
+
+
 def optimise_wrist(params: Parameters, setup: Explosive | None = None, *,
-                   model: AxisModel | None = None) -> ExplosiveResult:
+                   model: AxisModel | None = None, start=None) -> ExplosiveResult:
     """The explosive motion of the wrist's ``theta_x`` (see the module's notes): SLSQP on
     the voltage profile (and ``q`` unless ``setup.q`` fixes it), every evaluation an
-    engine run. `SimulationError` if a run fails; the result says whether SLSQP
-    converged (``success``, ``message``)."""
+    engine run.
+
+    ``start`` = ``(voltages [V] at the knots, q [m])`` is where the optimiser starts;
+    without it, the reduced model's optimum (`reduced_explosive`) at ``setup.q``, or at
+    the best of `REDUCED_SWEEP` when q is free: the linear, friction-free axis finds the
+    pumping rhythm in about a second, and the engine's runs refine it. A start that
+    drives the ring past its end stop is scaled down until it does not. `SimulationError`
+    if a run fails; the result says whether SLSQP converged (``success``, ``message``)."""
     setup = setup or Explosive()
     setup.check()
     if not isinstance(params, Parameters):
@@ -225,7 +235,20 @@ def optimise_wrist(params: Parameters, setup: Explosive | None = None, *,
     V = model.voltage_limit
     q_span = model.q_max - model.q_min
     free_q = setup.q is None
-    q0 = model.q_min if free_q else float(setup.q)
+    if start is None:
+        qs = [float(setup.q)] if not free_q else \
+            [model.q_min + f * q_span for f in REDUCED_SWEEP]
+        found = [(reduced_explosive(model, q, window=setup.window, knots=setup.knots,
+                                    tail=setup.tail, max_iterations=60), q) for q in qs]
+        best, q0 = max(found, key=lambda f: f[0].ratio)
+        volts0 = best.voltages
+    else:
+        volts0, q0 = np.asarray(start[0], dtype=float), float(start[1])
+        if volts0.shape != (setup.knots,) or not model.q_min <= q0 <= model.q_max:
+            raise InputError(f"explosive motion: start must be {setup.knots} voltages and a "
+                             f"pivot position within [{model.q_min:g}, {model.q_max:g}] m")
+        if not free_q:
+            q0 = float(setup.q)
 
     def unpack(x):
         q = model.q_min + x[-1] * q_span if free_q else q0
@@ -239,18 +262,16 @@ def optimise_wrist(params: Parameters, setup: Explosive | None = None, *,
         volts, q = unpack(x)
         return 1.0 - float(np.max(runs.run(volts, q)["deflection"])) / runs.end_stop
 
-    x0 = starting_profile(model, q0, setup) / V
+    x0 = np.clip(volts0 / V, -1.0, 1.0)
     if free_q:
-        x0 = np.append(x0, 0.0)
-    start = ratio(x0)
-    if margin(x0) < 0:  # the square wave overran the stop: scale it down until it does not
-        for factor in (0.8, 0.6, 0.4, 0.2, 0.1):
-            trial = x0.copy()
-            trial[:setup.knots] *= factor
-            if margin(trial) >= 0:
-                x0, start = trial, ratio(trial)
-                break
-    history = [start]
+        x0 = np.append(x0, (q0 - model.q_min) / q_span)
+    for factor in (1.0, 0.8, 0.6, 0.4, 0.2, 0.1):
+        trial = x0.copy()
+        trial[:setup.knots] *= factor
+        if margin(trial) >= 0:
+            break
+    x0 = trial
+    history = [ratio(x0)]
     bounds = [(-1.0, 1.0)] * setup.knots + ([(0.0, 1.0)] if free_q else [])
     res = minimize(lambda x: -ratio(x), x0, method="SLSQP", bounds=bounds,
                    constraints=[{"type": "ineq", "fun": margin}],
@@ -261,14 +282,14 @@ def optimise_wrist(params: Parameters, setup: Explosive | None = None, *,
     run = runs.run(volts, q)
     if margin(x) < -1e-6:
         raise SimulationError(f"explosive motion: the optimiser ended past the end stop "
-                              f"({SimulationError.__name__}: {res.message})")
+                              f"({res.message})")
     return ExplosiveResult(
         q=q, times=runs.times, voltages=volts, time=run["time"], speed=run["speed"],
         motor_speed=run["motor_speed"], deflection=run["deflection"], voltage=run["voltage"],
         peak_speed=float(np.max(run["speed"])), no_load_speed=model.no_load_speed,
         history=history, evaluations=runs.evaluations, success=bool(res.success),
         message=str(res.message), limits=limits_of(model, params, volts, run, q),
-        start_ratio=start)
+        start_ratio=history[0])
 
 
 # -- the reduced model ---------------------------------------------------------------
