@@ -220,7 +220,8 @@ def optimise_wrist(params: Parameters, setup: Explosive | None = None, *,
     without it, the reduced model's optimum (`reduced_explosive`) at ``setup.q``, or at
     the best of `REDUCED_SWEEP` when q is free: the linear, friction-free axis finds the
     pumping rhythm in about a second, and the engine's runs refine it. A start that
-    drives the ring past its end stop is scaled down until it does not. `SimulationError`
+    drives the ring past its end stop is scaled down until it does not. The result is the
+    fastest profile run within the end stop (never below the start). `SimulationError`
     if a run fails; the result says whether SLSQP converged (``success``, ``message``)."""
     setup = setup or Explosive()
     setup.check()
@@ -254,13 +255,22 @@ def optimise_wrist(params: Parameters, setup: Explosive | None = None, *,
         q = model.q_min + x[-1] * q_span if free_q else q0
         return x[:setup.knots] * V, q
 
-    def ratio(x):
+    best: dict = {}
+
+    def evaluate(x):
         volts, q = unpack(x)
-        return float(np.max(runs.run(volts, q)["speed"])) / model.no_load_speed
+        run = runs.run(volts, q)
+        r = float(np.max(run["speed"])) / model.no_load_speed
+        m = 1.0 - float(np.max(run["deflection"])) / runs.end_stop
+        if m >= 0.0 and r > best.get("ratio", -math.inf):
+            best.update(ratio=r, x=np.array(x, dtype=float))
+        return r, m
+
+    def ratio(x):
+        return evaluate(x)[0]
 
     def margin(x):
-        volts, q = unpack(x)
-        return 1.0 - float(np.max(runs.run(volts, q)["deflection"])) / runs.end_stop
+        return evaluate(x)[1]
 
     x0 = np.clip(volts0 / V, -1.0, 1.0)
     if free_q:
@@ -277,12 +287,14 @@ def optimise_wrist(params: Parameters, setup: Explosive | None = None, *,
                    constraints=[{"type": "ineq", "fun": margin}],
                    callback=lambda x: history.append(ratio(x)),
                    options={"maxiter": setup.max_iterations, "ftol": 1e-6, "eps": FD_STEP})
-    x = np.clip(res.x, [b[0] for b in bounds], [b[1] for b in bounds])
-    volts, q = unpack(x)
+    evaluate(np.clip(res.x, [b[0] for b in bounds], [b[1] for b in bounds]))
+    if "x" not in best:
+        raise SimulationError(f"explosive motion: no profile tried kept the ring within its "
+                              f"end stop ({res.message})")
+    # the best profile run within the end stop (SLSQP's last iterate, or a point it
+    # tried on the way, its finite differences' included: each is an engine run)
+    volts, q = unpack(best["x"])
     run = runs.run(volts, q)
-    if margin(x) < -1e-6:
-        raise SimulationError(f"explosive motion: the optimiser ended past the end stop "
-                              f"({res.message})")
     return ExplosiveResult(
         q=q, times=runs.times, voltages=volts, time=run["time"], speed=run["speed"],
         motor_speed=run["motor_speed"], deflection=run["deflection"], voltage=run["voltage"],

@@ -342,8 +342,10 @@ def _still_growing(best) -> bool:
 def _explosive_rows(best, lin, rig, sweep, swept, end_stop, window) -> list[Row]:
     src = "Haddadin et al. 2011; Garabini et al. 2011; Braun et al. 2012"
     lim = best.limits
-    converged = "converged" if best.success else \
-        f"did not converge ({best.message}: the ratio is what it had reached)"
+    tail = best.history[-11:]
+    converged = "converged" if best.success else (
+        f"did not converge ({best.message}: the ratio is the best it had run, up by "
+        f"{tail[-1] - tail[0]:.2g} over its last {len(tail) - 1} iterations)")
     rows = [
         Row("peak theta_x speed over the motors' speed limit", _not_stated(
             "about 2 on hardware VSAs"), best.ratio, "-", src,
