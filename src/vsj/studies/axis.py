@@ -38,7 +38,7 @@ no-load speed at its voltage limit (`AxisModel.pivot_rate_limit`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -162,10 +162,7 @@ class AxisModel:
     ``voltage_limit`` [V]; ``joint``: the `JointTable`; ``q_min``, ``q_max`` [m]: the
     pivot's range; ``pivot_amplitude`` [m] and ``pivot_speed`` [rad/s]: ``q =
     amplitude sin(phi_C)`` and the largest ``dphi_C/dt`` (the stiffness motor's no-load
-    speed through its gearing; ``inf``: the stiffness changes at once);
-    ``rotor_per_output`` (rad/rad): each output motor's rotor angle per radian of
-    ``theta_m`` (the voltages of the real wrist follow its signs); ``source``: where it
-    came from.
+    speed through its gearing); ``source``: where it came from.
     """
 
     mass: np.ndarray
@@ -178,7 +175,6 @@ class AxisModel:
     q_max: float
     pivot_amplitude: float
     pivot_speed: float
-    rotor_per_output: tuple[float, ...] = (1.0,)
     source: str = ""
     elastic: str = field(default="geometric")
 
@@ -205,9 +201,7 @@ class AxisModel:
         if not (self.joint.q[0] <= self.q_min and self.q_max <= self.joint.q[-1]):
             raise InputError("axis model: the joint table must cover the pivot's range")
         _finite("pivot_amplitude", self.pivot_amplitude, low=0.0)
-        if not (self.pivot_speed > 0):
-            raise InputError(f"axis model: pivot_speed must be > 0 rad/s (inf: instant), got "
-                             f"{self.pivot_speed!r}")
+        _finite("pivot_speed", self.pivot_speed, low=0.0)
 
     @cached_property
     def _inverse_mass(self) -> np.ndarray:
@@ -220,24 +214,11 @@ class AxisModel:
         aside). A rigid joint's link never moves faster."""
         return float(self.voltage_gain[0] * self.voltage_limit / self.back_emf[0][0])
 
-    @property
-    def stall_torque(self) -> float:
-        """The motors' torque at standstill and the voltage limit, reflected to the axis
-        [N m]."""
-        return float(abs(self.voltage_gain[0]) * self.voltage_limit)
-
-    def with_pivot_speed(self, pivot_speed: float) -> "AxisModel":
-        """The same model with another largest pivot carrier speed [rad/s] (``inf``: the
-        idealised joint whose stiffness changes at once)."""
-        return replace(self, pivot_speed=float(pivot_speed))
-
     def pivot_rate_limit(self, q) -> tuple[np.ndarray, np.ndarray]:
         """``(largest |dq/dt| [m/s], its derivative over q [1/s])`` at pivot positions
         ``q`` [m]: ``pivot_speed sqrt(amplitude^2 - q^2)``."""
         q = np.asarray(q, dtype=float)
         root = np.sqrt(np.maximum(self.pivot_amplitude ** 2 - q ** 2, 0.0))
-        if math.isinf(self.pivot_speed):
-            return np.full(q.shape, np.inf), np.zeros(q.shape)
         return self.pivot_speed * root, -self.pivot_speed * q / np.maximum(root, 1e-300)
 
     def acceleration(self, state, voltage, q):
@@ -374,7 +355,6 @@ def axis_model(params: Parameters, *, elastic: str = "geometric") -> AxisModel:
     return AxisModel(mass=mass, damping=damping, back_emf=emf, voltage_gain=gain,
                      voltage_limit=limits.pop(), joint=joint, q_min=kin.q_min,
                      q_max=kin.q_max, pivot_amplitude=kin.amplitude, pivot_speed=pivot_speed,
-                     rotor_per_output=tuple(float(v) for v in per_output),
                      source=f"vsj wrist network, {elastic} elastic model, parameter set "
                             f"{params.hash()[:12]}", elastic=elastic)
 

@@ -53,7 +53,7 @@ from ..simulate import InitialState, SimulationOptions, simulate
 from ..wrist import WristOptions, build_wrist
 from . import collocation
 from .axis import AxisModel, axis_model
-from .impact import HAND, BodyModel, force_per_speed, impact
+from .impact import HAND, BodyModel, force_per_speed, impact, safe_speed
 
 STRATEGIES = ("rigid", "stiffest", "best fixed", "schedule", "instant schedule")
 
@@ -71,7 +71,7 @@ class SafeMotion:
     link: float = 0.1
     tip_mass: float = 0.0
     body: BodyModel = HAND
-    nodes: int = 40
+    nodes: int = 30
     safety_points: int = 15
     fixed_candidates: int = 7
 
@@ -103,8 +103,9 @@ class SafeSpeed:
     """The safe link speed over the stiffness setting: at pivot positions ``q`` [m]
     (joint stiffness ``stiffness`` [N m/rad]) the peak force per tip speed
     ``force_per_speed`` [N s/m] and the largest safe link speed ``speed`` [rad/s];
-    ``rigid`` the same for a rigid joint; ``first_contact`` the peak per speed of the
-    first contact alone (for the page: what the later contacts add)."""
+    ``rigid_force_per_speed`` and ``rigid_speed`` the same for a rigid joint;
+    ``first_contact`` the peak per speed of the first contact alone [N s/m] (what the
+    later contacts add shows against it)."""
 
     q: np.ndarray
     stiffness: np.ndarray
@@ -138,7 +139,8 @@ def safe_speeds(model: AxisModel, setup: SafeMotion) -> SafeSpeed:
     limit = setup.body.force_limit / setup.link
     return SafeSpeed(q=q, stiffness=K, force_per_speed=per, speed=limit / per,
                      first_contact=np.array(first), rigid_force_per_speed=rigid,
-                     rigid_speed=limit / rigid)
+                     rigid_speed=safe_speed(model.mass, math.inf, setup.link, setup.body,
+                                            tip_mass=setup.tip_mass))
 
 
 # -- the elastic axis as a collocation problem ----------------------------------------
@@ -150,7 +152,6 @@ def _elastic_problem(model: AxisModel, setup: SafeMotion, safe: SafeSpeed,
     Theta = setup.distance
     w_scale = max(Theta / T_guess, 1.0)
     r_top = float(np.max(model.pivot_rate_limit(np.linspace(model.q_min, model.q_max, 50))[0]))
-    r_top = r_top if math.isfinite(r_top) else (model.q_max - model.q_min) / (0.1 * T_guess)
     hold_top = float(np.max(model.joint.holdable))
     h_scale = hold_top
 
@@ -185,14 +186,11 @@ def _elastic_problem(model: AxisModel, setup: SafeMotion, safe: SafeSpeed,
             Cx[:, 2 + j, 0] = -sgn / h_scale
             Cx[:, 2 + j, 1] = sgn / h_scale
             Cx[:, 2 + j, 4] = dhold / h_scale
-        if math.isfinite(model.pivot_speed):
-            rmax, drmax = model.pivot_rate_limit(q)
-            for j, sgn in enumerate((1.0, -1.0)):
-                c[:, 4 + j] = (rmax - sgn * U[:, 1]) / r_top
-                Cx[:, 4 + j, 4] = drmax / r_top
-                Cu[:, 4 + j, 1] = -sgn / r_top
-        else:
-            c[:, 4:6] = 1.0
+        rmax, drmax = model.pivot_rate_limit(q)
+        for j, sgn in enumerate((1.0, -1.0)):
+            c[:, 4 + j] = (rmax - sgn * U[:, 1]) / r_top
+            Cx[:, 4 + j, 4] = drmax / r_top
+            Cu[:, 4 + j, 1] = -sgn / r_top
         return c, Cx, Cu
 
     big = 10.0 * max(float(np.max(safe.speed)), model.no_load_speed)

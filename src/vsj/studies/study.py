@@ -36,10 +36,10 @@ from ..params import Parameters
 from ..plots import save
 from ..reproduce.base import INPUT, LIMIT, NOT_STATED, Context, Figure, Row
 from . import draw
-from .collocation import SMOOTHING
 from .axis import AxisModel, axis_model
 from .brachistochrone import (SafeMotion, integrated_error, optimise, safe_speeds, verify,
                               with_tip)
+from .collocation import SMOOTHING
 from .explosive import Explosive, optimise_wrist, reduced_explosive
 
 #: The statement each study's rows belong to (one entry each in the page's headline).
