@@ -76,7 +76,8 @@ class BodyModel:
 
 #: ISO/TS 15066:2016's hand (and fingers): effective mass 0.6 kg and effective spring
 #: constant 75 N/mm (table A.3), maximum permissible quasi-static force 140 N (table A.2,
-#: hand and fingers), doubled for transient contact (annex A.3.4).
+#: hand and fingers), doubled for transient contact (annex A). To be checked against the
+#: ISO/TS 15066 module of the contact-and-safety work once it is merged.
 HAND = BodyModel("hand", 0.6, 75e3, 280.0,
                  "ISO/TS 15066:2016 table A.3 (effective mass 0.6 kg, spring constant "
                  "75 N/mm) and table A.2 (140 N quasi-static, transient twice that)")
