@@ -28,19 +28,11 @@ import math
 from dataclasses import dataclass
 
 from .components import Bearing, Contact, Fixed, Inertia, SpringDamper
-from .errors import InputError
+from .errors import InputError, finite_number
 from .network import Network, Signal
 
 
-def _number(where: str, value, *, low: float | None = None, strict: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{where} must be a number, got {value!r}") from None
-    if not math.isfinite(v) or (low is not None and (v <= low if strict else v < low)):
-        bound = "" if low is None else f" {'>' if strict else '>='} {low:g}"
-        raise InputError(f"{where} must be a finite number{bound}, got {value!r}")
-    return v
+_number = finite_number  # (where, value, low=, strict=)
 
 
 @dataclass(frozen=True)

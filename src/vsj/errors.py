@@ -16,6 +16,7 @@ Both are refused before anything is read.
 
 from __future__ import annotations
 
+import math
 import os
 import stat
 from pathlib import Path
@@ -98,3 +99,16 @@ def read_text(path: str | Path, what: str, *, limit: int = TEXT_BYTES) -> str:
         raise InputError(f"{path}, line {line}: byte offset {exc.start} "
                          f"({data[exc.start]:#04x}) is not UTF-8; a {what} is UTF-8 text") \
             from None
+
+
+def finite_number(name: str, value, *, low: float | None = None, strict: bool = False) -> float:
+    """``value`` as a finite float, above ``low`` (``strict``) or at least it; else
+    `InputError` naming ``name`` and what is allowed."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v) or (low is not None and (v <= low if strict else v < low)):
+        bound = "" if low is None else f" {'>' if strict else '>='} {low:g}"
+        raise InputError(f"{name} must be a finite number{bound}, got {value!r}")
+    return v

@@ -21,7 +21,7 @@ from typing import Mapping, Union
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, finite_number
 from ..inputs import as_inputs
 from ..network import Structure
 
@@ -39,14 +39,7 @@ N_CTL, N_MEAS, N_BLK, N_PID, N_ACT = 2, 4, 6, 10, 5
 
 
 def _finite(value, name: str, *, low: float | None = None, strict: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v) or (low is not None and (v <= low if strict else v < low)):
-        bound = "" if low is None else f" {'>' if strict else '>='} {low:g}"
-        raise InputError(f"{name} must be a finite number{bound}, got {value!r}")
-    return v
+    return finite_number(name, value, low=low, strict=strict)
 
 
 @dataclass(frozen=True)

@@ -37,7 +37,6 @@ no-load speed at its voltage limit (`AxisModel.pivot_rate_limit`).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -46,7 +45,7 @@ from scipy.integrate import solve_ivp
 from scipy.interpolate import PchipInterpolator, RectBivariateSpline
 
 from ..control.wrist import wrist_kinematics
-from ..errors import InputError, SimulationError
+from ..errors import InputError, SimulationError, finite_number
 from ..network import Structure
 from ..params import Parameters
 from ..springs import end_stop, evaluate
@@ -63,14 +62,7 @@ PIVOT_POINTS = 85
 
 
 def _finite(name: str, value, *, low: float | None = None, strict: bool = True) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v) or (low is not None and (v <= low if strict else v < low)):
-        bound = "" if low is None else f" {'>' if strict else '>='} {low:g}"
-        raise InputError(f"{name} must be a finite number{bound}, got {value!r}")
-    return v
+    return finite_number(name, value, low=low, strict=strict)
 
 
 @dataclass(frozen=True)
