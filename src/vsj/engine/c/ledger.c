@@ -33,6 +33,14 @@ static offsets offsets_of(const vsj_model *m) {
     return a;
 }
 
+/* The energy of spring row rr at deflection d and pivot position q (its end stop's
+ * included). */
+static double spring_energy(const vsj_model *m, int64_t rr, double d, double q) {
+    double stiff, energy, dvdq;
+    vsj__spring(m->code[rr], vsj__row(m, rr), d, q, &stiff, &energy, &dvdq, NULL, 1);
+    return energy;
+}
+
 /* Friction: each element's torque (t->force) over its mid-step slip. */
 static void book_friction(const vsj_model *m, ts_work *t, double *acc, const offsets *a,
                           double hs) {
@@ -44,8 +52,10 @@ static void book_friction(const vsj_model *m, ts_work *t, double *acc, const off
     }
 }
 
-/* Springs: the trapezoidal torque over the deflection's change; a pivot that moved
- * (q_prev to q_end) changes their energy at the end deflection. */
+/* Springs: the step's torque (at the mid-step pivot q_mid) over the deflection's
+ * change; a pivot that moved (q_prev to q_end) changes their energy by the rest,
+ * V(d1, q_end) - V(d1, q_mid) + V(d0, q_mid) - V(d0, q_prev), so that the two add up
+ * to V(d1, q_end) - V(d0, q_prev) where the torque is exact at q_mid. */
 static void book_springs(const vsj_model *m, ts_work *t, double *acc, const offsets *a,
                          double hs, double q_end) {
     int64_t k, rr, nf = m->n_frictions;
@@ -59,10 +69,10 @@ static void book_springs(const vsj_model *m, ts_work *t, double *acc, const offs
         vsj__uaddv(m, rr, t->srcF, tau_avg);
         if (q_end != t->q_prev) {
             double d1 = vsj__xdot(m, rr, t->x1) + vsj__udotv(m, rr, t->sg1);
-            double st_, e1, e0, dq_;
-            vsj__spring(m->code[rr], vsj__row(m, rr), d1, q_end, &st_, &e1, &dq_, NULL, 1);
-            vsj__spring(m->code[rr], vsj__row(m, rr), d1, t->q_prev, &st_, &e0, &dq_, NULL, 1);
-            acc[a->piv + k] += e1 - e0;
+            double d0 = vsj__xdot(m, rr, t->x) + vsj__udotv(m, rr, t->sg0);
+            acc[a->piv + k] += spring_energy(m, rr, d1, q_end) - spring_energy(m, rr, d1, t->q_mid)
+                               + spring_energy(m, rr, d0, t->q_mid)
+                               - spring_energy(m, rr, d0, t->q_prev);
         }
     }
 }

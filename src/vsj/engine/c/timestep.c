@@ -5,7 +5,9 @@
  * length h:
  *
  *   - springs: trapezoidal rule, linearised about the start of the step with
- *     the law's analytic stiffness;
+ *     the law's analytic stiffness; the geometric element's potential form by
+ *     the discrete gradient of its energy (its torque over the step is its
+ *     energy's change over the deflection's), linearised about a prediction;
  *   - smooth friction and viscous parts: implicit Euler, linearised (damping
  *     that stays stable however stiff); dampers (elements flagged
  *     VSJ_F_TRAPEZOIDAL, such as a spring-damper's) the trapezoidal rule, so
@@ -35,8 +37,9 @@
  * (the contact conditions leave that split open).
  *
  * Every force's work is booked against the mid-step speed, the speed the
- * scheme moves with, so the energy ledger (ledger.c) closes up to the spring
- * linearisation.
+ * scheme moves with, so the energy ledger (ledger.c) closes up to the springs'
+ * and contacts' linearisation about their predicted end (of fifth order in the
+ * step's deflection) and the pivot's motion within the step.
  */
 #include <math.h>
 #include <string.h>
@@ -568,8 +571,31 @@ static void assemble_inertia(const vsj_model *m, ts_work *t, double hs) {
     }
 }
 
+/* A spring's torque over a step, as the discrete gradient of its energy between the
+ * start's deflection d0 and the prediction d1p = d0 + hs rate0 + dsig (the rate held):
+ * the endpoint-corrected trapezoidal rule of V' over [d0, d1p], whose error is of
+ * fifth order in the step's deflection (the plain quotient (V(d1p) - V(d0)) / (d1p -
+ * d0) would cancel as the step's deflection vanishes). Returns the torque at d1p
+ * and in *kap twice its slope in the end deflection, so that the torque over the
+ * step is that less kap / 2 (d1 - d1p), as the trapezoidal rule's is with the law's
+ * stiffness. */
+static double spring_gradient(const vsj_model *m, vsj_work *w, int64_t k, double d0,
+                              double tau0, double kap0, double d1p, double *kap) {
+    int64_t rr = m->n_frictions + k;
+    double kap1, en, dvq, span = d1p - d0;
+    double tau1 = vsj__spring(m->code[rr], vsj__row(m, rr), d1p, w->ts.q_mid, &kap1, &en,
+                              &dvq, w->spcache + 4 * k, !w->ts.has_stop[k]);
+    /* the slope of the mean gradient in its end: (2 V''(d1) + V''(d0)) / 6, exact for
+     * a cubic energy */
+    *kap = 2.0 * (2.0 * kap1 + kap0) / 6.0;
+    return 0.5 * (tau0 + tau1) + span * (kap1 - kap0) / 12.0;
+}
+
 /* The springs, by the trapezoidal rule linearised about the step's start with the
- * law's stiffness (the end stops are constraints of the impulse problem). */
+ * law's stiffness (the end stops are constraints of the impulse problem); a law whose
+ * torque is its energy's gradient and whose energy is not quadratic in the deflection
+ * (the geometric element's potential form) by its discrete gradient, so that the
+ * ledger books its work as the change of its energy. */
 static void assemble_springs(const vsj_model *m, vsj_work *w, double hs) {
     ts_work *t = &w->ts;
     int64_t n = m->n, s_n = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs;
@@ -587,7 +613,12 @@ static void assemble_springs(const vsj_model *m, vsj_work *w, double hs) {
         }
         tau = vsj__spring(m->code[rr], vsj__row(m, rr), d0, t->q_mid, &kap, &en, &dvq,
                           w->spcache + 4 * k, !t->has_stop[k]);
-        c_k = tau - 0.5 * kap * dsig - 0.25 * kap * hs * rate;
+        if (m->code[rr] == VSJ_GEOMETRIC) {
+            tau = spring_gradient(m, w, k, d0, tau, kap, d0 + hs * rate + dsig, &kap);
+            c_k = tau + 0.25 * kap * hs * rate; /* the torque at d1p, less its rate0 part */
+        } else {
+            c_k = tau - 0.5 * kap * dsig - 0.25 * kap * hs * rate;
+        }
         t->sp_c[k] = c_k;
         t->sp_kap[k] = kap;
         for (i = 0; i < n; i++) {
