@@ -278,7 +278,15 @@ def test_a_case_naming_no_contact_of_the_scenario_is_refused(tmp_path, capsys):
 @pytest.mark.parametrize("change, expected", [
     # an unknown kind of contact, an unknown key of a contact
     ((WALL, WALL + '[[environment.springs]]\nname = "s"\n'),
-     ("environment: unknown key(s) springs", "allowed: bodies, link, tip_mass, walls")),
+     ("environment: unknown key(s) springs",
+      "allowed: bodies, link, tip_area, tip_mass, tip_radius, walls")),
+    # the tip's geometry: one of two, each in its unit and > 0
+    (('tip_mass = "50 g"', 'tip_mass = "50 g"\ntip_area = "1 cm^2"\ntip_radius = "5 mm"'),
+     ("environment: give tip_area (a flat face) or tip_radius (a rounded tip), not both",)),
+    (('tip_mass = "50 g"', 'tip_mass = "50 g"\ntip_area = "1 cm"'),
+     ("environment.tip_area", "cannot be converted to 'm^2'")),
+    (('tip_mass = "50 g"', 'tip_mass = "50 g"\ntip_radius = "0 mm"'),
+     ("environment.tip_radius = '0 mm': must be > 0 m",)),
     ((WALL, WALL.replace("stiffness", "stifness")),
      ("environment.walls[0]: unknown key(s) stifness", "allowed:")),
     ((WALL, WALL + '[[environment.bodies]]\nname = "h"\nangle = "0.2 rad"\n'
@@ -577,3 +585,43 @@ def test_simulate_writes_each_contacts_safety_figures(tmp_path, capsys):
             assert first["passed"]["hand"] == (first["peak_force"] <= 280.0)  # Table A.2
             assert first["energy_kind"] == "work" and first["energy_to_body"] > 0
             assert set(first["joint"]) == {"vsm_1", "vsm_2"}
+
+
+def test_a_tip_geometry_adds_the_peak_pressure_and_its_verdict(tmp_path, capsys):
+    """With ``tip_radius`` the hand example's events carry their peak pressure: the
+    largest, over the samples in contact, of the force over the Hertz area pi R d (the
+    trajectory's own force and penetration), and the verdict checks it against the
+    hand's most sensitive area (ISO/TS 15066 Table A.2, transient: twice the
+    quasi-static)."""
+    import xarray as xr
+    from vsj.safety import region
+
+    radius = 0.02
+    text = edit('tip_mass = "50 g"', f'tip_mass = "50 g"\ntip_radius = "{radius * 100:g} cm"',
+                (EXAMPLES / "hand-impact.toml").read_text())
+    out = tmp_path / "tip"
+    assert main(["simulate", str(write(tmp_path, text)), "--out", str(out)]) == 0
+    capsys.readouterr()
+    meta = json.loads((out / "meta.json").read_text())
+    hand = region("hand")
+    limit = 2.0 * hand.most_sensitive_area.quasi_static_pressure
+    with xr.open_dataset(out / "trajectory.nc") as ds:
+        for k, case in enumerate(meta["cases"]):
+            force = ds["contact.hand.force"].values[k]
+            depth = ds["contact.hand.penetration"].values[k]
+            for event in case["safety"]["hand"]:
+                span = slice(event_index(ds, event["start"]), event_index(ds, event["end"]) + 1)
+                f, d = force[span], depth[span]
+                inside = f > 0
+                expected = np.max(f[inside] / (np.pi * radius * np.minimum(d[inside], radius)))
+                # the same samples and the same formula: equal to round-off
+                assert event["peak_pressure"] == pytest.approx(expected, rel=1e-12)
+                assert "pressure" in event["iso_ts_15066"]["hand"]
+                assert event["passed"]["hand"] == (event["peak_force"] <= 280.0
+                                                   and event["peak_pressure"] <= limit)
+
+
+def event_index(ds, t: float) -> int:
+    """The sample nearest time ``t`` [s] (an event's start and end lie half a sample
+    outside its first and last samples in contact)."""
+    return int(np.argmin(np.abs(ds["time"].values - t)))

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from .components import Bearing, Contact, Fixed, Inertia, SpringDamper
 from .errors import InputError, finite_number
 from .network import Network, Signal
+from .safety.iso_ts_15066 import Tip
 
 
 _number = finite_number  # (where, value, low=, strict=)
@@ -72,11 +73,15 @@ class Body:
 @dataclass(frozen=True)
 class Environment:
     """The end-effector's link (``link`` [m], ``tip_mass`` [kg]) and its ``contacts``
-    (`Wall` and `Body`)."""
+    (`Wall` and `Body`). ``tip`` (`vsj.safety.Tip`: a flat face of given area or a
+    sphere of given radius) is the tip's contact geometry, which turns a contact's force
+    into the pressure ISO/TS 15066 bounds; without it a run's safety figures check the
+    force alone."""
 
     link: float
     contacts: tuple = ()
     tip_mass: float = 0.0
+    tip: Tip | None = None
 
     def check(self) -> None:
         """`InputError` naming the key for a bad value: a link <= 0, a negative mass,
@@ -84,6 +89,9 @@ class Environment:
         contacts of one name."""
         _number("environment.link", self.link, low=0.0, strict=True)
         _number("environment.tip_mass", self.tip_mass, low=0.0)
+        if self.tip is not None and not isinstance(self.tip, Tip):
+            raise InputError(f"environment.tip: a vsj.safety.Tip (Tip.flat(area) or "
+                             f"Tip.sphere(radius)), got {type(self.tip).__name__}")
         names = [getattr(c, "name", None) for c in self.contacts]
         for i, c in enumerate(self.contacts):
             where = f"environment.contacts[{i}] ({getattr(c, 'name', '?')})"

@@ -116,6 +116,8 @@ signals (``contact.<name>.force``, ...) and whose energy the ledger books. Examp
     [environment]
     link = "10 cm"                    # from the end-effector's axes to its tip
     tip_mass = "50 g"
+    tip_radius = "5 mm"               # a rounded tip (or tip_area = "1 cm^2", a flat face):
+                                      # the safety figures then check the pressure too
 
     [[environment.walls]]             # a compliant surface on a rigid backing
     name = "table"
@@ -170,6 +172,7 @@ from .inputs import Constant, Input, Position, Sine, Step, Table, circle
 from .engine.core import available_cores
 from .engine.plan import Plan
 from .environment import Body, Environment, Wall, add_environment
+from .safety.iso_ts_15066 import Tip
 from .network import Network, Structure
 from .params import Parameters, default
 from .progress import progress as bar
@@ -1194,7 +1197,7 @@ def controller_from_table(case: Case, net: Network, structure: Structure
 # ---------------------------------------------------------------------- the environment
 # The [environment] table (see the module's docstring) in the words of vsj.environment.
 
-ENVIRONMENT_KEYS = {"link", "tip_mass", "walls", "bodies"}
+ENVIRONMENT_KEYS = {"link", "tip_mass", "tip_area", "tip_radius", "walls", "bodies"}
 LAW_KEYS = {"name", "angle", "direction", "stiffness", "exponent", "damping", "restitution",
             "impact_speed"}
 #: The arrays of contacts of [environment] and their keys (a case changes an entry by its
@@ -1399,10 +1402,25 @@ def environment_from_table(table: Mapping, where: Where) -> Environment:
     environment = Environment(link=_quantity(table, "link", "m", where, positive=True),
                               contacts=tuple(contacts),
                               tip_mass=_quantity(table, "tip_mass", "kg", where, 0.0,
-                                                 nonnegative=True))
+                                                 nonnegative=True),
+                              tip=_tip(table, where))
     with _context(where):  # the environment's own checks (none should be left)
         environment.check()
     return environment
+
+
+def _tip(table: Mapping, where: Where) -> Tip | None:
+    """The tip's contact geometry: ``tip_area`` (a flat face) or ``tip_radius`` (a
+    sphere), at most one; None without either."""
+    given = [key for key in ("tip_area", "tip_radius") if key in table]
+    if len(given) > 1:
+        raise InputError(f"{where}: give tip_area (a flat face) or tip_radius (a rounded "
+                         "tip), not both")
+    if not given:
+        return None
+    if given[0] == "tip_area":
+        return Tip.flat(_quantity(table, "tip_area", "m^2", where, positive=True))
+    return Tip.sphere(_quantity(table, "tip_radius", "m", where, positive=True))
 
 
 def _merge_environment(base, over, where: Where):

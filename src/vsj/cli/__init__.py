@@ -81,7 +81,8 @@ def cmd_simulate(args) -> int:
                                 "parameters_hash": case.params.hash(),
                                 "parameter_overrides": dict(case.case.params)})
                 if any(f.contact is not None for f in case.structure.frictions):
-                    records[-1]["safety"] = _safety(trajectory, k, case.structure)
+                    records[-1]["safety"] = _safety(trajectory, k, case.structure,
+                                                    case.case.environment)
             trajectory.close()
             if args.csv:
                 write_trajectory_csv(results.path("trajectory.csv"), trajectory)
@@ -116,9 +117,10 @@ def cmd_simulate(args) -> int:
     return 0
 
 
-def _safety(trajectory, k: int, structure) -> dict:
-    """The safety figures (`vsj.safety.run_report`) of case ``k`` of a streamed trajectory:
-    its contact, spring and speed signals read back from the file."""
+def _safety(trajectory, k: int, structure, environment) -> dict:
+    """The safety figures (`vsj.safety.run_report`) of case ``k`` of a streamed trajectory
+    (with ``environment``'s tip geometry): its contact, spring and speed signals read
+    back from the file."""
     from ..safety.run_report import report  # lazy: only runs with contacts need it
 
     reached = trajectory.reached[k]
@@ -128,7 +130,7 @@ def _safety(trajectory, k: int, structure) -> dict:
     signals = {name: trajectory.read(name, k, 0, reached) for name in wanted}
     run = Result(time=trajectory.time[:reached], signals=signals, units={}, ledger={},
                  success=True, message="", solver={})
-    return report(run, structure)
+    return report(run, structure, None if environment is None else environment.tip)
 
 
 def cmd_scenarios(args) -> int:

@@ -14,7 +14,7 @@ import numpy as np
 from ..network import Structure
 from ..springs import end_stop
 from .events import contact_events
-from .iso_ts_15066 import REGIONS, region
+from .iso_ts_15066 import REGIONS, Tip, region
 
 
 def _body_velocity(structure: Structure, e: int, result) -> np.ndarray | None:
@@ -34,11 +34,13 @@ def _body_velocity(structure: Structure, e: int, result) -> np.ndarray | None:
     return speed
 
 
-def report(result, structure: Structure) -> dict:
+def report(result, structure: Structure, tip: Tip | None = None) -> dict:
     """Per contact of ``structure``'s environment: its events (peak force, impulse,
     duration, energy transferred to a body, the joint's peak deflection, spring torque
-    and margin to the end stop) and each event's verdict for the hand and the lower arm
-    (ISO/TS 15066 Table A.2, transient force). JSON-ready; empty without contacts."""
+    and margin to the end stop; the peak pressure with the tip's geometry ``tip``) and
+    each event's verdict for the hand and the lower arm (ISO/TS 15066 Table A.2,
+    transient force, and with ``tip`` the pressure on each region's most sensitive
+    area). JSON-ready; empty without contacts."""
     # the elastic elements: the springs with an end stop (the figures are against it)
     springs = [sp for sp in structure.springs if end_stop(sp.law, sp.parameters) is not None
                and f"spring.{sp.name}.deflection" in result.signals]
@@ -56,7 +58,7 @@ def report(result, structure: Structure) -> dict:
                                 penetration=result[f"contact.{name}.penetration"],
                                 body_velocity=_body_velocity(structure, e, result),
                                 deflection=deflection, spring_torque=torque,
-                                end_stop=stops if springs else None)
+                                end_stop=stops if springs else None, tip=tip)
         out[name] = [_event(ev, [sp.name for sp in springs]) for ev in events]
     return out
 
@@ -69,6 +71,8 @@ def _event(ev, springs: list[str]) -> dict:
         "energy_to_body": ev.energy, "energy_kind": ev.energy_kind,
         "sample_resolution": ev.resolution,
     }
+    if ev.peak_pressure is not None:
+        entry["peak_pressure"] = ev.peak_pressure
     if springs and ev.peak_deflection is not None:
         entry["joint"] = {
             name: {"peak_deflection": float(ev.peak_deflection[j]),
@@ -89,7 +93,7 @@ def summary(figures: dict) -> list[str]:
             continue
         worst = max(events, key=lambda ev: ev["peak_force"])
         verdicts = ", ".join(f"{region(b).title.lower()} "
-                             f"{'within' if worst['passed'][b] else 'ABOVE'} the transient limit"
+                             f"{'within' if worst['passed'][b] else 'ABOVE'} the transient limits"
                              for b in REGIONS)
         lines.append(f"contact {name}: {len(events)} event(s), peak {worst['peak_force']:.4g} N "
                      f"at {worst['peak_time']:.4g} s ({verdicts})")
