@@ -5,6 +5,7 @@ baseline on a tiny problem, the explosive ratio of an elastic and a rigid joint,
 refusals of bad input. The heavy optimisations of the studies themselves are not run
 here (they take minutes); their pieces are, on problems small enough for seconds."""
 
+import html
 import json
 import math
 
@@ -344,7 +345,12 @@ def test_the_explosive_study_end_to_end_in_its_reduced_form(params, model, tmp_p
     files = write(fig, tmp_path)
     assert [f.name for f in files] == ["study-explosive-motion.png",
                                        "study-explosive-motion.svg",
-                                       "study-explosive-motion.json"]
+                                       "study-explosive-motion.json",
+                                       "study-explosive-motion.html"]
     record = json.loads(files[2].read_text())
     assert record["data"]["ratio"] == pytest.approx(fig.data["ratio"], rel=1e-15)
     assert len(record["rows"]) == len(fig.rows)
+    # the page shows every row under its category, and the finding it tests
+    text = html.unescape(files[3].read_text())
+    assert all(r.quantity in text for r in fig.rows)
+    assert "Haddadin et al. (2011)" in text and "no row has a report value" in text

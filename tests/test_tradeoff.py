@@ -8,6 +8,7 @@ import pytest
 
 from vsj.cli import main
 from vsj.errors import InputError
+from vsj.reproduce.base import CATEGORIES
 from vsj.safety import tradeoff
 
 QUICK = tradeoff.Setup(fade_in=1.0, duration=5.0)
@@ -44,11 +45,25 @@ def test_the_command_writes_the_figure_the_numbers_and_the_page(tmp_path, capsys
     assert (out / "tracking-safety.png").stat().st_size > 10_000
 
 
+def test_the_command_runs_the_optimised_studies(tmp_path, capsys):
+    """``vsj study explosive-motion`` (reduced) writes the study's figure, numbers and
+    page, and prints its caption, whose ratio is the one its numbers hold."""
+    out = tmp_path / "explosive"
+    assert main(["study", "explosive-motion", "--quick", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    record = json.loads((out / "study-explosive-motion.json").read_text())
+    assert f"{record['data']['ratio']:.2f} times the motors' speed limit" in printed
+    assert {r["category"] for r in record["rows"]} <= set(CATEGORIES)
+    page = (out / "study-explosive-motion.html").read_text()
+    assert "What it tests" in page and "<img" in page
+
+
 @pytest.mark.parametrize("argv, message", [
     (["study", "brachistochrone-x"], "unknown study"),
     (["study", "tracking-safety", "--q", "5 cm"], "outside the pivot's range"),
     (["study", "tracking-safety", "--q", "2 s"], "--q"),
     (["study", "tracking-safety", "--settings", "1"], "at least 2"),
+    (["study", "safe-and-fast", "--q=1cm"], "chooses its own stiffness settings"),
 ])
 def test_bad_study_options_exit_2_naming_them(argv, message, tmp_path, capsys):
     assert main(argv + ["--out", str(tmp_path / "o")]) == 2

@@ -20,7 +20,16 @@ STUDIES = {
                        "collision with a hand surrogate, over the stiffness setting",
     "impact-speed": "the largest impact speed within ISO/TS 15066's transient force for the "
                     "hand and the lower arm, over the stiffness setting, against a rigid joint",
+    "safe-and-fast": "the minimum time of a theta_x motion while a collision at any instant "
+                     "stays within the hand's force bound: rigid, stiffest, best fixed "
+                     "setting and an optimised stiffness schedule (a few minutes)",
+    "explosive-motion": "the largest theta_x speed over the motors' speed limit, with the "
+                        "voltage and the stiffness setting optimised (a few minutes)",
 }
+#: The studies run by optimisation (`vsj.studies`), by their names there; they take no
+#: pivot positions.
+OPTIMISED = {"safe-and-fast": "study-safe-and-fast",
+             "explosive-motion": "study-explosive-motion"}
 
 
 def _positions(text: str | None, lo: float, hi: float, count: int) -> list[float]:
@@ -42,6 +51,8 @@ def cmd_study(args) -> int:
     if args.name not in STUDIES:
         raise InputError(f"unknown study {args.name!r}; studies: {', '.join(STUDIES)}")
     p = params.load(args.params)
+    if args.name in OPTIMISED:
+        return _optimised(args, p)
     if args.settings < 2:
         raise InputError(f"option --settings: at least 2, got {args.settings}")
     quick = dict(fade_in=1.0, duration=5.0) if args.quick else {}
@@ -71,6 +82,25 @@ def cmd_study(args) -> int:
     return 0
 
 
+def _optimised(args, p) -> int:
+    """Run one of the `OPTIMISED` studies and write its PNG, SVG, JSON and page."""
+    if args.q is not None:
+        raise InputError(f"option --q: study {args.name} chooses its own stiffness settings")
+    # lazy: the optimisation studies load SciPy's optimisers and the reproduction's figures
+    from ..reproduce.base import Context
+    from ..studies import STUDIES as RUNS, write
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    print(f"vsj study {args.name}: optimising{' (reduced)' if args.quick else ''}",
+          file=sys.stderr)
+    figure = RUNS[OPTIMISED[args.name]](Context(params=p, reduced=args.quick))
+    files = write(figure, out)
+    print(figure.caption)
+    print("wrote " + ", ".join(str(f) for f in files))
+    return 0
+
+
 def register(sub) -> None:
     """Add ``study`` to the ``vsj`` command's subparsers."""
     p = sub.add_parser(
@@ -86,5 +116,6 @@ def register(sub) -> None:
     p.add_argument("--settings", type=int, default=7, metavar="N",
                    help="number of stiffness settings over the pivot's range (default 7)")
     p.add_argument("--quick", action="store_true",
-                   help="shorter runs (one turn less of the circle)")
+                   help="shorter runs (one turn less of the circle; a smaller problem for "
+                        "the optimised studies)")
     p.set_defaults(func=cmd_study)

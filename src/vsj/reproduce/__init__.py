@@ -295,7 +295,9 @@ def _table_html(rows: list[tuple[str, Row]], with_figure: bool) -> str:
     return f"<table>{head}{''.join(body)}</table>"
 
 
-def _by_category(rows: list[tuple[str, Row]], categories) -> str:
+def rows_by_category(rows: list[tuple[str, Row]], categories=CATEGORIES) -> str:
+    """HTML tables of ``rows`` (pairs of figure name and `Row`), one per category in
+    ``categories`` that has rows, each under its title (`TITLES`)."""
     parts = []
     for category in categories:
         chosen = [(w, r) for w, r in rows if r.category == category]
@@ -401,7 +403,7 @@ def render_html(result: Reproduction, params: Parameters) -> str:
             parts.append(f"<p class='error'>This figure failed: {html.escape(o.error)}</p>")
             continue
         parts.append(pages.figure(o.png, o.figure.caption, synthetic=o.figure.synthetic))
-        parts.append(_by_category([(o.name, r) for r in o.figure.rows],
+        parts.append(rows_by_category([(o.name, r) for r in o.figure.rows],
                                   [c for c in CATEGORIES if c != INPUT]))
     inputs = [(w, r) for w, r in result.rows() if r.category == INPUT]
     parts.append("<h2 id='inputs'>Inputs used as given</h2><p>The report's numbers vsj "

@@ -202,13 +202,15 @@ def page(result: Tradeoff, png: bytes) -> str:
         for q, k, lag, e, f in zip(result.q, result.stiffness, result.lag, result.rms_error,
                                     result.peak_force))
     s = result.setup
+    hand = region("hand")
     body = [
         "<p class=headline>" + pages.esc(result.summary()) + "</p>",
         "<p>" + pages.esc(
             f"The wrist (DC motors, exponential elastic elements, {s.friction} friction) "
             f"follows a {s.radius:g} rad circle at {s.frequency:g} Hz (report fig 4.15's "
             f"motion) in closed loop at {1 / s.period:g} Hz, once in free space (the lag) "
-            f"and once with a hand surrogate (ISO/TS 15066 Table A.3: {0.6:g} kg, 75 N/mm) "
+            f"and once with a hand surrogate (ISO/TS 15066 Table A.3: "
+            f"{hand.effective_mass:g} kg, {hand.spring_constant / 1e3:g} N/mm) "
             f"held by an arm of {s.arm_stiffness:g} N/m, {s.inset:g} rad inside the "
             f"circle, {s.link:g} m from the wrist's centre (tip mass {s.tip_mass:g} kg)."
         ) + " <span class='synthetic'>model study: no measurement</span></p>",

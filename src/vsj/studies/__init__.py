@@ -10,7 +10,7 @@
 * `explosive`: the largest link speed over the motors' (`Explosive`, `optimise_wrist`
   on the engine, `reduced_explosive`);
 * `study`: both as figures with rows for ``vsj reproduce`` or a ``vsj study`` command
-  (`STUDIES`, `write`), drawn by `draw`.
+  (`STUDIES`, `write`, `page`), drawn by `draw`.
 """
 
 from .axis import AxisModel, JointTable, axis_model
@@ -20,10 +20,11 @@ from .explosive import Explosive, ExplosiveResult, ReducedExplosive, optimise_wr
     reduced_explosive
 from .impact import HAND, BodyModel, Impact, force_per_speed, impact, \
     mass_spring_mass_peak, reduced_mass, safe_speed
-from .study import STUDIES, explosive_motion, safe_and_fast, write
+from .study import STUDIES, explosive_motion, page, safe_and_fast, write
 
 __all__ = ["AxisModel", "BodyModel", "Explosive", "ExplosiveResult", "HAND", "Impact",
            "JointTable", "ReducedExplosive", "STRATEGIES", "STUDIES", "SafeMotion",
            "SafeSpeed", "Strategy", "axis_model", "explosive_motion", "force_per_speed",
-           "impact", "mass_spring_mass_peak", "optimise", "optimise_wrist", "reduced_explosive",
-           "reduced_mass", "safe_and_fast", "safe_speed", "safe_speeds", "verify", "write"]
+           "impact", "mass_spring_mass_peak", "optimise", "optimise_wrist", "page",
+           "reduced_explosive", "reduced_mass", "safe_and_fast", "safe_speed", "safe_speeds",
+           "verify", "write"]

@@ -41,6 +41,7 @@ from scipy.linalg import eigh
 from scipy.optimize import brentq, minimize_scalar
 
 from ..errors import InputError, SimulationError
+from ..safety import region
 
 #: Samples per period of the fastest mode when a phase's gap is searched for its zero
 #: crossing and its peak: a crossing closer than 1/64 period to another could be missed,
@@ -74,13 +75,22 @@ class BodyModel:
                                  f"got {v!r}")
 
 
-#: ISO/TS 15066:2016's hand (and fingers): effective mass 0.6 kg and effective spring
-#: constant 75 N/mm (table A.3), maximum permissible quasi-static force 140 N (table A.2,
-#: hand and fingers), doubled for transient contact (annex A). To be checked against the
-#: ISO/TS 15066 module of the contact-and-safety work once it is merged.
-HAND = BodyModel("hand", 0.6, 75e3, 280.0,
-                 "ISO/TS 15066:2016 table A.3 (effective mass 0.6 kg, spring constant "
-                 "75 N/mm) and table A.2 (140 N quasi-static, transient twice that)")
+    @classmethod
+    def from_region(cls, name: str, contact: str = "transient") -> "BodyModel":
+        """The ISO/TS 15066 body region ``name`` (``"hand"``, ``"lower_arm"``;
+        `vsj.safety.region`) as a body: its effective mass and spring constant
+        (Table A.3) and its permissible force for ``contact`` (Table A.2), with the
+        sources those values cite."""
+        reg = region(name)
+        sources = "; ".join(reg.sources[key] for key in (
+            "effective_mass", "spring_constant", "quasi_static_force",
+            "transient_force_factor"))
+        return cls(reg.name, reg.effective_mass, reg.spring_constant,
+                   reg.permissible_force(contact), sources)
+
+
+#: The hand of ISO/TS 15066 (`vsj.safety.region` ``"hand"``) under transient contact.
+HAND = BodyModel.from_region("hand")
 
 
 @dataclass(frozen=True)

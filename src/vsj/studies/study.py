@@ -412,10 +412,47 @@ def _plain(value):
     return value
 
 
+#: What each study tests, for its page: the published finding, and what is new.
+FINDINGS = {
+    "study-safe-and-fast": (
+        "Bicchi and Tonietti (2004) found that a joint whose stiffness can change during a "
+        "motion reaches a target sooner than a stiff one under the same collision force "
+        "bound, with a schedule that is stiff at the start and the end and soft in the "
+        "middle. The study solves that problem with the wrist's own parameters and reports "
+        "what they give, whether or not it matches the finding."),
+    "study-explosive-motion": (
+        "Haddadin et al. (2011), Garabini et al. (2011) and Braun et al. (2012) found that an "
+        "elastic joint, driven with an optimised motor and stiffness profile, can throw its "
+        "link at about twice the speed the motor alone allows, where a stiff joint reaches "
+        "once that speed. The study computes the wrist's ratio and says what limits it."),
+}
+
+
+def page(figure: Figure, png: bytes) -> str:
+    """A study's HTML page: its caption, the figure (``png``, the PNG `write` made), what
+    it tests and what is new, and its rows by category, as the reproduction shows them."""
+    # lazy: the reproduction's row tables load every figure module; pages only need them
+    from ..reproduce import rows_by_category
+    from .. import pages  # lazy: as above
+
+    if not isinstance(figure, Figure) or figure.name not in FINDINGS:
+        raise InputError(f"page: one of the studies {', '.join(FINDINGS)}, got "
+                         f"{getattr(figure, 'name', type(figure).__name__)!r}")
+    body = ["<p class=headline>" + pages.esc(figure.caption) + " <span class='synthetic'>"
+            "model study: no measurement</span></p>",
+            pages.figure(png, figure.caption),
+            "<p>" + pages.esc("What it tests: " + FINDINGS[figure.name]) + "</p>",
+            "<p>" + pages.esc("What is new: the report has no such study, so no row has a "
+                              "report value to compare with; each row's category says what "
+                              "kind of number it is, as in the reproduction.") + "</p>",
+            rows_by_category([(figure.name, r) for r in figure.rows])]
+    return pages.document(f"vsj study: {figure.name.removeprefix('study-')}", body)
+
+
 def write(figure: Figure, directory: str | Path) -> list[Path]:
-    """Write a study's ``<name>.png``, ``<name>.svg`` and ``<name>.json`` (caption, rows
-    with their categories and verdicts, and the data) into ``directory``, each file
-    atomically; returns the paths. A command that writes a result set wraps this in
+    """Write a study's ``<name>.png``, ``<name>.svg``, ``<name>.json`` (caption, rows
+    with their categories and verdicts, and the data) and ``<name>.html`` (`page`) into
+    ``directory``, each file atomically; returns the paths. A command that writes a result set wraps this in
     `vsj.output.ResultSet`."""
     if not isinstance(figure, Figure):
         raise InputError(f"write: a study's Figure, got {type(figure).__name__}")
@@ -433,8 +470,11 @@ def write(figure: Figure, directory: str | Path) -> list[Path]:
     path = directory / f"{figure.name}.json"
     with atomic_write(path) as handle:
         handle.write(json.dumps(_plain(record), indent=1))
-    return [png, png.with_suffix(".svg"), path]
+    html = directory / f"{figure.name}.html"
+    with atomic_write(html) as handle:
+        handle.write(page(figure, png.read_bytes()))
+    return [png, png.with_suffix(".svg"), path, html]
 
 
-__all__ = ["EXPLOSIVE_STATEMENT", "SAFE_STATEMENT", "STUDIES", "explosive_motion",
-           "explosive_setup", "safe_and_fast", "safe_setup", "write"]
+__all__ = ["EXPLOSIVE_STATEMENT", "FINDINGS", "SAFE_STATEMENT", "STUDIES", "explosive_motion",
+           "explosive_setup", "page", "safe_and_fast", "safe_setup", "write"]
