@@ -165,7 +165,9 @@ for solver in ("dopri", "rosenbrock"):
     contact_tests.test_a_linear_contact_gives_the_closed_form_peak_and_duration(solver)
 contact_tests.test_the_time_stepper_keeps_a_linear_contacts_energy(1e-3)
 contact_tests.test_a_joint_held_against_a_wall_by_stiction_does_not_creep("stiction")
-contact_tests.test_the_ledger_closes_with_contacts_a_controller_and_stiction_at_the_default_step()
+for elastic in ("geometric", "exponential"):
+    contact_tests.test_the_ledger_closes_with_contacts_a_controller_and_stiction_at_the_default_step(
+        elastic, True)
 print("contacts", flush=True)
 scen = scenarios.load("fig-4.15")
 prep = scenarios.prepare_case(scen, scen.cases[0], params)

@@ -29,9 +29,10 @@ def _stop_angles(structure: Structure) -> dict[str, float]:
 
 def finer_setting(solver: str, residual: float, options: SimulationOptions) -> str:
     """What to run instead when the ledger's residual exceeds its tolerance: for the
-    time-stepper a step that divides the output step and, at the residual's second
-    order in the step (its springs, integrated by the trapezoidal rule), brings it to
-    a quarter of the tolerance; for dopri and rosenbrock an rtol that would bring it to a
+    time-stepper a step that divides the output step and, were the residual of second
+    order in the step (the trapezoidal rule's; the laws' linearisation about each
+    step's predicted end leaves less, falling faster), would bring it to a quarter of
+    the tolerance; for dopri and rosenbrock an rtol that would bring it to a
     hundredth if
     it followed rtol in proportion (it does only roughly: another rtol takes other
     steps, whose errors need not cancel alike)."""
