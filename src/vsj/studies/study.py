@@ -440,7 +440,8 @@ def page(figure: Figure, png: bytes) -> str:
                          f"{getattr(figure, 'name', type(figure).__name__)!r}")
     body = ["<p class=headline>" + pages.esc(figure.caption) + " <span class='synthetic'>"
             "model study: no measurement</span></p>",
-            pages.figure(png, figure.caption),
+            pages.figure(png, f"{figure.name}.png (and .svg beside it); its numbers are "
+                              f"in {figure.name}.json"),
             "<p>" + pages.esc("What it tests: " + FINDINGS[figure.name]) + "</p>",
             "<p>" + pages.esc("What is new: the report has no such study, so no row has a "
                               "report value to compare with; each row's category says what "
