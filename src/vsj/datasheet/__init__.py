@@ -35,5 +35,5 @@ from .compute import CURVE_POINTS, DEFAULT_FRICTION, Statics, compute
 from .drawing import figures
 from .page import OUTPUT_BYTES, html_page, write
 
-__all__ = ["compute", "Statics", "figures", "html_page", "write", "CURVE_POINTS", "DEFAULT_FRICTION",
-           "OUTPUT_BYTES"]
+__all__ = ["compute", "Statics", "figures", "html_page", "write", "CURVE_POINTS",
+           "DEFAULT_FRICTION", "OUTPUT_BYTES"]
