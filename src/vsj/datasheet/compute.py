@@ -173,8 +173,13 @@ class Statics:
         return self._curves[q]
 
     def output_stiffness(self, q: float) -> float:
-        """Stiffness [N m/rad] about theta_x at zero deflection, pivot at ``q`` [m]."""
-        return float(self.curve(q)["stiffness"][0])
+        """Stiffness [N m/rad] about theta_x at zero deflection, pivot at ``q`` [m]: the
+        first point of `curve`, computed alone when the curve is not (the laws are
+        evaluated point by point, so it is the same number)."""
+        if q in self._curves:
+            return float(self._curves[q]["stiffness"][0])
+        return float(_output_curve(self.element, self.T, q, self.deflections[:1])
+                     ["stiffness"][0])
 
     def at(self, q: float) -> dict:
         """At pivot position ``q`` [m]: the ring's and the output's stiffness at zero
