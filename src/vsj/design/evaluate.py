@@ -14,7 +14,8 @@ a pure function of the `Problem` and the designs' values, returning a
 `vsj.sweep.runner.ChunkResult` whose ``metrics`` are the columns of `Problem.columns`
 (objectives in their natural sense, constraint margins, then auxiliary values). A
 design whose values break `vsj.params.RELATIONS`, or whose evaluation fails (a
-simulation that does not finish, a stiffness <= 0 that makes a ratio meaningless), is
+simulation that does not finish, a stiffness <= 0 somewhere over the pivot range: the
+joint is unstable there), is
 recorded with status `FAILED` and its message; the optimiser counts it infeasible.
 """
 
@@ -183,6 +184,10 @@ def evaluate(problem: Problem, x, clock: _Clock | None = None) -> tuple[np.ndarr
     qs = [float(q) for q in np.linspace(params.pivot.q_max, params.pivot.q_min,
                                         spec.q_points)]
     k = [clock(statics.output_stiffness, q) for q in qs]
+    if min(k) <= 0.0:
+        q = qs[int(np.argmin(k))]
+        return row, (f"the stiffness is {min(k):.4g} N m/rad <= 0 at q = {100 * q:.4g} cm: the "
+                     "joint is unstable there")
     quantities = _Quantities(problem, params, statics, qs, k, clock)
     try:
         for g in spec.objectives + spec.constraints:
@@ -195,9 +200,7 @@ def evaluate(problem: Problem, x, clock: _Clock | None = None) -> tuple[np.ndarr
         return row, f"evaluation failed: {exc}"
     bad = [c.name for c, value in zip(problem.columns, row) if not math.isfinite(value)]
     if bad:
-        why = (" (a stiffness <= 0 N m/rad over the pivot range: the joint is unstable "
-               "there)" if min(k) <= 0.0 else "")
-        return row, f"not finite: {', '.join(bad)}{why}"
+        return row, f"not finite: {', '.join(bad)}"
     return row, ""
 
 
@@ -221,7 +224,7 @@ class _Quantities:
         """The objective's value or the constraint's margin (SI)."""
         k, o = self.k, goal.options
         if goal.name == "stiffness_ratio":
-            return max(k) / min(k) if min(k) > 0.0 else math.nan
+            return max(k) / min(k)
         if goal.name == "min_stiffness":
             return min(k)
         if goal.name == "max_stiffness":

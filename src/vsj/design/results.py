@@ -50,7 +50,7 @@ def dataset(outcome: Outcome, base_row: np.ndarray, base_x: np.ndarray, base_mes
               "constraint": [cols[j].name for j in kinds["margin"]],
               "auxiliary": [cols[j].name for j in kinds["auxiliary"]]}
     data = {
-        "parameters": (("design", "parameter"), x[front].reshape(len(front), -1)),
+        "parameters": (("design", "parameter"), x[front].reshape(len(front), len(spec.variables))),
         "objectives": (("design", "objective"), rows[front][:, kinds["objective"]]),
         "margins": (("design", "constraint"), rows[front][:, kinds["margin"]]),
         "auxiliaries": (("design", "auxiliary"), rows[front][:, kinds["auxiliary"]]),
@@ -67,8 +67,13 @@ def dataset(outcome: Outcome, base_row: np.ndarray, base_x: np.ndarray, base_mes
         "prototype_objectives": (("objective",), base_row[kinds["objective"]]),
         "prototype_margins": (("constraint",), base_row[kinds["margin"]]),
     }
-    if not kinds["auxiliary"]:  # netCDF classic reads a dimension of size 0 as unlimited
+    # netCDF classic reads a dimension of size 0 as the unlimited one: leave such out
+    if not kinds["auxiliary"]:
         del coords["auxiliary"], data["auxiliaries"], data["auxiliary_unit"]
+    if not len(front):
+        for name in [k for k, (dims, _) in data.items() if "design" in dims]:
+            del data[name]
+        del coords["design"]
     feasible = int(np.count_nonzero(_feasible(problem, rows, status)))
     attrs = {"title": "vsj design: Pareto set", "vsj_version": __version__,
              "design_file": spec.origin, "design": spec.text, "design_sha256": spec.sha256(),
@@ -317,7 +322,7 @@ def write_params(spec: DesignSpec, out: Path, index: int) -> Path:
         if ds.attrs.get("design_sha256") != spec.sha256():
             raise InputError(f"--write-params: {path} is the result of another design file "
                              f"(its text differs from {spec.origin})")
-        count = ds.sizes["design"]
+        count = ds.sizes.get("design", 0)
         if not 0 <= index < count:
             raise InputError(f"--write-params {index}: the Pareto set in {path} has "
                              + (f"designs 0 to {count - 1}" if count else "no design"))
@@ -325,28 +330,37 @@ def write_params(spec: DesignSpec, out: Path, index: int) -> Path:
         values = [float(v) for v in ds["parameters"].values[index]]
         objectives = {str(n): float(v) for n, v in zip(ds["objective"].values,
                                                        ds["objectives"].values[index])}
+    target = out / f"design-{index}.toml"
+    text = params_text(spec, out, names, values, f"design {index} of its Pareto set",
+                       objectives)
+    with atomic_write(target) as handle:
+        handle.write(text)
+    return target
+
+
+def params_text(spec: DesignSpec, out: Path, names, values, label: str,
+                objectives: dict) -> str:
+    """A parameter file, to be written into ``out``, that ``extends`` the design file's
+    base set and sets ``names`` to ``values`` (SI, each written so that it reads back as
+    the same number); ``label`` says which design it is."""
     if spec.params is None:
         parent = Path(DEFAULT_FILE).stem
     elif spec.params in bundled_names():
         parent = spec.params
     else:
-        parent = os.path.relpath(Path(spec.params).resolve(), out.resolve())
-    source = (f"vsj design {Path(spec.origin).name}: design {index} of its Pareto set "
-              f"(seed {spec.seed})")
+        parent = os.path.relpath(Path(spec.params).resolve(), Path(out).resolve())
+    source = f"vsj design {Path(spec.origin).name}: {label} (seed {spec.seed})"
     lines = ["# written by vsj design: one design of a Pareto set, over its base set",
              f"# objectives: {json.dumps(objectives)}",
              f"extends = {json.dumps(parent)}", "",
-             "[meta]", f"name = {json.dumps(f'design {index} of {Path(spec.origin).name}')}",
+             "[meta]", f"name = {json.dumps(f'{label}, {Path(spec.origin).name}')}",
              f"description = {json.dumps(source)}"]
     sections: dict[str, list[str]] = {}
     for name, value in zip(names, values):
         section, key = name.split(".", 1)
         sections.setdefault(section, []).append(
-            f"{key} = {{ value = {json.dumps(exact_text(name, value))}, source = "
+            f"{key} = {{ value = {json.dumps(exact_text(name, float(value)))}, source = "
             f"{json.dumps(source)} }}")
     for section, entries in sections.items():
         lines += ["", f"[{section}]", *entries]
-    target = out / f"design-{index}.toml"
-    with atomic_write(target) as handle:
-        handle.write("\n".join(lines) + "\n")
-    return target
+    return "\n".join(lines) + "\n"
