@@ -96,8 +96,7 @@ def problem_for(spec: DesignSpec) -> Problem:
     when it names none) as a parameter file that ``extends`` it would load it."""
     if spec.params is None:
         return Problem(spec, params_module.default())
-    base = params_module.loads(f"extends = {json.dumps(spec.params)}",
-                               f"{spec.origin}: design.params")
+    base = params_module.loads(f"extends = {json.dumps(spec.params)}", spec.params)
     return Problem(spec, base)
 
 
