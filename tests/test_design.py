@@ -110,9 +110,9 @@ def test_the_pareto_file_holds_the_front_with_units_and_the_prototype(range_run)
 SLOW = """
 [design]
 seed = 3
-population = 12
+population = 8
 generations = 10
-batch = 3
+batch = 2
 [parameters]
 "elastic_element.rest_length" = { min = "1 cm", max = "2 cm" }
 "elastic_element.spring_stiffness" = { min = "100 N/m", max = "300 N/m" }
@@ -246,3 +246,14 @@ def test_an_infeasible_problem_is_reported_as_such(tmp_path, capsys):
     assert "No feasible design" in (tmp_path / "out" / results.PAGE).read_text()
     with xr.open_dataset(tmp_path / "out" / results.PARETO, engine="scipy") as ds:
         assert "design" not in ds.sizes and ds.attrs["feasible_evaluations"] == 0
+
+
+def test_generations_on_dask_give_the_designs_of_one_process(tmp_path):
+    """Each generation is a batch on the same cluster, the problem scattered once."""
+    spec = loads(RANGE.format(generations=3).replace("population = 40", "population = 8"),
+                 str(tmp_path / "dask.toml"))
+    here = optimise.run(spec, tmp_path / "here", workers=1)
+    there = optimise.run(spec, tmp_path / "there", scheduler="local", workers=1)
+    assert np.array_equal(np.array(there.archive.x), np.array(here.archive.x))
+    assert np.array_equal(np.array(there.archive.rows), np.array(here.archive.rows),
+                          equal_nan=True)

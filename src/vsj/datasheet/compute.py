@@ -164,6 +164,8 @@ class Statics:
         self.deflections = np.linspace(
             0.0, self.end_stop / float(np.max(np.abs(self.ring_per_output))), CURVE_POINTS)
         self._curves: dict[float, dict] = {}
+        #: ring deflection per unit theta_x as `_output_curve` solves for it
+        self._solved = np.linalg.solve(T, np.array([1.0, 0.0]))
 
     def curve(self, q: float) -> dict[str, np.ndarray]:
         """Torque [N m], tangent stiffness [N m/rad] and stored energy [J] about theta_x
@@ -174,12 +176,15 @@ class Statics:
 
     def output_stiffness(self, q: float) -> float:
         """Stiffness [N m/rad] about theta_x at zero deflection, pivot at ``q`` [m]: the
-        first point of `curve`, computed alone when the curve is not (the laws are
-        evaluated point by point, so it is the same number)."""
+        first point of `curve`, computed alone when the curve is not (with the same
+        operations in the same order, so it is the same number)."""
         if q in self._curves:
             return float(self._curves[q]["stiffness"][0])
-        return float(_output_curve(self.element, self.T, q, self.deflections[:1])
-                     ["stiffness"][0])
+        total = 0.0  # `_output_curve`'s sum at zero deflection, term by term alike
+        for ci in self._solved:
+            k = evaluate(self.element.law, self.element.parameters, ci * 0.0, q)[1][0]
+            total += k * ci * ci
+        return float(total)
 
     def at(self, q: float) -> dict:
         """At pivot position ``q`` [m]: the ring's and the output's stiffness at zero

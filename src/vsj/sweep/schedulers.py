@@ -211,6 +211,7 @@ class Pool:
         self.scheduler = scheduler
         self._processes = None
         self._client = self._cluster = None
+        self._scattered = None  # (job, its future on the cluster), kept across batches
         if scheduler is None:
             self.count = workers or available_cores()
         else:
@@ -231,7 +232,11 @@ class Pool:
             futures = [(index, self._processes.submit(work, job, start, values, 1))
                        for index, start, values in plan]
         else:
-            shared = self._client.scatter(job, broadcast=True)
+            # scattered once and held: a job scattered again has the same key, which the
+            # scheduler would drop with the earlier batch's reference to it
+            if self._scattered is None or self._scattered[0] is not job:
+                self._scattered = (job, self._client.scatter(job, broadcast=True))
+            shared = self._scattered[1]
             futures = [(index, self._client.submit(work, shared, start, values, 1,
                                                    pure=False))
                        for index, start, values in plan]
@@ -254,6 +259,7 @@ class Pool:
             self._processes.shutdown(wait=True, cancel_futures=True)
             self._processes = None
         if self._client is not None:
+            self._scattered = None
             self._client.close()
             self._client = None
         if self._cluster is not None:
