@@ -257,3 +257,24 @@ def test_generations_on_dask_give_the_designs_of_one_process(tmp_path):
     assert np.array_equal(np.array(there.archive.x), np.array(here.archive.x))
     assert np.array_equal(np.array(there.archive.rows), np.array(here.archive.rows),
                           equal_nan=True)
+
+
+def test_nsga3_stopped_after_a_generation_resumes_to_the_same_designs(tmp_path):
+    """NSGA-III's state pickles too (its tournament is pymoo's, wrapped at module level);
+    an interruption right after a checkpoint is the kill test's case in one process."""
+    text = (RANGE.format(generations=3).replace("population = 40",
+                                                 'population = 12\nalgorithm = "nsga3"')
+            + "stiffness_ratio = {}\n")
+    spec = loads(text, str(tmp_path / "nsga3.toml"))
+    whole = optimise.run(spec, tmp_path / "whole", workers=1)
+
+    def stop(text):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        optimise.run(spec, tmp_path / "stopped", workers=1, say=stop)
+    assert _state(tmp_path / "stopped")["generation"] == 1
+    resumed = optimise.run(spec, tmp_path / "stopped", resume=True, workers=1)
+    assert resumed.ran == 2 and len(resumed.archive.x) == 36
+    assert np.array_equal(np.array(resumed.archive.x), np.array(whole.archive.x))
+    assert np.array_equal(resumed.front, whole.front)

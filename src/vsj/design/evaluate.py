@@ -77,16 +77,6 @@ class Problem:
             if goal.name in ("spring_force", "no_slack", "slack_free_range") and not geometric:
                 raise InputError(f"{goal.where}: needs springs: set design.elastic to "
                                  "geometric or geometric-report")
-        for v in self.spec.variables:
-            if v.name in ("pivot.q_min", "pivot.q_max") and self.simulated:
-                raise InputError(f"{self.spec.origin}: parameters.{v.name}: the pivot range "
-                                 "cannot be designed together with tracking_lag or "
-                                 "impact_force (their stiffness is searched within it)")
-
-    @property
-    def simulated(self) -> bool:
-        """Whether an objective needs fig 4.15's simulations."""
-        return any(g.name in SIMULATED for g in self.spec.objectives)
 
     @cached_property
     def columns(self) -> list[Column]:

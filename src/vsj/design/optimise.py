@@ -28,10 +28,11 @@ from pathlib import Path
 
 import numpy as np
 from pymoo.algorithms.moo.nsga2 import NSGA2
-from pymoo.algorithms.moo.nsga3 import NSGA3
+from pymoo.algorithms.moo.nsga3 import NSGA3, comp_by_cv_then_random
 from pymoo.core.evaluator import Evaluator
 from pymoo.core.problem import Problem as PymooProblem
 from pymoo.core.termination import NoTermination
+from pymoo.operators.selection.tournament import TournamentSelection
 from pymoo.problems.static import StaticProblem
 from pymoo.util.nds.non_dominated_sorting import NonDominatedSorting
 from pymoo.util.ref_dirs import get_reference_directions
@@ -100,6 +101,13 @@ def problem_for(spec: DesignSpec) -> Problem:
     return Problem(spec, base)
 
 
+def _nsga3_tournament(pop, P, random_state=None, **kwargs):
+    """NSGA-III's tournament (pymoo's ``comp_by_cv_then_random``, which its selection
+    calls with the algorithm's random generator) as a module-level function: pymoo's
+    decorator leaves that one a local function, which the checkpoint cannot pickle."""
+    return comp_by_cv_then_random(pop, P, random_state=random_state, **kwargs)
+
+
 def algorithm_for(spec: DesignSpec, n_constraints: int):
     """pymoo's algorithm for the design file, set up (its random generator seeded)."""
     if spec.algorithm == "nsga3":
@@ -108,7 +116,8 @@ def algorithm_for(spec: DesignSpec, n_constraints: int):
             partitions += 1
         directions = get_reference_directions("das-dennis", len(spec.objectives),
                                               n_partitions=partitions)
-        algorithm = NSGA3(directions, pop_size=spec.population, seed=spec.seed)
+        algorithm = NSGA3(directions, pop_size=spec.population, seed=spec.seed,
+                          selection=TournamentSelection(func_comp=_nsga3_tournament))
     else:
         algorithm = NSGA2(pop_size=spec.population, seed=spec.seed)
     algorithm.setup(_Bounds(spec, n_constraints), termination=NoTermination())
