@@ -97,7 +97,10 @@ def problem_for(spec: DesignSpec) -> Problem:
     when it names none) as a parameter file that ``extends`` it would load it."""
     if spec.params is None:
         return Problem(spec, params_module.default())
-    base = params_module.loads(f"extends = {json.dumps(spec.params)}", spec.params)
+    try:
+        base = params_module.loads(f"extends = {json.dumps(spec.params)}", spec.params)
+    except InputError as exc:
+        raise InputError(f"{spec.origin}: design.params = {spec.params!r}: {exc}") from None
     return Problem(spec, base)
 
 
