@@ -198,10 +198,11 @@ elastic = "exponential"
 "elastic_element.a1" = { min = "0.1 N m/rad", max = "0.3 N m/rad" }
 [objectives]
 tracking_lag = { stiffness = "0.3 N m/rad" }
+impact_force = { stiffness = "0.3 N m/rad" }
 """
 
 
-def test_a_written_design_gives_the_recorded_tracking_lag_in_the_study(tmp_path, capsys):
+def test_a_written_design_gives_the_recorded_lag_and_impact_force_in_the_study(tmp_path, capsys):
     spec = loads(LAG, str(tmp_path / "lag.toml"))
     problem = Problem(spec, params.default())
     x = [0.25]
@@ -214,9 +215,10 @@ def test_a_written_design_gives_the_recorded_tracking_lag_in_the_study(tmp_path,
     capsys.readouterr()
     assert main(["study", "tracking-safety", "--params", str(path), "--q", f"{float(q)!r} m",
                  "--out", str(tmp_path / "study")]) == 0
-    lag = json.loads((tmp_path / "study" / "tracking-safety.json").read_text())["lag"][0]
-    # the same simulation of the same design: equal to rounding (1e-9 relative)
-    assert lag == pytest.approx(row[0], rel=1e-9)
+    study = json.loads((tmp_path / "study" / "tracking-safety.json").read_text())
+    # the same simulations of the same design: equal to rounding (1e-9 relative)
+    assert study["lag"][0] == pytest.approx(row[0], rel=1e-9)
+    assert study["peak_force"][0] == pytest.approx(row[1], rel=1e-9)
 
 
 @pytest.mark.parametrize("change, key", [
