@@ -137,7 +137,8 @@ def figures(outcome: Outcome, base_row: np.ndarray, base_x: np.ndarray) -> dict[
     n = len(spec.objectives)
     pairs = [(a, b) for a in range(n) for b in range(a + 1, n)] or [(0, 0)]
     cols = min(3, len(pairs))
-    fig = plots.figure(figsize=(4.6 * cols, 3.8 * ((len(pairs) + cols - 1) // cols)))
+    fig = plots.figure(figsize=(4.8 * cols, 3.8 * ((len(pairs) + cols - 1) // cols)),
+                       layout="constrained")
     label = [f"{g.name} [{problem.columns[j].display}] ({g.sense})"
              for j, g in enumerate(spec.objectives)]
     scale = [plots_scale(problem.columns[j].display, problem.columns[j].unit)
