@@ -42,6 +42,15 @@ def _kinematics(params, elastic: str):
     return T, structure.mass_matrix(), elastic_element("vsm", params, elastic)
 
 
+def output_kinematics(params, elastic: str = "geometric") -> tuple[np.ndarray, np.ndarray]:
+    """``(T, M)`` of `_kinematics`: the static map from the ring angles to the outputs
+    with the motors held, and the mass matrix of the ring angles. They depend on no
+    value of ``[elastic_element]``, so a caller that varies only those (`vsj.design`)
+    computes them once and hands them to `Statics`."""
+    T, M, _ = _kinematics(params, elastic)
+    return T, M
+
+
 def _output_curve(element, T, q: float, theta: np.ndarray) -> dict[str, np.ndarray]:
     """Torque, tangent stiffness and stored energy about theta_x at deflections ``theta``."""
     c = np.linalg.solve(T, np.array([1.0, 0.0]))  # ring deflection per unit theta_x
@@ -147,8 +156,7 @@ class Statics:
 
     The deflections ``deflections`` [rad] run from 0 to the output deflection at which a
     ring reaches its end stop (`CURVE_POINTS` of them). ``kinematics``, if given, is the
-    ``(T, M)`` of `_kinematics` (they depend on neither the elastic element's values nor
-    its model's parameters, so a caller that varies only those computes them once).
+    ``(T, M)`` of `output_kinematics`.
     """
 
     def __init__(self, params, elastic: str = "geometric", kinematics=None):

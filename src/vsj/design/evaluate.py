@@ -30,7 +30,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ..datasheet import Statics
-from ..datasheet.compute import _kinematics
+from ..datasheet.compute import output_kinematics
 from ..errors import InputError, SimulationError
 from ..params import RELATIONS as PARAMETER_RELATIONS, Parameters
 from ..safety import tradeoff
@@ -132,17 +132,16 @@ _KINEMATICS: dict[tuple, tuple] = {}
 
 
 def _kinematics_of(params: Parameters, elastic: str) -> tuple:
-    """``(T, M)`` of `vsj.datasheet.compute._kinematics` for ``params``: the wrist's
-    static map and mass matrix, which depend on every section but the elastic element's
-    (the springs do not enter the kinematics), so a design that changes only those
-    reuses them."""
+    """`vsj.datasheet.compute.output_kinematics` of ``params``: the wrist's static map
+    and mass matrix, which depend on every section but the elastic element's (the
+    springs do not enter the kinematics), so a design that changes only those reuses
+    them."""
     key = (elastic, tuple(sorted((k, v) for k, v in params.values.items()
                                  if not k.startswith("elastic_element."))))
     if key not in _KINEMATICS:
         if len(_KINEMATICS) >= MAX_KINEMATICS:
             _KINEMATICS.clear()
-        T, M, _ = _kinematics(params, elastic)
-        _KINEMATICS[key] = (T, M)
+        _KINEMATICS[key] = output_kinematics(params, elastic)
     return _KINEMATICS[key]
 
 
