@@ -280,3 +280,26 @@ def test_nsga3_stopped_after_a_generation_resumes_to_the_same_designs(tmp_path):
     assert resumed.ran == 2 and len(resumed.archive.x) == 36
     assert np.array_equal(np.array(resumed.archive.x), np.array(whole.archive.x))
     assert np.array_equal(resumed.front, whole.front)
+
+
+@pytest.mark.parametrize("algorithm", ["nsga2", "nsga3"])
+def test_every_random_draw_comes_from_the_seeded_generator(tmp_path, monkeypatch, algorithm):
+    """A generator made without a seed would make two runs with one seed differ: none is
+    made while the optimiser runs, ties of equally infeasible designs included (designs
+    that miss the end-stop torque or are unstable meet in its tournaments)."""
+    unseeded = []
+    make = np.random.default_rng
+
+    def probe(seed=None, *args, **kwargs):
+        if seed is None:
+            unseeded.append(seed)
+        return make(seed, *args, **kwargs)
+
+    spec = loads(RANGE.format(generations=6).replace(
+        "population = 40", f'population = 12\nalgorithm = "{algorithm}"')
+        + '[constraints]\nend_stop = { torque = "0.11 N m" }\n', str(tmp_path / "a.toml"))
+    monkeypatch.setattr(np.random, "default_rng", probe)
+    outcome = optimise.run(spec, tmp_path / "out", workers=1)
+    infeasible = sum(1 for s, r in zip(outcome.archive.status, outcome.archive.rows)
+                     if s != 0 or min(r[2:]) < 0)
+    assert infeasible >= 5 and unseeded == []

@@ -28,11 +28,11 @@ from pathlib import Path
 
 import numpy as np
 from pymoo.algorithms.moo.nsga2 import NSGA2
-from pymoo.algorithms.moo.nsga3 import NSGA3, comp_by_cv_then_random
+from pymoo.algorithms.moo.nsga3 import NSGA3
 from pymoo.core.evaluator import Evaluator
 from pymoo.core.problem import Problem as PymooProblem
 from pymoo.core.termination import NoTermination
-from pymoo.operators.selection.tournament import TournamentSelection
+from pymoo.operators.selection.tournament import TournamentSelection, compare
 from pymoo.problems.static import StaticProblem
 from pymoo.util.nds.non_dominated_sorting import NonDominatedSorting
 from pymoo.util.ref_dirs import get_reference_directions
@@ -105,10 +105,20 @@ def problem_for(spec: DesignSpec) -> Problem:
 
 
 def _nsga3_tournament(pop, P, random_state=None, **kwargs):
-    """NSGA-III's tournament (pymoo's ``comp_by_cv_then_random``, which its selection
-    calls with the algorithm's random generator) as a module-level function: pymoo's
-    decorator leaves that one a local function, which the checkpoint cannot pickle."""
-    return comp_by_cv_then_random(pop, P, random_state=random_state, **kwargs)
+    """NSGA-III's tournament (pymoo's ``comp_by_cv_then_random``: the less violating of
+    two designs, else either at random) with every draw from the algorithm's random
+    generator. pymoo 0.6.2's own leaves the generator out of the tie-break of two
+    equally infeasible designs, which then draws from an unseeded one (two runs with one
+    seed differ), and its decorator leaves it a local function, which the checkpoint
+    cannot pickle."""
+    winners = np.empty(len(P), dtype=int)
+    for i, (a, b) in enumerate(P[:, :2]):
+        if pop[a].CV > 0.0 or pop[b].CV > 0.0:
+            winners[i] = compare(a, pop[a].CV, b, pop[b].CV, method="smaller_is_better",
+                                 return_random_if_equal=True, random_state=random_state)
+        else:
+            winners[i] = random_state.choice([a, b])
+    return winners[:, None]
 
 
 def algorithm_for(spec: DesignSpec, n_constraints: int):
