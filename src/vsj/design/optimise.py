@@ -108,9 +108,9 @@ def _nsga3_tournament(pop, P, random_state=None, **kwargs):
     """NSGA-III's tournament (pymoo's ``comp_by_cv_then_random``: the less violating of
     two designs, else either at random) with every draw from the algorithm's random
     generator. pymoo 0.6.2's own leaves the generator out of the tie-break of two
-    equally infeasible designs, which then draws from an unseeded one (two runs with one
-    seed differ), and its decorator leaves it a local function, which the checkpoint
-    cannot pickle."""
+    equally infeasible designs, which then draws from an unseeded one, so two runs with
+    one seed differ (pymoo issue 794, fixed after 0.6.2 by pull request 795); and its
+    decorator leaves it a local function, which the checkpoint cannot pickle."""
     winners = np.empty(len(P), dtype=int)
     for i, (a, b) in enumerate(P[:, :2]):
         if pop[a].CV > 0.0 or pop[b].CV > 0.0:
