@@ -89,7 +89,6 @@ class Outcome:
     generations: int
     ran: int
     engine_seconds: float = 0.0
-    notes: list[str] = field(default_factory=list)
 
 
 def problem_for(spec: DesignSpec) -> Problem:
