@@ -37,7 +37,8 @@ def check_toml(text: str, origin: str, cwd: Path) -> None:
     """Load a TOML example with the loader of the file it shows, raising what the loader
     raises: a sweep file (its signal and metric names checked against the scenario as
     ``vsj sweep`` checks them before a run; files it names that ``cwd`` does not hold get
-    stand-ins), an identification experiment, a scenario (each case prepared), or else a
+    stand-ins), a design file (its base parameter set loaded), an identification
+    experiment, a scenario (each case prepared), or else a
     parameter file (over the bundled set when it does not say what it extends)."""
     table = tomllib.loads(text)
     if "sweep" in table:
@@ -53,6 +54,10 @@ def check_toml(text: str, origin: str, cwd: Path) -> None:
         path = cwd / (re.sub(r"\W+", "-", origin) + ".sweep.toml")
         path.write_text(text)
         describe(job_for(sweep_spec.load(path)))
+    elif "objectives" in table:
+        from vsj.design import loads, optimise
+
+        optimise.problem_for(loads(text, origin, cwd))
     elif "experiment" in table:
         from vsj.identification import wrist_experiment
 

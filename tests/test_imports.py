@@ -22,7 +22,7 @@ REWORKED: set[str] = set()
 #: what ``import vsj`` and ``import vsj.cli`` must not load: each adds a noticeable
 #: part of a second to every command's start and no common command needs it at once
 HEAVY = ("matplotlib", "xarray", "dask", "scipy", "scipy.optimize", "pint", "zarr", "SALib",
-         "control")
+         "control", "pymoo")
 
 
 def _reworked(path: Path) -> bool:

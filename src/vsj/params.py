@@ -325,6 +325,14 @@ def _exact_text(value: float, spec: Spec, key: str) -> str:
     return text
 
 
+def exact_text(key: str, value: float) -> str:
+    """``value`` [SI] of the parameter ``key`` (``"section.name"``) as a parameter file
+    writes it: in its display unit, with the fewest significant digits from 10 up that
+    read back as the same number (`Parameters.to_toml`)."""
+    section, name = key.split(".", 1)
+    return _exact_text(value, SCHEMA[section][name], key)
+
+
 class _Section:
     def __init__(self, params: Parameters, name: str):
         self._params = params

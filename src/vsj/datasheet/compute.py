@@ -42,6 +42,15 @@ def _kinematics(params, elastic: str):
     return T, structure.mass_matrix(), elastic_element("vsm", params, elastic)
 
 
+def output_kinematics(params, elastic: str = "geometric") -> tuple[np.ndarray, np.ndarray]:
+    """``(T, M)`` of `_kinematics`: the static map from the ring angles to the outputs
+    with the motors held, and the mass matrix of the ring angles. They depend on no
+    value of ``[elastic_element]``, so a caller that varies only those (`vsj.design`)
+    computes them once and hands them to `Statics`."""
+    T, M, _ = _kinematics(params, elastic)
+    return T, M
+
+
 def _output_curve(element, T, q: float, theta: np.ndarray) -> dict[str, np.ndarray]:
     """Torque, tangent stiffness and stored energy about theta_x at deflections ``theta``."""
     c = np.linalg.solve(T, np.array([1.0, 0.0]))  # ring deflection per unit theta_x
@@ -140,6 +149,75 @@ def _stiffness_change(params, q_from: float, q_to: float) -> dict:
             "trajectory": {"time": t[keep], "q": q[keep], "power": power[keep]}}
 
 
+class Statics:
+    """The elastic elements' static quantities about theta_x with both motors held, for
+    one parameter set and elastic model: what the datasheet's stiffness, deflection and
+    energy ratings are made of, and what `vsj.design` optimises.
+
+    The deflections ``deflections`` [rad] run from 0 to the output deflection at which a
+    ring reaches its end stop (`CURVE_POINTS` of them). ``kinematics``, if given, is the
+    ``(T, M)`` of `output_kinematics`.
+    """
+
+    def __init__(self, params, elastic: str = "geometric", kinematics=None):
+        if kinematics is None:
+            T, M, element = _kinematics(params, elastic)
+        else:
+            (T, M), element = kinematics, elastic_element("vsm", params, elastic)
+        self.T, self.mass, self.element, self.elastic = T, M, element, elastic
+        self.Tinv = np.linalg.inv(T)
+        #: ring deflection per unit theta_x, one per elastic element
+        self.ring_per_output = self.Tinv @ np.array([1.0, 0.0])
+        self.end_stop = params.elastic_element.end_stop
+        self.deflections = np.linspace(
+            0.0, self.end_stop / float(np.max(np.abs(self.ring_per_output))), CURVE_POINTS)
+        self._curves: dict[float, dict] = {}
+        #: ring deflection per unit theta_x as `_output_curve` solves for it
+        self._solved = np.linalg.solve(T, np.array([1.0, 0.0]))
+
+    def curve(self, q: float) -> dict[str, np.ndarray]:
+        """Torque [N m], tangent stiffness [N m/rad] and stored energy [J] about theta_x
+        at ``deflections``, with the pivot at ``q`` [m]."""
+        if q not in self._curves:
+            self._curves[q] = _output_curve(self.element, self.T, q, self.deflections)
+        return self._curves[q]
+
+    def output_stiffness(self, q: float) -> float:
+        """Stiffness [N m/rad] about theta_x at zero deflection, pivot at ``q`` [m]: the
+        first point of `curve`, computed alone when the curve is not (with the same
+        operations in the same order, so it is the same number)."""
+        if q in self._curves:
+            return float(self._curves[q]["stiffness"][0])
+        total = 0.0  # `_output_curve`'s sum at zero deflection, term by term alike
+        for ci in self._solved:
+            k = evaluate(self.element.law, self.element.parameters, ci * 0.0, q)[1][0]
+            total += k * ci * ci
+        return float(total)
+
+    def at(self, q: float) -> dict:
+        """At pivot position ``q`` [m]: the ring's and the output's stiffness at zero
+        deflection, the largest deflection held (`deflection_limit`) with the limit
+        that decides it, the torque there and the largest energy stored up to it."""
+        curve = self.curve(q)
+        peak, limit = deflection_limit(self.element, self.ring_per_output, q,
+                                       self.deflections, curve["torque"])
+        return {"ring_stiffness": stiffness(self.element.law, self.element.parameters, q),
+                "output_stiffness": float(curve["stiffness"][0]),
+                "peak_torque": float(curve["torque"][peak]),
+                "max_deflection": float(self.deflections[peak]),
+                "max_deflection_limit": limit,
+                "max_energy": float(np.max(curve["energy"][:peak + 1]))}
+
+    def pretension_loss_deflection(self, q: float) -> float:
+        """Smallest output deflection [rad] at which a spring goes slack with the pivot
+        at ``q`` [m] (`vsj.characteristics.pretension_loss`, searched up to the end
+        stop), ``inf`` if none does or the model has no springs."""
+        if not self.elastic.startswith("geometric"):
+            return math.inf
+        slack = pretension_loss(self.element.parameters, q, self.end_stop)
+        return float(slack / np.max(np.abs(self.ring_per_output)))
+
+
 def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = None,
             friction: str = DEFAULT_FRICTION, elastic: str = "geometric") -> dict:
     """Every datasheet quantity as plain data (SI units; see the module docstring)."""
@@ -152,37 +230,33 @@ def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = Non
         if not q_min - 1e-12 <= q <= q_max + 1e-12:
             raise InputError(f"datasheet: curve pivot position {q} m is outside the pivot "
                              f"range {q_min} ... {q_max} m")
-    T, M, element = _kinematics(params, elastic)
-    Tinv = np.linalg.inv(T)
-    end_stop = params.elastic_element.end_stop
-    c = Tinv @ np.array([1.0, 0.0])
-    theta_max = end_stop / float(np.max(np.abs(c)))
+    statics = Statics(params, elastic)
+    T, M, element = statics.T, statics.mass, statics.element
+    Tinv = statics.Tinv
+    end_stop = statics.end_stop
+    c = statics.ring_per_output
     output_inertia = Tinv.T @ M @ Tinv
 
     per_q = []
     models = {}
-    dense = np.linspace(0.0, theta_max, CURVE_POINTS)
     for q in qs:
-        curve = _output_curve(element, T, q, dense)
-        peak, limit = deflection_limit(element, c, q, dense, curve["torque"])
+        static = statics.at(float(q))
         lin = linear_models.linearize(params, float(q), friction=friction,
                                       wrist_options=_options(elastic))
         models[float(q)] = lin
         modes = linear_models.modes(lin)
-        slack = (pretension_loss(element.parameters, q, end_stop)
-                 if elastic.startswith("geometric") else math.inf)
         per_q.append({
             "q": float(q),
-            "ring_stiffness": stiffness(element.law, element.parameters, q),
-            "output_stiffness": float(curve["stiffness"][0]),
+            "ring_stiffness": static["ring_stiffness"],
+            "output_stiffness": static["output_stiffness"],
             "output_stiffness_linear_model": float(
                 linear_models.output_stiffness(lin)[0, 0]),
-            "peak_torque": float(curve["torque"][peak]),
-            "peak_torque_deflection": float(dense[peak]),
-            "max_deflection": float(dense[peak]),
-            "max_deflection_limit": limit,
-            "max_energy": float(np.max(curve["energy"][:peak + 1])),
-            "pretension_loss_deflection": float(slack / np.max(np.abs(c))),
+            "peak_torque": static["peak_torque"],
+            "peak_torque_deflection": static["max_deflection"],
+            "max_deflection": static["max_deflection"],
+            "max_deflection_limit": static["max_deflection_limit"],
+            "max_energy": static["max_energy"],
+            "pretension_loss_deflection": statics.pretension_loss_deflection(float(q)),
             "natural_frequencies": linear_models.natural_frequencies(lin).tolist(),
             "modes": [{"frequency": m["frequency"], "damping": m["damping"]} for m in modes],
             "modes_viscous": [{"frequency": m["frequency"], "damping": m["damping"]} for m in
@@ -194,7 +268,7 @@ def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = Non
         })
 
     curves = []
-    theta = np.linspace(0.0, theta_max, CURVE_POINTS)
+    theta = statics.deflections
     for q in curve_qs:
         curve = _output_curve(element, T, float(q), theta)
         held, limit = deflection_limit(element, c, float(q), theta, curve["torque"])

@@ -55,6 +55,9 @@ class Setup:
     arm_damping: float = 50.0
     period: float = 1e-3
     friction: str = "arctan"
+    #: the elastic elements' model (`vsj.wrist.WristOptions.elastic`): eq 4.5 by default,
+    #: the geometric one where the springs' geometry is what is studied (`vsj.design`)
+    elastic: str = "exponential"
 
     def check(self) -> None:
         """`InputError` naming the field for a value out of its range."""
@@ -129,7 +132,7 @@ def run(params, qs, setup: Setup | None = None, progress=None) -> Tradeoff:
     if not qs:
         raise InputError("tracking-safety study: give at least one pivot position")
     hand = region("hand")
-    options = WristOptions(motors="dc", pivot_drive="dc", elastic="exponential")
+    options = WristOptions(motors="dc", pivot_drive="dc", elastic=s.elastic)
     free = build_wrist(params, options).assemble()
     for q in qs:
         if not free.pivot.q_min <= q <= free.pivot.q_max:
@@ -206,7 +209,7 @@ def page(result: Tradeoff, png: bytes) -> str:
     body = [
         "<p class=headline>" + pages.esc(result.summary()) + "</p>",
         "<p>" + pages.esc(
-            f"The wrist (DC motors, exponential elastic elements, {s.friction} friction) "
+            f"The wrist (DC motors, {s.elastic} elastic elements, {s.friction} friction) "
             f"follows a {s.radius:g} rad circle at {s.frequency:g} Hz (report fig 4.15's "
             f"motion) in closed loop at {1 / s.period:g} Hz, once in free space (the lag) "
             f"and once with a hand surrogate (ISO/TS 15066 Table A.3: "

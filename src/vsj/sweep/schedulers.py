@@ -194,3 +194,80 @@ def _dask(job, chunks, scheduler, workers):
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+class Pool:
+    """Workers kept for many batches of chunks, started once: an optimisation's
+    generations (`vsj.design`), each a batch that depends on the one before.
+
+    ``scheduler`` and ``workers`` are those of `execute`: None runs on this machine's
+    cores (in this process with one core, else in worker processes forked from a fork
+    server), ``"local"`` or an address on Dask. `run` calls ``work(job, start, values,
+    1)`` (a module-level function, as `vsj.sweep.runner.run_chunk`) for each task of a
+    batch and returns the chunks' results in the batch's order; a result depends on its
+    own values only, so it does not depend on the scheduler or the worker count."""
+
+    def __init__(self, scheduler: str | None, workers: int | None = None):
+        self.scheduler = scheduler
+        self._processes = None
+        self._client = self._cluster = None
+        self._scattered = None  # (job, its future on the cluster), kept across batches
+        if scheduler is None:
+            self.count = workers or available_cores()
+        else:
+            self._client, self._cluster = client_for(scheduler, workers)
+            self.count = max(1, len(self._client.scheduler_info()["workers"]))
+
+    def run(self, work, job, chunks: Sequence[tuple[int, int, object]]) -> list[ChunkResult]:
+        """The results of ``chunks`` (index, start, values) of ``job``, in their order."""
+        if self.scheduler is None and self.count == 1:
+            return [work(job, start, values, 1) for _, start, values in chunks]
+        plan = tasks(chunks, self.count)
+        if self.scheduler is None:
+            if self._processes is None:
+                context = multiprocessing.get_context("forkserver")
+                context.set_forkserver_preload(PRELOAD)
+                self._processes = ProcessPoolExecutor(max_workers=self.count,
+                                                      mp_context=context)
+            futures = [(index, self._processes.submit(work, job, start, values, 1))
+                       for index, start, values in plan]
+        else:
+            # scattered once and held: a job scattered again has the same key, which the
+            # scheduler would drop with the earlier batch's reference to it
+            if self._scattered is None or self._scattered[0] is not job:
+                self._scattered = (job, self._client.scatter(job, broadcast=True))
+            shared = self._scattered[1]
+            futures = [(index, self._client.submit(work, shared, start, values, 1,
+                                                   pure=False))
+                       for index, start, values in plan]
+        joiner = _Joiner(plan)
+        whole = {}
+        try:
+            for index, future in futures:
+                result = joiner.add(index, future.result())
+                if result is not None:
+                    whole[index] = result
+        except BaseException:
+            for _, future in futures:
+                future.cancel()
+            raise
+        return [whole[index] for index, _, _ in chunks]
+
+    def close(self) -> None:
+        """Stop the workers (and a ``LocalCluster`` this pool started)."""
+        if self._processes is not None:
+            self._processes.shutdown(wait=True, cancel_futures=True)
+            self._processes = None
+        if self._client is not None:
+            self._scattered = None
+            self._client.close()
+            self._client = None
+        if self._cluster is not None:
+            self._cluster.close()
+            self._cluster = None
+
+    def __enter__(self) -> "Pool":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
