@@ -136,7 +136,7 @@ def spring_law(law: int, p, phi: float, q: float) -> tuple[float, float, float, 
 
 #: Step [rad] of the central difference that gives the spring lengths' slope dl/dphi;
 #: the lengths are smooth in phi (C-infinity away from q + R cos phi = 0), so the
-#: error, about h^2 |d3l/dphi3| / 6, is below 1e-13 m/rad for the lengths of vsj's
+#: error, about ``h^2 |d3l/dphi3| / 6``, is below 1e-13 m/rad for the lengths of vsj's
 #: geometries (a few cm).
 LENGTH_STEP = 1e-6
 

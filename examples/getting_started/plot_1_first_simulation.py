@@ -1,0 +1,8 @@
+"""
+First simulation
+================
+
+A run.
+"""
+import vsj
+print(vsj.__version__)
