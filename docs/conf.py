@@ -52,8 +52,8 @@ myst_heading_anchors = 3
 
 # -- executed examples -------------------------------------------------------------------
 sphinx_gallery_conf = {
-    "examples_dirs": [str(ROOT / "examples" / "getting_started")],
-    "gallery_dirs": ["getting-started/examples"],
+    "examples_dirs": [str(ROOT / "examples" / "getting_started"), str(ROOT / "examples" / "guide")],
+    "gallery_dirs": ["getting-started/examples", "user-guide/examples"],
     "filename_pattern": r".*\.py$",   # every script of the gallery runs at build time
     "within_subsection_order": "FileNameSortKey",
     "download_all_examples": False,

@@ -1,8 +1,0 @@
-"""
-First simulation
-================
-
-A run.
-"""
-import vsj
-print(vsj.__version__)
