@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 ENGINE := $(wildcard src/vsj/engine/c/*.c src/vsj/engine/c/*.h) src/vsj/_core.c
 
-.PHONY: install reproduce figures test bench sanitize portable clean
+.PHONY: install reproduce figures test docs docs-browser bench sanitize portable clean
 
 install: $(STAMP)
 
@@ -43,6 +43,26 @@ figures: $(STAMP)
 # worker, spinning (CPU time taken from that worker, no wall time gained)
 test: $(STAMP)
 	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n auto --dist loadfile --no-loadscope-reorder
+
+# the documentation site, into docs/_build/html: the docs extra of pyproject.toml
+# installed into .venv (its requirements only: vsj itself is installed already), then
+# a full build with warnings as errors, every gallery example run afresh, then an
+# offline check of every internal link and anchor and of the references' coverage
+DOCS_STAMP := $(VENV)/.docs-installed
+$(DOCS_STAMP): $(STAMP) pyproject.toml
+	$(BIN)/python -c "import tomllib; print('\n'.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['docs']))" > $(VENV)/docs-requirements.txt
+	$(BIN)/python -m pip install --quiet -r $(VENV)/docs-requirements.txt
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	rm -rf docs/_build docs/reference/generated docs/getting-started/examples docs/user-guide/examples docs/sg_execution_times.rst
+	MPLBACKEND=Agg OPENBLAS_NUM_THREADS=1 $(BIN)/sphinx-build -W --keep-going -q -b html docs docs/_build/html
+	$(BIN)/python tools/check_site.py docs/_build/html
+
+# the built site in headless Chromium (Debian's chromium and chromedriver): no console
+# errors, search finds "stiction"; screenshots into build/docs-browser
+docs-browser: docs
+	$(BIN)/python tools/browser_check.py docs/_build/html --screenshots build/docs-browser
 
 # the engine under AddressSanitizer and UndefinedBehaviorSanitizer (also run by make test)
 sanitize: $(STAMP)

@@ -26,7 +26,6 @@ extensions = [
     "numpydoc",
     "sphinx.ext.mathjax",
     "sphinx-mathjax-offline",  # MathJax 3 shipped with the site: no CDN
-    "sphinx.ext.viewcode",
     "sphinxarg.ext",
     "sphinx_gallery.gen_gallery",
     "myst_parser",
@@ -34,12 +33,14 @@ extensions = [
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 exclude_patterns = ["_build", "**/*.ipynb", "**/*.py.md5", "**/*.codeobj.json"]
-templates_path = ["_templates"]
 default_role = "py:obj"  # `vsj.params` in a docstring links to its page
 
 # -- API reference -----------------------------------------------------------------------
-autosummary_generate = True
-autosummary_ignore_module_all = True
+# one page per public module, written from the sources before the build (docs/_ext)
+import api_pages  # noqa: E402
+
+api_pages.write_pages(Path(__file__).parent / "reference" / "generated")
+autosummary_generate = False     # the summary tables only; the pages are written above
 autodoc_default_options: dict[str, object] = {}
 autodoc_typehints = "none"       # the docstrings give types and units
 numpydoc_show_class_members = False
@@ -62,6 +63,8 @@ sphinx_gallery_conf = {
     "show_memory": False,
     "plot_gallery": "True",
     "abort_on_example_error": True,
+    # the timing pages load jQuery and DataTables from a CDN: none, the site is offline
+    "write_computation_times": False,
     "only_warn_on_example_error": False,
 }
 
@@ -70,14 +73,6 @@ html_theme = "furo"
 html_title = f"vsj {release}"
 html_static_path: list[str] = []
 html_show_sourcelink = False
-
-
-def _type_alias_is_no_class(app, what, name, obj, skip, options):
-    """A type alias (``Pieces = tuple[...]``) passes for a class when the summary sorts
-    a module's members; it is documented with the module's data (its ``#:`` comment)."""
-    if what == "class" and isinstance(obj, types.GenericAlias):
-        return True
-    return None
 
 
 def _skip_type_aliases(handler):
@@ -92,7 +87,6 @@ def _skip_type_aliases(handler):
 
 
 def setup(app):
-    app.connect("autodoc-skip-member", _type_alias_is_no_class)
     for listener in list(app.events.listeners["autodoc-process-signature"]):
         if listener.handler.__module__.startswith("numpydoc"):
             app.disconnect(listener.id)
