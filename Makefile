@@ -27,15 +27,12 @@ $(STAMP): pyproject.toml setup.py $(ENGINE)
 reproduce: $(STAMP)
 	$(BIN)/vsj reproduce --out reproduction
 
-# the figures README.md shows, each copied from what a vsj command writes, so that none is
-# drawn by hand (tests/test_readme.py checks that this recipe writes every one of them)
+# the figure README.md shows, made by running the README's own Python snippet
+# (tests/test_readme.py checks that this recipe writes every figure the README shows)
 figures: $(STAMP)
 	rm -rf build/figures
-	$(BIN)/vsj reproduce --only fig-4.13 fig-4.15 --out build/figures/reproduction
-	$(BIN)/vsj msl friction --out build/figures/msl
-	cp build/figures/reproduction/fig-4.13.png docs/fig-4.13.png
-	cp build/figures/reproduction/fig-4.15.png docs/fig-4.15.png
-	cp build/figures/msl/msl-friction.png docs/msl-friction.png
+	$(BIN)/python tools/readme_figure.py build/figures/readme
+	cp build/figures/readme/quickstart.png docs/quickstart.png
 
 # one worker per core, a test file to a worker, the costliest files first (in the order
 # tests/conftest.py collects them). The workers already fill the cores, so OpenBLAS runs

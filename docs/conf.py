@@ -71,7 +71,8 @@ sphinx_gallery_conf = {
 # -- HTML --------------------------------------------------------------------------------
 html_theme = "furo"
 html_title = f"vsj {release}"
-html_static_path: list[str] = []
+html_static_path = ["_static"]
+html_favicon = "_static/vsj.svg"  # a page without one makes the browser ask for /favicon.ico
 html_show_sourcelink = False
 
 
