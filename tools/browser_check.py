@@ -94,8 +94,11 @@ def check(site: Path, screenshots: Path | None) -> list[str]:
                 driver.save_screenshot(str(screenshots / "docs-home.png"))
             if screenshots is not None and page.startswith("getting-started/examples/"):
                 figures = driver.find_elements(By.CSS_SELECTOR, selector)
-                if figures:  # the executed example's figure, with the code above it
-                    driver.execute_script("arguments[0].scrollIntoView({block: 'end'})",
+                if figures:  # the executed example's figure, whole, once it has loaded
+                    wait.until(lambda d: d.execute_script(
+                        "return arguments[0].complete && arguments[0].naturalHeight > 0",
+                        figures[0]))
+                    driver.execute_script("arguments[0].scrollIntoView({block: 'center'})",
                                           figures[0])
                 driver.save_screenshot(str(screenshots / "docs-example.png"))
         driver.get(base + f"search.html?q={QUERY}")

@@ -4,7 +4,7 @@ its deflection and the pivot position.
 The VSM elastic element (`vsj.components.ElasticElement`) is a ring held by a
 lever with a movable pivot and two springs.
 
-Geometry (report section 3.2.1, fig 3.3; restated in MODEL_NOTES.md): the
+Geometry (report section 3.2.1, fig 3.3; restated in docs/model-notes/elastic-element.md): the
 origin is the ring centre, y points up. The pivot sits at ``(0, q)``; the
 lever is pinned to the ring at ``X_R = R (sin phi, -cos phi)`` (eq 3.2) and
 slides through the pivot, so its direction is fixed by the angle ``alpha`` of
