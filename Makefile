@@ -56,9 +56,10 @@ docs: $(DOCS_STAMP)
 	MPLBACKEND=Agg OPENBLAS_NUM_THREADS=1 $(BIN)/sphinx-build -W --keep-going -q -b html docs docs/_build/html
 	$(BIN)/python tools/check_site.py docs/_build/html
 
-# the built site in headless Chromium (Debian's chromium and chromedriver): no console
-# errors, search finds "stiction"; screenshots into build/docs-browser
-docs-browser: docs
+# the site that make docs built, in headless Chromium (Debian's chromium and
+# chromedriver): no console errors, the equations typeset, search finds "stiction";
+# screenshots of the home page and an executed example into build/docs-browser
+docs-browser: $(DOCS_STAMP)
 	$(BIN)/python tools/browser_check.py docs/_build/html --screenshots build/docs-browser
 
 # the engine under AddressSanitizer and UndefinedBehaviorSanitizer (also run by make test)
