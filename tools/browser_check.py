@@ -98,7 +98,7 @@ def check(site: Path, screenshots: Path | None) -> list[str]:
                     wait.until(lambda d: d.execute_script(
                         "return arguments[0].complete && arguments[0].naturalHeight > 0",
                         figures[0]))
-                    driver.execute_script("arguments[0].scrollIntoView({block: 'center'})",
+                    driver.execute_script("arguments[0].scrollIntoView({block: 'center', behavior: 'instant'})",
                                           figures[0])
                 driver.save_screenshot(str(screenshots / "docs-example.png"))
         driver.get(base + f"search.html?q={QUERY}")
