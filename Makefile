@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 ENGINE := $(wildcard src/vsj/engine/c/*.c src/vsj/engine/c/*.h) src/vsj/_core.c
 
-.PHONY: install reproduce figures test bench sanitize portable clean
+.PHONY: install reproduce figures test docs docs-browser bench sanitize portable clean
 
 install: $(STAMP)
 
@@ -27,15 +27,12 @@ $(STAMP): pyproject.toml setup.py $(ENGINE)
 reproduce: $(STAMP)
 	$(BIN)/vsj reproduce --out reproduction
 
-# the figures README.md shows, each copied from what a vsj command writes, so that none is
-# drawn by hand (tests/test_readme.py checks that this recipe writes every one of them)
+# the figure README.md shows, made by running the README's own Python snippet
+# (tests/test_readme.py checks that this recipe writes every figure the README shows)
 figures: $(STAMP)
 	rm -rf build/figures
-	$(BIN)/vsj reproduce --only fig-4.13 fig-4.15 --out build/figures/reproduction
-	$(BIN)/vsj msl friction --out build/figures/msl
-	cp build/figures/reproduction/fig-4.13.png docs/fig-4.13.png
-	cp build/figures/reproduction/fig-4.15.png docs/fig-4.15.png
-	cp build/figures/msl/msl-friction.png docs/msl-friction.png
+	$(BIN)/python tools/readme_figure.py build/figures/readme
+	cp build/figures/readme/quickstart.png docs/quickstart.png
 
 # one worker per core, a test file to a worker, the costliest files first (in the order
 # tests/conftest.py collects them). The workers already fill the cores, so OpenBLAS runs
@@ -43,6 +40,27 @@ figures: $(STAMP)
 # worker, spinning (CPU time taken from that worker, no wall time gained)
 test: $(STAMP)
 	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n auto --dist loadfile --no-loadscope-reorder
+
+# the documentation site, into docs/_build/html: the docs extra of pyproject.toml
+# installed into .venv (its requirements only: vsj itself is installed already), then
+# a full build with warnings as errors, every gallery example run afresh, then an
+# offline check of every internal link and anchor and of the references' coverage
+DOCS_STAMP := $(VENV)/.docs-installed
+$(DOCS_STAMP): $(STAMP) pyproject.toml
+	$(BIN)/python -c "import tomllib; print('\n'.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['docs']))" > $(VENV)/docs-requirements.txt
+	$(BIN)/python -m pip install --quiet -r $(VENV)/docs-requirements.txt
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	rm -rf docs/_build docs/reference/generated docs/getting-started/examples docs/user-guide/examples docs/sg_execution_times.rst
+	MPLBACKEND=Agg OPENBLAS_NUM_THREADS=1 $(BIN)/sphinx-build -W --keep-going -q -b html docs docs/_build/html
+	$(BIN)/python tools/check_site.py docs/_build/html
+
+# the site that make docs built, in headless Chromium (Debian's chromium and
+# chromedriver): no console errors, the equations typeset, search finds "stiction";
+# screenshots of the home page and an executed example into build/docs-browser
+docs-browser: $(DOCS_STAMP)
+	$(BIN)/python tools/browser_check.py docs/_build/html --screenshots build/docs-browser
 
 # the engine under AddressSanitizer and UndefinedBehaviorSanitizer (also run by make test)
 sanitize: $(STAMP)

@@ -342,7 +342,37 @@ def main() -> int:
         op, bound = target.split()
         met = value >= float(bound) if op == ">=" else value <= float(bound)
         print(f"  {name:<45} {value:10.2f}   target {target:<8} {'met' if met else 'NOT met'}")
+    table = speed_table(fastest, t_vsj, t_scipy, t_rk4, best["stiction core"], batch_rows,
+                        cold["vsj simulate fig-4.15, again"])
+    SPEED_TABLE.parent.mkdir(parents=True, exist_ok=True)
+    SPEED_TABLE.write_text(table)
+    print(f"\nthe README's speed table, from this run: {SPEED_TABLE}\n{table}")
     return 0
+
+
+#: Where `main` writes the README's speed table (Markdown), to paste in.
+SPEED_TABLE = Path(__file__).resolve().parents[1] / "build" / "bench" / "speed.md"
+
+
+def speed_table(scheme: str, t_vsj: float, t_scipy: float, t_rk4: float, t_stiction: float,
+                batch_rows, simulate_warm: float) -> str:
+    """The README's short speed table (times in seconds, rates in runs per second)."""
+    (smooth, smooth_rate), (_, stiction_rate) = batch_rows
+    rows = [("fig 4.15 wrist, 10 s simulated: vsj (%s, integration only)" % scheme,
+             f"{t_vsj * 1e3:.2f} ms", ""),
+            ("the same equations in plain Python, scipy `solve_ivp` (LSODA)",
+             f"{t_scipy * 1e3:.1f} ms", f"{t_scipy / t_vsj:.0f}x slower"),
+            ("the same equations by hand in C, fixed-step RK4", f"{t_rk4 * 1e3:.2f} ms",
+             f"{t_rk4 / t_vsj:.2f}x"),
+            ("vsj with true stiction (1 ms steps)", f"{t_stiction * 1e3:.2f} ms",
+             f"{t_stiction / t_vsj:.2f}x"),
+            ("batch of 1000 runs over q: smooth / true stiction",
+             f"{smooth_rate:.0f} / {stiction_rate:.0f} runs/s", ""),
+            ("`vsj simulate fig-4.15` (five cases, written to disk), warm",
+             f"{simulate_warm:.2f} s", "")]
+    lines = ["| what | time | against vsj |", "|---|---|---|"]
+    lines += [f"| {what} | {time} | {ratio} |" for what, time, ratio in rows]
+    return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":

@@ -122,7 +122,8 @@ def wrist_fmu_file(tmp_path_factory):
 #: leaves the long single studies to the end): the session ends on short files, with
 #: every worker busy until then.
 FIRST = ("test_identify_wrist.py", "test_identify_wrist_calibration.py", "test_sanitizers.py",
-         "test_fmu.py", "test_reproduce_honest.py", "test_streaming.py", "test_readme.py")
+         "test_fmu.py", "test_reproduce_honest.py", "test_streaming.py", "test_readme.py",
+         "test_docs.py")
 
 
 def pytest_collection_modifyitems(config, items):

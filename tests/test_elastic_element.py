@@ -159,7 +159,7 @@ def test_report_form_agrees_with_potential_at_q_zero_only(laws):
         tol = 2 * ULPS * _scales(GEOMETRIC, par, 0.0, phi)[0] / torque
         assert abs(ch.eq38_mismatch(par, 0.0, phi)) <= tol
     # away from q = 0 eq 3.8 treats the lever as turning about the pivot: a modelling
-    # difference of per cents (MODEL_NOTES), far beyond round-off
+    # difference of per cents (docs/model-notes/elastic-element.md), far beyond round-off
     assert max(abs(ch.eq38_mismatch(par, q, 1.0)) for q in (-0.015, 0.015)) > 1e-3
 
 

@@ -30,17 +30,49 @@ tests/readme_checks.py; no list of the README's commands is kept).
   paths into the repository (``src/...``, ``tests/...``; ``vsj/...`` and
   ``engine/c/...`` inside ``src/``) and bare source file names (``planetary.py``) exist.
 * **Figures**: each image the README shows exists, and ``make figures`` (the target that
-  regenerates them from ``vsj`` output) writes it, so that none is made by hand.
+  regenerates them by running the README's own snippet, tools/readme_figure.py) writes
+  it, so that none is made by hand.
+* **Length**: at most 200 lines; the manual is the documentation site (docs/, whose
+  pages tests/test_docs.py checks the same way).
 """
 
 from __future__ import annotations
 
+import re
+import sys
 from pathlib import Path
 
 from readme_checks import (code_block_problems, figure_problems, name_problems,
                            prose_problems)
 
 README = Path(__file__).resolve().parents[1] / "README.md"
+sys.path.insert(0, str(README.parent / "tools"))  # readme_figure
+
+
+#: The README gets a reader running and points to the site (issue 35).
+MAX_LINES = 200
+
+
+def test_readme_is_short_and_points_to_the_site():
+    text = README.read_text()
+    assert len(text.splitlines()) <= MAX_LINES, f"README.md has {len(text.splitlines())} lines"
+    assert "make docs" in text
+    # each row of its capability table links to a page of the user guide that exists
+    links = re.findall(r"\]\((docs/[^)#]+\.md)\)", text)
+    assert len(links) >= 10
+    missing = [link for link in links if not (README.parent / link).is_file()]
+    assert not missing, f"README.md links to pages that do not exist: {missing}"
+
+
+def test_the_readme_figure_is_what_its_snippet_draws(tmp_path, monkeypatch):
+    """The snippet saves the figure the README shows, under the name `make figures`
+    copies, so the figure cannot be from another run than the snippet's."""
+    import readme_figure
+    monkeypatch.chdir(tmp_path)  # the tool moves into its directory; this moves back
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    assert readme_figure.main([str(tmp_path / "run")]) == 0
+    shown = re.findall(r"!\[[^\]]*\]\(docs/([^)]+)\)", README.read_text())
+    assert shown and all((tmp_path / "run" / name).is_file() for name in shown), shown
 
 
 def test_readme_code_blocks_run(tmp_path, monkeypatch):

@@ -1,5 +1,10 @@
+"""``python -m vsj``: the ``vsj`` command."""
+
 import sys
 
 from .cli import main
 
-sys.exit(main())
+# guarded so that tools which import every module (the API reference's generator) do
+# not run the command
+if __name__ == "__main__":
+    sys.exit(main())

@@ -13,8 +13,8 @@ where ``v`` are the speeds of the *free* flanges (the generalised coordinates
 the simulator integrates) and ``u`` the prescribed speeds of the velocity
 sources. Everything the engine needs is then a constant matrix: the mass matrix
 ``A^T diag(I) A``, each element's relative speed as a row over ``(v, u)``, and
-so on. This is how 20-sim resolves inertias in derivative causality (MODEL_NOTES
-"Things that bite"): no stiff artificial springs, one degree of freedom per
+so on. This is how 20-sim resolves inertias in derivative causality
+(docs/model-notes/assembly.md): no stiff artificial springs, one degree of freedom per
 independent chain.
 
 Which flanges become free is decided by a priority each component may give its

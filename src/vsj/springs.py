@@ -4,7 +4,7 @@ its deflection and the pivot position.
 The VSM elastic element (`vsj.components.ElasticElement`) is a ring held by a
 lever with a movable pivot and two springs.
 
-Geometry (report section 3.2.1, fig 3.3; restated in MODEL_NOTES.md): the
+Geometry (report section 3.2.1, fig 3.3; restated in docs/model-notes/elastic-element.md): the
 origin is the ring centre, y points up. The pivot sits at ``(0, q)``; the
 lever is pinned to the ring at ``X_R = R (sin phi, -cos phi)`` (eq 3.2) and
 slides through the pivot, so its direction is fixed by the angle ``alpha`` of
@@ -136,7 +136,7 @@ def spring_law(law: int, p, phi: float, q: float) -> tuple[float, float, float, 
 
 #: Step [rad] of the central difference that gives the spring lengths' slope dl/dphi;
 #: the lengths are smooth in phi (C-infinity away from q + R cos phi = 0), so the
-#: error, about h^2 |d3l/dphi3| / 6, is below 1e-13 m/rad for the lengths of vsj's
+#: error, about ``h^2 |d3l/dphi3| / 6``, is below 1e-13 m/rad for the lengths of vsj's
 #: geometries (a few cm).
 LENGTH_STEP = 1e-6
 

@@ -31,13 +31,13 @@ Eq 3.27, the ring mesh's friction constants (``x = N_S/N_R``):
 ``"equal-force"``
     ``k_a2 = k_1 / x``, ``k_b2 = k_b1 / x``: what the stated assumption gives
     with torque = force x pitch radius (eq 3.14). The physically consistent
-    relation, offered as an option (MODEL_NOTES.md, eq 3.27 corrected).
+    relation, offered as an option (docs/model-notes/planetary.md, eq 3.27 corrected).
 
 With the sun fixed and the carrier driven at ``w``, the module's steady
 friction torque is ``(b_C + b_R (1+x)^2) w + M_sun(w)`` plus the bearing
 stiction terms, with the mesh term ``M_sun = k_1 (1+x^2) atan(k_b1 w)``
 (printed) or ``2 k_1 atan(k_b1 w)`` (equal force) (eq 3.28 as restated in
-MODEL_NOTES.md; the extracted report text loses the fractions). With the ring
+docs/model-notes/planetary.md; the extracted report text loses the fractions). With the ring
 fixed: ``(b_C + b_S (1+1/x)^2) w + M_ring(w)``, ``M_ring = k_1 (x+1/x)
 atan(k_b1 w / x)`` or ``(2 k_1 / x) atan(k_b1 w / x)`` (eq 3.29).
 `closed_form_torque` gives both test configurations, bearing stiction included.

@@ -12,7 +12,7 @@ changes sign, fig 4.12). The model is linear in (K, K p, h, T0), so each fit is
 ordinary least squares.
 
 The linear regime is found automatically: the local stiffness is fitted in
-bands of |phi| and the regime is the run of bands, from zero deflection out,
+bands of ``|phi|`` and the regime is the run of bands, from zero deflection out,
 whose stiffness stays within `LINEAR_BAND` of the innermost band. Where the
 stiffness then drops, a spring has lost its pretension (section 4.2.2); the
 deflection where that happens is reported. Play is reported when p is larger
@@ -37,7 +37,7 @@ from ..measurements import LIMITS, Measurement
 from ..units import to_si
 from .friction import Estimate, estimates
 
-#: Bands of |phi| whose local stiffness is within this fraction of the innermost
+#: Bands of ``|phi|`` whose local stiffness is within this fraction of the innermost
 #: band's belong to the linear regime.
 LINEAR_BAND = 0.10
 #: A drop of the local stiffness by more than this fraction marks loss of pretension.

@@ -143,7 +143,7 @@ class Estimate:
 @dataclass
 class SignalQuality:
     """How well a fitted model reproduces one signal: ``nrmse``, the rms error over the
-    signal's range; ``fit_percent``, 100 (1 - |error| / |signal - its mean|) (the
+    signal's range; ``fit_percent``, ``100 (1 - |error| / |signal - its mean|)`` (the
     fit measure of system identification); the noise level assumed for it (its unit);
     and the number of samples compared."""
 

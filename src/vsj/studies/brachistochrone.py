@@ -532,7 +532,7 @@ class Verification:
 
     The free run: ``time`` [s], the link's ``angle`` [rad] and ``speed`` [rad/s], the
     pivot ``q`` [m]; ``final_error`` [rad] (theta_x at T minus the target) and
-    ``residual`` [rad] (the largest |theta_x - target| after T, the motors at 0 V). The strikes: at each of
+    ``residual`` [rad] (the largest ``|theta_x - target|`` after T, the motors at 0 V). The strikes: at each of
     ``instants`` [s] a free hand surrogate (`vsj.environment.Body`, the body's mass and
     contact stiffness) placed where the link is then; ``first_peak`` [N] (the first
     contact's peak), ``peak`` [N] (over the rest of the motion, the motors going on with

@@ -75,7 +75,7 @@ class Job:
 
 @dataclass
 class ChunkResult:
-    """The runs ``start .. start + len(status)`` of a sweep."""
+    """The runs ``start`` to ``start + len(status) - 1`` of a sweep."""
 
     start: int
     kept: np.ndarray        # (runs, samples, kept signals)
@@ -441,7 +441,7 @@ def _build(p: Prepared, values: np.ndarray) -> _Run:
 
 def run_chunk(job: Job, start: int, values: np.ndarray, threads: int | None = None
               ) -> ChunkResult:
-    """Simulate the runs ``start ..`` with the varied quantities ``values`` (runs x
+    """Simulate the runs from ``start`` on with the varied quantities ``values`` (runs x
     varied, SI); ``threads`` share the kernel's runs (default: every core)."""
     p = prepared(job)
     runs = len(values)

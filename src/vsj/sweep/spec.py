@@ -338,7 +338,7 @@ def _show(value: float, spec: Spec) -> str:
 
 def read_covariance(path: Path, where: str) -> Covariance:
     """A covariance file: ``{"names": [...], "parameters": {name: value}, "covariance":
-    [[...]]}`` with SI values (what ``vsj fit ... --json`` is to report)."""
+    [[...]]}`` with SI values (what ``vsj fit wrist --json`` is to report)."""
     try:
         record = json.loads(read_text(path, "covariance file"))
     except ValueError as exc:

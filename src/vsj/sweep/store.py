@@ -526,7 +526,7 @@ def check_chunks(path: Path, record: dict, progress=None) -> dict[int, str]:
 
 
 def runs_text(start: int, stop: int) -> str:
-    """``"run 4"`` or ``"runs 4 to 7"`` for the runs ``start .. stop - 1``."""
+    """``"run 4"`` or ``"runs 4 to 7"`` for the runs ``start`` to ``stop - 1``."""
     return f"run {start}" if stop - start == 1 else f"runs {start} to {stop - 1}"
 
 
