@@ -38,6 +38,10 @@ COSTLY = {
     "fit wrist": ((), "an identification from many simulations; "
                       "tests/test_identify_wrist.py"),
     "sweep": ((), "many simulations; tests/test_sweep.py"),
+    "design": ((), "an optimisation over many designs; tests/test_design.py"),
+    "study": (("--quick",), "a study of many closed-loop runs or an optimisation, minutes; "
+                            "tests/test_tradeoff.py and tests/test_studies.py run them"),
+    "explore": ((), "serves the explorer until interrupted; tests/test_explore.py"),
 }
 #: Options whose value is a file or directory a command writes (everything else that
 #: looks like a path is an input it reads).
@@ -570,6 +574,15 @@ def name_problem(text: str, modules: list[object]) -> str | None:
     return problem
 
 
+def made_by_make(path: str) -> bool:
+    """Whether ``path`` is something a make target writes: git ignores it (an output,
+    never in a checkout) and the Makefile names the directory it lies in."""
+    ignored = subprocess.run(["git", "check-ignore", "-q", path], cwd=ROOT).returncode == 0
+    makefile = (ROOT / "Makefile").read_text()
+    parts = Path(path).parts
+    return ignored and any("/".join(parts[:k]) in makefile for k in range(2, len(parts) + 1))
+
+
 def name_problems(text: str, origin: str = "README.md") -> list[str]:
     """Python names, C functions, repository paths (``src/...``, ``vsj/...`` and
     ``engine/c/...`` under ``src``) and source files that the document names exist."""
@@ -593,7 +606,7 @@ def name_problems(text: str, origin: str = "README.md") -> list[str]:
         if "/" in path and " " not in path and first in tops | inner | {"vsj"}:
             full = ROOT / path if first in tops else ROOT / "src" / (
                 path if first == "vsj" else "vsj/" + path)
-            if not glob.glob(str(full)):
+            if not glob.glob(str(full)) and not made_by_make(path):
                 problems.append(f"{where}: no such file or directory in the repository")
         elif re.fullmatch(r"[\w-]+\.(py|c|h)", word):
             if word not in basenames:
