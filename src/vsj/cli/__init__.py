@@ -16,7 +16,7 @@ from .. import __version__, params
 from ..errors import InputError, SimulationError
 from ..simulate import Result, catalogue, sample_times
 from ..units import to_si
-from . import control, fit, study, sweep
+from . import control, explore, fit, study, sweep
 
 
 def _params(path: str | None):
@@ -300,6 +300,7 @@ def build_parser() -> argparse.ArgumentParser:
     control.register(sub)
     sweep.register(sub)
     study.register(sub)
+    explore.register(sub)
     return parser
 
 

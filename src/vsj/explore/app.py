@@ -1,0 +1,441 @@
+"""The explorer's page: a Bokeh server application over `vsj.explore.setting`.
+
+Every control changes the `Setting`; each change runs it (`Explorer.run`: the C engine,
+a few tens of milliseconds for a 2 s closed-loop run) and sends the new curves to the
+page, which redraws them. Sliders run on release (Bokeh's ``value_throttled``), so a
+drag does not queue runs. A typed value is parsed with its unit and checked against the
+control's range before anything runs: a refused one is shown beside its field, with
+the range, and changes nothing. The page's scripts and styles are BokehJS, served by
+the Bokeh server from the installed package: the page needs no network.
+
+The page marks each slider release and each redraw with the browser's performance
+marks (``vsj-release``, ``vsj-drawn``) and keeps the release-to-redraw times in
+``window.vsjLatencies`` [ms]: the explorer's response time as the browser sees it
+(benchmarks/explore.py reads them).
+"""
+
+from __future__ import annotations
+
+import base64
+import functools
+import math
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from bokeh.application import Application
+from bokeh.application.handlers.function import FunctionHandler
+from bokeh.layouts import column, row
+from bokeh.models import (Button, ColumnDataSource, CustomJS, Div, FileInput, Range1d, Select,
+                          Slider, Span, TextInput, Title)
+from bokeh.plotting import figure
+from bokeh.server.server import Server
+from bokeh.themes import Theme
+
+from .. import params as parameter_sets
+from ..errors import InputError
+from ..friction import RUN_LAWS
+from .setting import (CONTROLLERS, ELASTIC, ENVIRONMENTS, FRICTION_KEYS, REFERENCES, Explorer,
+                      Setting, View)
+
+#: Runs a setting's numeric field sets, in the order the page shows them.
+NUMERIC = ("q", "amplitude", "frequency", "duration", *FRICTION_KEYS, "k", "Ti", "Td",
+           "wall_angle", "wall_stiffness")
+#: The choices, each with its options.
+CHOICES = {"reference": REFERENCES, "friction": RUN_LAWS, "controller": CONTROLLERS,
+           "environment": ENVIRONMENTS, "elastic": ELASTIC}
+CHOICE_TITLES = {"reference": "output reference", "friction": "friction law",
+                 "controller": "controller (collocated, on the motors' rotors)",
+                 "environment": "environment", "elastic": "elastic element model"}
+#: Samples of the stiffness ellipse's outline.
+ELLIPSE_POINTS = 181
+
+#: The page's latency probe: a slider's release marks ``vsj-release``; the run's last change
+#: (the ``stamp`` source, changed after every view's data) marks ``vsj-drawn`` once the
+#: browser has painted the frame that shows it: BokehJS paints the plots in the next
+#: animation frame, and a task queued from that frame's callback runs after its paint.
+_RELEASE_JS = "performance.mark('vsj-release'); window.vsjPending = true;"
+_DRAWN_JS = """
+window.vsjRuns = (window.vsjRuns || 0) + 1;
+const run = window.vsjRuns;
+requestAnimationFrame(() => setTimeout(() => {
+    performance.mark('vsj-drawn');
+    if (window.vsjPending) {
+        const m = performance.measure('vsj-latency', 'vsj-release', 'vsj-drawn');
+        (window.vsjLatencies = window.vsjLatencies || []).push(m.duration);
+        window.vsjPending = false;
+    }
+    window.vsjDrawn = Math.max(window.vsjDrawn || 0, run);
+}, 0));
+"""
+
+#: Colours written out for every text of the plots (BokehJS otherwise looks each up in the
+#: page's style sheet as it paints).
+THEME = Theme(json={"attrs": {
+    "Axis": {"major_label_text_color": "#444444", "axis_label_text_color": "#444444",
+             "axis_line_color": "#444444", "major_tick_line_color": "#444444",
+             "minor_tick_line_color": "#444444"},
+    "Title": {"text_color": "#222222"},
+    "Legend": {"label_text_color": "#222222"}}})
+
+_STYLE = {"font-family": "sans-serif", "font-size": "13px"}
+_ERROR = {**_STYLE, "color": "#b00020"}
+
+
+def _value(setting: Setting, key: str) -> float:
+    return setting.coefficients.get(key, None) if "." in key else getattr(setting, key)
+
+
+def _combined(handler):
+    """``handler`` with the document held: the changes it makes (the run's new data, the
+    fields it echoes) reach the page as one message, each property once, so the page
+    lays out and paints once."""
+    @functools.wraps(handler)
+    def held(self, *args):
+        if self.holding:  # a handler the held one set off: the outer hold covers it
+            return handler(self, *args)
+        self.holding = True
+        self.doc.hold("combine")
+        try:
+            return handler(self, *args)
+        finally:
+            self.holding = False
+            self.doc.unhold()
+
+    return held
+
+
+class Page:
+    """One browser session's page: its controls, views and the setting they show."""
+
+    def __init__(self, doc, explorer: Explorer, out: Path):
+        self.doc, self.explorer, self.out = doc, explorer, Path(out)
+        self.setting = explorer.default()
+        self.sliders, self.fields, self.errors, self.selects = {}, {}, {}, {}
+        self.holding = False
+        self.echoed = {}  # key -> the text the server last wrote into its field
+        self.run_error = Div(text="", styles=_ERROR, name="run_error", width=420)
+        self.exported = Div(text="", styles=_STYLE, name="exported", width=420)
+        self.sources = {name: ColumnDataSource(name=name, data={}) for name in
+                        ("outputs", "motors", "springs", "ellipse", "ledger", "contact")}
+        self.stamp = ColumnDataSource(name="stamp", data={"run": [0]})
+        self.stamp.js_on_change("data", CustomJS(code=_DRAWN_JS))
+        self.spans, self.summaries = [], {}
+        controls = self._controls()
+        views = self._views()
+        doc.add_root(row(controls, views))
+        doc.add_root(self.stamp)  # drawn by no view: a root of its own reaches the page
+        doc.title = "vsj explore"
+        doc.theme = THEME
+        self.refresh()
+        # the first run's data arrives with the page: it counts as drawn once shown
+        doc.js_on_event("document_ready", CustomJS(code=_DRAWN_JS))
+
+    # -- controls -------------------------------------------------------------------
+
+    def _numeric(self, key: str):
+        c = self.explorer.controls[key]
+        value = self._current(key)
+        slider = Slider(start=c.start, end=max(c.end, value), value=value,
+                        step=(c.end - c.start) / 200.0, title=f"{c.label} [{c.display}]",
+                        show_value=False, width=230, name=f"slider:{key}")
+        slider.on_change("value_throttled", lambda attr, old, new: self._slid(key, new))
+        slider.js_on_change("value_throttled", CustomJS(code=_RELEASE_JS))
+        field = TextInput(value=c.show(value), width=120, name=f"field:{key}")
+        field.on_change("value", lambda attr, old, new: self._typed(key, new))
+        error = Div(text="", styles=_ERROR, width=360, name=f"error:{key}")
+        self.sliders[key], self.fields[key], self.errors[key] = slider, field, error
+        return column(row(slider, field), error)
+
+    def _current(self, key: str) -> float:
+        value = _value(self.setting, key)
+        return self.explorer.params[key] if value is None else value
+
+    def _controls(self):
+        parts = [Div(text="<h2>vsj explore</h2><p>The wrist of report fig 4.15 in closed "
+                      "loop. Move a slider or type a value with its unit; every change "
+                      "runs the model and redraws the views.</p>", styles=_STYLE,
+                     width=420)]
+        groups = [("Stiffness", ["q", "elastic"]),
+                  ("References", ["reference", "amplitude", "frequency", "duration"]),
+                  ("Friction", ["friction", *FRICTION_KEYS]),
+                  ("Controller", ["controller", "k", "Ti", "Td"]),
+                  ("Environment", ["environment", "wall_angle", "wall_stiffness"])]
+        for title, keys in groups:
+            parts.append(Div(text=f"<b>{title}</b>", styles=_STYLE))
+            for key in keys:
+                if key in CHOICES:
+                    select = Select(title=CHOICE_TITLES[key], value=getattr(self.setting, key),
+                                    options=list(CHOICES[key]), width=230, name=f"select:{key}")
+                    select.on_change("value", lambda a, o, n, key=key: self._chose(key, n))
+                    self.selects[key] = select
+                    parts.append(select)
+                else:
+                    parts.append(self._numeric(key))
+        upload = FileInput(accept=".toml", name="params_file", width=300)
+        upload.on_change("value", lambda a, o, n: self._loaded(upload.filename, n))
+        self.params_note = Div(text=self._params_text(), styles=_STYLE, width=420,
+                               name="params_note")
+        self.params_error = Div(text="", styles=_ERROR, width=420, name="error:params")
+        export = Button(label="Write scenario.toml and params.toml", button_type="primary",
+                        name="export", width=300)
+        export.on_click(self._export)
+        parts += [Div(text="<b>Parameter set</b>", styles=_STYLE), self.params_note, upload,
+                  self.params_error, Div(text="<b>Export</b>", styles=_STYLE), export,
+                  self.exported, self.run_error]
+        return column(*parts, width=440)
+
+    def _params_text(self) -> str:
+        p = self.explorer.params
+        return (f"{p.meta.get('name', p.origin)} ({p.origin}, hash {p.hash()[:12]}); "
+                "load another parameter file (TOML):")
+
+    @_combined
+    def _slid(self, key: str, value: float) -> None:
+        c = self.explorer.controls[key]
+        self._echo(key, c.show(value))
+        self._apply(key, float(value))
+
+    def _echo(self, key: str, text: str) -> None:
+        """Show ``text`` in the field of ``key`` without taking it as typed: a field's
+        callback runs on the server's own changes too (once the document is released),
+        and the text, rounded for display, may differ from the value set."""
+        self.echoed[key] = text
+        self.fields[key].value = text
+
+    @_combined
+    def _typed(self, key: str, text: str) -> None:
+        if text == self.echoed.get(key):
+            return
+        c = self.explorer.controls[key]
+        try:
+            value = c.parse(text)
+        except InputError as exc:
+            self.errors[key].text = f"refused: {_html(str(exc))}"
+            return
+        slider = self.sliders[key]
+        slider.start, slider.end = min(slider.start, value), max(slider.end, value)
+        slider.value = value
+        self._apply(key, value)
+
+    def _apply(self, key: str, value: float) -> None:
+        self.errors[key].text = ""
+        if "." in key:
+            coefficients = {**self.setting.coefficients, key: value}
+            self.setting = replace(self.setting, coefficients=coefficients)
+        else:
+            self.setting = replace(self.setting, **{key: value})
+        self.refresh()
+
+    @_combined
+    def _chose(self, key: str, value: str) -> None:
+        self.setting = replace(self.setting, **{key: value})
+        self.refresh()
+
+    @_combined
+    def _loaded(self, filename: str, content: str) -> None:
+        origin = filename or "uploaded parameter file"
+        try:
+            text = base64.b64decode(content).decode("utf-8")
+            params = parameter_sets.loads(text, origin)
+        except (InputError, UnicodeDecodeError, ValueError) as exc:
+            self.params_error.text = f"refused: {_html(str(exc))}"
+            return
+        self.params_error.text = ""
+        self.explorer, self.setting = self.explorer.with_params(params, self.setting)
+        for key, slider in self.sliders.items():
+            c = self.explorer.controls[key]
+            value = self._current(key)
+            slider.update(start=c.start, end=max(c.end, value), value=value,
+                          step=(c.end - c.start) / 200.0)
+            self._echo(key, c.show(value))
+            self.errors[key].text = ""
+        self.params_note.text = self._params_text()
+        self.refresh()
+
+    @_combined
+    def _export(self) -> None:
+        try:
+            paths = self.explorer.export(self.setting, self.out)
+        except (InputError, OSError) as exc:
+            self.exported.text = f"not written: {_html(str(exc))}"
+            return
+        self.exported.text = (f"wrote {paths[0]} and {paths[1]}; <code>vsj simulate "
+                              f"{paths[0]} --params {paths[1]}</code> runs the same run")
+
+    # -- views ----------------------------------------------------------------------
+
+    def _views(self):
+        s = self.sources
+        tools = "pan,wheel_zoom,box_zoom,reset,save"
+
+        def plot(title, y_label, x_label="time [s]", *, summary=None, lines=1, **kw):
+            # a fixed frame and border: new tick labels then change no plot's size, and
+            # the page is not laid out again on each run
+            f = figure(frame_width=380, frame_height=170, min_border_left=70,
+                       min_border_right=20, tools=tools, x_axis_label=x_label,
+                       y_axis_label=y_label, **kw)
+            f.toolbar.logo = None
+            # the numbers of each run go into the plots' titles: a title changes only its
+            # own canvas, where a changed text on the page would lay out the whole page
+            for k in reversed(range(lines if summary else 0)):
+                line = Title(text="", text_font_style="normal", text_font_size="9pt",
+                             name=f"summary:{summary}" + (f":{k}" if k else ""))
+                f.add_layout(line, "above")
+                self.summaries[line.name] = line
+            f.add_layout(Title(text=title, text_font_size="10pt"), "above")
+            return f
+
+        out = plot("Outputs and their references", "angle [rad]", summary="outputs")
+        for name, colour, label in (("theta_x", "#1f77b4", "theta_x"),
+                                    ("theta_y", "#d62728", "theta_y")):
+            out.line("time", name, source=s["outputs"], color=colour, legend_label=label)
+            out.line("time", f"ref_{name}", source=s["outputs"], color=colour,
+                     line_dash="dashed", legend_label=f"{label} reference")
+        motors = plot("Motor angles (gearhead output)", "angle [rad]")
+        torques = plot("Motor torques k_t i (at the rotor)", "torque [N m]")
+        deflection = plot("Elastic deflection against the end stop (dashed)",
+                          "deflection [rad]")
+        spring = plot("Spring torque over deflection (end stop dashed)", "torque [N m]",
+                      x_label="deflection [rad]")
+        for j, colour in ((1, "#1f77b4"), (2, "#d62728")):
+            motors.line("time", f"angle_{j}", source=s["motors"], color=colour,
+                        legend_label=f"motor {j}")
+            torques.line("time", f"torque_{j}", source=s["motors"], color=colour,
+                         legend_label=f"motor {j}")
+            deflection.line("time", f"deflection_{j}", source=s["springs"], color=colour,
+                            legend_label=f"element {j}")
+            spring.line(f"deflection_{j}", f"torque_{j}", source=s["springs"], color=colour,
+                        legend_label=f"element {j}")
+        for f, dimension in ((deflection, "width"), (spring, "height")):
+            for sign in (1, -1):
+                span = Span(location=sign * 1.4, dimension=dimension, line_dash="dashed",
+                            line_color="black")
+                f.add_layout(span)
+                self.spans.append((span, sign))
+        ellipse = plot("2D stiffness (fig 4.14): the torque of a unit displacement",
+                       "tau_y [N m/rad]", x_label="tau_x [N m/rad]", summary="stiffness",
+                       match_aspect=True)
+        ellipse.line("x", "y", source=s["ellipse"], color="#2ca02c", line_width=2,
+                     legend_label="at the run's last state")
+        ellipse.line("x_rest", "y_rest", source=s["ellipse"], color="gray",
+                     line_dash="dashed", legend_label="springs undeflected")
+        ledger = plot("Energy ledger over the run", "", x_label="energy [J]",
+                      summary="ledger", y_range=[])
+        ledger.hbar(y="label", right="joules", height=0.7, source=s["ledger"],
+                    color="#9467bd")
+        self.ledger_plot = ledger
+        contact = plot("Contact force and impact figures", "force [N]", summary="impact",
+                       lines=3)
+        contact.line("time", "force", source=s["contact"], color="black")
+        for f in (out, motors, torques, deflection, spring, ellipse):
+            f.legend.location = "top_left"
+            f.legend.label_text_font_size = "9pt"
+            f.legend.background_fill_alpha = 0.6
+        return column(row(out, motors), row(torques, deflection), row(spring, ellipse),
+                      row(ledger, contact))
+
+    def refresh(self) -> None:
+        """Run the setting and send every view its new data (the stamp last)."""
+        start = time.perf_counter()
+        try:
+            view = self.explorer.run(self.setting)
+        except InputError as exc:
+            self.run_error.text = f"not run: {_html(str(exc))}"
+            return
+        took = time.perf_counter() - start
+        self.run_error.text = ""
+        self.exported.text = ""  # the files written, if any, were another setting's
+        self._show(view, took)
+
+    def _show(self, v: View, took: float) -> None:
+        r = v.result
+        t = r.time
+        s = self.sources
+        s["outputs"].data = {"time": t, "theta_x": r["theta_x"], "theta_y": r["theta_y"],
+                             "ref_theta_x": r["control.theta_x"],
+                             "ref_theta_y": r["control.theta_y"]}
+        s["motors"].data = {"time": t, "angle_1": r["motor_1"], "angle_2": r["motor_2"],
+                            "torque_1": v.torque_constant * r["motor.motor_1.current"],
+                            "torque_2": v.torque_constant * r["motor.motor_2.current"]}
+        springs = {"time": t}
+        for j, name in enumerate(v.springs[:2], start=1):
+            springs[f"deflection_{j}"] = r[f"spring.{name}.deflection"]
+            springs[f"torque_{j}"] = r[f"spring.{name}.torque"]
+        s["springs"].data = springs
+        for span, sign in self.spans:
+            span.location = sign * (v.end_stop if v.end_stop is not None else math.nan)
+        angle = np.linspace(0.0, 2.0 * math.pi, ELLIPSE_POINTS)
+        unit = np.vstack([np.cos(angle), np.sin(angle)])
+        now, rest = v.stiffness @ unit, v.stiffness_rest @ unit
+        s["ellipse"].data = {"x": now[0], "y": now[1], "x_rest": rest[0], "y_rest": rest[1]}
+        labels = [label for label, _ in v.ledger.rows] + ["residual"]
+        values = [j for _, j in v.ledger.rows] + [v.ledger.residual]
+        self.ledger_plot.y_range.factors = labels[::-1]
+        s["ledger"].data = {"label": labels, "joules": values}
+        lag = "n/a (the run is shorter than the fade-in and a period)" if v.lag is None \
+            else f"{1e3 * v.lag:.2f} ms"
+        K = v.stiffness
+        text = self.summaries
+        text["summary:outputs"].text = (f"tracking lag of theta_x {lag}, RMS error "
+                                        f"{1e3 * v.rms_error:.2f} mrad (run: {1e3 * took:.0f} ms)")
+        text["summary:stiffness"].text = (f"K_xx {K[0, 0]:.4g}, K_yy {K[1, 1]:.4g}, K_xy "
+                                          f"{K[0, 1]:.3g} N m/rad at the last state")
+        text["summary:ledger"].text = (f"residual {v.ledger.residual:.2g} J, "
+                                       f"{v.ledger.relative_residual:.1e} of the energy in play")
+        self._contacts(v)
+        self.stamp.data = {"run": [self.stamp.data["run"][0] + 1]}
+
+    def _contacts(self, v: View) -> None:
+        r = v.result
+        lines = ["", "", ""]
+        names = list(v.impacts)
+        if not names:
+            self.sources["contact"].data = {"time": [], "force": []}
+            lines[0] = "no contact in this environment"
+        else:
+            name = names[0]
+            self.sources["contact"].data = {"time": r.time,
+                                            "force": r[f"contact.{name}.force"]}
+            events = v.impacts[name]
+            if not events:
+                lines[0] = f"the tip never touched the {name}"
+            else:
+                first, worst = events[0], max(events, key=lambda ev: ev["peak_force"])
+                lines = [
+                    f"first impact at {first['start']:.3f} s: peak force "
+                    f"{first['peak_force']:.3g} N, energy transferred "
+                    f"{1e3 * first['energy_in']:.3g} mJ, impulse {first['impulse']:.3g} N s",
+                    f"{len(events)} contact event(s); largest peak force "
+                    f"{worst['peak_force']:.3g} N at {worst['peak_time']:.3f} s",
+                    worst["iso_ts_15066"]["hand"]]
+        for k, line in enumerate(lines):
+            self.summaries["summary:impact" + (f":{k}" if k else "")].text = line
+
+
+def _html(text: str) -> str:
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+
+
+def application(explorer: Explorer, out: Path):
+    """The Bokeh application of the explorer: one `Page` per browser session."""
+    return Application(FunctionHandler(lambda doc: Page(doc, explorer, out) and None))
+
+
+def serve(explorer: Explorer, *, port: int, out: Path, show: bool, address: str = "localhost",
+          ready=None) -> None:
+    """Serve the explorer at ``http://address:port/`` until interrupted; ``show`` opens it in
+    the browser; ``ready`` (if given) is called with the port once it listens."""
+    server = Server({"/": application(explorer, out)}, port=port, address=address,
+                    allow_websocket_origin=[f"{address}:{port}", f"127.0.0.1:{port}",
+                                            f"localhost:{port}"], num_procs=1)
+    server.start()
+    if show:
+        server.io_loop.add_callback(server.show, "/")
+    if ready is not None:
+        server.io_loop.add_callback(ready, server.port)
+    server.io_loop.start()
+
+
+__all__ = ["Page", "application", "serve"]
