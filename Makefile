@@ -66,6 +66,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/simulate_cli.py
 	$(BIN)/python benchmarks/long_run.py
 	$(BIN)/python benchmarks/fmu.py
+	$(BIN)/python benchmarks/explore.py
 
 clean:
 	rm -rf $(VENV) reproduction out build src/vsj.egg-info src/vsj/*.so src/vsj/engine/*.so

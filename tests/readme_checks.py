@@ -38,6 +38,8 @@ COSTLY = {
     "fit wrist": ((), "an identification from many simulations; "
                       "tests/test_identify_wrist.py"),
     "sweep": ((), "many simulations; tests/test_sweep.py"),
+    "explore": ((), "serves until interrupted; tests/test_explore_browser.py drives it in "
+                    "Chromium"),
 }
 #: Options whose value is a file or directory a command writes (everything else that
 #: looks like a path is an input it reads).
