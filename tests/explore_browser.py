@@ -49,7 +49,7 @@ def _free_port() -> int:
 class Explorer:
     """``vsj explore`` served on a free port and opened in headless Chromium."""
 
-    def __init__(self, out: Path, *, width: int = 1400, height: int = 1250):
+    def __init__(self, out: Path, *, width: int = 1520, height: int = 1950):
         from selenium import webdriver
         from selenium.webdriver.chrome.service import Service
 
@@ -138,6 +138,10 @@ class Explorer:
         return self.script("return Bokeh.documents[0].get_model_by_name(arguments[0]).text;",
                            name)
 
+    def note(self, key: str) -> str:
+        """The line ``key`` of the numbers the page writes over its views."""
+        return self.source("notes")[key][0]
+
     def console_errors(self) -> list[str]:
         """The browser console's errors since the last call."""
         return [e["message"] for e in self.driver.get_log("browser")
@@ -215,6 +219,7 @@ class Explorer:
     def screenshot(self, path: Path) -> None:
         """Save what the browser shows as a PNG."""
         Path(path).parent.mkdir(parents=True, exist_ok=True)
+        self.script("window.scrollTo(0, 0);")
         self.driver.save_screenshot(str(path))
 
 

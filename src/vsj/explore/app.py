@@ -27,8 +27,8 @@ import numpy as np
 from bokeh.application import Application
 from bokeh.application.handlers.function import FunctionHandler
 from bokeh.layouts import column, row
-from bokeh.models import (Button, ColumnDataSource, CustomJS, Div, FileInput, Range1d, Select,
-                          Slider, Span, TextInput, Title)
+from bokeh.models import (Button, ColumnDataSource, CustomJS, Div, FileInput,
+                          Select, Slider, Span, TextInput, Title)
 from bokeh.plotting import figure
 from bokeh.server.server import Server
 from bokeh.themes import Theme
@@ -45,16 +45,30 @@ NUMERIC = ("q", "amplitude", "frequency", "duration", *FRICTION_KEYS, "k", "Ti",
 #: The choices, each with its options.
 CHOICES = {"reference": REFERENCES, "friction": RUN_LAWS, "controller": CONTROLLERS,
            "environment": ENVIRONMENTS, "elastic": ELASTIC}
+#: The sliders' titles (a control's label, in `vsj.explore.setting`, is what its messages
+#: name it).
+TITLES = {"q": "stiffness setting q", "amplitude": "amplitude / radius / step",
+          "frequency": "frequency (circle, sine)", "duration": "run length",
+          "transmission.stiction": "transmission stiction k_T",
+          "transmission.viscous": "transmission viscous b_T",
+          "planetary.mesh_stiction": "sun-carrier mesh stiction k_1",
+          "differential.stiction": "differential stiction k_D",
+          "friction.arctan_sharpness": "arctan sharpness k_b", "k": "gain k",
+          "Ti": "integral time Ti", "Td": "derivative time Td",
+          "wall_angle": "wall at theta_x =", "wall_stiffness": "wall stiffness"}
 CHOICE_TITLES = {"reference": "output reference", "friction": "friction law",
                  "controller": "controller (collocated, on the motors' rotors)",
                  "environment": "environment", "elastic": "elastic element model"}
-#: Samples of the stiffness ellipse's outline.
-ELLIPSE_POINTS = 181
+#: The numbers written over the views, one line each (`Page.notes`).
+NOTES = ("outputs", "stiffness", "ledger", "impact", "impact_events", "impact_iso")
 
 #: The page's latency probe: a slider's release marks ``vsj-release``; the run's last change
-#: (the ``stamp`` source, changed after every view's data) marks ``vsj-drawn`` once the
+#: (the ``notes`` source, changed after every view's data) marks ``vsj-drawn`` once the
 #: browser has painted the frame that shows it: BokehJS paints the plots in the next
 #: animation frame, and a task queued from that frame's callback runs after its paint.
+_NOTES_JS = """
+for (const [key, title] of Object.entries(titles)) title.text = notes.data[key][0];
+"""
 _RELEASE_JS = "performance.mark('vsj-release'); window.vsjPending = true;"
 _DRAWN_JS = """
 window.vsjRuns = (window.vsjRuns || 0) + 1;
@@ -115,22 +129,30 @@ class Page:
         self.sliders, self.fields, self.errors, self.selects = {}, {}, {}, {}
         self.holding = False
         self.echoed = {}  # key -> the text the server last wrote into its field
-        self.run_error = Div(text="", styles=_ERROR, name="run_error", width=420)
-        self.exported = Div(text="", styles=_STYLE, name="exported", width=420)
-        self.sources = {name: ColumnDataSource(name=name, data={}) for name in
-                        ("outputs", "motors", "springs", "ellipse", "ledger", "contact")}
-        self.stamp = ColumnDataSource(name="stamp", data={"run": [0]})
-        self.stamp.js_on_change("data", CustomJS(code=_DRAWN_JS))
-        self.spans, self.summaries = [], {}
+        self.run_error = Div(text="", styles=_ERROR, name="run_error", width=310)
+        self.exported = Div(text="", styles=_STYLE, name="exported", width=310)
+        # three sources, so that a run reaches the page as three messages (Bokeh sends
+        # each changed property as one): every curve over time and the stiffness
+        # ellipse (drawn at as many angles as the run has samples) in "run", the
+        # ledger's bars in "ledger", the numbers written over the views in "notes"
+        # (changed last: its change marks the run as drawn)
+        self.run_source = ColumnDataSource(name="run", data={})
+        self.ledger = ColumnDataSource(name="ledger", data={"label": [], "joules": []})
+        self.notes = ColumnDataSource(name="notes", data={k: [""] for k in NOTES} | {"run": [0]})
+        self.spans, self.note_titles = [], {}
         controls = self._controls()
         views = self._views()
-        doc.add_root(row(controls, views))
-        doc.add_root(self.stamp)  # drawn by no view: a root of its own reaches the page
+        self.notes.js_on_change("data", CustomJS(code=_NOTES_JS + _DRAWN_JS,
+                                                 args={"titles": self.note_titles,
+                                                       "notes": self.notes}))
+        doc.add_root(column(controls, views))
+        doc.add_root(self.notes)  # read by no view: a root of its own reaches the page
         doc.title = "vsj explore"
         doc.theme = THEME
         self.refresh()
         # the first run's data arrives with the page: it counts as drawn once shown
-        doc.js_on_event("document_ready", CustomJS(code=_DRAWN_JS))
+        doc.js_on_event("document_ready", CustomJS(
+            code=_NOTES_JS + _DRAWN_JS, args={"titles": self.note_titles, "notes": self.notes}))
 
     # -- controls -------------------------------------------------------------------
 
@@ -138,13 +160,15 @@ class Page:
         c = self.explorer.controls[key]
         value = self._current(key)
         slider = Slider(start=c.start, end=max(c.end, value), value=value,
-                        step=(c.end - c.start) / 200.0, title=f"{c.label} [{c.display}]",
-                        show_value=False, width=230, name=f"slider:{key}")
+                        step=(c.end - c.start) / 200.0,
+                        title=f"{TITLES.get(key, c.label)} [{c.display}]", show_value=False,
+                        width=180, name=f"slider:{key}")
         slider.on_change("value_throttled", lambda attr, old, new: self._slid(key, new))
         slider.js_on_change("value_throttled", CustomJS(code=_RELEASE_JS))
-        field = TextInput(value=c.show(value), width=120, name=f"field:{key}")
+        field = TextInput(value=c.show(value), width=125, name=f"field:{key}",
+                          styles={"margin-top": "12px"})
         field.on_change("value", lambda attr, old, new: self._typed(key, new))
-        error = Div(text="", styles=_ERROR, width=360, name=f"error:{key}")
+        error = Div(text="", styles=_ERROR, width=310, name=f"error:{key}")
         self.sliders[key], self.fields[key], self.errors[key] = slider, field, error
         return column(row(slider, field), error)
 
@@ -153,21 +177,23 @@ class Page:
         return self.explorer.params[key] if value is None else value
 
     def _controls(self):
-        parts = [Div(text="<h2>vsj explore</h2><p>The wrist of report fig 4.15 in closed "
-                      "loop. Move a slider or type a value with its unit; every change "
-                      "runs the model and redraws the views.</p>", styles=_STYLE,
-                     width=420)]
+        intro = Div(text="<h2 style='margin:0'>vsj explore</h2><p>The wrist of report fig "
+                         "4.15 in closed loop. Move a slider, or type a value with its unit "
+                         "and press Enter: each change runs the model and redraws the "
+                         "views.</p>", styles=_STYLE, width=640)
         groups = [("Stiffness", ["q", "elastic"]),
                   ("References", ["reference", "amplitude", "frequency", "duration"]),
-                  ("Friction", ["friction", *FRICTION_KEYS]),
                   ("Controller", ["controller", "k", "Ti", "Td"]),
+                  ("Friction", ["friction", *FRICTION_KEYS]),
                   ("Environment", ["environment", "wall_angle", "wall_stiffness"])]
-        for title, keys in groups:
+        columns = [[], []]
+        for k, (title, keys) in enumerate(groups):
+            parts = columns[0 if k < 3 else 1]
             parts.append(Div(text=f"<b>{title}</b>", styles=_STYLE))
             for key in keys:
                 if key in CHOICES:
                     select = Select(title=CHOICE_TITLES[key], value=getattr(self.setting, key),
-                                    options=list(CHOICES[key]), width=230, name=f"select:{key}")
+                                    options=list(CHOICES[key]), width=200, name=f"select:{key}")
                     select.on_change("value", lambda a, o, n, key=key: self._chose(key, n))
                     self.selects[key] = select
                     parts.append(select)
@@ -175,16 +201,18 @@ class Page:
                     parts.append(self._numeric(key))
         upload = FileInput(accept=".toml", name="params_file", width=300)
         upload.on_change("value", lambda a, o, n: self._loaded(upload.filename, n))
-        self.params_note = Div(text=self._params_text(), styles=_STYLE, width=420,
+        self.params_note = Div(text=self._params_text(), styles=_STYLE, width=310,
                                name="params_note")
-        self.params_error = Div(text="", styles=_ERROR, width=420, name="error:params")
+        self.params_error = Div(text="", styles=_ERROR, width=310, name="error:params")
         export = Button(label="Write scenario.toml and params.toml", button_type="primary",
                         name="export", width=300)
         export.on_click(self._export)
-        parts += [Div(text="<b>Parameter set</b>", styles=_STYLE), self.params_note, upload,
-                  self.params_error, Div(text="<b>Export</b>", styles=_STYLE), export,
-                  self.exported, self.run_error]
-        return column(*parts, width=440)
+        columns[0] += [Div(text="<b>Parameter set</b>", styles=_STYLE), self.params_note,
+                       upload, self.params_error]
+        columns[1] += [Div(text="<b>Export</b>", styles=_STYLE), export, self.exported,
+                       self.run_error]
+        return column(intro, row(column(*columns[0], width=320),
+                                 column(*columns[1], width=320)))
 
     def _params_text(self) -> str:
         p = self.explorer.params
@@ -267,32 +295,33 @@ class Page:
     # -- views ----------------------------------------------------------------------
 
     def _views(self):
-        s = self.sources
+        s = self.run_source
         tools = "pan,wheel_zoom,box_zoom,reset,save"
 
-        def plot(title, y_label, x_label="time [s]", *, summary=None, lines=1, **kw):
-            # a fixed frame and border: new tick labels then change no plot's size, and
-            # the page is not laid out again on each run
+        def plot(title, y_label, x_label="time [s]", *, notes=(), **kw):
+            # a fixed frame and border: new tick labels change no plot's size, so a run
+            # lays out no part of the page again
             f = figure(frame_width=380, frame_height=170, min_border_left=70,
                        min_border_right=20, tools=tools, x_axis_label=x_label,
                        y_axis_label=y_label, **kw)
             f.toolbar.logo = None
-            # the numbers of each run go into the plots' titles: a title changes only its
-            # own canvas, where a changed text on the page would lay out the whole page
-            for k in reversed(range(lines if summary else 0)):
+            # the run's numbers, in title lines the page fills in from the notes (a
+            # changed text on the page would lay the whole page out again; a title
+            # changes its plot only)
+            for key in reversed(notes):
                 line = Title(text="", text_font_style="normal", text_font_size="9pt",
-                             name=f"summary:{summary}" + (f":{k}" if k else ""))
+                             name=f"note:{key}")
                 f.add_layout(line, "above")
-                self.summaries[line.name] = line
+                self.note_titles[key] = line
             f.add_layout(Title(text=title, text_font_size="10pt"), "above")
             return f
 
-        out = plot("Outputs and their references", "angle [rad]", summary="outputs")
+        out = plot("Outputs and their references", "angle [rad]", notes=("outputs",))
         for name, colour, label in (("theta_x", "#1f77b4", "theta_x"),
                                     ("theta_y", "#d62728", "theta_y")):
-            out.line("time", name, source=s["outputs"], color=colour, legend_label=label)
-            out.line("time", f"ref_{name}", source=s["outputs"], color=colour,
-                     line_dash="dashed", legend_label=f"{label} reference")
+            out.line("time", name, source=s, color=colour, legend_label=label)
+            out.line("time", f"ref_{name}", source=s, color=colour, line_dash="dashed",
+                     legend_label=f"{label} reference")
         motors = plot("Motor angles (gearhead output)", "angle [rad]")
         torques = plot("Motor torques k_t i (at the rotor)", "torque [N m]")
         deflection = plot("Elastic deflection against the end stop (dashed)",
@@ -300,13 +329,13 @@ class Page:
         spring = plot("Spring torque over deflection (end stop dashed)", "torque [N m]",
                       x_label="deflection [rad]")
         for j, colour in ((1, "#1f77b4"), (2, "#d62728")):
-            motors.line("time", f"angle_{j}", source=s["motors"], color=colour,
+            motors.line("time", f"motor_angle_{j}", source=s, color=colour,
                         legend_label=f"motor {j}")
-            torques.line("time", f"torque_{j}", source=s["motors"], color=colour,
+            torques.line("time", f"motor_torque_{j}", source=s, color=colour,
                          legend_label=f"motor {j}")
-            deflection.line("time", f"deflection_{j}", source=s["springs"], color=colour,
+            deflection.line("time", f"deflection_{j}", source=s, color=colour,
                             legend_label=f"element {j}")
-            spring.line(f"deflection_{j}", f"torque_{j}", source=s["springs"], color=colour,
+            spring.line(f"deflection_{j}", f"spring_torque_{j}", source=s, color=colour,
                         legend_label=f"element {j}")
         for f, dimension in ((deflection, "width"), (spring, "height")):
             for sign in (1, -1):
@@ -315,29 +344,29 @@ class Page:
                 f.add_layout(span)
                 self.spans.append((span, sign))
         ellipse = plot("2D stiffness (fig 4.14): the torque of a unit displacement",
-                       "tau_y [N m/rad]", x_label="tau_x [N m/rad]", summary="stiffness",
+                       "tau_y [N m/rad]", x_label="tau_x [N m/rad]", notes=("stiffness",),
                        match_aspect=True)
-        ellipse.line("x", "y", source=s["ellipse"], color="#2ca02c", line_width=2,
+        ellipse.line("ellipse_x", "ellipse_y", source=s, color="#2ca02c", line_width=2,
                      legend_label="at the run's last state")
-        ellipse.line("x_rest", "y_rest", source=s["ellipse"], color="gray",
-                     line_dash="dashed", legend_label="springs undeflected")
+        ellipse.line("rest_x", "rest_y", source=s, color="gray", line_dash="dashed",
+                     legend_label="springs undeflected")
         ledger = plot("Energy ledger over the run", "", x_label="energy [J]",
-                      summary="ledger", y_range=[])
-        ledger.hbar(y="label", right="joules", height=0.7, source=s["ledger"],
+                      notes=("ledger",), y_range=[])
+        ledger.hbar(y="label", right="joules", height=0.7, source=self.ledger,
                     color="#9467bd")
         self.ledger_plot = ledger
-        contact = plot("Contact force and impact figures", "force [N]", summary="impact",
-                       lines=3)
-        contact.line("time", "force", source=s["contact"], color="black")
+        contact = plot("Contact force and impact figures", "force [N]",
+                       notes=("impact", "impact_events", "impact_iso"))
+        contact.line("time", "contact_force", source=s, color="black")
         for f in (out, motors, torques, deflection, spring, ellipse):
             f.legend.location = "top_left"
             f.legend.label_text_font_size = "9pt"
             f.legend.background_fill_alpha = 0.6
-        return column(row(out, motors), row(torques, deflection), row(spring, ellipse),
+        return column(row(out, motors, torques), row(deflection, spring, ellipse),
                       row(ledger, contact))
 
     def refresh(self) -> None:
-        """Run the setting and send every view its new data (the stamp last)."""
+        """Run the setting and send every view its new data (the notes last)."""
         start = time.perf_counter()
         try:
             view = self.explorer.run(self.setting)
@@ -352,66 +381,60 @@ class Page:
     def _show(self, v: View, took: float) -> None:
         r = v.result
         t = r.time
-        s = self.sources
-        s["outputs"].data = {"time": t, "theta_x": r["theta_x"], "theta_y": r["theta_y"],
-                             "ref_theta_x": r["control.theta_x"],
-                             "ref_theta_y": r["control.theta_y"]}
-        s["motors"].data = {"time": t, "angle_1": r["motor_1"], "angle_2": r["motor_2"],
-                            "torque_1": v.torque_constant * r["motor.motor_1.current"],
-                            "torque_2": v.torque_constant * r["motor.motor_2.current"]}
-        springs = {"time": t}
+        data = {"time": t, "theta_x": r["theta_x"], "theta_y": r["theta_y"],
+                "ref_theta_x": r["control.theta_x"], "ref_theta_y": r["control.theta_y"]}
+        for j in (1, 2):
+            data[f"motor_angle_{j}"] = r[f"motor_{j}"]
+            data[f"motor_torque_{j}"] = v.torque_constant * r[f"motor.motor_{j}.current"]
         for j, name in enumerate(v.springs[:2], start=1):
-            springs[f"deflection_{j}"] = r[f"spring.{name}.deflection"]
-            springs[f"torque_{j}"] = r[f"spring.{name}.torque"]
-        s["springs"].data = springs
+            data[f"deflection_{j}"] = r[f"spring.{name}.deflection"]
+            data[f"spring_torque_{j}"] = r[f"spring.{name}.torque"]
+        angle = np.linspace(0.0, 2.0 * math.pi, len(t))
+        unit = np.vstack([np.cos(angle), np.sin(angle)])
+        (data["ellipse_x"], data["ellipse_y"]) = v.stiffness @ unit
+        (data["rest_x"], data["rest_y"]) = v.stiffness_rest @ unit
+        contacts = list(v.impacts)
+        data["contact_force"] = r[f"contact.{contacts[0]}.force"] if contacts \
+            else np.full(len(t), np.nan)
+        self.run_source.data = data
         for span, sign in self.spans:
             span.location = sign * (v.end_stop if v.end_stop is not None else math.nan)
-        angle = np.linspace(0.0, 2.0 * math.pi, ELLIPSE_POINTS)
-        unit = np.vstack([np.cos(angle), np.sin(angle)])
-        now, rest = v.stiffness @ unit, v.stiffness_rest @ unit
-        s["ellipse"].data = {"x": now[0], "y": now[1], "x_rest": rest[0], "y_rest": rest[1]}
         labels = [label for label, _ in v.ledger.rows] + ["residual"]
         values = [j for _, j in v.ledger.rows] + [v.ledger.residual]
         self.ledger_plot.y_range.factors = labels[::-1]
-        s["ledger"].data = {"label": labels, "joules": values}
+        self.ledger.data = {"label": labels, "joules": values}
         lag = "n/a (the run is shorter than the fade-in and a period)" if v.lag is None \
             else f"{1e3 * v.lag:.2f} ms"
         K = v.stiffness
-        text = self.summaries
-        text["summary:outputs"].text = (f"tracking lag of theta_x {lag}, RMS error "
-                                        f"{1e3 * v.rms_error:.2f} mrad (run: {1e3 * took:.0f} ms)")
-        text["summary:stiffness"].text = (f"K_xx {K[0, 0]:.4g}, K_yy {K[1, 1]:.4g}, K_xy "
-                                          f"{K[0, 1]:.3g} N m/rad at the last state")
-        text["summary:ledger"].text = (f"residual {v.ledger.residual:.2g} J, "
-                                       f"{v.ledger.relative_residual:.1e} of the energy in play")
-        self._contacts(v)
-        self.stamp.data = {"run": [self.stamp.data["run"][0] + 1]}
+        notes = {
+            "outputs": f"tracking lag of theta_x {lag}, RMS error {1e3 * v.rms_error:.2f} "
+                       f"mrad (run: {1e3 * took:.0f} ms)",
+            "stiffness": f"K_xx {K[0, 0]:.4g}, K_yy {K[1, 1]:.4g}, K_xy {K[0, 1]:.3g} N m/rad "
+                         "at the last state",
+            "ledger": f"residual {v.ledger.residual:.2g} J, {v.ledger.relative_residual:.1e} "
+                      "of the energy in play",
+            **_impact_notes(v), "run": self.notes.data["run"][0] + 1}
+        self.notes.data = {key: [value] for key, value in notes.items()}
 
-    def _contacts(self, v: View) -> None:
-        r = v.result
-        lines = ["", "", ""]
-        names = list(v.impacts)
-        if not names:
-            self.sources["contact"].data = {"time": [], "force": []}
-            lines[0] = "no contact in this environment"
-        else:
-            name = names[0]
-            self.sources["contact"].data = {"time": r.time,
-                                            "force": r[f"contact.{name}.force"]}
-            events = v.impacts[name]
-            if not events:
-                lines[0] = f"the tip never touched the {name}"
-            else:
-                first, worst = events[0], max(events, key=lambda ev: ev["peak_force"])
-                lines = [
-                    f"first impact at {first['start']:.3f} s: peak force "
-                    f"{first['peak_force']:.3g} N, energy transferred "
-                    f"{1e3 * first['energy_in']:.3g} mJ, impulse {first['impulse']:.3g} N s",
-                    f"{len(events)} contact event(s); largest peak force "
-                    f"{worst['peak_force']:.3g} N at {worst['peak_time']:.3f} s",
-                    worst["iso_ts_15066"]["hand"]]
-        for k, line in enumerate(lines):
-            self.summaries["summary:impact" + (f":{k}" if k else "")].text = line
+
+def _impact_notes(v: View) -> dict:
+    """The impact figures as the three lines over the contact plot."""
+    lines = {"impact": "", "impact_events": "", "impact_iso": ""}
+    if not v.impacts:
+        lines["impact"] = "no contact in this environment"
+        return lines
+    name, events = next(iter(v.impacts.items()))
+    if not events:
+        lines["impact"] = f"the tip never touched the {name}"
+        return lines
+    first, worst = events[0], max(events, key=lambda ev: ev["peak_force"])
+    lines["impact"] = (f"first impact at {first['start']:.3f} s: peak force "
+                       f"{first['peak_force']:.3g} N, energy transferred "
+                       f"{1e3 * first['energy_in']:.3g} mJ, impulse {first['impulse']:.3g} N s")
+    lines["impact_events"] = (f"{len(events)} contact event(s); largest peak force "
+                              f"{worst['peak_force']:.3g} N at {worst['peak_time']:.3f} s")
+    lines["impact_iso"] = worst["iso_ts_15066"]["hand"]
+    return lines
 
 
 def _html(text: str) -> str:
