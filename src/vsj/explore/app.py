@@ -84,12 +84,12 @@ requestAnimationFrame(() => setTimeout(() => {
 }, 0));
 """
 
-#: Colours written out for every text of the plots (BokehJS otherwise looks each up in the
-#: page's style sheet as it paints).
+#: The plots' look, chosen for a quick paint: colours written out for every text (BokehJS
+#: otherwise looks each up in the page's style sheet as it paints) and no minor ticks.
 THEME = Theme(json={"attrs": {
     "Axis": {"major_label_text_color": "#444444", "axis_label_text_color": "#444444",
              "axis_line_color": "#444444", "major_tick_line_color": "#444444",
-             "minor_tick_line_color": "#444444"},
+             "minor_tick_line_color": None},
     "Title": {"text_color": "#222222"},
     "Legend": {"label_text_color": "#222222"}}})
 
