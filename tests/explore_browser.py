@@ -199,6 +199,12 @@ class Explorer:
         Select(self.script("return arguments[0].shadowRoot.querySelector('select');", host)) \
             .select_by_value(option)
 
+    def upload(self, name: str, path: Path) -> None:
+        """Choose the file ``path`` in the file input ``name`` (as a user picks it)."""
+        host = self._element(name)
+        box = self.script("return arguments[0].shadowRoot.querySelector('input');", host)
+        box.send_keys(str(Path(path).resolve()))
+
     def click(self, name: str) -> None:
         """Click the button ``name``."""
         host = self._element(name)

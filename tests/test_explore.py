@@ -146,3 +146,25 @@ def test_cli_refuses_a_bad_port(capsys):
 def test_setting_is_plain_data():
     s = Setting(q=0.0, k=1.0, Ti=0.1, Td=0.0)
     assert replace(s, q=0.01) != s and s.fade_in() == 0.5
+
+
+def test_another_parameter_set_moves_the_setting_into_its_range(explorer, params):
+    """Loading a set whose pivot range is narrower clips q into it, and the friction
+    coefficients become the new set's (the controls show what it holds)."""
+    narrow = params.with_overrides({"pivot.q_min": "-1 cm", "transmission.stiction": "0.02 N m"},
+                                   origin="narrow")
+    other, s = explorer.with_params(narrow, replace(explorer.default(), q=explorer.q_min,
+                                                    coefficients={"transmission.stiction": 0.001}))
+    assert s.q == other.q_min == -0.01 and s.coefficients == {}
+    assert other.parameters(s)["transmission.stiction"] == 0.02
+    assert other.controls["q"].allowed() == "[-1 cm, 2 cm]"
+
+
+def test_geometric_elastic_element_runs(explorer):
+    """The potential form of the geometry (eq 3.1-3.7): its tangent stiffness changes
+    with the deflection, so the ellipse at the run's last state differs from the one at
+    rest."""
+    view = explorer.run(replace(explorer.default(), elastic="geometric", reference="step",
+                                amplitude=0.4, duration=0.6))
+    assert view.lag is not None and view.lag > 0.0
+    assert not np.allclose(view.stiffness, view.stiffness_rest, rtol=1e-6)

@@ -118,6 +118,27 @@ def test_explorer_in_chromium(tmp_path, params):
         np.testing.assert_allclose(force, ds["contact.wall.force"].values[0], rtol=0, atol=SAME)
         assert max(force) > 0.0
 
+        # another parameter set, as a file: its values become the controls' (a bad file
+        # is refused beside the file input, and the explorer keeps the set it has)
+        bad = tmp_path / "bad.toml"
+        bad.write_text('extends = "second_prototype"\n[transmission]\n'
+                       'stiction = { value = "-1 N m", source = "test" }\n')
+        page.upload("params_file", bad)
+        refused = page.wait_text("error:params", lambda t: "stiction" in t)
+        assert refused.startswith("refused") and "bad.toml" in refused, refused
+        good = tmp_path / "slow-gears.toml"
+        good.write_text('extends = "second_prototype"\n[meta]\nname = "slow gears"\n'
+                        '[transmission]\nstiction = { value = "0.02 N m", source = "test" }\n')
+        runs = page.runs()
+        page.upload("params_file", good)
+        page.wait_runs(runs + 1)
+        assert "slow gears" in page.text("params_note") and page.text("error:params") == ""
+        assert page.script("return Bokeh.documents[0].get_model_by_name("
+                           "'field:transmission.stiction').value;") == "0.02 N m"
+        ds = _export_and_simulate(page, tmp_path / "slow-gears")
+        np.testing.assert_allclose(page.source("run")["theta_x"], ds["theta_x"].values[0],
+                                   rtol=0, atol=SAME)
+
         page.screenshot(SCREENSHOT)
         assert page.console_errors() == []
         print(f"release-to-redraw times in this test [ms]: {page.latencies()}")

@@ -200,7 +200,10 @@ class Page:
                 else:
                     parts.append(self._numeric(key))
         upload = FileInput(accept=".toml", name="params_file", width=300)
-        upload.on_change("value", lambda a, o, n: self._loaded(upload.filename, n))
+        # the page sends the file's content before its name: read both once the
+        # message that carries them has been applied
+        upload.on_change("value", lambda a, o, n: self.doc.add_next_tick_callback(
+            lambda: self._loaded(upload.filename, upload.value)))
         self.params_note = Div(text=self._params_text(), styles=_STYLE, width=310,
                                name="params_note")
         self.params_error = Div(text="", styles=_ERROR, width=310, name="error:params")
