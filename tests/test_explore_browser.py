@@ -14,7 +14,8 @@ simulate``; type bad values into a field; put a wall in the way. What it checks:
   prediction, and tradeoff.py's finding);
 * a bad value (text, out of range, wrong unit) is refused beside its field with the
   allowed range, changes nothing, and the next good value runs;
-* no error reaches the browser's console; a screenshot is saved in build/explore/.
+* no error reaches the browser's console, and the page loads nothing from anywhere but
+  the explorer's server (it works offline); a screenshot is saved in build/explore/.
 """
 
 from __future__ import annotations
@@ -141,6 +142,11 @@ def test_explorer_in_chromium(tmp_path, params):
 
         page.screenshot(SCREENSHOT)
         assert page.console_errors() == []
+        # offline: every script, style sheet and connection the page made was to the server
+        loaded = page.script("return performance.getEntriesByType('resource')"
+                             ".map(r => r.name);")
+        assert loaded and all(u.startswith(f"http://localhost:{page.port}/") or
+                              u.startswith(f"ws://localhost:{page.port}/") for u in loaded), loaded
         print(f"release-to-redraw times in this test [ms]: {page.latencies()}")
 
 
