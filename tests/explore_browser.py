@@ -10,7 +10,6 @@ type into its fields and read what the page plots (the Bokeh document's data sou
 from __future__ import annotations
 
 import os
-import shutil
 import socket
 import subprocess
 import sys
@@ -229,4 +228,4 @@ class Explorer:
         self.driver.save_screenshot(str(path))
 
 
-__all__ = ["CHROMEDRIVER", "CHROMIUM", "Explorer", "available", "shutil"]
+__all__ = ["CHROMEDRIVER", "CHROMIUM", "Explorer", "available"]

@@ -2,7 +2,9 @@
 
 Every control changes the `Setting`; each change runs it (`Explorer.run`: the C engine,
 a few tens of milliseconds for a 2 s closed-loop run) and sends the new curves to the
-page, which redraws them. Sliders run on release (Bokeh's ``value_throttled``), so a
+page, which redraws them. A run reaches the page as three messages: every curve over
+time and the stiffness ellipse in one data source, the ledger's bars in another, the
+numbers written over the views in a third. Sliders run on release (Bokeh's ``value_throttled``), so a
 drag does not queue runs. A typed value is parsed with its unit and checked against the
 control's range before anything runs: a refused one is shown beside its field, with
 the range, and changes nothing. The page's scripts and styles are BokehJS, served by
@@ -39,9 +41,6 @@ from ..friction import RUN_LAWS
 from .setting import (CONTROLLERS, ELASTIC, ENVIRONMENTS, FRICTION_KEYS, REFERENCES, Explorer,
                       Setting, View)
 
-#: Runs a setting's numeric field sets, in the order the page shows them.
-NUMERIC = ("q", "amplitude", "frequency", "duration", *FRICTION_KEYS, "k", "Ti", "Td",
-           "wall_angle", "wall_stiffness")
 #: The choices, each with its options.
 CHOICES = {"reference": REFERENCES, "friction": RUN_LAWS, "controller": CONTROLLERS,
            "environment": ENVIRONMENTS, "elastic": ELASTIC}
@@ -66,6 +65,7 @@ NOTES = ("outputs", "stiffness", "ledger", "impact", "impact_events", "impact_is
 #: (the ``notes`` source, changed after every view's data) marks ``vsj-drawn`` once the
 #: browser has painted the frame that shows it: BokehJS paints the plots in the next
 #: animation frame, and a task queued from that frame's callback runs after its paint.
+#: The numbers go into the plots' title lines on the page (`Page._views`).
 _NOTES_JS = """
 for (const [key, title] of Object.entries(titles)) title.text = notes.data[key][0];
 """
@@ -103,8 +103,8 @@ def _value(setting: Setting, key: str) -> float:
 
 def _combined(handler):
     """``handler`` with the document held: the changes it makes (the run's new data, the
-    fields it echoes) reach the page as one message, each property once, so the page
-    lays out and paints once."""
+    field it echoes) go to the page once it returns, each changed property once (Bokeh
+    sends a message per property), so the page applies them together and paints once."""
     @functools.wraps(handler)
     def held(self, *args):
         if self.holding:  # a handler the held one set off: the outer hold covers it
