@@ -27,8 +27,8 @@ $(STAMP): pyproject.toml setup.py $(ENGINE)
 reproduce: $(STAMP)
 	$(BIN)/vsj reproduce --out reproduction
 
-# the figures README.md shows, each copied from what a vsj command writes, so that none is
-# drawn by hand (tests/test_readme.py checks that this recipe writes every one of them)
+# the figures README.md shows, each copied from what a vsj command writes (the explorer's
+# screenshot from vsj explore in headless Chromium), so that none is drawn by hand (tests/test_readme.py checks that this recipe writes every one of them)
 figures: $(STAMP)
 	rm -rf build/figures
 	$(BIN)/vsj reproduce --only fig-4.13 fig-4.15 --out build/figures/reproduction
@@ -36,6 +36,8 @@ figures: $(STAMP)
 	cp build/figures/reproduction/fig-4.13.png docs/fig-4.13.png
 	cp build/figures/reproduction/fig-4.15.png docs/fig-4.15.png
 	cp build/figures/msl/msl-friction.png docs/msl-friction.png
+	$(BIN)/python tools/explorer_screenshot.py build/figures/explorer.png
+	cp build/figures/explorer.png docs/explorer.png
 
 # one worker per core, a test file to a worker, the costliest files first (in the order
 # tests/conftest.py collects them). The workers already fill the cores, so OpenBLAS runs

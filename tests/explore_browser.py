@@ -222,10 +222,16 @@ class Explorer:
             time.sleep(0.01)
 
     def screenshot(self, path: Path) -> None:
-        """Save what the browser shows as a PNG."""
+        """Save the whole page as a PNG."""
+        import base64
+
         Path(path).parent.mkdir(parents=True, exist_ok=True)
-        self.script("window.scrollTo(0, 0);")
-        self.driver.save_screenshot(str(path))
+        size = self.driver.execute_cdp_cmd("Page.getLayoutMetrics", {})["cssContentSize"]
+        shot = self.driver.execute_cdp_cmd("Page.captureScreenshot", {
+            "format": "png", "captureBeyondViewport": True,
+            "clip": {"x": 0, "y": 0, "width": size["width"], "height": size["height"],
+                     "scale": 1}})
+        Path(path).write_bytes(base64.b64decode(shot["data"]))
 
 
 __all__ = ["CHROMEDRIVER", "CHROMIUM", "Explorer", "available"]

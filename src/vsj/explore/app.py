@@ -302,11 +302,8 @@ class Page:
         tools = "pan,wheel_zoom,box_zoom,reset,save"
 
         def plot(title, y_label, x_label="time [s]", *, notes=(), **kw):
-            # a fixed frame and border: new tick labels change no plot's size, so a run
-            # lays out no part of the page again
-            f = figure(frame_width=380, frame_height=170, min_border_left=70,
-                       min_border_right=20, tools=tools, x_axis_label=x_label,
-                       y_axis_label=y_label, **kw)
+            f = figure(**{"width": 470, **kw}, height=270 + 17 * len(notes), tools=tools,
+                       x_axis_label=x_label, y_axis_label=y_label)
             f.toolbar.logo = None
             # the run's numbers, in title lines the page fills in from the notes (a
             # changed text on the page would lay the whole page out again; a title
@@ -354,7 +351,7 @@ class Page:
         ellipse.line("rest_x", "rest_y", source=s, color="gray", line_dash="dashed",
                      legend_label="springs undeflected")
         ledger = plot("Energy ledger over the run", "", x_label="energy [J]",
-                      notes=("ledger",), y_range=[])
+                      notes=("ledger",), y_range=[], width=560)
         ledger.hbar(y="label", right="joules", height=0.7, source=self.ledger,
                     color="#9467bd")
         self.ledger_plot = ledger
@@ -433,9 +430,9 @@ def _impact_notes(v: View) -> dict:
     first, worst = events[0], max(events, key=lambda ev: ev["peak_force"])
     lines["impact"] = (f"first impact at {first['start']:.3f} s: peak force "
                        f"{first['peak_force']:.3g} N, energy transferred "
-                       f"{1e3 * first['energy_in']:.3g} mJ, impulse {first['impulse']:.3g} N s")
-    lines["impact_events"] = (f"{len(events)} contact event(s); largest peak force "
-                              f"{worst['peak_force']:.3g} N at {worst['peak_time']:.3f} s")
+                       f"{1e3 * first['energy_in']:.3g} mJ")
+    lines["impact_events"] = (f"impulse {first['impulse']:.3g} N s; {len(events)} contact "
+                              f"event(s), largest peak force {worst['peak_force']:.3g} N")
     lines["impact_iso"] = worst["iso_ts_15066"]["hand"]
     return lines
 
