@@ -116,12 +116,20 @@ class Explorer:
         return int(self.script("return window.vsjDrawn || 0;"))
 
     def wait_runs(self, count: int) -> None:
-        """Wait until the page has drawn ``count`` runs."""
-        deadline = time.monotonic() + RUN_TIMEOUT
-        while self.runs() < count:
-            if time.monotonic() > deadline:
-                raise TimeoutError(f"the page drew {self.runs()} runs, expected {count}")
-            time.sleep(0.01)
+        """Wait until the page has drawn ``count`` runs (told by the page itself, so that
+        no polling competes with it for the browser's thread)."""
+        from selenium.common.exceptions import TimeoutException
+
+        self.driver.set_script_timeout(RUN_TIMEOUT)
+        try:
+            self.driver.execute_async_script("""
+                const done = arguments[arguments.length - 1], count = arguments[0];
+                if ((window.vsjDrawn || 0) >= count) { done(); return; }
+                window.vsjOnDrawn = () => {
+                    if (window.vsjDrawn >= count) { window.vsjOnDrawn = null; done(); }
+                };""", count)
+        except TimeoutException:
+            raise TimeoutError(f"the page drew {self.runs()} runs, expected {count}") from None
 
     def source(self, name: str) -> dict:
         """The columns of the page's data source ``name`` (what a view plots)."""

@@ -13,7 +13,8 @@ the Bokeh server from the installed package: the page needs no network.
 The page marks each slider release and each redraw with the browser's performance
 marks (``vsj-release``, ``vsj-drawn``) and keeps the release-to-redraw times in
 ``window.vsjLatencies`` [ms]: the explorer's response time as the browser sees it
-(benchmarks/explore.py reads them).
+(benchmarks/explore.py reads them). ``window.vsjDrawn`` counts the runs drawn, and a
+``window.vsjOnDrawn`` function, if a test sets one, is called after each.
 """
 
 from __future__ import annotations
@@ -81,6 +82,7 @@ requestAnimationFrame(() => setTimeout(() => {
         window.vsjPending = false;
     }
     window.vsjDrawn = Math.max(window.vsjDrawn || 0, run);
+    if (window.vsjOnDrawn) window.vsjOnDrawn();
 }, 0));
 """
 
