@@ -112,11 +112,12 @@ class Explorer:
         return self.driver.execute_script(code, *args)
 
     def runs(self) -> int:
-        """How many runs the page has drawn (``window.vsjDrawn``)."""
+        """The number of the last run the page has drawn (``window.vsjDrawn``; the
+        server numbers its runs from 1)."""
         return int(self.script("return window.vsjDrawn || 0;"))
 
     def wait_runs(self, count: int) -> None:
-        """Wait until the page has drawn ``count`` runs (told by the page itself, so that
+        """Wait until the page has drawn run ``count`` (told by the page itself, so that
         no polling competes with it for the browser's thread)."""
         from selenium.common.exceptions import TimeoutException
 
@@ -197,6 +198,20 @@ class Explorer:
         # emptied as a user's select-all would (no change event), then typed
         self.script("arguments[0].value = '';", box)
         box.send_keys(text + Keys.ENTER)
+
+    def show_tab(self, index: int) -> None:
+        """Click the header of the tab of views ``index`` (from 0) and wait until it shows
+        the latest run's data."""
+        host = self._element("views")
+        headers = self.script("return arguments[0].shadowRoot.querySelectorAll('.bk-tab');",
+                              host)
+        headers[index].click()
+        want = f"{self.runs()}:{index}"
+        deadline = time.monotonic() + RUN_TIMEOUT
+        while self.script("return window.vsjShown;") != want:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"tab {index}: {self.script('return window.vsjShown;')}")
+            time.sleep(0.01)
 
     def choose(self, key: str, option: str) -> None:
         """Choose ``option`` in the drop-down of ``key`` (as a user picks it)."""
