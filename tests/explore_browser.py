@@ -48,7 +48,7 @@ def _free_port() -> int:
 class Explorer:
     """``vsj explore`` served on a free port and opened in headless Chromium."""
 
-    def __init__(self, out: Path, *, width: int = 1520, height: int = 1950):
+    def __init__(self, out: Path, *, width: int = 1250, height: int = 1000):
         from selenium import webdriver
         from selenium.webdriver.chrome.service import Service
 

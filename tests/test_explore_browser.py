@@ -148,6 +148,8 @@ def test_explorer_in_chromium(tmp_path, params):
                                    ds["theta_x"].values[0], rtol=0, atol=SAME)
 
         page.screenshot(SCREENSHOT)
+        page.show_tab(3)
+        page.screenshot(SCREENSHOT.with_name("explorer-energy.png"))
         assert page.console_errors() == []
         # offline: every script, style sheet and connection the page made was to the server
         loaded = page.script("return performance.getEntriesByType('resource')"

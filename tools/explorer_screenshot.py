@@ -2,7 +2,9 @@
 
 Starts ``vsj explore`` and opens it in Debian's headless Chromium (tests/explore_browser.py,
 what the browser test drives), puts the wall of the environment in the circle's way so
-that every view has something to show, and saves what the browser shows as a PNG:
+that every view has something to show, and saves the page with its first tab of views
+(tracking and stiffness) as the PNG named, and with its last (energy and impact) beside it
+as ``<name>-energy.png``:
 
     .venv/bin/python tools/explorer_screenshot.py build/figures/explorer.png
 
@@ -33,8 +35,12 @@ def main(argv: list[str]) -> int:
         if errors:
             print(f"explorer_screenshot: the page logged errors: {errors}", file=sys.stderr)
             return 1
-        page.screenshot(Path(argv[0]))
-    print(f"wrote {argv[0]}")
+        first = Path(argv[0])
+        page.screenshot(first)
+        page.show_tab(3)
+        last = first.with_name(f"{first.stem}-energy{first.suffix}")
+        page.screenshot(last)
+    print(f"wrote {first} and {last}")
     return 0
 
 

@@ -160,7 +160,7 @@ class Page:
                      tab_of={"outputs": 0, "stiffness": 0, "ledger": 3, "impact": 3,
                              "impact_events": 3, "impact_iso": 3})
         self.notes.js_on_change("data", CustomJS(code=_NOTES_JS + _DRAWN_JS, args=probe))
-        doc.add_root(column(controls, views))
+        doc.add_root(row(controls, views))
         doc.add_root(self.notes)  # read by no view: a root of its own reaches the page
         doc.title = "vsj explore"
         doc.theme = THEME
@@ -194,7 +194,7 @@ class Page:
         intro = Div(text="<h2 style='margin:0'>vsj explore</h2><p>The wrist of report fig "
                          "4.15 in closed loop. Move a slider, or type a value with its unit "
                          "and press Enter: each change runs the model and redraws the "
-                         "views.</p>", styles=_STYLE, width=640)
+                         "views.</p>", styles=_STYLE, width=620)
         groups = [("Stiffness", ["q", "elastic"]),
                   ("References", ["reference", "amplitude", "frequency", "duration"]),
                   ("Controller", ["controller", "k", "Ti", "Td"]),
@@ -380,10 +380,10 @@ class Page:
         # on this 2-core VM (BokehJS), whether the plot is shown or not, so a run updates
         # the tab shown (the others as they are shown)
         self.tabs = Tabs(name="views", tabs=[
-            TabPanel(title="Tracking and stiffness", child=row(out, ellipse)),
-            TabPanel(title="Motors", child=row(motors, torques)),
-            TabPanel(title="Elastic elements", child=row(deflection, spring)),
-            TabPanel(title="Energy and impact", child=row(ledger, contact))])
+            TabPanel(title="Tracking and stiffness", child=column(out, ellipse)),
+            TabPanel(title="Motors", child=column(motors, torques)),
+            TabPanel(title="Elastic elements", child=column(deflection, spring)),
+            TabPanel(title="Energy and impact", child=column(ledger, contact))])
         self.tabs.on_change("active", lambda a, o, n: self._shown())
         return self.tabs
 
