@@ -265,18 +265,34 @@ class Page:
         self._apply(key, value)
 
     def _apply(self, key: str, value: float) -> None:
+        """Run the setting with ``key`` at ``value``; if the model refuses the run (a
+        combination the controls' ranges cannot rule out alone), say why beside the
+        control and put it back where it was."""
+        before = self.setting
         self.errors[key].text = ""
         if "." in key:
             coefficients = {**self.setting.coefficients, key: value}
             self.setting = replace(self.setting, coefficients=coefficients)
         else:
             self.setting = replace(self.setting, **{key: value})
-        self.refresh()
+        why = self.refresh()
+        if why is not None:
+            self.setting = before
+            self.errors[key].text = f"not run: {_html(why)}"
+            old = self._current(key)
+            self.sliders[key].value = old
+            self._echo(key, self.explorer.controls[key].show(old))
 
     @_combined
     def _chose(self, key: str, value: str) -> None:
+        if value == getattr(self.setting, key):
+            return  # the choice put back after a refused run
+        before = self.setting
         self.setting = replace(self.setting, **{key: value})
-        self.refresh()
+        why = self.refresh()
+        if why is not None:
+            self.setting = before
+            self.selects[key].value = getattr(before, key)
 
     @_combined
     def _loaded(self, filename: str, content: str) -> None:
@@ -387,18 +403,20 @@ class Page:
         self.tabs.on_change("active", lambda a, o, n: self._shown())
         return self.tabs
 
-    def refresh(self) -> None:
-        """Run the setting and send every view its new data (the notes last)."""
+    def refresh(self) -> str | None:
+        """Run the setting and send the views their new data (the notes last). Returns
+        None, or why the model refused the run (also shown on the page)."""
         start = time.perf_counter()
         try:
             view = self.explorer.run(self.setting)
         except InputError as exc:
             self.run_error.text = f"not run: {_html(str(exc))}"
-            return
+            return str(exc)
         took = time.perf_counter() - start
         self.run_error.text = ""
         self.exported.text = ""  # the files written, if any, were another setting's
         self._show(view, took)
+        return None
 
     def _show(self, v: View, took: float) -> None:
         r = v.result

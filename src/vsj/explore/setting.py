@@ -241,7 +241,9 @@ class Explorer:
             "duration": Control("duration", "run length", "s", "s", 0.2, 20.0, 0.2, 10.0),
             "k": Control("k", "controller gain k", "V/rad", "V/rad", 0.0, 100.0, 0.0,
                          round(4 * pid.k, 1), low_open=True),
-            "Ti": Control("Ti", "integral time Ti", "s", "ms", 1e-3, 10.0, 5e-3, 0.5),
+            # from 2 ms: the PID's anti-windup tracks in 0.9 Ti (Modelica's LimPID),
+            # which must be longer than the controller's period
+            "Ti": Control("Ti", "integral time Ti", "s", "ms", 2e-3, 10.0, 5e-3, 0.5),
             "Td": Control("Td", "derivative time Td", "s", "ms", 0.0, 0.1, 0.0, 0.02),
             "wall_angle": Control("wall_angle", "wall position (theta_x at touch)", "rad",
                                   "rad", 0.0, 1.0, 0.0, 1.0, low_open=True),
