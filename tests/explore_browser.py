@@ -233,6 +233,19 @@ class Explorer:
         button = self.script("return arguments[0].shadowRoot.querySelector('button');", host)
         button.click()
 
+    def field(self, key: str) -> str:
+        """The text in the field of control ``key``."""
+        return self.script("return Bokeh.documents[0].get_model_by_name(arguments[0]).value;",
+                           f"field:{key}")
+
+    def wait_for(self, condition, what: str, timeout: float = RUN_TIMEOUT) -> None:
+        """Wait until ``condition()`` holds; `TimeoutError` naming ``what`` if it does not."""
+        deadline = time.monotonic() + timeout
+        while not condition():
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"waited for: {what}")
+            time.sleep(0.01)
+
     def wait_text(self, name: str, predicate, timeout: float = RUN_TIMEOUT) -> str:
         """Wait until the Div ``name``'s text satisfies ``predicate``; returns it."""
         deadline = time.monotonic() + timeout

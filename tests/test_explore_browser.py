@@ -94,6 +94,8 @@ def test_explorer_in_chromium(tmp_path, params):
             page.drag_slider("q", end)
             q = page.script("return Bokeh.documents[0].get_model_by_name('slider:q').value;")
             assert q == params[{"start": "pivot.q_min", "end": "pivot.q_max"}[end]]
+            shown = {"start": "-2.2 cm", "end": "2 cm"}[end]
+            page.wait_for(lambda: page.field("q") == shown, f"the q field shows {shown}")
             ds = _export_and_simulate(page, tmp_path / end)
             _same_as_simulate(page, ds)
             lags[end] = _lag_shown(page)

@@ -238,9 +238,12 @@ class Page:
 
     @_combined
     def _slid(self, key: str, value: float) -> None:
-        c = self.explorer.controls[key]
-        self._echo(key, c.show(value))
+        text = self.explorer.controls[key].show(value)
         self._apply(key, float(value))
+        # the field shows the new value in a message after the run's: a changed field
+        # makes the page restyle, which would otherwise delay the plots' repaint
+        if _value(self.setting, key) == float(value):  # it ran (a refused one is put back)
+            self.doc.add_next_tick_callback(lambda: self._echo(key, text))
 
     def _echo(self, key: str, text: str) -> None:
         """Show ``text`` in the field of ``key`` without taking it as typed: a field's
