@@ -27,12 +27,15 @@ $(STAMP): pyproject.toml setup.py $(ENGINE)
 reproduce: $(STAMP)
 	$(BIN)/vsj reproduce --out reproduction
 
-# the figure README.md shows, made by running the README's own Python snippet
-# (tests/test_readme.py checks that this recipe writes every figure the README shows)
+# the figures README.md shows: the README's own Python snippet, run, and the explorer's
+# screenshot from vsj explore in headless Chromium (tests/test_readme.py checks that this
+# recipe writes every figure the README shows)
 figures: $(STAMP)
 	rm -rf build/figures
 	$(BIN)/python tools/readme_figure.py build/figures/readme
 	cp build/figures/readme/quickstart.png docs/quickstart.png
+	$(BIN)/python tools/explorer_screenshot.py build/figures/explorer.png
+	cp build/figures/explorer.png build/figures/explorer-energy.png docs/
 
 # one worker per core, a test file to a worker, the costliest files first (in the order
 # tests/conftest.py collects them). The workers already fill the cores, so OpenBLAS runs
@@ -85,6 +88,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/long_run.py
 	$(BIN)/python benchmarks/fmu.py
 	$(BIN)/python benchmarks/design.py
+	$(BIN)/python benchmarks/explore.py
 
 clean:
 	rm -rf $(VENV) reproduction out build src/vsj.egg-info src/vsj/*.so src/vsj/engine/*.so

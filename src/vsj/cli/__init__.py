@@ -16,7 +16,7 @@ from .. import __version__, params
 from ..errors import InputError, SimulationError
 from ..simulate import Result, catalogue, sample_times
 from ..units import to_si
-from . import control, design, fit, study, sweep
+from . import control, design, explore, fit, study, sweep
 
 
 def _params(path: str | None):
@@ -303,6 +303,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.register(sub)
     study.register(sub)
     design.register(sub)
+    explore.register(sub)
     return parser
 
 

@@ -481,18 +481,26 @@ def virtual_spring_damper(name: str, period: float, stiffness, damping, *,
 
 
 def mechanical_stiffness(structure: Structure, q: float,
-                         outputs: tuple[str, str] = ("theta_x", "theta_y")) -> np.ndarray:
+                         outputs: tuple[str, str] = ("theta_x", "theta_y"), *,
+                         deflections: Mapping[str, float] | None = None) -> np.ndarray:
     """The end-effector's stiffness matrix [N m/rad] with the motors' rotors held and the
-    pivot at ``q`` [m], at the reference configuration: the springs' tangent stiffnesses
-    (their laws at zero deflection) through the network's kinematics,
-    ``(Y H^{-1} Y^T)^{-1}`` with ``H`` the springs' stiffness over the coordinates left
-    free when the rotors are held and ``Y`` the outputs' rows over them."""
+    pivot at ``q`` [m]: the springs' tangent stiffnesses through the network's
+    kinematics, ``(Y H^{-1} Y^T)^{-1}`` with ``H`` the springs' stiffness over the
+    coordinates left free when the rotors are held and ``Y`` the outputs' rows over them.
+    The tangents are taken at the reference configuration (every spring undeflected) or,
+    given ``deflections`` (spring name -> deflection [rad]; a spring left out is
+    undeflected), at that state (report fig 4.14's characteristic is the small-motion
+    stiffness around it)."""
     n = structure.n
     rotors = np.array([structure.rows(m.flange)[0] for m in structure.motors])
     free = _null_space(rotors, n)
     S = structure.spring_rows @ structure.A @ free
-    k = np.array([spring_law(sp.law, tuple(sp.parameters), 0.0, float(q))[1]
-                  for sp in structure.springs])
+    at = {} if deflections is None else dict(deflections)
+    unknown = sorted(set(at) - {sp.name for sp in structure.springs})
+    if unknown:
+        raise InputError(f"network {structure.name!r} has no spring(s) {', '.join(unknown)}")
+    k = np.array([spring_law(sp.law, tuple(sp.parameters), float(at.get(sp.name, 0.0)),
+                             float(q))[1] for sp in structure.springs])
     H = S.T @ (k[:, None] * S)
     Y = np.array([structure.rows(_signal_flange(structure, o))[0] for o in outputs]) @ free
     try:
