@@ -35,7 +35,8 @@ figures: $(STAMP)
 	$(BIN)/python tools/readme_figure.py build/figures/readme
 	cp build/figures/readme/quickstart.png docs/quickstart.png
 	$(BIN)/python tools/explorer_screenshot.py build/figures/explorer.png
-	cp build/figures/explorer.png build/figures/explorer-energy.png docs/
+	cp build/figures/explorer.png docs/explorer.png
+	cp build/figures/explorer-energy.png docs/explorer-energy.png
 
 # one worker per core, a test file to a worker, the costliest files first (in the order
 # tests/conftest.py collects them). The workers already fill the cores, so OpenBLAS runs
