@@ -63,7 +63,7 @@ PERIOD = 1e-3
 #: damping [N s/m^2] (Hunt-Crossley lambda with n = 1).
 LINK, TIP_MASS, WALL_DAMPING = 0.1, 0.05, 4000.0
 #: The stiffness setting the explorer opens at [m]: the middle one of the examples
-#: (examples/environment/*.toml).
+#: (the TOML files of examples/environment).
 DEFAULT_Q = -0.004
 #: The step's start [s]: the loop settles at rest first.
 STEP_START = 0.1
