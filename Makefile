@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 ENGINE := $(wildcard src/vsj/engine/c/*.c src/vsj/engine/c/*.h) src/vsj/_core.c
 
-.PHONY: install reproduce figures test docs docs-browser bench sanitize portable clean
+.PHONY: install reproduce figures test explore-browser docs docs-browser bench sanitize portable clean
 
 install: $(STAMP)
 
@@ -65,6 +65,12 @@ docs: $(DOCS_STAMP)
 # screenshots of the home page and an executed example into build/docs-browser
 docs-browser: $(DOCS_STAMP)
 	$(BIN)/python tools/browser_check.py docs/_build/html --screenshots build/docs-browser
+
+# vsj explore in headless Chromium (Debian's chromium and chromedriver, driven by
+# Selenium): a session as a user would go, checked against vsj simulate; a screenshot
+# into build/explore. Outside make test, which needs no browser; .ci/run calls it
+explore-browser: $(STAMP)
+	$(BIN)/python -m pytest -q -p no:cacheprovider tests/browser_explorer.py
 
 # the engine under AddressSanitizer and UndefinedBehaviorSanitizer (also run by make test)
 sanitize: $(STAMP)

@@ -1,6 +1,6 @@
 """Driving ``vsj explore`` in a real browser: Debian's headless Chromium through its
-chromedriver and Selenium, nothing downloaded. Shared by tests/test_explore_browser.py
-and benchmarks/explore.py.
+chromedriver and Selenium, nothing downloaded. Shared by tests/browser_explorer.py (run by
+make explore-browser) and benchmarks/explore.py.
 
 `Explorer` starts ``vsj explore`` as the user would (a process of its own, on a free
 port) and a headless Chromium on it; its methods move the page's sliders with the mouse,

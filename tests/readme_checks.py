@@ -41,8 +41,8 @@ COSTLY = {
     "design": ((), "an optimisation over many designs; tests/test_design.py"),
     "study": (("--quick",), "a study of many closed-loop runs or an optimisation, minutes; "
                             "tests/test_tradeoff.py and tests/test_studies.py run them"),
-    "explore": ((), "serves until interrupted; tests/test_explore_browser.py drives it in "
-                    "Chromium"),
+    "explore": ((), "serves until interrupted; make explore-browser drives it in Chromium "
+                    "(tests/browser_explorer.py)"),
 }
 #: Options whose value is a file or directory a command writes (everything else that
 #: looks like a path is an input it reads).
