@@ -5,14 +5,15 @@ plots, as the browser measures it.
 (tests/explore_browser.py). The stiffness slider is dragged with the mouse from one end of
 its range to the other, ``--rounds`` times; each release runs the explorer's opening
 setting, a 2 s closed-loop run (PIDs on the motors at 1 kHz) with true stiction on the
-time-stepper, at the new stiffness. The page marks the release and the first paint after
-the run's data arrived (performance marks ``vsj-release``, ``vsj-drawn``; see
-vsj.explore.app), so the time covers the server's run and the page's update and paint.
+time-stepper, at the new stiffness. The page marks the release, the first paint after
+the run's data arrived (the new curves) and the paint a frame later that shows the numbers
+over them too (performance marks ``vsj-release``, ``vsj-drawn``, ``vsj-numbers``; see
+vsj.explore.app), so the times cover the server's run and the page's update and paint.
 The server's share (the run and the views' numbers) is timed in Python beside it.
 
-Target: <= 100 ms. This VM is shared and its speed drifts (a browser, the server and the
-other jobs share its two cores): the best of the rounds is the figure to compare with the
-target, the median says how much the load moved it; the load average is printed.
+Target: release to redrawn curves <= 100 ms. This VM is shared and its speed drifts (a
+browser, the server and the other jobs share its two cores): both the best and the median
+of the rounds are compared with the target, with the load average printed.
 
     python benchmarks/explore.py [--rounds N]     (default 10)
 """
@@ -62,19 +63,24 @@ def main() -> int:
         for k in range(args.rounds):
             page.drag_slider("q", "end" if k % 2 == 0 else "start")
         latencies = page.latencies()
+        numbers = page.number_latencies()
         errors = page.console_errors()
     server = server_share(args.rounds)
     load = os.getloadavg()
     print(f"vsj benchmarks: explore; slider release to redrawn plots in headless Chromium, "
           f"the opening setting (2 s, closed loop at 1 kHz, true stiction), {len(latencies)} "
           f"releases, load average {load[0]:.1f} on {os.cpu_count()} cores")
-    print(f"  browser, release to redraw [ms]: best {min(latencies):.0f}, median "
+    print(f"  browser, release to redrawn curves [ms]: best {min(latencies):.0f}, median "
           f"{statistics.median(latencies):.0f}, worst {max(latencies):.0f}")
+    print(f"  browser, release to the numbers over them, a frame later [ms]: best "
+          f"{min(numbers):.0f}, median {statistics.median(numbers):.0f}, worst "
+          f"{max(numbers):.0f}")
     print(f"  server's share, run and views' numbers [ms]: best {min(server):.0f}, median "
           f"{statistics.median(server):.0f}")
-    met = min(latencies) <= TARGET_MS
-    print(f"issue 36 target: release to redraw <= {TARGET_MS:g} ms: "
-          f"{'met' if met else 'NOT met'} (best of the rounds)")
+    best, median = min(latencies), statistics.median(latencies)
+    print(f"issue 36 target: release to redrawn curves <= {TARGET_MS:g} ms: best of the "
+          f"rounds {'met' if best <= TARGET_MS else 'NOT met'}, median "
+          f"{'met' if median <= TARGET_MS else 'NOT met'}")
     if errors:
         print(f"  browser console errors: {errors}", file=sys.stderr)
         return 1

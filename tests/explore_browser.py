@@ -156,8 +156,14 @@ class Explorer:
                 if e["level"] in ("SEVERE", "ERROR")]
 
     def latencies(self) -> list[float]:
-        """Release-to-redraw times [ms] the page measured (``window.vsjLatencies``)."""
+        """Release-to-redraw times [ms] the page measured, to the new curves painted
+        (``window.vsjLatencies``)."""
         return [float(x) for x in self.script("return window.vsjLatencies || [];")]
+
+    def number_latencies(self) -> list[float]:
+        """Release-to-redraw times [ms] to the numbers over the curves painted too, a frame
+        later (``window.vsjNumberLatencies``)."""
+        return [float(x) for x in self.script("return window.vsjNumberLatencies || [];")]
 
     # -- acting on it -------------------------------------------------------------------
 
