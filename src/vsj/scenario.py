@@ -625,26 +625,27 @@ def _entry_name(entry, key: str) -> str | None:
     return name if isinstance(name, str) else None
 
 
-def _merge_controller(base, over, where: Where):
-    """A case's [controller] over the scenario's: tables merge key by key; an array is
-    replaced by an array, or changed entry by entry by a table of its entries' names
-    (``[cases.controller.pid.u1] k = "60 V/rad"``)."""
+def _merge_named(base, over, where: Where, table: str, arrays, name_of):
+    """A case's ``[table]`` (controller, environment) over the scenario's: tables merge key
+    by key; an array of ``arrays`` is replaced by an array, or changed entry by entry by a
+    table of its entries' names (``name_of(entry, key)``), as in
+    ``[cases.controller.pid.u1] k = "60 V/rad"``."""
     if not isinstance(base, Mapping) or not isinstance(over, Mapping):
         return copy.deepcopy(over)
-    by_name = {k: v for k, v in over.items()
-               if k in CONTROLLER_ARRAYS and isinstance(v, Mapping)}
+    by_name = {k: v for k, v in over.items() if k in arrays and isinstance(v, Mapping)}
     out = _merge(base, {k: v for k, v in over.items() if k not in by_name})
     for key, changes in by_name.items():
         entries = copy.deepcopy(base.get(key, []))
         if not isinstance(entries, list):
-            raise InputError(f"{where.key(key)}: the scenario's controller has no array "
-                             f"[[controller.{key}]] whose entries this could change")
-        names = [_entry_name(e, key) for e in entries]
+            raise InputError(f"{where.key(key)}: the scenario's {table} has no array "
+                             f"[[{table}.{key}]] whose entries this could change")
+        names = [name_of(e, key) for e in entries]
         for name, change in changes.items():
             cw = where.key(key).key(name)
             if name not in names:
-                raise InputError(f"{cw}: the scenario's controller has no {key} entry named "
-                                 f"{name!r}; it has {', '.join(map(repr, names)) or 'none'}")
+                shown = ", ".join(repr(n) for n in names if n is not None) or "none"
+                raise InputError(f"{cw}: the scenario's {table} has no {key} entry named "
+                                 f"{name!r}; it has {shown}")
             if not isinstance(change, Mapping):
                 raise InputError(f"{cw}: expected a table of the keys to change, got "
                                  f"{change!r}")
@@ -1423,33 +1424,10 @@ def _tip(table: Mapping, where: Where) -> Tip | None:
     return Tip.sphere(_quantity(table, "tip_radius", "m", where, positive=True))
 
 
-def _merge_environment(base, over, where: Where):
-    """A case's [environment] over the scenario's: tables merge key by key; ``walls`` or
-    ``bodies`` is replaced by an array, or changed entry by entry by a table of its
-    contacts' names (``[cases.environment.walls.table] stiffness = "1e5 N/m"``)."""
-    if not isinstance(base, Mapping) or not isinstance(over, Mapping):
-        return copy.deepcopy(over)
-    by_name = {k: v for k, v in over.items()
-               if k in ENVIRONMENT_ARRAYS and isinstance(v, Mapping)}
-    out = _merge(base, {k: v for k, v in over.items() if k not in by_name})
-    for key, changes in by_name.items():
-        entries = copy.deepcopy(base.get(key, []))
-        if not isinstance(entries, list):
-            raise InputError(f"{where.key(key)}: the scenario's environment has no array "
-                             f"[[environment.{key}]] whose entries this could change")
-        names = [e.get("name") if isinstance(e, Mapping) else None for e in entries]
-        for name, change in changes.items():
-            cw = where.key(key).key(name)
-            if name not in names:
-                shown = ", ".join(repr(n) for n in names if n is not None) or "none"
-                raise InputError(f"{cw}: the scenario's environment has no {key} entry named "
-                                 f"{name!r}; it has {shown}")
-            if not isinstance(change, Mapping):
-                raise InputError(f"{cw}: expected a table of the keys to change, got "
-                                 f"{change!r}")
-            entries[names.index(name)].update(copy.deepcopy(dict(change)))
-        out[key] = entries
-    return out
+def _contact_name(entry, key: str) -> str | None:
+    """The name a case uses for an entry of the [environment] array ``key``."""
+    name = entry.get("name") if isinstance(entry, Mapping) else None
+    return name if isinstance(name, str) else None
 
 
 def _contact_where(case: Case, message: str) -> Where | None:
@@ -1494,11 +1472,13 @@ def loads(text: str, origin: str) -> Scenario:
         merged = _merge(base, {k: v for k, v in entry.items()
                                if k not in ("label", "controller", "environment")})
         if "controller" in entry:
-            merged["controller"] = _merge_controller(base.get("controller"), entry["controller"],
-                                                     where.key("controller"))
+            merged["controller"] = _merge_named(
+                base.get("controller"), entry["controller"], where.key("controller"),
+                "controller", CONTROLLER_ARRAYS, _entry_name)
         if "environment" in entry:
-            merged["environment"] = _merge_environment(
-                base.get("environment"), entry["environment"], where.key("environment"))
+            merged["environment"] = _merge_named(
+                base.get("environment"), entry["environment"], where.key("environment"),
+                "environment", ENVIRONMENT_ARRAYS, _contact_name)
         cases.append(_case(merged, label, where))
     return Scenario(name=name, description=description, origin=origin, cases=tuple(cases),
                     table=table)
