@@ -172,20 +172,11 @@ def _elastic_problem(model: AxisModel, setup: SafeMotion, safe: SafeSpeed,
     def path(X, U):
         n = len(X)
         q = X[:, 4]
-        ws, dws = safe(q)
-        hold, dhold = model.joint.holdable_deflection(q)
-        delta = X[:, 0] - X[:, 1]
         c = np.empty((n, 6))
         Cx = np.zeros((n, 6, 5))
         Cu = np.zeros((n, 6, 2))
-        for j, sgn in enumerate((1.0, -1.0)):
-            c[:, j] = (ws - sgn * X[:, 3]) / w_scale
-            Cx[:, j, 3] = -sgn / w_scale
-            Cx[:, j, 4] = dws / w_scale
-            c[:, 2 + j] = (hold - sgn * delta) / h_scale
-            Cx[:, 2 + j, 0] = -sgn / h_scale
-            Cx[:, 2 + j, 1] = sgn / h_scale
-            Cx[:, 2 + j, 4] = dhold / h_scale
+        c[:, :4], Cx[:, :4, :4], Cx[:, :4, 4] = _speed_and_hold(model, safe, X, q, w_scale,
+                                                               h_scale)
         rmax, drmax = model.pivot_rate_limit(q)
         for j, sgn in enumerate((1.0, -1.0)):
             c[:, 4 + j] = (rmax - sgn * U[:, 1]) / r_top
@@ -205,6 +196,30 @@ def _elastic_problem(model: AxisModel, setup: SafeMotion, safe: SafeSpeed,
         last=np.array([Theta, Theta, 0.0, 0.0, np.nan]),
         x_scale=np.array([Theta, Theta, w_scale, w_scale, model.q_max - model.q_min]),
         u_scale=np.array([V, r_top]), T_bounds=(1e-3 * T_guess, 50.0 * T_guess), path=path)
+
+
+def _speed_and_hold(model: AxisModel, safe: SafeSpeed, X, q, w_scale: float,
+                    h_scale: float):
+    """The path constraints both problems share, scaled, >= 0 where met: the link speed
+    within the safe speed at ``q`` either way (``X[:, 3]``), and the deflection ``X[:, 0] -
+    X[:, 1]`` within what the joint holds at ``q`` either way. Returns the values (n, 4),
+    their derivatives in the first four states (n, 4, 4) and in ``q`` (n, 4)."""
+    n = len(X)
+    ws, dws = safe(q)
+    hold, dhold = model.joint.holdable_deflection(q)
+    delta = X[:, 0] - X[:, 1]
+    c = np.empty((n, 4))
+    Cx = np.zeros((n, 4, 4))
+    Cq = np.empty((n, 4))
+    for j, sgn in enumerate((1.0, -1.0)):
+        c[:, j] = (ws - sgn * X[:, 3]) / w_scale
+        Cx[:, j, 3] = -sgn / w_scale
+        Cq[:, j] = dws / w_scale
+        c[:, 2 + j] = (hold - sgn * delta) / h_scale
+        Cx[:, 2 + j, 0] = -sgn / h_scale
+        Cx[:, 2 + j, 1] = sgn / h_scale
+        Cq[:, 2 + j] = dhold / h_scale
+    return c, Cx, Cq
 
 
 def _instant_problem(model: AxisModel, setup: SafeMotion, safe: SafeSpeed, T_guess: float):
@@ -229,21 +244,8 @@ def _instant_problem(model: AxisModel, setup: SafeMotion, safe: SafeSpeed, T_gue
 
     def path(X, U):
         n = len(X)
-        q = U[:, 1]
-        ws, dws = safe(q)
-        hold, dhold = model.joint.holdable_deflection(q)
-        delta = X[:, 0] - X[:, 1]
-        c = np.empty((n, 4))
-        Cx = np.zeros((n, 4, 4))
         Cu = np.zeros((n, 4, 2))
-        for j, sgn in enumerate((1.0, -1.0)):
-            c[:, j] = (ws - sgn * X[:, 3]) / w_scale
-            Cx[:, j, 3] = -sgn / w_scale
-            Cu[:, j, 1] = dws / w_scale
-            c[:, 2 + j] = (hold - sgn * delta) / h_scale
-            Cx[:, 2 + j, 0] = -sgn / h_scale
-            Cx[:, 2 + j, 1] = sgn / h_scale
-            Cu[:, 2 + j, 1] = dhold / h_scale
+        c, Cx, Cu[:, :, 1] = _speed_and_hold(model, safe, X, U[:, 1], w_scale, h_scale)
         return c, Cx, Cu
 
     big = 10.0 * max(float(np.max(safe.speed)), model.no_load_speed)
