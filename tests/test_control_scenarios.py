@@ -14,6 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from scenario_checks import fails, write
 from vsj import scenario as scenarios
 from vsj.cli import main
 from vsj.errors import InputError
@@ -48,30 +49,9 @@ command = "u1"
 """
 
 
-def write(tmp_path: Path, text: str, name: str = "ctl.toml") -> Path:
-    path = tmp_path / name
-    path.write_text(text)
-    return path
-
-
 def edit(old: str, new: str, text: str = BASE) -> str:
     assert old in text, old
     return text.replace(old, new, 1)
-
-
-def fails(tmp_path, capsys, text: str, *expected: str) -> str:
-    """`vsj simulate` refuses ``text``: exit code 2, no traceback, nothing written, the
-    file's name and every expected text in the message."""
-    out = tmp_path / "out"
-    path = write(tmp_path, text)
-    code = main(["simulate", str(path), "--out", str(out)])
-    err = capsys.readouterr().err
-    assert code == 2, err
-    assert err.startswith(f"vsj: error: {path}: ") and "Traceback" not in err, err
-    for text in expected:
-        assert text in err, (text, err)
-    assert not out.exists()
-    return err
 
 
 def run(text: str, origin: str = "ctl.toml", **kwargs):

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from scenario_checks import fails, write
 from vsj import scenario as scenarios
 from vsj.cli import main
 from vsj.environment import Body, Wall
@@ -100,12 +101,6 @@ support_damping = "2 N s/m"
 """
 
 
-def write(tmp_path: Path, text: str, name: str = "env.toml") -> Path:
-    path = tmp_path / name
-    path.write_text(text)
-    return path
-
-
 def edit(old: str, new: str, text: str = BASE) -> str:
     assert old in text, old
     return text.replace(old, new, 1)
@@ -114,21 +109,6 @@ def edit(old: str, new: str, text: str = BASE) -> str:
 def with_wall(lines: str, text: str = BASE) -> str:
     """``text`` with ``lines`` in place of the wall's keys after its name."""
     return edit(WALL, '[[environment.walls]]\nname = "wall"\n' + lines, text)
-
-
-def fails(tmp_path, capsys, text: str, *expected: str) -> str:
-    """`vsj simulate` refuses ``text``: exit code 2, no traceback, nothing written, the
-    file's name and every expected text in the message."""
-    out = tmp_path / "out"
-    path = write(tmp_path, text)
-    code = main(["simulate", str(path), "--out", str(out)])
-    err = capsys.readouterr().err
-    assert code == 2, err
-    assert err.startswith(f"vsj: error: {path}: ") and "Traceback" not in err, err
-    for text in expected:
-        assert text in err, (text, err)
-    assert not out.exists()
-    return err
 
 
 def environment(text: str):
