@@ -105,6 +105,37 @@ def test_a_work_prepared_for_another_model_is_prepared_again(model):
     assert not np.array_equal(reused, first)  # the heavier model moved otherwise
 
 
+def test_a_work_that_served_another_model_evaluates_this_ones_inputs(model):
+    """The engine keeps the inputs it evaluated last (a Rosenbrock step evaluates its
+    last stages and its end at one time). On a work that evaluated another model's
+    inputs at the same time, a run and a one-off evaluation of this model equal those
+    on a fresh work, bit for bit: nothing of the other model's inputs is reused."""
+    faster = model._replace(coef=model.coef * 1.5, cum=model.cum * 1.5)
+    a, b = Engine(model), Engine(faster)
+    y = np.zeros(4)
+    scheme = (3, 1e-6, 1e-9, 1e300, 4, 1e-3, 10 ** 6, False, 1)  # rosenbrock
+    times = np.linspace(0.0, 1.0, 11)
+    runs = {}
+    for name, work in (("reused", a.work), ("fresh", b.work)):
+        if name == "reused":  # the other model's run, to its end at t = 1
+            assert _core.run(a.c, work, y.copy(), scheme, 0.0, begin=(0.0, 1.0))[0] == 0
+            assert _core.run(a.c, work, y.copy(), scheme, 1.0, finish=True)[0] == 0
+        state, out = y.copy(), np.full((len(times), 4), np.nan)
+        assert _core.run(b.c, work, state, scheme, 0.0, begin=(0.0, 1.0))[0] == 0
+        assert _core.run(b.c, work, state, scheme, 1.0, finish=True, t_out=times,
+                         out=out)[0] == 0
+        runs[name] = out
+    assert np.array_equal(runs["reused"], runs["fresh"])
+    # one-off evaluations at one time, alternating between the two models on one work
+    state = np.array([0.001, -0.002, 0.05, -0.03])
+    a.work = b.work
+    _, slow = a.derivatives(0.7, state)
+    _, fast = b.derivatives(0.7, state)
+    assert np.array_equal(fast, Engine(faster).derivatives(0.7, state)[1])
+    assert np.array_equal(slow, Engine(model).derivatives(0.7, state)[1])
+    assert not np.array_equal(fast, slow)  # the inputs differ, so must the accelerations
+
+
 def test_observation_times_must_be_finite(model):
     engine = Engine(model)
     out = np.zeros((2, int(2 * model.dims[0] + model.dims[5])))

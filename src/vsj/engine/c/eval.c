@@ -152,9 +152,15 @@ static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int fu
             torque += w->frw[FRW * e + EXTRA];
         w->frw[FRW * e + SLIP] = slip;
         w->frw[FRW * e + TORQUE] = torque;
-        vsj__xadd(m, e, w->gen, -torque);
+    }
+    /* the torques' sums apart from the laws: each sum is one chain of additions
+     * through memory, which the laws' evaluations would otherwise wait on */
+    for (e = 0; e < f; e++) {
+        if (!full && m->xp[e + 1] == m->xp[e])
+            continue;
+        vsj__xadd(m, e, w->gen, -w->frw[FRW * e + TORQUE]);
         if (full)
-            vsj__uadd(m, e, w->srcw, SRCF, -torque);
+            vsj__uadd(m, e, w->srcw, SRCF, -w->frw[FRW * e + TORQUE]);
     }
     for (ld = 0; ld < nl; ld++) {
         int64_t r = f + k + ld;
@@ -236,6 +242,7 @@ void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const doub
 int vsj_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y, int64_t ny,
                     double *dy) {
     w->status = VSJ_OK;
+    w->in_model = NULL;
     w->ctl_on = 0; /* the inputs from their splines */
     vsj__eval_derivatives(m, w, t, y, ny, dy);
     return w->status;
@@ -248,6 +255,7 @@ int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, int
     if (!vsj__fits(m, w) || !y || !J || !ft || (ny != ns && ny != ns + na))
         return VSJ_BAD_ARGUMENT;
     w->status = VSJ_OK;
+    w->in_model = NULL;
     w->ctl_on = 0;
     vsj__eval_derivatives(m, w, t, y, ny, w->dy);
     vsj__eval_jacobian(m, w, J, ft);
@@ -266,6 +274,7 @@ int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, int
 void vsj_source_signals(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_out,
                         double *angles, double *speeds) {
     int64_t i, j, s = m->n_sources;
+    w->in_model = NULL;
     w->ctl_on = 0;
     for (i = 0; i < n_out; i++) {
         vsj__eval_inputs(m, w, t_out[i]);
@@ -281,6 +290,7 @@ void vsj_stored_energy(const vsj_model *m, vsj_work *w, double t, const double *
     int64_t n = m->n, s = m->n_sources, nm = m->n_motors, sz = n + s, i, r, kk, mo;
     int64_t base_m = m->n_frictions + m->n_springs + m->n_loads;
     double kin = 0.0, pot = 0.0, ind = 0.0;
+    w->in_model = NULL;
     w->ctl_on = 0;
     vsj__eval_inputs(m, w, t);
     eval_springs(m, w, y);
@@ -319,6 +329,7 @@ int vsj_observe(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_
     int status = VSJ_OK;
     if (ny < ns + vsj_control_width(m))
         return VSJ_BAD_ARGUMENT;
+    w->in_model = NULL;
     w->ctl_on = 0;
     for (i = 0; i < n_out; i++) {
         const double *y = out + ny * i;

@@ -92,6 +92,11 @@ struct vsj_work {
     double *brk;           /* nch: each channel's next corner after the run's time */
     int left;              /* evaluate the inputs' left limits at a knot (a step's end
                             * on a corner) */
+    /* the splines' last evaluation (chan, chan_dd and the sources' U, UD, SG in srcw)
+     * was of model in_model at time in_t, from the left if in_left (NaN: none valid) */
+    const vsj_model *in_model;
+    double in_t;
+    int in_left;
     double *srcw;          /* s x SRCW */
     double *frw;           /* f x FRW */
     double *spw;           /* k x SPW */
@@ -517,10 +522,18 @@ static inline void vsj__eval_source(const vsj_model *m, vsj_work *w, int64_t j) 
 
 static inline void vsj__eval_inputs(const vsj_model *m, vsj_work *w, double t) {
     int64_t c, j;
+    int splines = !w->held && !w->ctl_on;
+    /* a Rosenbrock step evaluates its last stages and its end at one time: the
+     * splines there are the ones already evaluated */
+    if (splines && t == w->in_t && w->left == w->in_left && m == w->in_model)
+        return;
     for (c = 0; c < m->n_channels; c++)
         vsj__eval_channel(m, w, c, t);
     for (j = 0; j < m->n_sources; j++)
         vsj__eval_source(m, w, j);
+    w->in_model = m;
+    w->in_t = splines ? t : NAN;
+    w->in_left = w->left;
 }
 
 /* ---- sparse rows ----------------------------------------------------------- */
