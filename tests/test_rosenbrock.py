@@ -134,3 +134,32 @@ def test_the_steps_follow_a_table_input_through_its_corners(params):
         assert np.max(np.abs(rosenbrock[signal] - dopri[signal])) \
             <= error[signal] + reference_error[signal], signal
     assert rosenbrock.ledger["relative_residual"] <= 1e-6
+
+
+@pytest.mark.parametrize("rtol", [1e-2, 1e-3])
+def test_the_error_stays_within_the_tolerance_at_steps_and_between_them(rtol, params):
+    """Fig 4.15 (arctan friction on every element, the friction laws' steep slopes
+    switching twice a period): a run samples every millisecond, at its steps' ends and
+    between them, within the scale its tolerance sets for the ring angles, atol +
+    rtol max|x|. The embedded estimate alone lets long steps through that bend inside
+    (their ends and their middles off by several times that scale); the interpolant's
+    error at mid-step, held to the same norm, catches them."""
+    plan = scenario_plan("fig-4.15", params, duration=4.0)
+    atol = 1e-3 * rtol
+    run = plan.with_scheme(name="rosenbrock", rtol=rtol, atol=atol).start(ledger=False)
+    grid = np.arange(1, 4001) * 1e-3
+    samples, ends = [], {}
+    for t in grid:  # one sample a call: the run stands at a step's end after each
+        samples.append(run.advance(np.array([t]), finish=False)[0][0, :2])
+        ends[run.t] = run.y[:2].copy()
+    times = np.array(sorted(ends))
+    reference = plan.with_scheme(name="rosenbrock", rtol=1e-12, atol=1e-15)
+    at_grid = reference.start(ledger=False).advance(grid, finish=False)[0][:, :2]
+    at_ends = reference.start(ledger=False).advance(times, finish=False)[0][:, :2]
+    scale = atol + rtol * np.max(np.abs(at_grid))
+    # each accepted step's error is at most the tolerance in the RMS norm over the 4
+    # states (one component: twice it); the wrist's modes decay within a step (eigenvalues
+    # below -280 1/s, steps over 5 ms here), so the errors do not add up across steps
+    assert np.max(np.abs(np.array(samples) - at_grid)) <= 2.0 * scale
+    assert np.max(np.abs(np.array([ends[t] for t in times]) - at_ends)) <= 2.0 * scale
+    assert len(times) < 0.1 * len(grid)  # steps many samples long: the interpolant is tested

@@ -83,6 +83,10 @@ typedef struct dopri_state {
     int rejected_last;
 } dopri_state;
 
+/* Rows of ny_max values in a work's K: dopri's stages take 7, Rosenbrock's
+ * (rosenbrock.c: its stages and the interpolant's derivatives) 14. */
+#define VSJ_K_ROWS 14
+
 struct vsj_work {
     /* sizes the work was made for */
     int64_t n, s, f, k, nl, nm, nch, rows;
@@ -119,8 +123,9 @@ struct vsj_work {
     /* Rosenbrock scratch (ns = vsj_n_state): the Jacobian J and the factor of
      * I/(gamma h) - J (ns x ns), its pivots, df/dt (ns), the generalised forces'
      * derivatives (n x (ns + 1)), the ledger's rates' derivatives in the state and in
-     * time ((ny_max - ns) x (ns + 1)) and the sources' forces' (s x (ns + 1)) */
-    double *jac, *lu, *ft, *jg, *jacc, *jsrc;
+     * time ((ny_max - ns) x (ns + 1)) and the sources' forces' (s x (ns + 1)); J, df/dt
+     * and the ledger's rows again at a candidate step's end (_new) */
+    double *jac, *lu, *ft, *jg, *jacc, *jsrc, *jac_new, *ft_new, *jacc_new;
     int64_t *piv;
     /* the run vsj_begin started (run.c) */
     vsj_scheme scheme;

@@ -270,7 +270,7 @@ static void layout(vsj_work *w, carver *cv) {
     w->gen = DOUBLES(n);
     w->spcache = DOUBLES(4 * k);
     w->pos0 = DOUBLES(s);
-    w->K = DOUBLES(10 * w->ny_max); /* dopri: 7 rows, rosenbrock: 10 (K_ROWS) */
+    w->K = DOUBLES(VSJ_K_ROWS * w->ny_max);
     w->yt = DOUBLES(w->ny_max);
     w->y1 = DOUBLES(w->ny_max);
     w->err = DOUBLES(w->ny_max);
@@ -288,6 +288,9 @@ static void layout(vsj_work *w, carver *cv) {
     w->ft = DOUBLES(ns);
     w->jg = DOUBLES(n * (ns + 1));
     w->jacc = DOUBLES((w->ny_max - ns) * (ns + 1));
+    w->jac_new = DOUBLES(ns * ns);
+    w->ft_new = DOUBLES(ns);
+    w->jacc_new = DOUBLES((w->ny_max - ns) * (ns + 1));
     w->jsrc = DOUBLES(s * (ns + 1));
     w->piv = INTS(ns);
     t->H = DOUBLES(n * n);

@@ -16,10 +16,18 @@
  * The energy ledger's accumulators (components n_state .. ny-1) ride along as in
  * dopri, outside the error norm, with their own rows of the Jacobian (the rates'
  * derivatives in the state and in time, vsj__eval_ledger_rows), so that they are
- * integrated at the order of the state. Between steps every
- * component is the cubic Hermite interpolant of the step's ends and their
- * derivatives. The resumable run shares the adaptive driver of dopri.c
- * (vsj__dopri_advance) and its state (dopri_state).
+ * integrated at the order of the state.
+ *
+ * Between steps every component is the quintic Hermite interpolant of the step's
+ * ends, their first derivatives and their second ones (J f + df/dt, from the
+ * Jacobian the next step needs anyway). Its accuracy is controlled too: a long step
+ * over a solution that bends inside it (the friction laws' steep slopes switching)
+ * can end accurately and still be wrong between its ends, where the samples lie.
+ * The difference of the cubic Hermite interpolant (first derivatives only) and the
+ * quintic one at the step's middle estimates the cubic's error there; it enters the
+ * error norm beside the embedded estimate, so that the quintic, one order better,
+ * holds the tolerance between the ends as well. The resumable run shares the
+ * adaptive driver of dopri.c (vsj__dopri_advance) and its state (dopri_state).
  */
 #include <math.h>
 #include <string.h>
@@ -50,21 +58,50 @@ static const double D[STAGES] = {0.25, -0.1043, 0.1035, -0.0362, 0.0, 0.0};
 /* stiffly accurate: the solution is the last stage's point plus its g, whose size
  * is the error estimate */
 
-/* work rows of K (each ny long): the derivatives at the step's start, the stages'
- * g, a stage's derivatives, the derivatives at the start and at the end of the last
- * accepted step (seen from inside it: the inputs' left limits on a corner) */
-enum { F_NOW = 0, G1 = 1, F_STAGE = G1 + STAGES, F_START = F_STAGE + 1, F_END = F_START + 1,
-       K_ROWS = F_END + 1 };
+/* work rows of K (each ny long): the first (F) and second (S) derivatives where the
+ * run stands (the next step's start), the stages' g, a stage's derivatives and the
+ * second ones at a step's end, and the first and second derivatives at the start and
+ * at the end of the last accepted step (seen from inside it: the inputs' left limits
+ * on a corner) */
+enum { F_NOW = 0, S_NOW = 1, G1 = 2, F_STAGE = G1 + STAGES, S_STAGE = F_STAGE + 1,
+       F_START = S_STAGE + 1, S_START = F_START + 1, F_END = S_START + 1, S_END = F_END + 1,
+       K_ROWS = S_END + 1 };
+/* the work holds VSJ_K_ROWS rows (model.c) */
+typedef char k_rows_fit[K_ROWS <= VSJ_K_ROWS ? 1 : -1];
 
 static double dmin(double a, double b) { return a < b ? a : b; }
 static double dmax(double a, double b) { return a > b ? a : b; }
 
-/* J and df/dt at (t, y), from the evaluation there just made; with the ledger
- * (ny > ns, a full-length evaluation) the accumulators' rows too. */
+/* J and df/dt at y, from the evaluation there just made (f its derivatives), into
+ * jac, ft and (with the ledger: ny > ns, a full-length evaluation) the accumulators'
+ * rows jacc; and the second derivatives there, d/dt f = J f + df/dt, into s (the
+ * accumulators' from their rows). */
+static void jacobian_at(const vsj_model *m, vsj_work *w, const dopri_state *d, const double *y,
+                        const double *f, double *jac, double *ft, double *jacc, double *s) {
+    int64_t ns = vsj_n_state(m), i, j;
+    vsj__eval_jacobian(m, w, jac, ft);
+    if (d->ny > ns)
+        vsj__eval_ledger_rows(m, w, y, jac, ft, jacc);
+    for (i = 0; i < d->ny; i++) {
+        const double *row = i < ns ? jac + ns * i : jacc + (ns + 1) * (i - ns);
+        double total = i < ns ? ft[i] : row[ns];
+        for (j = 0; j < ns; j++)
+            total += row[j] * f[j];
+        s[i] = total;
+    }
+}
+
+/* The Jacobian where the run stands (w->y, derivatives F_NOW) into w->jac, w->ft,
+ * w->jacc, and the second derivatives there into S_NOW. */
 static void refresh_jacobian(const vsj_model *m, vsj_work *w, const dopri_state *d) {
-    vsj__eval_jacobian(m, w, w->jac, w->ft);
-    if (d->ny > vsj_n_state(m))
-        vsj__eval_ledger_rows(m, w, w->y, w->jac, w->ft, w->jacc);
+    jacobian_at(m, w, d, w->y, w->K + d->ny * F_NOW, w->jac, w->ft, w->jacc,
+                w->K + d->ny * S_NOW);
+}
+
+static void swap(double **a, double **b) {
+    double *t = *a;
+    *a = *b;
+    *b = t;
 }
 
 int vsj__ros_begin(const vsj_model *m, vsj_work *w, const double *y0, int64_t ny, double t0,
@@ -165,18 +202,101 @@ static int reject(vsj_work *w, dopri_state *d, double shrink) {
     return 0;
 }
 
-/* The Hermite interpolant of the last accepted step at theta in [0, 1]: its first
- * `count` components into out. */
+/* The quintic Hermite interpolant of the last accepted step at theta in [0, 1]: its
+ * first `count` components into out. */
 static void hermite(const vsj_work *w, const dopri_state *d, double theta, int64_t count,
                     double *out) {
-    const double *yo = w->yo, *y = w->y, *fo = w->K + d->ny * F_START;
-    const double *f1 = w->K + d->ny * F_END;
-    double h = d->h_prev, th1 = theta - 1.0;
+    const double *yo = w->yo, *y = w->y, *K = w->K;
+    const double *fo = K + d->ny * F_START, *so = K + d->ny * S_START;
+    const double *f1 = K + d->ny * F_END, *s1 = K + d->ny * S_END;
+    double h = d->h_prev, u = 1.0 - theta, t2 = theta * theta, u2 = u * u;
+    /* the basis in theta and u = 1 - theta: value, slope and curvature weights of
+     * each end (each end's value weight is the other's mirrored) */
+    double v1 = t2 * theta * (10.0 - 15.0 * theta + 6.0 * t2), v0 = 1.0 - v1;
+    double d0 = h * theta * u2 * u * (1.0 + 3.0 * theta);
+    double d1 = -h * t2 * theta * u * (1.0 + 3.0 * u);
+    double c0 = 0.5 * h * h * t2 * u2 * u, c1 = 0.5 * h * h * t2 * theta * u2;
     int64_t i;
-    for (i = 0; i < count; i++) {
-        double dy = y[i] - yo[i];
-        out[i] = yo[i] + theta * dy
-                 + theta * th1 * ((1.0 - 2.0 * theta) * dy + th1 * h * fo[i] + theta * h * f1[i]);
+    for (i = 0; i < count; i++)
+        out[i] = v0 * yo[i] + v1 * y[i] + d0 * fo[i] + d1 * f1[i] + c0 * so[i] + c1 * s1[i];
+}
+
+/* The error of the cubic Hermite interpolant of the step from (y0, f0, s0) to
+ * (y1, f1, s1) at its middle, estimated by its difference from the quintic one there,
+ * h (f1 - f0) / 32 - h^2 (s0 + s1) / 64, in the error norm. */
+static double middle_error(const vsj_work *w, const dopri_state *d, double h,
+                           const double *y1) {
+    const double *K = w->K, *y0 = w->y;
+    const double *f0 = K + d->ny * F_NOW, *s0 = K + d->ny * S_NOW;
+    const double *f1 = K + d->ny * F_END, *s1 = K + d->ny * S_END;
+    double *diff = w->err;
+    int64_t i;
+    for (i = 0; i < d->n_err; i++)
+        diff[i] = h / 32.0 * (f1[i] - f0[i]) - h * h / 64.0 * (s0[i] + s1[i]);
+    return vsj__err_norm(diff, y0, y1, d->rtol, d->atol, d->n_err);
+}
+
+/* The step size's factor for the error e (of order h^4 in the embedded estimate and
+ * in the cubic interpolant's error alike). */
+static double step_factor(double e) {
+    return dmax(0.2, dmin(6.0, 0.9 / sqrt(sqrt(e > 1e-10 ? e : 1e-10))));
+}
+
+/* A candidate step's end (y1 at t_land): its derivatives (F_STAGE; the ledger's rates
+ * too), the Jacobian there (into the spare w->jac_new, w->ft_new, w->jacc_new: the
+ * step's start keeps its own until the step is accepted) and the second derivatives
+ * (S_STAGE); the derivatives as seen from inside the step into F_END and S_END (on a
+ * corner, the inputs' left limits). Returns the status of the evaluation at the end. */
+static int end_point(const vsj_model *m, vsj_work *w, const dopri_state *d, int end,
+                     double t_land) {
+    int64_t ny = d->ny;
+    double *K = w->K;
+    int status;
+    if (end == 2) { /* on a corner: the step's own end for its interpolant */
+        w->left = 1;
+        vsj__eval_derivatives(m, w, t_land, w->y1, ny, K + ny * F_END);
+        w->left = 0;
+        w->status = VSJ_OK;
+        jacobian_at(m, w, d, w->y1, K + ny * F_END, w->jac_new, w->ft_new, w->jacc_new,
+                    K + ny * S_END);
+    }
+    vsj__eval_derivatives(m, w, t_land, w->y1, ny, K + ny * F_STAGE);
+    status = w->status;
+    if (status == VSJ_NOT_FINITE)
+        return status;
+    jacobian_at(m, w, d, w->y1, K + ny * F_STAGE, w->jac_new, w->ft_new, w->jacc_new,
+                K + ny * S_STAGE);
+    if (end != 2) {
+        memcpy(K + ny * F_END, K + ny * F_STAGE, (size_t)ny * sizeof(double));
+        memcpy(K + ny * S_END, K + ny * S_STAGE, (size_t)ny * sizeof(double));
+    }
+    return status;
+}
+
+/* The step of length h to t_land accepted: its start kept for the interpolant, the
+ * run moved to its end with the end's derivatives and Jacobian. */
+static void accept(const vsj_model *m, vsj_work *w, dopri_state *d, double h, int end,
+                   double t_land) {
+    int64_t ny = d->ny;
+    double *K = w->K;
+    memcpy(w->yo, w->y, (size_t)ny * sizeof(double));
+    memcpy(K + ny * F_START, K + ny * F_NOW, (size_t)ny * sizeof(double));
+    memcpy(K + ny * S_START, K + ny * S_NOW, (size_t)ny * sizeof(double));
+    memcpy(w->y, w->y1, (size_t)ny * sizeof(double));
+    memcpy(K + ny * F_NOW, K + ny * F_STAGE, (size_t)ny * sizeof(double));
+    memcpy(K + ny * S_NOW, K + ny * S_STAGE, (size_t)ny * sizeof(double));
+    swap(&w->jac, &w->jac_new);
+    swap(&w->ft, &w->ft_new);
+    swap(&w->jacc, &w->jacc_new);
+    d->t_prev = d->t;
+    d->h_prev = h;
+    d->t = t_land;
+    if (end == 2 && w->ctl_on && d->t == w->ctl_next) { /* the controller's sample: the
+                                                         * next step's start anew */
+        vsj__control_sample(m, w, d->t, w->y);
+        vsj__eval_derivatives(m, w, d->t, w->y, ny, K + ny * F_NOW);
+        w->status = VSJ_OK;
+        refresh_jacobian(m, w, d);
     }
 }
 
@@ -221,36 +341,18 @@ int vsj__ros_attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
     e = vsj__err_norm(err, y, y1, d->rtol, d->atol, d->n_err);
     if (bad || !isfinite(e))
         return reject(w, d, 0.1);
-    fac = dmax(0.2, dmin(6.0, 0.9 / sqrt(sqrt(e > 1e-10 ? e : 1e-10))));
     if (e > 1.0)
-        return reject(w, d, dmin(fac, 0.9));
-    /* the end point: the next step's first evaluation (the ledger's rates too) */
-    if (end == 2) { /* on a corner: the step's own end for its interpolant */
-        w->left = 1;
-        vsj__eval_derivatives(m, w, t_land, y1, ny, K + ny * F_END);
-        w->left = 0;
-        w->status = VSJ_OK;
-    }
-    vsj__eval_derivatives(m, w, t_land, y1, ny, K + ny * F_STAGE);
-    end_status = w->status;
+        return reject(w, d, dmin(step_factor(e), 0.9));
+    end_status = end_point(m, w, d, end, t_land);
     if (end_status == VSJ_NOT_FINITE)
         return reject(w, d, 0.1);
-    memcpy(w->yo, y, (size_t)ny * sizeof(double));
-    memcpy(K + ny * F_START, K + ny * F_NOW, (size_t)ny * sizeof(double));
-    memcpy(y, y1, (size_t)ny * sizeof(double));
-    memcpy(K + ny * F_NOW, K + ny * F_STAGE, (size_t)ny * sizeof(double));
-    if (end != 2)
-        memcpy(K + ny * F_END, K + ny * F_NOW, (size_t)ny * sizeof(double));
-    d->t_prev = d->t;
-    d->h_prev = h;
-    d->t = t_land;
-    if (end == 2 && w->ctl_on && d->t == w->ctl_next) { /* the controller's sample: the
-                                                         * next step's start anew */
-        vsj__control_sample(m, w, d->t, y);
-        vsj__eval_derivatives(m, w, d->t, y, ny, K + ny * F_NOW);
-        w->status = VSJ_OK;
-    }
-    refresh_jacobian(m, w, d);
+    e = dmax(e, middle_error(w, d, h, y1)); /* the interpolant's error, in the same norm */
+    if (!isfinite(e))
+        return reject(w, d, 0.1);
+    fac = step_factor(e);
+    if (e > 1.0)
+        return reject(w, d, dmin(fac, 0.9));
+    accept(m, w, d, h, end, t_land);
     if (end_status != VSJ_OK) { /* a physical limit was crossed at the new point */
         d->status = end_status;
         return -1;
