@@ -273,6 +273,10 @@ VSJ_INTERNAL void vsj__forward(const double *L, const double *b, double *out, in
                                int64_t n);
 VSJ_INTERNAL void vsj__backward(const double *L, const double *b, double *out, int64_t k,
                                 int64_t n);
+/* L Y = B for `cols` right-hand sides at once: B and Y n x cols, rows `ld` apart (each
+ * column as vsj__forward solves it, to the bit). */
+VSJ_INTERNAL void vsj__forward_block(const double *L, const double *B, double *Y, int64_t cols,
+                                     int64_t ld, int64_t n);
 VSJ_INTERNAL void vsj__solve(const double *L, const double *b, double *out, int64_t n);
 /* LU factorisation with partial pivoting of the n x n row-major A in place (0 if
  * singular), and the solve of A x = b with it (x may be b). */
@@ -575,14 +579,19 @@ static inline void vsj__uaddv(const vsj_model *m, int64_t r, double *vec, double
 
 /* ---- the pivot --------------------------------------------------------------- */
 
-static inline double vsj__pivot_at(const vsj_model *m, vsj_work *w, double angle) {
+/* The pivot at position q: w->q, and VSJ_PIVOT_RANGE if q is outside its range. */
+static inline double vsj__pivot_record(const vsj_model *m, vsj_work *w, double q) {
     const double *p = vsj__row(m, m->n_rows - 1);
-    double moving = p[2]; /* 1 with a pivot mechanism, 0 for a fixed pivot */
-    double q = moving * p[0] * sin(angle) + (1.0 - moving) * p[1];
     w->q = q;
     if ((q < p[3] - 1e-12 || q > p[4] + 1e-12) && w->status < VSJ_PIVOT_RANGE)
         w->status = VSJ_PIVOT_RANGE;
     return q;
+}
+
+static inline double vsj__pivot_at(const vsj_model *m, vsj_work *w, double angle) {
+    const double *p = vsj__row(m, m->n_rows - 1);
+    double moving = p[2]; /* 1 with a pivot mechanism, 0 for a fixed pivot */
+    return vsj__pivot_record(m, w, moving * p[0] * sin(angle) + (1.0 - moving) * p[1]);
 }
 
 static inline double vsj__pivot_angle(const vsj_model *m, const vsj_work *w, const double *x) {

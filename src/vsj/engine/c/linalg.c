@@ -39,6 +39,26 @@ void vsj__forward(const double *L, const double *b, double *out, int64_t k, int6
     }
 }
 
+void vsj__forward_block(const double *L, const double *B, double *Y, int64_t cols, int64_t ld,
+                        int64_t n) {
+    int64_t i, r, a;
+    for (i = 0; i < n; i++) {
+        double *y = Y + ld * i, inv;
+        const double *b = B + ld * i;
+        for (a = 0; a < cols; a++)
+            y[a] = b[a];
+        for (r = 0; r < i; r++) {
+            const double *yr = Y + ld * r;
+            double l = L[n * i + r];
+            for (a = 0; a < cols; a++)
+                y[a] -= l * yr[a];
+        }
+        inv = L[n * i + i];
+        for (a = 0; a < cols; a++)
+            y[a] /= inv;
+    }
+}
+
 /* L^T out = b; out may be b */
 void vsj__backward(const double *L, const double *b, double *out, int64_t k, int64_t n) {
     int64_t i, r;

@@ -373,6 +373,7 @@ static void clear_history(const vsj_model *m, ts_work *t) {
     }
     t->hs_prev = NAN;
     t->rl_h = NAN; /* the armature steps follow the parameters */
+    t->angle_prev = NAN; /* the pivot's too */
     t->factored = 0;
 }
 
@@ -455,6 +456,7 @@ int vsj__ts_prepared_for(const vsj_model *m, const vsj_work *w) {
 int vsj__ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
     ts_work *t = &w->ts;
     int64_t n, nm, j;
+    double angle;
     if (!vsj__fits(m, w) || !vsj__ts_prepared_for(m, w))
         return VSJ_BAD_ARGUMENT;
     n = m->n;
@@ -468,10 +470,16 @@ int vsj__ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
         t->sg0[j] = w->srcw[SRCW * j + SG];
     }
     w->status = VSJ_OK;
-    t->angle_prev = vsj__pivot_angle(m, w, t->x);
-    t->q_prev = vsj__pivot_at(m, w, t->angle_prev);
-    /* the mid-step pivot position is recomputed only when its angle changes */
-    t->angle_mid = NAN;
+    /* the pivot's position is recomputed only when its angle changes (the step
+     * function's calls follow one another: a pivot held still costs no sine) */
+    angle = vsj__pivot_angle(m, w, t->x);
+    if (angle != t->angle_prev) {
+        t->angle_prev = angle;
+        t->q_prev = vsj__pivot_at(m, w, angle);
+    } else {
+        vsj__pivot_record(m, w, t->q_prev);
+    }
+    t->angle_mid = t->angle_prev;
     t->q_mid = t->q_prev;
     t->t = t0;
     t->origin = t0;
@@ -518,18 +526,15 @@ static void step_levels(const vsj_model *m, vsj_work *w) {
 
 /* The step's inputs: at mid-step the loads, voltages and normal forces, and the pivot
  * position at the midpoint x + hs/2 v (kept while its angle stays); at the step's end
- * the sources' speeds u1 and angles sg1. Held inputs (the step function) may change
- * from call to call: all of their channels are read. */
+ * the sources' speeds u1 and angles sg1. Held inputs (the step function) change only
+ * from call to call, and vsj__ts_begin reads every channel: the steady ones left out
+ * of mid_ch keep the held value it read. */
 static void step_inputs(const vsj_model *m, vsj_work *w, double tnow, double t1, double hs) {
     ts_work *t = &w->ts;
-    int64_t i, j, c, ld, mo, r_load = m->n_frictions + m->n_springs;
+    int64_t i, j, ld, mo, r_load = m->n_frictions + m->n_springs;
     double angle;
-    if (w->held)
-        for (c = 0; c < m->n_channels; c++)
-            vsj__eval_channel(m, w, c, tnow + 0.5 * hs);
-    else
-        for (i = 0; i < t->n_mid_ch; i++)
-            vsj__eval_channel(m, w, t->mid_ch[i], tnow + 0.5 * hs);
+    for (i = 0; i < t->n_mid_ch; i++)
+        vsj__eval_channel(m, w, t->mid_ch[i], tnow + 0.5 * hs);
     for (i = 0; i < t->n_mid_src; i++)
         vsj__eval_source(m, w, t->mid_src[i]);
     if (t->any_varying)
@@ -762,9 +767,9 @@ static void assemble_step(const vsj_model *m, vsj_work *w, double hs, double h) 
  * moving pivot; while it stays within round-off of the matrix last factored, that
  * factor and YlT are reused. VSJ_NOT_FINITE if H is not positive definite. */
 static int factor_step(const vsj_model *m, ts_work *t, double hs, double h) {
-    int64_t n = m->n, na = t->na, mt = na + t->nc, i, a, c;
+    int64_t n = m->n, na = t->na, mt = na + t->nc, i, c;
     double scale_h = 0.0;
-    int same;
+    int same, fresh = 0;
     for (i = 0; i < n * n; i++)
         scale_h = vsj__dmax(scale_h, fabs(t->H_last[i]));
     same = t->factored;
@@ -774,16 +779,10 @@ static int factor_step(const vsj_model *m, ts_work *t, double hs, double h) {
         memcpy(t->H_last, t->H, (size_t)(n * n) * sizeof(double));
         if (!vsj__cholesky(t->H, t->Lc, n, n, 0))
             return VSJ_NOT_FINITE;
-        for (a = 0; a < mt; a++) {
-            for (i = 0; i < n; i++)
-                t->drow[i] = t->DxA[mt * i + a];
-            vsj__forward(t->Lc, t->drow, t->col, n, n); /* L^-1 d_e: W = Y Y^T */
-            for (i = 0; i < n; i++)
-                t->YlT[mt * i + a] = t->col[i];
-        }
+        vsj__forward_block(t->Lc, t->DxA, t->YlT, mt, mt, n); /* L^-1 d_e: W = Y Y^T */
         forget_memo(t); /* it was made with the old YlT */
         t->factored = 1;
-        t->hs_prev = NAN; /* the compliance rows below are written afresh */
+        fresh = 1;
     }
     if (n > 0)
         vsj__solve(t->Lc, t->r, t->vfree, n);
@@ -791,8 +790,10 @@ static int factor_step(const vsj_model *m, ts_work *t, double hs, double h) {
      * diagonal: a row of its own in YlT, so that W = Y Y^T still */
     /* step lengths t1 - tnow differ by round-off from step to step: only a
      * real change (the last, shortened step) rewrites the rows and drops the
-     * solver's memo */
-    if (t->ncomp > 0 && !(fabs(hs - t->hs_prev) <= STEP_SAME * h)) {
+     * solver's memo; with a fresh factor (whose rows they join) they follow
+     * the step's length to the bit */
+    if (t->ncomp > 0
+        && (fresh ? hs != t->hs_prev : !(fabs(hs - t->hs_prev) <= STEP_SAME * h))) {
         memset(t->YlT + mt * n, 0, (size_t)(t->ncomp * mt) * sizeof(double));
         for (c = 0; c < t->nc; c++)
             if (t->ccomp[c] >= 0)
