@@ -396,8 +396,9 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
 }
 
 /* every element's slip s = Dx v + Du u (dense rows, one coordinate per row) */
-static void element_slips(const double *DxT, const double *DuT, int64_t cols, int64_t count,
-                          const double *v, int64_t n, const double *u, int64_t s_n, double *s) {
+static void element_slips(const double *restrict DxT, const double *restrict DuT, int64_t cols,
+                          int64_t count, const double *restrict v, int64_t n,
+                          const double *restrict u, int64_t s_n, double *restrict s) {
     int64_t e, i, j;
     for (e = 0; e < count; e++)
         s[e] = 0.0;
@@ -596,6 +597,24 @@ static double spring_gradient(const vsj_model *m, vsj_work *w, int64_t k, double
     return 0.5 * (tau0 + tau1) + span * (kap1 - kap0) / 12.0;
 }
 
+/* The end speeds that keep spring k within its stop, for its two end-stop unknowns
+ * (from `stop` on): |d| <= stop at the step's end, with d1 = d0 + h/2 (d0' + d1'),
+ * lets the end speed side d1' be at most cb (the trapezoidal position update). d0 and
+ * rate, the deflection and the free coordinates' part of its rate at the step's
+ * start, are the spring's own (assemble_springs). Returns the next stop unknown. */
+static int64_t stop_speeds(const vsj_model *m, ts_work *t, double hs, int64_t k, int64_t stop,
+                           double d0, double rate) {
+    int64_t j, cols = m->n_frictions + m->n_springs, rr = m->n_frictions + k;
+    double rate0 = rate;
+    for (j = 0; j < m->n_sources; j++)
+        rate0 += t->DuT[cols * j + rr] * t->u0[j];
+    for (; stop < t->nc && t->cspring[stop] == k; stop++) {
+        double side = t->csign[stop];
+        t->cb[stop] = 2.0 / hs * (t->cstop[stop] - side * d0) - side * rate0;
+    }
+    return stop;
+}
+
 /* The springs, by the trapezoidal rule linearised about the step's start with the
  * law's stiffness (the end stops are constraints of the impulse problem); a law whose
  * torque is its energy's gradient and whose energy is not quadratic in the deflection
@@ -604,7 +623,7 @@ static double spring_gradient(const vsj_model *m, vsj_work *w, int64_t k, double
 static void assemble_springs(const vsj_model *m, vsj_work *w, double hs) {
     ts_work *t = &w->ts;
     int64_t n = m->n, s_n = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs;
-    int64_t i, j, c, k, rr;
+    int64_t i, j, c, k, rr, stop = 0;
     for (k = 0; k < m->n_springs; k++) {
         double d0 = 0.0, rate = 0.0, dsig = 0.0, kap, en, dvq, tau, c_k;
         rr = nf + k;
@@ -616,6 +635,8 @@ static void assemble_springs(const vsj_model *m, vsj_work *w, double hs) {
             d0 += t->DuT[cols * j + rr] * t->sg0[j];
             dsig += t->DuT[cols * j + rr] * (t->sg1[j] - t->sg0[j]);
         }
+        if (t->has_stop[k])
+            stop = stop_speeds(m, t, hs, k, stop, d0, rate);
         tau = vsj__spring(m->code[rr], vsj__row(m, rr), d0, t->q_mid, &kap, &en, &dvq,
                           w->spcache + 4 * k, !t->has_stop[k]);
         if (m->code[rr] == VSJ_GEOMETRIC) {
@@ -809,31 +830,13 @@ static int factor_step(const vsj_model *m, ts_work *t, double hs, double h) {
  * the free motion would pass it, or it pushed last step; the others are checked
  * after the solve. */
 static void impulse_bounds(const vsj_model *m, ts_work *t, double hs) {
-    int64_t n = m->n, s_n = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs;
-    int64_t na = t->na, mt = na + t->nc, a, c, i, j, rr;
-    double d0 = 0.0, rate0 = 0.0;
+    int64_t na = t->na, mt = na + t->nc, a, c;
     for (a = 0; a < na; a++) {
         t->lo[a] = -hs * t->level[a];
         t->hi[a] = hs * t->level[a];
     }
-    element_slips(t->DxA, t->DuA, mt, mt, t->vfree, n, t->u1, s_n, t->qv);
-    for (c = 0; c < t->nc; c++) {
-        /* |d| <= stop at the step's end: with d1 = d0 + h/2 (d0' + d1') the
-         * end speed side d1' may be at most cb (the trapezoidal position update) */
-        double side = t->csign[c];
-        if (c == 0 || t->cspring[c] != t->cspring[c - 1]) { /* a spring's two sides */
-            d0 = rate0 = 0.0;
-            rr = nf + t->cspring[c];
-            for (i = 0; i < n; i++) {
-                d0 += t->DxT[cols * i + rr] * t->x[i];
-                rate0 += t->DxT[cols * i + rr] * t->v[i];
-            }
-            for (j = 0; j < s_n; j++) {
-                d0 += t->DuT[cols * j + rr] * t->sg0[j];
-                rate0 += t->DuT[cols * j + rr] * t->u0[j];
-            }
-        }
-        t->cb[c] = 2.0 / hs * (t->cstop[c] - side * d0) - side * rate0;
+    element_slips(t->DxA, t->DuA, mt, mt, t->vfree, m->n, t->u1, m->n_sources, t->qv);
+    for (c = 0; c < t->nc; c++) { /* cb: stop_speeds */
         a = na + c;
         t->qv[a] -= t->cb[c];
         t->lo[a] = 0.0;
