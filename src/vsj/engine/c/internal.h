@@ -151,6 +151,17 @@ struct vsj_work {
 #define VSJ_INTERNAL
 #endif
 
+/* Small kernels inlined wherever they are called (GCC and clang; elsewhere a plain
+ * inline), so that a caller compiled for a constant size gets straight-line code. */
+#if defined(__GNUC__)
+#define VSJ_ALWAYS_INLINE static inline __attribute__((always_inline))
+#else
+#define VSJ_ALWAYS_INLINE static inline
+#endif
+
+/* the Cholesky kernels of the time-stepper and its impulse solver */
+#include "linalg.h"
+
 /* A model check's failure: the message formatted into `message` (of `size` bytes);
  * returns VSJ_BAD_ARGUMENT (model.c). */
 VSJ_INTERNAL int vsj__fail(char *message, size_t size, const char *format, ...);
@@ -264,20 +275,6 @@ VSJ_INTERNAL double vsj__spring(int64_t law, const double *p, double phi, double
  * rigid); 0 if the law has none. */
 VSJ_INTERNAL int vsj__stop(int64_t law, const double *p, double *angle, double *stiffness);
 
-/* small dense linear algebra (linalg.c), on the leading k x k block of a row-major
- * n x n array: the Cholesky factor L of H (0 if H is not positive definite; with
- * `floor` a pivot at or below zero is replaced by a tiny positive one instead),
- * L out = b, L^T out = b (out may be b), and H out = b with both (k = n) */
-VSJ_INTERNAL int vsj__cholesky(const double *H, double *L, int64_t k, int64_t n, int floor);
-VSJ_INTERNAL void vsj__forward(const double *L, const double *b, double *out, int64_t k,
-                               int64_t n);
-VSJ_INTERNAL void vsj__backward(const double *L, const double *b, double *out, int64_t k,
-                                int64_t n);
-/* L Y = B for `cols` right-hand sides at once: B and Y n x cols, rows `ld` apart (each
- * column as vsj__forward solves it, to the bit). */
-VSJ_INTERNAL void vsj__forward_block(const double *L, const double *B, double *Y, int64_t cols,
-                                     int64_t ld, int64_t n);
-VSJ_INTERNAL void vsj__solve(const double *L, const double *b, double *out, int64_t n);
 /* LU factorisation with partial pivoting of the n x n row-major A in place (0 if
  * singular), and the solve of A x = b with it (x may be b). */
 VSJ_INTERNAL int vsj__lu(double *A, int64_t *piv, int64_t n);
