@@ -316,8 +316,8 @@ static void levels_and_lists(const vsj_model *m, ts_work *t) {
 }
 
 /* At mid-step only the loads, the motor voltages and the pivot's sources are read; a
- * load or voltage constant in time (and not a controller's) keeps its value from t = 0. At step end only the
- * sources' channels are read. */
+ * load or voltage constant in time (and not a controller's) keeps its value from t = 0.
+ * At step end only the sources' channels are read. */
 static void channel_lists(const vsj_model *m, ts_work *t) {
     int64_t nf = m->n_frictions, r_load = nf + m->n_springs, r_piv = m->n_rows - 1;
     int64_t rr, e, k, c, j;
@@ -396,9 +396,10 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
 }
 
 /* every element's slip s = Dx v + Du u (dense rows, one coordinate per row) */
-static void element_slips(const double *restrict DxT, const double *restrict DuT, int64_t cols,
-                          int64_t count, const double *restrict v, int64_t n,
-                          const double *restrict u, int64_t s_n, double *restrict s) {
+VSJ_ALWAYS_INLINE void element_slips(const double *restrict DxT, const double *restrict DuT,
+                                     int64_t cols, int64_t count, const double *restrict v,
+                                     int64_t n, const double *restrict u, int64_t s_n,
+                                     double *restrict s) {
     int64_t e, i, j;
     for (e = 0; e < count; e++)
         s[e] = 0.0;
@@ -417,8 +418,8 @@ static void element_slips(const double *restrict DxT, const double *restrict DuT
 }
 
 /* H += scale d d^T with d the free-coordinate part of row r */
-static void outer(const vsj_model *m, int64_t r, double *H, double scale) {
-    int64_t a, b, n = m->n;
+VSJ_ALWAYS_INLINE void outer(const vsj_model *m, int64_t r, double *H, double scale, int64_t n) {
+    int64_t a, b;
     for (a = m->xp[r]; a < m->xp[r + 1]; a++)
         for (b = m->xp[r]; b < m->xp[r + 1]; b++)
             H[n * m->xc[a] + m->xc[b]] += scale * m->xv[a] * m->xv[b];
@@ -530,7 +531,8 @@ static void step_levels(const vsj_model *m, vsj_work *w) {
  * the sources' speeds u1 and angles sg1. Held inputs (the step function) change only
  * from call to call, and vsj__ts_begin reads every channel: the steady ones left out
  * of mid_ch keep the held value it read. */
-static void step_inputs(const vsj_model *m, vsj_work *w, double tnow, double t1, double hs) {
+VSJ_ALWAYS_INLINE void step_inputs(const vsj_model *m, vsj_work *w, double tnow, double t1,
+                                   double hs, int64_t n) {
     ts_work *t = &w->ts;
     int64_t i, j, ld, mo, r_load = m->n_frictions + m->n_springs;
     double angle;
@@ -544,7 +546,7 @@ static void step_inputs(const vsj_model *m, vsj_work *w, double tnow, double t1,
         t->ldm[ld] = w->chan[3 * m->code[r_load + ld]];
     for (mo = 0; mo < m->n_motors; mo++)
         t->vm[mo] = w->chan[3 * m->code[r_load + m->n_loads + mo]];
-    for (i = 0; i < m->n; i++)
+    for (i = 0; i < n; i++)
         t->x1[i] = t->x[i] + 0.5 * hs * t->v[i];
     angle = vsj__pivot_angle(m, w, t->x1);
     if (angle != t->angle_mid) {
@@ -562,8 +564,8 @@ static void step_inputs(const vsj_model *m, vsj_work *w, double tnow, double t1,
 
 /* H v1 = r, its inertia and linear friction: H = M + hs Bx, r = M v - M_su (u1 - u0)
  * - hs Bu u1. */
-static void assemble_inertia(const vsj_model *m, ts_work *t, double hs) {
-    int64_t n = m->n, s_n = m->n_sources, i, j, c;
+VSJ_ALWAYS_INLINE void assemble_inertia(const vsj_model *m, ts_work *t, double hs, int64_t n) {
+    int64_t s_n = m->n_sources, i, j, c;
     for (i = 0; i < n; i++) {
         double total = 0.0;
         for (c = 0; c < n; c++) {
@@ -620,9 +622,9 @@ static int64_t stop_speeds(const vsj_model *m, ts_work *t, double hs, int64_t k,
  * torque is its energy's gradient and whose energy is not quadratic in the deflection
  * (the geometric element's potential form) by its discrete gradient, so that the
  * ledger books its work as the change of its energy. */
-static void assemble_springs(const vsj_model *m, vsj_work *w, double hs) {
+VSJ_ALWAYS_INLINE void assemble_springs(const vsj_model *m, vsj_work *w, double hs, int64_t n) {
     ts_work *t = &w->ts;
-    int64_t n = m->n, s_n = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs;
+    int64_t s_n = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs;
     int64_t i, j, c, k, rr, stop = 0;
     for (k = 0; k < m->n_springs; k++) {
         double d0 = 0.0, rate = 0.0, dsig = 0.0, kap, en, dvq, tau, c_k;
@@ -706,7 +708,7 @@ static double contact_damping(const double *p, double d) {
     return p[VSJ_C_DAMPING] * (n == 1.0 ? d : pow(d, n));
 }
 
-static void assemble_friction(const vsj_model *m, vsj_work *w, double hs) {
+VSJ_ALWAYS_INLINE void assemble_friction(const vsj_model *m, vsj_work *w, double hs, int64_t n) {
     ts_work *t = &w->ts;
     int64_t i, e, ld, r_load = m->n_frictions + m->n_springs;
     memcpy(t->s0, t->slip, (size_t)m->n_frictions * sizeof(double));
@@ -739,7 +741,7 @@ static void assemble_friction(const vsj_model *m, vsj_work *w, double hs) {
             t->df0[e] = dfe;
             cnst = fe + dfe * vsj__udotv(m, e, t->u1);
             vsj__xadd(m, e, t->r, -hs * cnst);
-            outer(m, e, t->H, hs * dfe);
+            outer(m, e, t->H, hs * dfe, n);
             continue;
         }
         fe = vsj__friction(m->code[e], p[0],
@@ -749,7 +751,7 @@ static void assemble_friction(const vsj_model *m, vsj_work *w, double hs) {
         t->df0[e] = dfe;
         cnst = fe - dfe * se + dfe * vsj__udotv(m, e, t->u1);
         vsj__xadd(m, e, t->r, -hs * cnst);
-        outer(m, e, t->H, hs * dfe);
+        outer(m, e, t->H, hs * dfe, n);
     }
     for (ld = 0; ld < m->n_loads; ld++)
         vsj__xadd(m, r_load + ld, t->r, hs * t->ldm[ld]);
@@ -758,7 +760,8 @@ static void assemble_friction(const vsj_model *m, vsj_work *w, double hs) {
 /* The motors' torque impulse k Q, with Q the step's charge (armature_steps) at the
  * mid-step rotor speed (om0 + om1)/2, om1 = d.v1 + (source part at u1): linear in v1,
  * so it joins the step matrix as a damping k^2 gain / 2. */
-static void assemble_motors(const vsj_model *m, ts_work *t, double hs, double h) {
+VSJ_ALWAYS_INLINE void assemble_motors(const vsj_model *m, ts_work *t, double hs, double h,
+                                       int64_t n) {
     int64_t mo, rr, r_mot = m->n_frictions + m->n_springs + m->n_loads;
     armature_steps(m, t, hs, h);
     for (mo = 0; mo < m->n_motors; mo++) {
@@ -771,24 +774,25 @@ static void assemble_motors(const vsj_model *m, ts_work *t, double hs, double h)
         cnst = kt * (gain * (t->vm[mo] - 0.5 * kt * (om0 + vsj__udotv(m, rr, t->u1)))
                      + t->cur[mo] * t->rl_decay[mo]);
         vsj__xadd(m, rr, t->r, cnst);
-        outer(m, rr, t->H, 0.5 * kt * kt * gain);
+        outer(m, rr, t->H, 0.5 * kt * kt * gain, n);
     }
 }
 
 /* H v1 = r: inertia, springs (trapezoidal), smooth friction, loads, motors. */
-static void assemble_step(const vsj_model *m, vsj_work *w, double hs, double h) {
-    assemble_inertia(m, &w->ts, hs);
-    assemble_springs(m, w, hs);
-    assemble_friction(m, w, hs);
-    assemble_motors(m, &w->ts, hs, h);
+VSJ_ALWAYS_INLINE void assemble_step(const vsj_model *m, vsj_work *w, double hs, double h,
+                                     int64_t n) {
+    assemble_inertia(m, &w->ts, hs, n);
+    assemble_springs(m, w, hs, n);
+    assemble_friction(m, w, hs, n);
+    assemble_motors(m, &w->ts, hs, h, n);
 }
 
 /* The speeds without Coulomb impulses, vfree = H^-1 r, and the impulse problem's rows
  * YlT = L^-1 D^T. H changes only with non-linear springs, smooth friction slopes or a
  * moving pivot; while it stays within round-off of the matrix last factored, that
  * factor and YlT are reused. VSJ_NOT_FINITE if H is not positive definite. */
-static int factor_step(const vsj_model *m, ts_work *t, double hs, double h) {
-    int64_t n = m->n, na = t->na, mt = na + t->nc, i, c;
+VSJ_ALWAYS_INLINE int factor_step(ts_work *t, double hs, double h, int64_t n) {
+    int64_t na = t->na, mt = na + t->nc, i, c;
     double scale_h = 0.0;
     int same, fresh = 0;
     for (i = 0; i < n * n; i++)
@@ -829,13 +833,13 @@ static int factor_step(const vsj_model *m, ts_work *t, double hs, double h) {
  * impulses, and each end stop's bound on its end speed. A stop is in the problem if
  * the free motion would pass it, or it pushed last step; the others are checked
  * after the solve. */
-static void impulse_bounds(const vsj_model *m, ts_work *t, double hs) {
+VSJ_ALWAYS_INLINE void impulse_bounds(const vsj_model *m, ts_work *t, double hs, int64_t n) {
     int64_t na = t->na, mt = na + t->nc, a, c;
     for (a = 0; a < na; a++) {
         t->lo[a] = -hs * t->level[a];
         t->hi[a] = hs * t->level[a];
     }
-    element_slips(t->DxA, t->DuA, mt, mt, t->vfree, m->n, t->u1, m->n_sources, t->qv);
+    element_slips(t->DxA, t->DuA, mt, mt, t->vfree, n, t->u1, m->n_sources, t->qv);
     for (c = 0; c < t->nc; c++) { /* cb: stop_speeds */
         a = na + c;
         t->qv[a] -= t->cb[c];
@@ -847,7 +851,7 @@ static void impulse_bounds(const vsj_model *m, ts_work *t, double hs) {
 
 /* End stops left out of the problem that its impulses drove into their stop: put in.
  * Returns whether any was. */
-static int stops_reached(ts_work *t, const impulses *im) {
+VSJ_ALWAYS_INLINE int stops_reached(ts_work *t, int64_t n) {
     int64_t na = t->na, mt = na + t->nc, a, c, i;
     int added = 0;
     for (c = 0; c < t->nc; c++) {
@@ -856,7 +860,7 @@ static int stops_reached(ts_work *t, const impulses *im) {
         if (t->involved[a])
             continue;
         slip = t->qv[a];
-        for (i = 0; i < im->n; i++)
+        for (i = 0; i < n; i++)
             slip -= t->YlT[mt * i + a] * t->z[i];
         if (slip > 0.0) {
             t->involved[a] = 1;
@@ -869,14 +873,14 @@ static int stops_reached(ts_work *t, const impulses *im) {
 /* A group that slipped at the step's start and comes to rest or turns within it meets
  * its static level there (MSL's peak): its bounds become that level. Returns whether
  * any group's did. */
-static int peaks_met(ts_work *t, const impulses *im, double hs) {
+VSJ_ALWAYS_INLINE int peaks_met(ts_work *t, double hs, int64_t n) {
     int64_t na = t->na, mt = na + t->nc, a, i;
     int added = 0;
     for (a = 0; a < na; a++) {
         double s0 = t->slip[t->lead[a]], s1 = t->qv[a];
         if (!(t->hold[a] > t->level[a]) || fabs(s0) <= STUCK_SPEED)
             continue;
-        for (i = 0; i < im->n; i++)
+        for (i = 0; i < n; i++)
             s1 -= t->YlT[mt * i + a] * t->z[i];
         if (fabs(s1) <= STUCK_SPEED || (s1 > 0.0) != (s0 > 0.0)) {
             t->lo[a] = -hs * t->hold[a];
@@ -891,15 +895,15 @@ static int peaks_met(ts_work *t, const impulses *im, double hs) {
  * the end stops' impulses, decided all together, take. The problem is solved again
  * while the solution drives an end stop left out into its stop (at most once per
  * stop) and, once, with the static levels of groups that come to rest. */
-static int impulse_step(const vsj_model *m, vsj_work *w, double hs) {
+VSJ_ALWAYS_INLINE int impulse_step(const vsj_model *m, vsj_work *w, double hs, int64_t n) {
     ts_work *t = &w->ts;
     impulses im;
-    int64_t n = m->n, na = t->na, c, i, pass, iterations;
+    int64_t na = t->na, c, i, pass, iterations;
     if (na + t->nc == 0) {
         memcpy(t->v1, t->vfree, (size_t)n * sizeof(double));
         return VSJ_OK;
     }
-    impulse_bounds(m, t, hs);
+    impulse_bounds(m, t, hs, n);
     for (pass = 0;; pass++) {
         int added, full = 0;
         for (c = 0; c < t->nc; c++)
@@ -908,9 +912,9 @@ static int impulse_step(const vsj_model *m, vsj_work *w, double hs) {
         if (!vsj__solve_impulses(&im, t->qv, t->lo, t->hi, t->p, t->state, t->involved,
                                  &iterations))
             return VSJ_FRICTION_SOLVER;
-        added = stops_reached(t, &im);
+        added = stops_reached(t, n);
         if (pass == 0)
-            added = peaks_met(t, &im, hs) || added;
+            added = peaks_met(t, hs, n) || added;
         if (!added || pass > t->nc)
             break;
     }
@@ -924,9 +928,9 @@ static int impulse_step(const vsj_model *m, vsj_work *w, double hs) {
 /* The step's end: positions by the trapezoidal rule, and the motors' armature
  * currents, charge and Joule heat over the step (armature_steps) with the mid-step
  * back-EMF. */
-static void step_end(const vsj_model *m, ts_work *t, double hs) {
+VSJ_ALWAYS_INLINE void step_end(const vsj_model *m, ts_work *t, double hs, int64_t n) {
     int64_t i, mo, rr, r_mot = m->n_frictions + m->n_springs + m->n_loads;
-    for (i = 0; i < m->n; i++)
+    for (i = 0; i < n; i++)
         t->x1[i] = t->x[i] + 0.5 * hs * (t->v[i] + t->v1[i]);
     for (mo = 0; mo < m->n_motors; mo++) {
         const double *p;
@@ -951,13 +955,14 @@ static void step_end(const vsj_model *m, ts_work *t, double hs) {
  * part plus its share of the group's Coulomb impulse (a driven element: its level
  * against its slip). The sources' mid-step speeds and torques are set up for the
  * booking. */
-static void element_forces(const vsj_model *m, ts_work *t, double hs, int forces) {
+VSJ_ALWAYS_INLINE void element_forces(const vsj_model *m, ts_work *t, double hs, int forces,
+                                      int64_t n) {
     int64_t e, j, nf = m->n_frictions, s_n = m->n_sources;
     for (j = 0; j < s_n; j++) {
         t->um[j] = 0.5 * (t->u0[j] + t->u1[j]);
         t->srcF[j] = 0.0;
     }
-    element_slips(t->DxT, t->DuT, nf + m->n_springs, nf, t->v1, m->n, t->u1, s_n, t->slip);
+    element_slips(t->DxT, t->DuT, nf + m->n_springs, nf, t->v1, n, t->u1, s_n, t->slip);
     if (forces) {
         double inv_hs = 1.0 / hs;
         for (e = 0; e < nf; e++) {
@@ -990,10 +995,10 @@ static double pivot_end(const vsj_model *m, vsj_work *w, int wanted) {
 
 /* The step's end becomes the start of the next: state, time (on the grid origin +
  * k h, or off it after a shortened step), pivot, and the stick phases counted. */
-static void advance_state(const vsj_model *m, vsj_work *w, double t1, int on_grid,
-                          double q_end) {
+VSJ_ALWAYS_INLINE void advance_state(const vsj_model *m, vsj_work *w, double t1, int on_grid,
+                                     double q_end, int64_t n) {
     ts_work *t = &w->ts;
-    int64_t i, e, n = m->n, s_n = m->n_sources;
+    int64_t i, e, s_n = m->n_sources;
     memcpy(t->x, t->x1, (size_t)n * sizeof(double));
     memcpy(t->v, t->v1, (size_t)n * sizeof(double));
     memcpy(t->cur, t->i1, (size_t)m->n_motors * sizeof(double));
@@ -1038,28 +1043,39 @@ static int put_state(const vsj_model *m, const ts_work *t, double *y) {
     return 1;
 }
 
-/* One step from tnow to t1, the ledger booked into acc (NULL: none); `forces`: the
- * elements' torques are wanted (the ledger's, or a sample's), `last`: the call's last
- * step. Returns the status. */
-static int one_step(const vsj_model *m, vsj_work *w, double tnow, double t1, double h,
-                    int on_grid, int last, double *acc, int forces) {
+/* One step from tnow to t1 of a model with n free coordinates, the ledger booked
+ * into acc (NULL: none); `forces`: the elements' torques are wanted (the ledger's,
+ * or a sample's), `last`: the call's last step. Returns the status. */
+VSJ_ALWAYS_INLINE int step_sized(const vsj_model *m, vsj_work *w, double tnow, double t1,
+                                 double h, int on_grid, int last, double *acc, int forces,
+                                 int64_t n) {
     ts_work *t = &w->ts;
     double hs = t1 - tnow, q_end;
     int status;
-    step_inputs(m, w, tnow, t1, hs);
-    assemble_step(m, w, hs, h);
-    status = factor_step(m, t, hs, h);
+    step_inputs(m, w, tnow, t1, hs, n);
+    assemble_step(m, w, hs, h, n);
+    status = factor_step(t, hs, h, n);
     if (status == VSJ_OK)
-        status = impulse_step(m, w, hs);
+        status = impulse_step(m, w, hs, n);
     if (status != VSJ_OK)
         return status;
-    step_end(m, t, hs);
-    element_forces(m, t, hs, forces || acc);
+    step_end(m, t, hs, n);
+    element_forces(m, t, hs, forces || acc, n);
     q_end = pivot_end(m, w, acc || last); /* at t1, for the ledger */
     if (acc)
         vsj__ts_book(m, t, acc, hs, q_end);
-    advance_state(m, w, t1, on_grid, q_end);
+    advance_state(m, w, t1, on_grid, q_end, n);
     return VSJ_OK;
+}
+
+/* One step (step_sized), compiled for two free coordinates (the wrist's two rings, when
+ * its motors and pivot are driven by speed), where the loops over the coordinates
+ * unroll, and for any number. */
+static int one_step(const vsj_model *m, vsj_work *w, double tnow, double t1, double h,
+                    int on_grid, int last, double *acc, int forces) {
+    if (m->n == 2)
+        return step_sized(m, w, tnow, t1, h, on_grid, last, acc, forces, 2);
+    return step_sized(m, w, tnow, t1, h, on_grid, last, acc, forces, m->n);
 }
 
 /* ---- the run ----------------------------------------------------------------- */
