@@ -256,7 +256,8 @@ VSJ_INTERNAL vsj_report vsj__adaptive(const vsj_model *m, vsj_work *w, int metho
                                       double atol, int64_t max_steps, int64_t n_err);
 /* The time-stepper, resumable: begin sets the state at t0 (the work prepared for m,
  * vsj_ts_prepare); advance steps to t_end (the last step shortened to land on it),
- * booking the ledger into y's accumulators with `ledger`. */
+ * booking the ledger into y's accumulators with `ledger`. The callers check that w
+ * fits m (vsj__fits). */
 VSJ_INTERNAL int vsj__ts_prepared_for(const vsj_model *m, const vsj_work *w);
 VSJ_INTERNAL int vsj__ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0);
 VSJ_INTERNAL vsj_report vsj__ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_end,

@@ -459,7 +459,7 @@ int vsj__ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
     ts_work *t = &w->ts;
     int64_t n, nm, j;
     double angle;
-    if (!vsj__fits(m, w) || !vsj__ts_prepared_for(m, w))
+    if (!vsj__ts_prepared_for(m, w)) /* (the callers have checked that w fits m) */
         return VSJ_BAD_ARGUMENT;
     n = m->n;
     nm = m->n_motors;
@@ -953,16 +953,11 @@ VSJ_ALWAYS_INLINE void step_end(const vsj_model *m, ts_work *t, double hs, int64
 /* The elements' slips at the step's end and, where `forces` (the ledger and the
  * samples want them), each friction element's torque as the step took it: its smooth
  * part plus its share of the group's Coulomb impulse (a driven element: its level
- * against its slip). The sources' mid-step speeds and torques are set up for the
- * booking. */
+ * against its slip). */
 VSJ_ALWAYS_INLINE void element_forces(const vsj_model *m, ts_work *t, double hs, int forces,
                                       int64_t n) {
-    int64_t e, j, nf = m->n_frictions, s_n = m->n_sources;
-    for (j = 0; j < s_n; j++) {
-        t->um[j] = 0.5 * (t->u0[j] + t->u1[j]);
-        t->srcF[j] = 0.0;
-    }
-    element_slips(t->DxT, t->DuT, nf + m->n_springs, nf, t->v1, n, t->u1, s_n, t->slip);
+    int64_t e, nf = m->n_frictions;
+    element_slips(t->DxT, t->DuT, nf + m->n_springs, nf, t->v1, n, t->u1, m->n_sources, t->slip);
     if (forces) {
         double inv_hs = 1.0 / hs;
         for (e = 0; e < nf; e++) {
@@ -993,17 +988,25 @@ static double pivot_end(const vsj_model *m, vsj_work *w, int wanted) {
     return q_end;
 }
 
+static void exchange(double **a, double **b) {
+    double *c = *a;
+    *a = *b;
+    *b = c;
+}
+
 /* The step's end becomes the start of the next: state, time (on the grid origin +
  * k h, or off it after a shortened step), pivot, and the stick phases counted. */
-VSJ_ALWAYS_INLINE void advance_state(const vsj_model *m, vsj_work *w, double t1, int on_grid,
-                                     double q_end, int64_t n) {
+static void advance_state(const vsj_model *m, vsj_work *w, double t1, int on_grid,
+                          double q_end) {
     ts_work *t = &w->ts;
-    int64_t i, e, s_n = m->n_sources;
-    memcpy(t->x, t->x1, (size_t)n * sizeof(double));
-    memcpy(t->v, t->v1, (size_t)n * sizeof(double));
-    memcpy(t->cur, t->i1, (size_t)m->n_motors * sizeof(double));
-    memcpy(t->u0, t->u1, (size_t)s_n * sizeof(double));
-    memcpy(t->sg0, t->sg1, (size_t)s_n * sizeof(double));
+    int64_t i, e;
+    /* the end's arrays trade places with the start's (each step writes all of its
+     * end's afresh) */
+    exchange(&t->x, &t->x1);
+    exchange(&t->v, &t->v1);
+    exchange(&t->cur, &t->i1);
+    exchange(&t->u0, &t->u1);
+    exchange(&t->sg0, &t->sg1);
     t->t = t1;
     if (on_grid) {
         t->k++;
@@ -1064,7 +1067,7 @@ VSJ_ALWAYS_INLINE int step_sized(const vsj_model *m, vsj_work *w, double tnow, d
     q_end = pivot_end(m, w, acc || last); /* at t1, for the ledger */
     if (acc)
         vsj__ts_book(m, t, acc, hs, q_end);
-    advance_state(m, w, t1, on_grid, q_end, n);
+    advance_state(m, w, t1, on_grid, q_end);
     return VSJ_OK;
 }
 
@@ -1103,7 +1106,7 @@ vsj_report vsj__ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_
     rep.t = t0;
     rep.steps = 0;
     rep.rejected = 0;
-    if (!vsj__fits(m, w) || !vsj__ts_prepared_for(m, w) || !(h > 0.0) || !(t_end >= t0)) {
+    if (!vsj__ts_prepared_for(m, w) || !(h > 0.0) || !(t_end >= t0)) { /* w fits m */
         rep.status = VSJ_BAD_ARGUMENT;
         return rep;
     }
