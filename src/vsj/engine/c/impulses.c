@@ -78,38 +78,45 @@ VSJ_ALWAYS_INLINE void slips(const impulses *im, const double *q, const double *
     }
 }
 
-/* Classify the warm start: impulses at (this step's) bound keep their sign,
- * the others are free (stuck); uninvolved unknowns get state 2. Fills mask (1
- * for free); returns the number free, and the largest free slip in *scale. */
+/* Classify unknown e of the warm start: an impulse at (this step's) bound keeps its
+ * sign, the others are free (stuck); an uninvolved unknown gets state 2. Sets its
+ * mask (1 for free) and returns it; *scale grows to its free slip. */
+VSJ_ALWAYS_INLINE int snap_one(const impulses *im, const double *q, const double *lo,
+                               const double *hi, double *p, int64_t *state,
+                               const unsigned char *active, int64_t e, double *scale) {
+    im->mask[e] = 0.0;
+    if (active[e] && hi[e] > lo[e]) {
+        *scale = vsj__dmax(*scale, fabs(q[e]));
+        /* the bounds vary in their last bits from step to step (the step length
+         * does): an impulse at last step's bound is at this step's bound
+         * (lo <= 0 < hi, hi possibly infinite) */
+        if (p[e] >= hi[e] * (1.0 - 1e-9)) {
+            p[e] = hi[e];
+            state[e] = 1;
+        } else if (p[e] <= lo[e] * (1.0 - 1e-9)) {
+            p[e] = lo[e];
+            state[e] = -1;
+        } else {
+            state[e] = 0;
+            im->mask[e] = 1.0;
+            return 1;
+        }
+    } else {
+        p[e] = 0.0;
+        state[e] = 2;
+    }
+    return 0;
+}
+
+/* Classify the warm start (snap_one): returns the number free, and the largest free
+ * slip in *scale. */
 VSJ_ALWAYS_INLINE int64_t snap(const impulses *im, const double *q, const double *lo,
                                const double *hi, double *p, int64_t *state,
                                const unsigned char *active, double *scale) {
     int64_t e, n_free = 0;
-    double sc = 0.0;
-    for (e = 0; e < im->m; e++) {
-        im->mask[e] = 0.0;
-        if (active[e] && hi[e] > lo[e]) {
-            sc = vsj__dmax(sc, fabs(q[e]));
-            /* the bounds vary in their last bits from step to step (the step length
-             * does): an impulse at last step's bound is at this step's bound
-             * (lo <= 0 < hi, hi possibly infinite) */
-            if (p[e] >= hi[e] * (1.0 - 1e-9)) {
-                p[e] = hi[e];
-                state[e] = 1;
-            } else if (p[e] <= lo[e] * (1.0 - 1e-9)) {
-                p[e] = lo[e];
-                state[e] = -1;
-            } else {
-                state[e] = 0;
-                im->mask[e] = 1.0;
-                n_free++;
-            }
-        } else {
-            p[e] = 0.0;
-            state[e] = 2;
-        }
-    }
-    *scale = sc;
+    *scale = 0.0;
+    for (e = 0; e < im->m; e++)
+        n_free += snap_one(im, q, lo, hi, p, state, active, e, scale);
     return n_free;
 }
 
@@ -176,17 +183,17 @@ VSJ_ALWAYS_INLINE int same_pattern(impulses *im, const double *q, const double *
                                    const unsigned char *active, int64_t n) {
     int64_t e, i, j, m = im->m, ld = im->ld, n_free;
     const double *YT = im->YT;
-    double scale, tol, *bound = im->d, *stuck = im->g;
-    int known;
-    n_free = snap(im, q, lo, hi, p, state, active, &scale);
-    tol = IMPULSE_ABS + IMPULSE_REL * scale;
-    known = im->memo[m] > 0.0;
-    for (e = 0; e < m; e++) {
-        double me = im->mask[e];
+    double scale = 0.0, tol, *bound = im->d, *stuck = im->g;
+    int known = im->memo[m] > 0.0;
+    for (e = 0, n_free = 0; e < m; e++) { /* snap, and the split into bound and stuck */
+        double me;
+        n_free += snap_one(im, q, lo, hi, p, state, active, e, &scale);
+        me = im->mask[e];
         bound[e] = p[e] * (1.0 - me); /* p_B */
         stuck[e] = q[e] * me;         /* q_F */
         known = known && im->memo[e] == me;
     }
+    tol = IMPULSE_ABS + IMPULSE_REL * scale;
     if (n_free > 0 && !known) {
         stuck_map(im, n);
         for (e = 0; e < m; e++)
