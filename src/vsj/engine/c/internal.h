@@ -27,6 +27,7 @@ typedef struct ts_work {
                             * without (0; -1 neither) */
     int64_t n_nonlinear, n_watched, n_mid_ch, n_mid_src, n_end_ch;
     int factored;          /* H_last and its factor are valid */
+    int first;             /* the next step is a call's first (vsj__ts_begin) */
     double t;              /* time reached */
     double origin;         /* steps end at origin + k h (vsj__ts_advance) */
     int64_t k;

@@ -486,8 +486,7 @@ int vsj__ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
     t->t = t0;
     t->origin = t0;
     t->k = 0;
-    t->factored = 0;
-    t->memo_full = -1;
+    t->first = 1; /* (the factor and the impulse memo are kept for the same matrix) */
     element_slips(t->DxT, t->DuT, m->n_frictions + m->n_springs, m->n_frictions, t->v, n, t->u0,
                   m->n_sources, t->slip);
     return w->status;
@@ -790,16 +789,22 @@ VSJ_ALWAYS_INLINE void assemble_step(const vsj_model *m, vsj_work *w, double hs,
 /* The speeds without Coulomb impulses, vfree = H^-1 r, and the impulse problem's rows
  * YlT = L^-1 D^T. H changes only with non-linear springs, smooth friction slopes or a
  * moving pivot; while it stays within round-off of the matrix last factored, that
- * factor and YlT are reused. VSJ_NOT_FINITE if H is not positive definite. */
+ * factor and YlT are reused. On a call's first step (t->first, vsj__ts_begin) they
+ * are reused only for the very same matrix, to the bit, so that a call's steps do
+ * not depend on the calls before it. VSJ_NOT_FINITE if H is not positive definite. */
 VSJ_ALWAYS_INLINE int factor_step(ts_work *t, double hs, double h, int64_t n) {
     int64_t na = t->na, mt = na + t->nc, i, c;
     double scale_h = 0.0;
-    int same, fresh = 0;
-    for (i = 0; i < n * n; i++)
-        scale_h = vsj__dmax(scale_h, fabs(t->H_last[i]));
-    same = t->factored;
-    for (i = 0; i < n * n; i++)
-        same = same && fabs(t->H[i] - t->H_last[i]) <= H_REUSE * scale_h;
+    int same = t->factored, fresh = 0, first = t->first;
+    if (first) {
+        same = same && memcmp(t->H, t->H_last, (size_t)(n * n) * sizeof(double)) == 0;
+        t->first = 0;
+    } else {
+        for (i = 0; i < n * n; i++)
+            scale_h = vsj__dmax(scale_h, fabs(t->H_last[i]));
+        for (i = 0; i < n * n; i++)
+            same = same && fabs(t->H[i] - t->H_last[i]) <= H_REUSE * scale_h;
+    }
     if (n > 0 && !same) {
         memcpy(t->H_last, t->H, (size_t)(n * n) * sizeof(double));
         if (!vsj__cholesky(t->H, t->Lc, n, n, 0))
@@ -815,10 +820,10 @@ VSJ_ALWAYS_INLINE int factor_step(ts_work *t, double hs, double h, int64_t n) {
      * diagonal: a row of its own in YlT, so that W = Y Y^T still */
     /* step lengths t1 - tnow differ by round-off from step to step: only a
      * real change (the last, shortened step) rewrites the rows and drops the
-     * solver's memo; with a fresh factor (whose rows they join) they follow
-     * the step's length to the bit */
+     * solver's memo; with a fresh factor (whose rows they join), and on a call's
+     * first step, they follow the step's length to the bit */
     if (t->ncomp > 0
-        && (fresh ? hs != t->hs_prev : !(fabs(hs - t->hs_prev) <= STEP_SAME * h))) {
+        && (fresh || first ? hs != t->hs_prev : !(fabs(hs - t->hs_prev) <= STEP_SAME * h))) {
         memset(t->YlT + mt * n, 0, (size_t)(t->ncomp * mt) * sizeof(double));
         for (c = 0; c < t->nc; c++)
             if (t->ccomp[c] >= 0)
