@@ -28,6 +28,7 @@ typedef struct ts_work {
     int64_t n_nonlinear, n_watched, n_mid_ch, n_mid_src, n_end_ch;
     int factored;          /* H_last and its factor are valid */
     int first;             /* the next step is a call's first (vsj__ts_begin) */
+    int pivot_still;       /* the pivot's angle cannot move (its sources' inputs are 0) */
     double t;              /* time reached */
     double origin;         /* steps end at origin + k h (vsj__ts_advance) */
     int64_t k;

@@ -315,6 +315,27 @@ static void levels_and_lists(const vsj_model *m, ts_work *t) {
     }
 }
 
+/* Whether the pivot's angle stays as it is: it follows no free coordinate, and its
+ * sources' speeds are inputs that are zero throughout (a constant zero spline, with
+ * zero integrals, that no controller drives), so that their angles do not move. (Held
+ * inputs, the step function's, are other values: step_inputs checks.) */
+static int pivot_still(const vsj_model *m) {
+    int64_t r_piv = m->n_rows - 1, k, a;
+    if (m->xp[r_piv + 1] > m->xp[r_piv])
+        return 0;
+    for (k = m->up[r_piv]; k < m->up[r_piv + 1]; k++) {
+        int64_t ch = m->src_ch[m->uc[k]], p0 = m->first[ch], koff = p0 + ch;
+        const double *cf = m->coef + 4 * p0;
+        if (m->count[ch] != 1 || cf[0] != 0.0 || cf[1] != 0.0 || cf[2] != 0.0 || cf[3] != 0.0
+            || m->cum[koff] != 0.0 || m->cum[koff + 1] != 0.0 || m->period[2 * ch + 1] != 0.0)
+            return 0;
+        for (a = 0; a < m->n_acts; a++)
+            if (m->act_ch[a] == ch)
+                return 0;
+    }
+    return 1;
+}
+
 /* At mid-step only the loads, the motor voltages and the pivot's sources are read; a
  * load or voltage constant in time (and not a controller's) keeps its value from t = 0.
  * At step end only the sources' channels are read. */
@@ -334,9 +355,10 @@ static void channel_lists(const vsj_model *m, ts_work *t) {
         if (vsj__row(m, e)[VSJ_F_CHANNEL] >= 0.0)
             t->wanted[(int64_t)vsj__row(m, e)[VSJ_F_CHANNEL]] = 1;
     t->n_mid_src = 0;
+    t->pivot_still = pivot_still(m);
     for (k = m->up[r_piv]; k < m->up[r_piv + 1]; k++) {
         t->mid_src[t->n_mid_src++] = m->uc[k];
-        t->wanted[m->src_ch[m->uc[k]]] = 1;
+        t->wanted[m->src_ch[m->uc[k]]] |= !t->pivot_still;
     }
     t->n_mid_ch = 0;
     for (c = 0; c < m->n_channels; c++)
@@ -534,23 +556,30 @@ VSJ_ALWAYS_INLINE void step_inputs(const vsj_model *m, vsj_work *w, double tnow,
                                    double hs, int64_t n) {
     ts_work *t = &w->ts;
     int64_t i, j, ld, mo, r_load = m->n_frictions + m->n_springs;
+    /* a pivot held still keeps its position (held inputs may move it) */
+    int moves = !t->pivot_still || w->held;
     double angle;
     for (i = 0; i < t->n_mid_ch; i++)
         vsj__eval_channel(m, w, t->mid_ch[i], tnow + 0.5 * hs);
-    for (i = 0; i < t->n_mid_src; i++)
+    for (i = 0; moves && i < t->n_mid_src; i++) {
+        if (t->pivot_still) /* (then its channels are not in mid_ch) */
+            vsj__eval_channel(m, w, m->src_ch[t->mid_src[i]], tnow + 0.5 * hs);
         vsj__eval_source(m, w, t->mid_src[i]);
+    }
     if (t->any_varying)
         step_levels(m, w);
     for (ld = 0; ld < m->n_loads; ld++)
         t->ldm[ld] = w->chan[3 * m->code[r_load + ld]];
     for (mo = 0; mo < m->n_motors; mo++)
         t->vm[mo] = w->chan[3 * m->code[r_load + m->n_loads + mo]];
-    for (i = 0; i < n; i++)
-        t->x1[i] = t->x[i] + 0.5 * hs * t->v[i];
-    angle = vsj__pivot_angle(m, w, t->x1);
-    if (angle != t->angle_mid) {
-        t->angle_mid = angle;
-        t->q_mid = vsj__pivot_at(m, w, angle);
+    if (moves) {
+        for (i = 0; i < n; i++)
+            t->x1[i] = t->x[i] + 0.5 * hs * t->v[i];
+        angle = vsj__pivot_angle(m, w, t->x1);
+        if (angle != t->angle_mid) {
+            t->angle_mid = angle;
+            t->q_mid = vsj__pivot_at(m, w, angle);
+        }
     }
     for (i = 0; i < t->n_end_ch; i++)
         vsj__eval_channel(m, w, t->end_ch[i], t1);
