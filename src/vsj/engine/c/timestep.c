@@ -336,6 +336,15 @@ static int pivot_still(const vsj_model *m) {
     return 1;
 }
 
+/* Whether source j drives the pivot. */
+static int pivot_source(const ts_work *t, int64_t j) {
+    int64_t i;
+    for (i = 0; i < t->n_mid_src; i++)
+        if (t->mid_src[i] == j)
+            return 1;
+    return 0;
+}
+
 /* At mid-step only the loads, the motor voltages and the pivot's sources are read; a
  * load or voltage constant in time (and not a controller's) keeps its value from t = 0.
  * At step end only the sources' channels are read. */
@@ -366,7 +375,7 @@ static void channel_lists(const vsj_model *m, ts_work *t) {
             t->mid_ch[t->n_mid_ch++] = c;
     memset(t->wanted, 0, (size_t)m->n_channels);
     for (j = 0; j < m->n_sources; j++)
-        t->wanted[m->src_ch[j]] = 1;
+        t->wanted[m->src_ch[j]] = !t->pivot_still || !pivot_source(t, j);
     t->n_end_ch = 0;
     for (c = 0; c < m->n_channels; c++)
         if (t->wanted[c])
@@ -584,6 +593,13 @@ VSJ_ALWAYS_INLINE void step_inputs(const vsj_model *m, vsj_work *w, double tnow,
     for (i = 0; i < t->n_end_ch; i++)
         vsj__eval_channel(m, w, t->end_ch[i], t1);
     for (j = 0; j < m->n_sources; j++) {
+        if (!moves && pivot_source(t, j)) { /* held still: speed 0, the same angle */
+            t->u1[j] = t->u0[j];
+            t->sg1[j] = t->sg0[j];
+            continue;
+        }
+        if (t->pivot_still && pivot_source(t, j)) /* (then its channel is not in end_ch) */
+            vsj__eval_channel(m, w, m->src_ch[j], t1);
         vsj__eval_source(m, w, j);
         t->u1[j] = w->srcw[SRCW * j + U];
         t->sg1[j] = w->srcw[SRCW * j + SG];
