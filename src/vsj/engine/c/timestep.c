@@ -406,6 +406,7 @@ static void clear_history(const vsj_model *m, ts_work *t) {
     t->rl_h = NAN; /* the armature steps follow the parameters */
     t->angle_prev = NAN; /* the pivot's too */
     t->factored = 0;
+    t->memo_full = -1;
 }
 
 int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
