@@ -19,8 +19,8 @@
 
 #include "internal.h"
 
-/* Every function below takes the coordinates' count n and is inlined into
- * vsj__solve_impulses, which calls it with a constant n where it can. */
+/* The functions below are inlined into vsj__solve_impulses; those that loop over the
+ * coordinates take their count n, which it passes as a constant where it can. */
 
 /* impulse solver: absolute and relative (to the largest free slip) tolerance [rad/s] */
 #define IMPULSE_ABS 1e-14
