@@ -594,12 +594,13 @@ VSJ_ALWAYS_INLINE void step_inputs(const vsj_model *m, vsj_work *w, double tnow,
     for (i = 0; i < t->n_end_ch; i++)
         vsj__eval_channel(m, w, t->end_ch[i], t1);
     for (j = 0; j < m->n_sources; j++) {
-        if (!moves && pivot_source(t, j)) { /* held still: speed 0, the same angle */
+        int still = t->pivot_still && pivot_source(t, j);
+        if (still && !moves) { /* held still: speed 0, the same angle */
             t->u1[j] = t->u0[j];
             t->sg1[j] = t->sg0[j];
             continue;
         }
-        if (t->pivot_still && pivot_source(t, j)) /* (then its channel is not in end_ch) */
+        if (still) /* (then its channel is not in end_ch) */
             vsj__eval_channel(m, w, m->src_ch[j], t1);
         vsj__eval_source(m, w, j);
         t->u1[j] = w->srcw[SRCW * j + U];
@@ -647,14 +648,10 @@ static double spring_gradient(const vsj_model *m, vsj_work *w, int64_t k, double
 /* The end speeds that keep spring k within its stop, for its two end-stop unknowns
  * (from `stop` on): |d| <= stop at the step's end, with d1 = d0 + h/2 (d0' + d1'),
  * lets the end speed side d1' be at most cb (the trapezoidal position update). d0 and
- * rate, the deflection and the free coordinates' part of its rate at the step's
- * start, are the spring's own (assemble_springs). Returns the next stop unknown. */
-static int64_t stop_speeds(const vsj_model *m, ts_work *t, double hs, int64_t k, int64_t stop,
-                           double d0, double rate) {
-    int64_t j, cols = m->n_frictions + m->n_springs, rr = m->n_frictions + k;
-    double rate0 = rate;
-    for (j = 0; j < m->n_sources; j++)
-        rate0 += t->DuT[cols * j + rr] * t->u0[j];
+ * rate0, its deflection and rate at the step's start, are the spring's own
+ * (assemble_springs). Returns the next stop unknown. */
+static int64_t stop_speeds(ts_work *t, double hs, int64_t k, int64_t stop, double d0,
+                           double rate0) {
     for (; stop < t->nc && t->cspring[stop] == k; stop++) {
         double side = t->csign[stop];
         t->cb[stop] = 2.0 / hs * (t->cstop[stop] - side * d0) - side * rate0;
@@ -672,18 +669,21 @@ VSJ_ALWAYS_INLINE void assemble_springs(const vsj_model *m, vsj_work *w, double 
     int64_t s_n = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs;
     int64_t i, j, c, k, rr, stop = 0;
     for (k = 0; k < m->n_springs; k++) {
-        double d0 = 0.0, rate = 0.0, dsig = 0.0, kap, en, dvq, tau, c_k;
+        double d0 = 0.0, rate = 0.0, rate0, dsig = 0.0, kap, en, dvq, tau, c_k;
         rr = nf + k;
         for (i = 0; i < n; i++) {
             d0 += t->DxT[cols * i + rr] * t->x[i];
             rate += t->DxT[cols * i + rr] * t->v[i];
         }
+        rate0 = rate; /* the rate with the sources' part (rate: the free coordinates') */
         for (j = 0; j < s_n; j++) {
-            d0 += t->DuT[cols * j + rr] * t->sg0[j];
-            dsig += t->DuT[cols * j + rr] * (t->sg1[j] - t->sg0[j]);
+            double d = t->DuT[cols * j + rr];
+            d0 += d * t->sg0[j];
+            dsig += d * (t->sg1[j] - t->sg0[j]);
+            rate0 += d * t->u0[j];
         }
         if (t->has_stop[k])
-            stop = stop_speeds(m, t, hs, k, stop, d0, rate);
+            stop = stop_speeds(t, hs, k, stop, d0, rate0);
         tau = vsj__spring(m->code[rr], vsj__row(m, rr), d0, t->q_mid, &kap, &en, &dvq,
                           w->spcache + 4 * k, !t->has_stop[k]);
         if (m->code[rr] == VSJ_GEOMETRIC) {
