@@ -38,7 +38,7 @@ typedef struct ts_work {
     /* n x n; G, Lg, Gc, Kc: (n + 2 k)^2, the impulse problem's rows */
     double *H, *H_last, *Lc, *Bx, *G, *Lg, *Gc, *Kc;
     /* n; tv, cv, z: n + 2 k */
-    double *x, *v, *r, *vfree, *v1, *x1, *tv, *cv, *z;
+    double *x, *v, *r, *vfree, *v1, *x1, *col, *drow, *tv, *cv, *z;
     double *Bu;            /* n x s */
     double *DxT, *DuT;     /* n x (f + k), s x (f + k) */
     double *DxA, *DuA, *YlT; /* n x m, s x m, (n + 2 k) x m with m = f + 2 k (used: na + nc) */

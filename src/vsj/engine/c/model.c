@@ -307,6 +307,8 @@ static void layout(vsj_work *w, carver *cv) {
     t->vfree = DOUBLES(n);
     t->v1 = DOUBLES(n);
     t->x1 = DOUBLES(n);
+    t->col = DOUBLES(n);
+    t->drow = DOUBLES(n);
     t->tv = DOUBLES(nr);
     t->cv = DOUBLES(nr);
     t->z = DOUBLES(nr);
