@@ -902,11 +902,9 @@ class WristModel:
                 y = np.zeros(n * 2 + len(w.currents))
                 y[:n], y[n:2 * n], y[2 * n:] = x0, v0, w.currents
                 return y
-            engine = w.engines[law]
-            model = engine.model._replace(mass=mass, Minv=Minv, par=par)
-            x0 = self._quasi_static(Engine(model._replace(src_pos0=w.sigma0)), x0, w.null)
             dt, x2, s2 = w.later
-            x2 = self._quasi_static(Engine(model._replace(src_pos0=s2)), x2, w.null)
+            x0 = self._quasi_static(self._retuned(w, law, mass, Minv, par, w.sigma0), x0, w.null)
+            x2 = self._quasi_static(self._retuned(w, law, mass, Minv, par, s2), x2, w.null)
             v0 = v0 + w.null @ (w.null.T @ ((x2 - x0) / dt - v0))
             if len(w.quasi_static) > 256:
                 w.quasi_static.clear()
@@ -914,6 +912,16 @@ class WristModel:
         y = np.zeros(n * 2 + len(w.currents))
         y[:n], y[n:2 * n], y[2 * n:] = x0, v0, w.currents
         return y
+
+    @staticmethod
+    def _retuned(w: Window, law: str, mass, Minv, par, src_pos0) -> Engine:
+        """The window's engine with another parameter set and start angles of the sources:
+        its checked model retuned, sharing the input tables (checking and copying them
+        again for every parameter set cost more than the quasi-static search)."""
+        engine = w.engines[law]
+        arrays = {name: np.ascontiguousarray(value, dtype=float) for name, value in
+                  (("mass", mass), ("Minv", Minv), ("par", par), ("src_pos0", src_pos0))}
+        return Engine(engine.model._replace(**arrays), engine.c.retuned(arrays))
 
     def _quasi_static(self, engine: Engine, x: np.ndarray, null: np.ndarray) -> np.ndarray:
         """Minimise the springs' energy over the unmeasured directions (Newton, central
