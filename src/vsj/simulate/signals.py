@@ -235,8 +235,10 @@ def collect(structure: Structure, engine: Engine, layout: Layout, t_out, out, co
     if ports is False:
         table = [s for s in table if not s.name.startswith("port.")]
     width = controller.width if controller is not None else 0
-    block = Block(raw=engine.observe(t_out, out, coulomb), stuck=stuck,
-                  columns=observation_layout(layout), cache={},
+    # the engine observes sample by sample (rows); every signal reads whole columns, and
+    # the sinks write them: a column-major copy makes each column one contiguous run
+    raw = np.asfortranarray(engine.observe(t_out, out, coulomb))
+    block = Block(raw=raw, stuck=stuck, columns=observation_layout(layout), cache={},
                   control=np.asarray(out)[:, np.asarray(out).shape[1] - width:] if width else None)
     if not len(t_out):
         return ({s.name: np.zeros(0) for s in table if not s.name.startswith("port.")},
