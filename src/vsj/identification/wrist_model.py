@@ -593,11 +593,12 @@ class WristModel:
         def work(task):
             d, k = task
             w = self.windows[k]
-            base = w.engines[law].model
-            noisy_model = _added_to_tables(base, self._table_times(w), noisy_channels,
-                                           extras[d][w.log])
-            plan = self._plan(w, law, h, noisy_model).retuned(
-                y0=self._initial(w, law, mass, Minv, par), mass=mass, Minv=Minv, par=par)
+            noisy = _added_to_tables(w.engines[law].model, self._table_times(w),
+                                     noisy_channels, extras[d][w.log])
+            # the window's plan retuned (its checked model shares all but these arrays)
+            plan = self._window_plan(k, law, h).retuned(
+                y0=self._initial(w, law, mass, Minv, par), mass=mass, Minv=Minv, par=par,
+                knots=noisy.knots, coef=noisy.coef, cum=noisy.cum)
             batch = run_batch([plan], w.grids[h][0], threads=1)
             sim = self._sample(w, self._signals(w, batch.states, h), delays, h)[0]
             r = ((sim - self.measured(k)) * wts).reshape(-1)
