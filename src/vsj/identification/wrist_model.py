@@ -782,22 +782,34 @@ class WristModel:
 
     def _compiled_for(self, values: np.ndarray, law: str):
         """``(mass, Minv, par)`` of the engine for one parameter set: from the affine
-        map of `_affine` when only parameters that act affinely differ from the
-        start, else by building and compiling the wrist."""
+        map of `_affine` added to the arrays of the set with the affine parameters at
+        the start (the start itself, or, where parameters that act otherwise differ and
+        the affine ones' effect does not depend on them, that set compiled), else by
+        building and compiling the wrist."""
         key = tuple(float(v) for v in values)
         hit = self._compiled.get(key)
         if hit is not None:
             return hit
         affine = self._affine(law)
         change = np.asarray(key) - self.base
-        if affine is not None and not np.any(change[~affine[0]]):
-            _, mass0, par0, dmass, dpar = affine
-            mass = mass0 + np.tensordot(change, dmass, axes=1)
-            par = par0 + np.tensordot(change, dpar, axes=1)
+        moved = change != 0.0
+        if affine is not None and not np.any(moved & ~affine[5]):
+            mask, mass0, par0, dmass, dpar, _ = affine
+            if np.any(moved & ~mask):  # the others' arrays, compiled once for them all
+                anchor = tuple(float(v) for v in np.where(mask, self.base, key))
+                mass0, _, par0 = self._compiled.get(anchor) or self._kept(
+                    anchor, self._compile(anchor, law))
+            step = np.where(mask, change, 0.0)
+            mass = mass0 + np.tensordot(step, dmass, axes=1)
+            par = par0 + np.tensordot(step, dpar, axes=1)
             n = self.structure.n
             hit = (mass, np.linalg.inv(mass[:n, :n]) if n else np.zeros((0, 0)), par)
         else:
             hit = self._compile(key, law)
+        return self._kept(key, hit)
+
+    def _kept(self, key: tuple, hit: tuple) -> tuple:
+        """``hit``, kept as the arrays of the parameter set ``key`` (a bounded cache)."""
         if len(self._compiled) > 512:
             self._compiled.clear()
         self._compiled[key] = hit
@@ -823,15 +835,19 @@ class WristModel:
 
     def _affine(self, law: str):
         """Which free parameters the mass matrix and the element parameters depend on
-        affinely (inertias, friction levels: most of them), with that map:
-        ``(affine, mass0, par0, dmass, dpar)``; None if none is affine.
+        affinely (inertias, friction levels: most of them), with that map, and which of
+        the others leave the affine ones' effect as it is:
+        ``(affine, mass0, par0, dmass, dpar, separate)``; None if none is affine.
 
         Building the wrist for every parameter set of every Jacobian costs more than
         its runs on a short window; an affine parameter's effect is a sum instead.
         Affinity is checked, not assumed: two steps of each parameter must change
         the arrays by the same amount, and all of them together by the sum of their
-        own changes (to `AFFINE_TOLERANCE`); a parameter that fails (a compliance
-        turned into a stiffness) is compiled each time it differs from the start."""
+        own changes (to `AFFINE_TOLERANCE`). A parameter that fails (a compliance
+        turned into a stiffness) is compiled each time it differs from the start;
+        it is ``separate`` when, stepped, all affine ones together still change the
+        arrays by that sum: then the sets of a Jacobian that differ from its value
+        in affine parameters only share one compile."""
         cache = self.__dict__.setdefault("_affine_cache", {})
         if law in cache:
             return cache[law]
@@ -843,27 +859,37 @@ class WristModel:
         dmass = np.zeros((n_par,) + mass0.shape)
         dpar = np.zeros((n_par,) + par0.shape)
         steps = np.where(self.base != 0, 0.1 * np.abs(self.base), 1e-3)
+        stepped = {}
+        tol = AFFINE_TOLERANCE * size
         for i in range(n_par):
             one, two = list(base), list(base)
             one[i] += steps[i]
             two[i] += 2 * steps[i]
-            m1, _, p1 = self._compile(tuple(one), law)
+            m1, _, p1 = stepped[i] = self._compile(tuple(one), law)
             m2, _, p2 = self._compile(tuple(two), law)
-            tol = AFFINE_TOLERANCE * size
             if (np.max(np.abs((m2 - m1) - (m1 - mass0))) <= tol
                     and np.max(np.abs((p2 - p1) - (p1 - par0))) <= tol):
                 affine[i] = True
                 dmass[i] = (m1 - mass0) / steps[i]
                 dpar[i] = (p1 - par0) / steps[i]
-        result = None
-        if affine.any():
-            together = np.where(affine, self.base + steps, self.base)
+
+        def sums(at: np.ndarray, mass, par) -> bool:
+            """Whether the affine parameters stepped together from ``at`` (whose arrays
+            are ``mass``, ``par``) change the arrays by the sum of their effects."""
+            together = np.where(affine, at + steps, at)
             m, _, p = self._compile(tuple(float(v) for v in together), law)
-            change = together - self.base
-            tol = AFFINE_TOLERANCE * size
-            if (np.max(np.abs(m - mass0 - np.tensordot(change, dmass, axes=1))) <= tol
-                    and np.max(np.abs(p - par0 - np.tensordot(change, dpar, axes=1))) <= tol):
-                result = (affine, mass0, par0, dmass, dpar)
+            change = together - at
+            return bool(np.max(np.abs(m - mass - np.tensordot(change, dmass, axes=1))) <= tol
+                        and np.max(np.abs(p - par - np.tensordot(change, dpar, axes=1))) <= tol)
+
+        result = None
+        if affine.any() and sums(self.base, mass0, par0):
+            separate = affine.copy()
+            for j in np.flatnonzero(~affine):
+                at = self.base.copy()
+                at[j] += steps[j]
+                separate[j] = sums(at, stepped[j][0], stepped[j][2])
+            result = (affine, mass0, par0, dmass, dpar, separate)
         cache[law] = result
         return result
 
