@@ -432,8 +432,10 @@ def staircase(levels, *, hold: float, ramp: float, start: float = 0.0) -> Table:
     return Table(tuple(times), tuple(values))
 
 
-def _channel_units(net: Network) -> tuple[dict[str, str], set[str]]:
-    structure_parts = net.parts()
+def _channel_units(net: Network | Structure) -> tuple[dict[str, str], set[str]]:
+    """The unit of each input channel of a network (or of its assembled structure,
+    which holds the same sources, loads and motors), and the channels of its sources."""
+    structure_parts = net.parts() if isinstance(net, Network) else net
     units = {}
     for src in structure_parts.sources:
         units[src.channel] = "rad/s"
@@ -554,9 +556,10 @@ def _case(table: Mapping, label: str, where: Where) -> Case:
                 where=where, controller=controller, environment=environment)
 
 
-def parse_inputs(case: Case, net: Network) -> dict[str, Input]:
-    """The case's input tables, parsed with the units of the network's channels; each
-    signal is checked to fit in memory over the case's duration."""
+def parse_inputs(case: Case, net: Network | Structure) -> dict[str, Input]:
+    """The case's input tables, parsed with the units of the network's channels (``net``
+    a network or, once assembled, its structure); each signal is checked to fit in
+    memory over the case's duration."""
     units, sources = _channel_units(net)
     out = {}
     for channel, spec in case.inputs.items():
@@ -1557,7 +1560,7 @@ def prepare_case(scenario: Scenario, case: Case, params: Parameters, *,
     with _context(where):
         net = case.build(resolved)
         structure = net.assemble()
-    inputs = parse_inputs(case, net)
+    inputs = parse_inputs(case, structure)  # the network's parts as assembled: not again
     pivot = structure.pivot
     if case.initial.q is not None and not pivot.q_min <= case.initial.q <= pivot.q_max:
         raise InputError(f"{where.key('initial').key('q')}: {case.initial.q * 100:g} cm is "
