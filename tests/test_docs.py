@@ -232,4 +232,5 @@ def test_site_checker_finds_missing_reference_entries(tmp_path):
     pages = check_site.read_pages(site)
     assert check_site.api_problems(site, pages) == [
         "API reference: no entry for vsj.params.Parameters.hash"]
-    assert check_site.cli_problems(site, pages) == ["CLI reference: no section for `vsj fit wrist`"]
+    assert check_site.cli_problems(site, pages) == [
+        "CLI reference: no section for `vsj fit wrist`"]
