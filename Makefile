@@ -5,24 +5,35 @@ CC ?= cc
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+TEST_STAMP := $(VENV)/.test-installed
 ENGINE := $(wildcard src/vsj/engine/c/*.c src/vsj/engine/c/*.h) src/vsj/_core.c
 
 .PHONY: install reproduce figures test explore-browser docs docs-browser bench sanitize portable clean
 
-install: $(STAMP)
+install: $(TEST_STAMP)
 
-# the engine is C: (re)installing compiles it, so the stamp follows its sources.
-# The bytecode is compiled after the install, on every core (pip compiles one file at a
-# time), so that no command compiles modules as it starts, even where
+# vsj and what it runs on ($(STAMP)), then the test suite's extras ($(TEST_STAMP):
+# pytest, FMPy, Bokeh, Selenium, ...), which make reproduce does without.
+# The engine is C: (re)installing compiles it, so the stamp follows its sources.
+# The bytecode is compiled after each install, on every core (pip compiles one file at
+# a time), so that no command compiles modules as it starts, even where
 # PYTHONDONTWRITEBYTECODE keeps Python from saving what it compiles. Left out: the
 # libraries' own test suites and the installers (pip, setuptools), which neither vsj
 # nor its tests import: a third of the source in .venv, and of the install's time.
 NO_BYTECODE := site-packages/(.+/)?tests?/|site-packages/(pip|setuptools|pkg_resources)/
 $(STAMP): pyproject.toml setup.py $(ENGINE)
 	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --no-compile -e '.[test]'
+	$(BIN)/python -m pip install --quiet --no-compile -e .
 	$(BIN)/python -m compileall -q -j 0 -x '$(NO_BYTECODE)' $(VENV)/lib src
 	touch $(STAMP)
+
+# the test extra of pyproject.toml (its requirements only: vsj itself is installed
+# already); compileall compiles what is new and passes over what it compiled before
+$(TEST_STAMP): $(STAMP)
+	$(BIN)/python -c "import tomllib; print('\n'.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['test']))" > $(VENV)/test-requirements.txt
+	$(BIN)/python -m pip install --quiet --no-compile -r $(VENV)/test-requirements.txt
+	$(BIN)/python -m compileall -q -j 0 -x '$(NO_BYTECODE)' $(VENV)/lib
+	touch $(TEST_STAMP)
 
 reproduce: $(STAMP)
 	$(BIN)/vsj reproduce --out reproduction
@@ -30,7 +41,7 @@ reproduce: $(STAMP)
 # the figures README.md shows: the README's own Python snippet, run, and the explorer's
 # screenshot from vsj explore in headless Chromium (tests/test_readme.py checks that this
 # recipe writes every figure the README shows)
-figures: $(STAMP)
+figures: $(TEST_STAMP)
 	rm -rf build/figures
 	$(BIN)/python tools/readme_figure.py build/figures/readme
 	cp build/figures/readme/quickstart.png docs/quickstart.png
@@ -42,7 +53,7 @@ figures: $(STAMP)
 # tests/conftest.py collects them). The workers already fill the cores, so OpenBLAS runs
 # on one thread in each: its threads would only wait on a busy core for the other
 # worker, spinning (CPU time taken from that worker, no wall time gained)
-test: $(STAMP)
+test: $(TEST_STAMP)
 	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n auto --dist loadfile --no-loadscope-reorder
 
 # the documentation site, into docs/_build/html: the docs extra of pyproject.toml
@@ -50,7 +61,7 @@ test: $(STAMP)
 # a full build with warnings as errors, every gallery example run afresh, then an
 # offline check of every internal link and anchor and of the references' coverage
 DOCS_STAMP := $(VENV)/.docs-installed
-$(DOCS_STAMP): $(STAMP) pyproject.toml
+$(DOCS_STAMP): $(TEST_STAMP) pyproject.toml
 	$(BIN)/python -c "import tomllib; print('\n'.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['docs']))" > $(VENV)/docs-requirements.txt
 	$(BIN)/python -m pip install --quiet -r $(VENV)/docs-requirements.txt
 	touch $(DOCS_STAMP)
@@ -69,21 +80,21 @@ docs-browser: $(DOCS_STAMP)
 # vsj explore in headless Chromium (Debian's chromium and chromedriver, driven by
 # Selenium): a session as a user would go, checked against vsj simulate; a screenshot
 # into build/explore. Outside make test, which needs no browser; .ci/run calls it
-explore-browser: $(STAMP)
+explore-browser: $(TEST_STAMP)
 	$(BIN)/python -m pytest -q -p no:cacheprovider tests/browser_explorer.py
 
 # the engine under AddressSanitizer and UndefinedBehaviorSanitizer (also run by make test)
-sanitize: $(STAMP)
+sanitize: $(TEST_STAMP)
 	$(BIN)/python tests/sanitize.py build/sanitize
 
 # the suite under other floating-point configurations: -O0 without contraction, fused
 # multiply-add, -O3 -march=native, clang, OpenBLAS's oldest x86-64 kernel (tools/portable.py)
-portable: $(STAMP)
+portable: $(TEST_STAMP)
 	$(BIN)/python tools/portable.py
 
 # the sweep benchmark's Monte Carlo is 100 000 runs (issue 22); make bench runs 3000 of
 # them so that it finishes in minutes: VSJ_SWEEP_RUNS=100000 make bench for the full study
-bench: $(STAMP)
+bench: $(TEST_STAMP)
 	$(BIN)/python benchmarks/run.py
 	$(BIN)/python benchmarks/friction_laws.py
 	$(BIN)/python benchmarks/step_cost.py

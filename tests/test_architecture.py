@@ -27,13 +27,16 @@ def modules() -> dict[str, Path | None]:
 
 def module_imports(name: str, path: Path, known) -> set[str]:
     """The vsj modules that module ``name`` imports at module level (``if`` blocks
-    included)."""
+    included, but for ``if TYPE_CHECKING:``, which never runs)."""
     package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
     out = set()
     todo = list(ast.parse(path.read_text()).body)
     while todo:
         node = todo.pop()
-        if isinstance(node, (ast.If, ast.Try)):
+        if isinstance(node, ast.If) and isinstance(node.test, ast.Name) \
+                and node.test.id == "TYPE_CHECKING":
+            todo += node.orelse
+        elif isinstance(node, (ast.If, ast.Try)):
             todo += node.body + node.orelse + getattr(node, "finalbody", [])
             for handler in getattr(node, "handlers", []):
                 todo += handler.body
@@ -101,9 +104,11 @@ def test_the_checker_finds_a_circle(tmp_path):
     pkg = tmp_path / "vsj" / "p"
     pkg.mkdir(parents=True)
     (pkg / "__init__.py").write_text("from .m import f\n")
-    (pkg / "m.py").write_text("if True:\n    from . import g\ndef f():\n    import os\n")
-    known = {"vsj.p": pkg / "__init__.py", "vsj.p.m": pkg / "m.py"}
-    assert module_imports("vsj.p.m", pkg / "m.py", known) == {"vsj.p"}
+    (pkg / "m.py").write_text("if True:\n    from . import g\ndef f():\n    import os\n"
+                              "if TYPE_CHECKING:\n    from . import h\n")
+    (pkg / "h.py").write_text("")
+    known = {"vsj.p": pkg / "__init__.py", "vsj.p.m": pkg / "m.py", "vsj.p.h": pkg / "h.py"}
+    assert module_imports("vsj.p.m", pkg / "m.py", known) == {"vsj.p"}  # not h: never run
     assert cycles(graph_of(known)) == [["vsj.p", "vsj.p.m"]]
 
 

@@ -5,6 +5,7 @@ import pytest
 
 from vsj import scenario as scenarios
 from vsj.simulate import InitialState, SimulationOptions, simulate, simulate_batch
+from vsj.simulate.signals import rows
 from vsj.wrist import build_wrist
 
 
@@ -116,3 +117,23 @@ def test_batch_signals_carry_the_names_and_units_of_a_single_run(params):
     assert "theta_x.speed" in batch.columns() and list(ds["success"].values) == [1, 1]
     with pytest.raises(KeyError, match="no signal"):
         batch["theta_z"]
+
+
+@pytest.mark.parametrize("density", [0.1, 1.0])
+def test_rows_give_each_sample_the_same_bits_however_the_samples_are_grouped(density):
+    """`rows`, the products behind the signals: a sample gives the same bits alone, in a
+    block of any height or in a batch, with a sparse matrix (applied term by term) and a
+    dense one (einsum). A BLAS product fails this (OpenBLAS sums edge rows otherwise)."""
+    rng = np.random.default_rng(5)
+    matrix = rng.normal(size=(23, 21)) * (rng.random((23, 21)) < density)
+    samples = rng.normal(size=(3, 1001, 23))
+    whole = rows(samples, matrix)
+    for r in range(3):
+        assert np.array_equal(rows(samples[r], matrix), whole[r])
+        for start, stop in ((0, 1), (11, 29), (500, 1001)):
+            assert np.array_equal(rows(samples[r, start:stop], matrix), whole[r, start:stop])
+        if density < 1.0:  # term by term, a column alone is summed alike
+            for c in range(matrix.shape[1]):
+                assert np.array_equal(rows(samples[r], matrix[:, c]), whole[r, :, c])
+    # 23 products of unit normals: their sum's round-off stays far below 1e-12
+    np.testing.assert_allclose(whole, samples @ matrix, rtol=0, atol=1e-12)

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import _once
 from vsj import export
 from vsj.cli import main
 from vsj.engine.core import IMPULSE_REL
@@ -66,14 +67,19 @@ def compiler() -> str:
 EXTRA_FLAGS = os.environ.get("VSJ_TEST_CFLAGS", "").split()
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def step_wrist(tmp_path_factory) -> Path:
-    exe = tmp_path_factory.mktemp("c") / "step_wrist"
-    sources = sorted(str(p) for p in ENGINE.glob("*.c"))
-    subprocess.run([compiler(), "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic",
-                    *EXTRA_FLAGS, "-I", str(ENGINE), "-o", str(exe), str(EXAMPLE), *sources, "-lm"],
-                   check=True, capture_output=True, text=True)
-    return exe
+    """The C example, built once per test session (`conftest._once`: the workers share
+    it; test_control.py runs it too)."""
+    def make(out: Path) -> None:
+        out.mkdir(parents=True, exist_ok=True)
+        sources = sorted(str(p) for p in ENGINE.glob("*.c"))
+        subprocess.run([compiler(), "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror",
+                        "-pedantic", *EXTRA_FLAGS, "-I", str(ENGINE), "-o",
+                        str(out / "step_wrist"), str(EXAMPLE), *sources, "-lm"],
+                       check=True, capture_output=True, text=True)
+
+    return _once(tmp_path_factory, "step-wrist", make)[1] / "step_wrist"
 
 
 def run_example(exe, model: Path, periods: int, inputs: np.ndarray | None, tmp_path):

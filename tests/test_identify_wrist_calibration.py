@@ -185,3 +185,37 @@ def test_the_last_window_takes_in_a_short_remainder(params):
     assert len(np.unique(samples)) == len(samples)
     t = log["time"]
     assert samples.min() == np.searchsorted(t, t[0] + 0.02 + lead)
+
+
+def test_a_jacobians_sets_share_the_compile_of_a_parameter_that_is_not_affine(params):
+    """A series compliance enters the engine as a stiffness (not affinely): the parameter
+    sets of a Jacobian that differ from one in affine parameters only (an inertia, a
+    friction level) take that set's compiled arrays plus the affine map, one compile
+    for them all, and get the arrays a compile of each gives."""
+    from vsj.identification import wrist_model as WM
+
+    compliant = params.with_overrides({"transmission.series_compliance_1": "0.05 rad/(N m)"},
+                                      origin="test")
+    log = log_of(synth.wrist(calibration_experiment(3.0, "multisine"), compliant, seed=5),
+                 "affine.csv")
+    free = ("transmission.series_compliance_1", "differential.inertia_x",
+            "transmission.viscous")
+    model = WM.WristModel([log], compliant, Setup(free=free, window=2.0))
+    affine = model._affine("stiction")
+    assert list(affine[0]) == [False, True, True] and all(affine[5])  # the compliance apart
+    at = model.base * np.array([1.3, 1.0, 1.0])  # the compliance moved
+    columns = [at] + [at + np.eye(3)[i] * 0.01 * at for i in (1, 2)]
+    compiled = []
+    real = model._compile
+    model._compile = lambda key, law: compiled.append(key) or real(key, law)
+    try:
+        maps = [model._compiled_for(v, "stiction") for v in columns]
+    finally:
+        model._compile = real
+    assert len(compiled) == 1  # the moved compliance's set, shared by the other two
+    for v, (mass, Minv, par) in zip(columns, maps):
+        direct = real(tuple(v), "stiction")
+        size = max(np.max(np.abs(direct[0])), np.max(np.abs(direct[2])))
+        # the map's sums: a few round-offs of the arrays' largest entry
+        np.testing.assert_allclose(mass, direct[0], rtol=0, atol=WM.AFFINE_TOLERANCE * size)
+        np.testing.assert_allclose(par, direct[2], rtol=0, atol=WM.AFFINE_TOLERANCE * size)

@@ -175,3 +175,21 @@ def test_importing_vsj_or_its_command_line_loads_no_heavy_library():
     assert plain == [], f"import vsj loads {plain}"
     assert cli == [], f"import vsj.cli loads {cli}"
     assert {"scipy", "scipy.optimize"} <= set(control)
+
+
+def test_a_scenario_without_an_environment_loads_none_of_its_modules():
+    """`vsj simulate` of a scenario without [environment] (most are) imports neither
+    `vsj.environment` nor `vsj.safety`; a scenario with one does (checks the probe)."""
+    example = sorted((PACKAGE.parents[1] / "examples" / "environment").glob("*.toml"))[0]
+    prepared = ("from vsj import params, scenario\n"
+                "s = scenario.load({name!r})\n"
+                "scenario.prepare_case(s, s.cases[0], params.default())")
+    code = ("import json, sys\n" + prepared.format(name="fig-4.15") + "\n"
+            "out = [sorted(m for m in sys.modules if m.startswith(('vsj.environment', "
+            "'vsj.safety')))]\n" + prepared.format(name=str(example)) + "\n"
+            "out.append('vsj.environment' in sys.modules)\nprint(json.dumps(out))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True)
+    plain, probe = json.loads(done.stdout)
+    assert plain == [], f"a scenario without [environment] loads {plain}"
+    assert probe

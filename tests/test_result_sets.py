@@ -239,6 +239,55 @@ def test_a_killed_run_leaves_the_complete_old_or_new_set(tmp_path):
     assert "none" in {c for _, with_old, c in outcomes if not with_old}
 
 
+def forked_children(pid: int) -> list[int]:
+    """The children of ``pid`` that run its own command line (processes it forked, not
+    ones it started, such as its watchdog)."""
+    def read(p, name):
+        with open(f"/proc/{p}/{name}", "rb") as handle:
+            return handle.read()
+
+    own = read(pid, "cmdline")
+    found = []
+    for entry in os.listdir("/proc"):
+        try:
+            status = read(entry, "status").decode()
+            if f"\nPPid:\t{pid}\n" in status and read(entry, "cmdline") == own:
+                found.append(int(entry))
+        except (OSError, ValueError):
+            continue
+    return found
+
+
+def test_a_killed_reproduction_leaves_no_worker_behind(tmp_path):
+    """`vsj reproduce` makes its figures in processes forked from it (`vsj.reproduce.run`):
+    killed outright (SIGKILL) while they work, it takes them with it, so that nothing
+    holds the directory's lock or the watchdog's pipe, and the watchdog clears what the
+    run left: no directory (there was none before) and nothing hidden beside it."""
+    parent = tmp_path / "work"
+    parent.mkdir()
+    out = parent / "out"
+    run = subprocess.Popen([sys.executable, "-m", "vsj", "reproduce", "--reduced", "--out",
+                            str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + SETTLE_TIMEOUT
+        workers = []
+        while run.poll() is None and time.monotonic() < deadline and not (
+                workers and staging(parent, out)):
+            workers = forked_children(run.pid)
+            time.sleep(0.01)
+        assert workers and run.poll() is None, "no worker process seen while the run went on"
+    finally:
+        run.kill()
+        run.wait()
+    deadline = time.monotonic() + SETTLE_TIMEOUT
+    while time.monotonic() < deadline and (
+            any(os.path.exists(f"/proc/{w}") for w in workers) or hidden(parent)
+            or out.exists()):
+        time.sleep(0.01)
+    assert not [w for w in workers if os.path.exists(f"/proc/{w}")], "workers outlived the run"
+    assert not hidden(parent) and not out.exists()
+
+
 # ------------------------------------------------------------------ concurrent writers
 
 def test_a_second_writer_is_refused_while_the_first_holds_the_directory(tmp_path, capsys):

@@ -104,31 +104,30 @@ class ClassicFile:
             raw = int(np.prod(self.shape[v.name], dtype=np.int64)) * item
             self.size[v.name] = raw + (-raw % 4)
 
-        def header(begins: Mapping[str, int]) -> bytes:
-            parts = [b"CDF\x02", _int32(0)]
-            if self.dims:
-                parts += [_int32(_DIMENSION), _int32(len(self.dims))]
-                parts += [_name(d) + _int32(n) for d, n in self.dims.items()]
-            else:
-                parts.append(b"\0" * 8)
-            parts.append(_attributes(attrs))
-            parts += [_int32(_VARIABLE), _int32(len(variables))] if variables else [b"\0" * 8]
-            for v in variables:
-                parts += [_name(v.name), _int32(len(v.dims))]
-                parts += [_int32(ids[d]) for d in v.dims]
-                parts += [_attributes(v.attrs), _int32(TYPES[v.kind][0]),
-                          _vsize(self.size[v.name]),
-                          int(begins.get(v.name, 0)).to_bytes(8, "big", signed=True)]
-            return b"".join(parts)
-
-        offset = len(header({}))
+        parts = [b"CDF\x02", _int32(0)]
+        if self.dims:
+            parts += [_int32(_DIMENSION), _int32(len(self.dims))]
+            parts += [_name(d) + _int32(n) for d, n in self.dims.items()]
+        else:
+            parts.append(b"\0" * 8)
+        parts.append(_attributes(attrs))
+        parts += [_int32(_VARIABLE), _int32(len(variables))] if variables else [b"\0" * 8]
+        slots = {}  # where each variable's begin (a fixed 8 bytes) goes among the parts
+        for v in variables:
+            parts += [_name(v.name), _int32(len(v.dims))]
+            parts += [_int32(ids[d]) for d in v.dims]
+            parts += [_attributes(v.attrs), _int32(TYPES[v.kind][0]),
+                      _vsize(self.size[v.name])]
+            slots[v.name] = len(parts)
+            parts.append(bytes(8))
+        offset = sum(map(len, parts))  # the data start after the header
         self.begin = {}
         for v in variables:
             self.begin[v.name] = offset
+            parts[slots[v.name]] = offset.to_bytes(8, "big", signed=True)
             offset += self.size[v.name]
         self.total = offset
-        data = header(self.begin)
-        os.pwrite(self.fd, data, 0)
+        os.pwrite(self.fd, b"".join(parts), 0)
         os.ftruncate(self.fd, self.total)
 
     def write(self, name: str, values, index: tuple[int, ...] = ()) -> None:

@@ -158,7 +158,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 import numpy as np
 
@@ -171,8 +171,6 @@ from .friction import law_code
 from .inputs import Constant, Input, Position, Sine, Step, Table, circle
 from .engine.core import available_cores
 from .engine.plan import Plan
-from .environment import Body, Environment, Wall, add_environment
-from .safety.iso_ts_15066 import Tip
 from .network import Network, Structure
 from .params import Parameters, default
 from .progress import progress as bar
@@ -190,6 +188,10 @@ from .simulate import (
 )
 from .units import to_si
 from .wrist import DRIVES, ELASTIC_MODELS, WristOptions, build_wrist
+
+if TYPE_CHECKING:  # imported where an [environment] is read: most scenarios have none
+    from .environment import Body, Environment, Wall
+    from .safety.iso_ts_15066 import Tip
 
 TOP_KEYS = {"name", "description", "network", "duration", "model", "bench", "solver",
             "initial", "inputs", "params", "controller", "environment", "cases"}
@@ -430,8 +432,10 @@ def staircase(levels, *, hold: float, ramp: float, start: float = 0.0) -> Table:
     return Table(tuple(times), tuple(values))
 
 
-def _channel_units(net: Network) -> tuple[dict[str, str], set[str]]:
-    structure_parts = net.parts()
+def _channel_units(net: Network | Structure) -> tuple[dict[str, str], set[str]]:
+    """The unit of each input channel of a network (or of its assembled structure,
+    which holds the same sources, loads and motors), and the channels of its sources."""
+    structure_parts = net.parts() if isinstance(net, Network) else net
     units = {}
     for src in structure_parts.sources:
         units[src.channel] = "rad/s"
@@ -467,6 +471,9 @@ def _network(network: str, model: Mapping, bench: Mapping, where: Where,
             options.validate()
         if environment is None:
             return lambda params: build_wrist(params, options)
+        # lazy: only an [environment] needs it, and vsj simulate starts faster without
+        from .environment import add_environment
+
         return lambda params: add_environment(build_wrist(params, options), environment)
     if model:
         raise InputError(f"{mw}: the {network} takes a [bench] table instead")
@@ -549,9 +556,10 @@ def _case(table: Mapping, label: str, where: Where) -> Case:
                 where=where, controller=controller, environment=environment)
 
 
-def parse_inputs(case: Case, net: Network) -> dict[str, Input]:
-    """The case's input tables, parsed with the units of the network's channels; each
-    signal is checked to fit in memory over the case's duration."""
+def parse_inputs(case: Case, net: Network | Structure) -> dict[str, Input]:
+    """The case's input tables, parsed with the units of the network's channels (``net``
+    a network or, once assembled, its structure); each signal is checked to fit in
+    memory over the case's duration."""
     units, sources = _channel_units(net)
     out = {}
     for channel, spec in case.inputs.items():
@@ -1338,6 +1346,9 @@ def _damping(entry: Mapping, where: Where, stiffness: float, exponent: float) ->
 
 def _contact(entry: Mapping, where: Where, body: bool) -> Wall | Body:
     """One [[environment.walls]] or [[environment.bodies]] entry, every value checked."""
+    # lazy: only an [environment] needs it, and vsj simulate starts faster without
+    from .environment import Body, Wall
+
     _check_keys(entry, ENVIRONMENT_ARRAYS["bodies" if body else "walls"], where)
     name = _name(entry, "name", where)
     if not _CONTACT_NAME.fullmatch(name):
@@ -1385,6 +1396,9 @@ def environment_from_table(table: Mapping, where: Where) -> Environment:
     """The [environment] table as a `vsj.environment.Environment`, every value, unit and
     name checked (the file and key path in every message): the link's ``link`` and
     ``tip_mass``, its ``walls`` and ``bodies``."""
+    # lazy: only an [environment] needs it, and vsj simulate starts faster without
+    from .environment import Environment
+
     _check_keys(table, ENVIRONMENT_KEYS, where)
     contacts, names = [], {}
     for key in ENVIRONMENT_ARRAYS:
@@ -1413,6 +1427,9 @@ def environment_from_table(table: Mapping, where: Where) -> Environment:
 def _tip(table: Mapping, where: Where) -> Tip | None:
     """The tip's contact geometry: ``tip_area`` (a flat face) or ``tip_radius`` (a
     sphere), at most one; None without either."""
+    # lazy: only an [environment] needs it, and vsj simulate starts faster without
+    from .safety.iso_ts_15066 import Tip
+
     given = [key for key in ("tip_area", "tip_radius") if key in table]
     if len(given) > 1:
         raise InputError(f"{where}: give tip_area (a flat face) or tip_radius (a rounded "
@@ -1435,6 +1452,9 @@ def _contact_where(case: Case, message: str) -> Where | None:
     None: the engine names a contact, the file names its entry."""
     if case.environment is None:
         return None
+    # lazy: only an [environment] needs it, and vsj simulate starts faster without
+    from .environment import Body
+
     index = {"walls": 0, "bodies": 0}
     for contact in case.environment.contacts:
         key = "bodies" if isinstance(contact, Body) else "walls"
@@ -1540,7 +1560,7 @@ def prepare_case(scenario: Scenario, case: Case, params: Parameters, *,
     with _context(where):
         net = case.build(resolved)
         structure = net.assemble()
-    inputs = parse_inputs(case, net)
+    inputs = parse_inputs(case, structure)  # the network's parts as assembled: not again
     pivot = structure.pivot
     if case.initial.q is not None and not pivot.q_min <= case.initial.q <= pivot.q_max:
         raise InputError(f"{where.key('initial').key('q')}: {case.initial.q * 100:g} cm is "

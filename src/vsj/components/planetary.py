@@ -204,8 +204,13 @@ class PlanetaryGearModule(SchemaComponent):
         else:
             raise ValueError(f"fixed must be 'sun' or 'ring', got {fixed!r}")
         total = np.zeros_like(w)
-        for element in self.parts().frictions:
-            ratio = ratios[element.name.rsplit(".", 1)[1]]
+        # the friction elements of `parts`, taken from the parts that have them: a fit
+        # evaluates this thousands of times, and embedding the whole module each time
+        # (gears and inertias too) cost several times the torques
+        elements = [e for part in (self.mesh, self.ring_mesh, *self.bearings.values())
+                    for e in part.parts().frictions]
+        for element in elements:
+            ratio = ratios[element.name]
             if ratio == 0.0:
                 continue
             total += ratio * friction.torque(law, ratio * w, viscous=element.viscous,

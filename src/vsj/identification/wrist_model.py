@@ -593,11 +593,12 @@ class WristModel:
         def work(task):
             d, k = task
             w = self.windows[k]
-            base = w.engines[law].model
-            noisy_model = _added_to_tables(base, self._table_times(w), noisy_channels,
-                                           extras[d][w.log])
-            plan = self._plan(w, law, h, noisy_model).retuned(
-                y0=self._initial(w, law, mass, Minv, par), mass=mass, Minv=Minv, par=par)
+            noisy = _added_to_tables(w.engines[law].model, self._table_times(w),
+                                     noisy_channels, extras[d][w.log])
+            # the window's plan retuned (its checked model shares all but these arrays)
+            plan = self._window_plan(k, law, h).retuned(
+                y0=self._initial(w, law, mass, Minv, par), mass=mass, Minv=Minv, par=par,
+                knots=noisy.knots, coef=noisy.coef, cum=noisy.cum)
             batch = run_batch([plan], w.grids[h][0], threads=1)
             sim = self._sample(w, self._signals(w, batch.states, h), delays, h)[0]
             r = ((sim - self.measured(k)) * wts).reshape(-1)
@@ -781,22 +782,34 @@ class WristModel:
 
     def _compiled_for(self, values: np.ndarray, law: str):
         """``(mass, Minv, par)`` of the engine for one parameter set: from the affine
-        map of `_affine` when only parameters that act affinely differ from the
-        start, else by building and compiling the wrist."""
+        map of `_affine` added to the arrays of the set with the affine parameters at
+        the start (the start itself, or, where parameters that act otherwise differ and
+        the affine ones' effect does not depend on them, that set compiled), else by
+        building and compiling the wrist."""
         key = tuple(float(v) for v in values)
         hit = self._compiled.get(key)
         if hit is not None:
             return hit
         affine = self._affine(law)
         change = np.asarray(key) - self.base
-        if affine is not None and not np.any(change[~affine[0]]):
-            _, mass0, par0, dmass, dpar = affine
-            mass = mass0 + np.tensordot(change, dmass, axes=1)
-            par = par0 + np.tensordot(change, dpar, axes=1)
+        moved = change != 0.0
+        if affine is not None and not np.any(moved & ~affine[5]):
+            mask, mass0, par0, dmass, dpar, _ = affine
+            if np.any(moved & ~mask):  # the others' arrays, compiled once for them all
+                anchor = tuple(float(v) for v in np.where(mask, self.base, key))
+                mass0, _, par0 = self._compiled.get(anchor) or self._kept(
+                    anchor, self._compile(anchor, law))
+            step = np.where(mask, change, 0.0)
+            mass = mass0 + np.tensordot(step, dmass, axes=1)
+            par = par0 + np.tensordot(step, dpar, axes=1)
             n = self.structure.n
             hit = (mass, np.linalg.inv(mass[:n, :n]) if n else np.zeros((0, 0)), par)
         else:
             hit = self._compile(key, law)
+        return self._kept(key, hit)
+
+    def _kept(self, key: tuple, hit: tuple) -> tuple:
+        """``hit``, kept as the arrays of the parameter set ``key`` (a bounded cache)."""
         if len(self._compiled) > 512:
             self._compiled.clear()
         self._compiled[key] = hit
@@ -822,15 +835,19 @@ class WristModel:
 
     def _affine(self, law: str):
         """Which free parameters the mass matrix and the element parameters depend on
-        affinely (inertias, friction levels: most of them), with that map:
-        ``(affine, mass0, par0, dmass, dpar)``; None if none is affine.
+        affinely (inertias, friction levels: most of them), with that map, and which of
+        the others leave the affine ones' effect as it is:
+        ``(affine, mass0, par0, dmass, dpar, separate)``; None if none is affine.
 
         Building the wrist for every parameter set of every Jacobian costs more than
         its runs on a short window; an affine parameter's effect is a sum instead.
         Affinity is checked, not assumed: two steps of each parameter must change
         the arrays by the same amount, and all of them together by the sum of their
-        own changes (to `AFFINE_TOLERANCE`); a parameter that fails (a compliance
-        turned into a stiffness) is compiled each time it differs from the start."""
+        own changes (to `AFFINE_TOLERANCE`). A parameter that fails (a compliance
+        turned into a stiffness) is compiled each time it differs from the start;
+        it is ``separate`` when, stepped, all affine ones together still change the
+        arrays by that sum: then the sets of a Jacobian that differ from its value
+        in affine parameters only share one compile."""
         cache = self.__dict__.setdefault("_affine_cache", {})
         if law in cache:
             return cache[law]
@@ -842,27 +859,37 @@ class WristModel:
         dmass = np.zeros((n_par,) + mass0.shape)
         dpar = np.zeros((n_par,) + par0.shape)
         steps = np.where(self.base != 0, 0.1 * np.abs(self.base), 1e-3)
+        stepped = {}
+        tol = AFFINE_TOLERANCE * size
         for i in range(n_par):
             one, two = list(base), list(base)
             one[i] += steps[i]
             two[i] += 2 * steps[i]
-            m1, _, p1 = self._compile(tuple(one), law)
+            m1, _, p1 = stepped[i] = self._compile(tuple(one), law)
             m2, _, p2 = self._compile(tuple(two), law)
-            tol = AFFINE_TOLERANCE * size
             if (np.max(np.abs((m2 - m1) - (m1 - mass0))) <= tol
                     and np.max(np.abs((p2 - p1) - (p1 - par0))) <= tol):
                 affine[i] = True
                 dmass[i] = (m1 - mass0) / steps[i]
                 dpar[i] = (p1 - par0) / steps[i]
-        result = None
-        if affine.any():
-            together = np.where(affine, self.base + steps, self.base)
+
+        def sums(at: np.ndarray, mass, par) -> bool:
+            """Whether the affine parameters stepped together from ``at`` (whose arrays
+            are ``mass``, ``par``) change the arrays by the sum of their effects."""
+            together = np.where(affine, at + steps, at)
             m, _, p = self._compile(tuple(float(v) for v in together), law)
-            change = together - self.base
-            tol = AFFINE_TOLERANCE * size
-            if (np.max(np.abs(m - mass0 - np.tensordot(change, dmass, axes=1))) <= tol
-                    and np.max(np.abs(p - par0 - np.tensordot(change, dpar, axes=1))) <= tol):
-                result = (affine, mass0, par0, dmass, dpar)
+            change = together - at
+            return bool(np.max(np.abs(m - mass - np.tensordot(change, dmass, axes=1))) <= tol
+                        and np.max(np.abs(p - par - np.tensordot(change, dpar, axes=1))) <= tol)
+
+        result = None
+        if affine.any() and sums(self.base, mass0, par0):
+            separate = affine.copy()
+            for j in np.flatnonzero(~affine):
+                at = self.base.copy()
+                at[j] += steps[j]
+                separate[j] = sums(at, stepped[j][0], stepped[j][2])
+            result = (affine, mass0, par0, dmass, dpar, separate)
         cache[law] = result
         return result
 
@@ -902,11 +929,9 @@ class WristModel:
                 y = np.zeros(n * 2 + len(w.currents))
                 y[:n], y[n:2 * n], y[2 * n:] = x0, v0, w.currents
                 return y
-            engine = w.engines[law]
-            model = engine.model._replace(mass=mass, Minv=Minv, par=par)
-            x0 = self._quasi_static(Engine(model._replace(src_pos0=w.sigma0)), x0, w.null)
             dt, x2, s2 = w.later
-            x2 = self._quasi_static(Engine(model._replace(src_pos0=s2)), x2, w.null)
+            x0 = self._quasi_static(self._retuned(w, law, mass, Minv, par, w.sigma0), x0, w.null)
+            x2 = self._quasi_static(self._retuned(w, law, mass, Minv, par, s2), x2, w.null)
             v0 = v0 + w.null @ (w.null.T @ ((x2 - x0) / dt - v0))
             if len(w.quasi_static) > 256:
                 w.quasi_static.clear()
@@ -914,6 +939,16 @@ class WristModel:
         y = np.zeros(n * 2 + len(w.currents))
         y[:n], y[n:2 * n], y[2 * n:] = x0, v0, w.currents
         return y
+
+    @staticmethod
+    def _retuned(w: Window, law: str, mass, Minv, par, src_pos0) -> Engine:
+        """The window's engine with another parameter set and start angles of the sources:
+        its checked model retuned, sharing the input tables (checking and copying them
+        again for every parameter set cost more than the quasi-static search)."""
+        engine = w.engines[law]
+        arrays = {name: np.ascontiguousarray(value, dtype=float) for name, value in
+                  (("mass", mass), ("Minv", Minv), ("par", par), ("src_pos0", src_pos0))}
+        return Engine(engine.model._replace(**arrays), engine.c.retuned(arrays))
 
     def _quasi_static(self, engine: Engine, x: np.ndarray, null: np.ndarray) -> np.ndarray:
         """Minimise the springs' energy over the unmeasured directions (Newton, central

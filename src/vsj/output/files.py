@@ -53,8 +53,8 @@ import errno
 import fcntl
 import functools
 import hashlib
-import inspect
 import json
+import linecache
 import math
 import os
 import re
@@ -526,12 +526,21 @@ if sys.stdin.buffer.read() != b"done":  # end of file without 'done': vsj died
 """
 
 
+def _source(function) -> str:
+    """The source text of a module-level function: its file's lines from its first to
+    the last its code covers (what `inspect.getsource` gives, without the tokenizer,
+    whose first use takes most of a result set's start)."""
+    code = function.__code__
+    last = max(end for _, end, _, _ in code.co_positions() if end is not None)
+    return "".join(linecache.getlines(code.co_filename)[code.co_firstlineno - 1:last])
+
+
 def _start_watchdog(lock_fd: int, clear: list[Path], target: Path, created: list[Path]):
     """A process that holds the lock with us and, should we die before telling it 'done',
     removes ``clear`` and the empty directories in ``created`` (deepest first)."""
     task = json.dumps({"clear": [str(p) for p in clear], "target": str(target),
                        "created": [str(p) for p in created], "disposable": _DISPOSABLE})
-    code = _WATCHDOG.format(clear_staging=inspect.getsource(clear_staging))
+    code = _WATCHDOG.format(clear_staging=_source(clear_staging))
     try:
         return subprocess.Popen([sys.executable, "-I", "-S", "-c", code, task],
                                 stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,

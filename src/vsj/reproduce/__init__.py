@@ -15,15 +15,21 @@ failed or interrupted run leaves the previous reproduction as it was.
 
 from __future__ import annotations
 
+import ctypes
 import html
 import json
 import math
+import multiprocessing
+import os
 import re
+import signal
 import traceback
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import __version__, pages
+from ..engine.core import available_cores
 from ..errors import InputError
 from ..output import ResultSet, _jsonable, atomic_write
 from ..params import Parameters
@@ -204,7 +210,9 @@ def run(out: Path, params: Parameters, *, reduced: bool = False, only=None,
         seed: int = 2026) -> Reproduction:
     """Regenerate the figures (all, or the names in ``only``) into ``out``, replacing the
     previous reproduction there as a unit (`vsj.output.ResultSet`); the directory is
-    checked before any figure is made."""
+    checked before any figure is made. The figures are made side by side, one per core
+    (`_made`, in processes forked from this one)."""
+    global _JOB
     table = figures()
     names = list(table) if not only else list(only)
     unknown = [n for n in names if n not in table]
@@ -213,24 +221,14 @@ def run(out: Path, params: Parameters, *, reduced: bool = False, only=None,
     out = Path(out)
     with ResultSet(out, "reproduce", size=OUTPUT_BYTES) as results:
         ctx = Context(params=params, reduced=reduced, seed=seed)
-        outcomes = []
-        for name in progress(names, desc="reproduce", unit="fig"):
-            outcome = Outcome(name)
-            try:
-                fig = table[name](ctx)
-                png = results.path(f"{name}.png")
-                save(fig.figure, png, svg=True)
-                results.path(f"{name}.svg")  # written beside the PNG: into the manifest
-                outcome.png = png.read_bytes()  # embedded in the page
-                outcome.figure = fig
-                outcome.files = [f"{name}.png", f"{name}.svg"]
-            except Exception as exc:
-                if isinstance(exc, OSError) and results.from_writing(exc):
-                    raise  # a failing disk ends the run (and the set is discarded);
-                # a failing figure does not stop the others
-                outcome.error = f"{type(exc).__name__}: {exc}"
-                outcome.traceback = traceback.format_exc()
-            outcomes.append(outcome)
+        # written last; entered now, which makes the staging directory the workers share
+        results.path("results.json")
+        _JOB = (table, ctx, results)
+        try:
+            made = _make_all(names, results)
+        finally:
+            _JOB = None
+        outcomes = [made[name] for name in names]
         result = Reproduction(out, outcomes, table_4_1(params), reduced)
         record = {
             "reduced": reduced, "seed": seed, "parameters_hash": params.hash(),
@@ -248,6 +246,85 @@ def run(out: Path, params: Parameters, *, reduced: bool = False, only=None,
         with atomic_write(results.path("report.html")) as handle:
             handle.write(render_html(result, params))
     return result
+
+
+#: The figure table, context and result set of the `run` in progress, which the worker
+#: processes it forks inherit (`_made`).
+_JOB: tuple | None = None
+
+
+def _made(name: str) -> Outcome:
+    """Figure ``name`` of the run in progress (`_JOB`) computed, drawn and written as
+    PNG and SVG: its `Outcome`, with the error where it failed (a failing figure does
+    not stop the others). An `OSError` from writing the set is raised: a failing disk
+    ends the run, and the set is discarded."""
+    table, ctx, results = _JOB
+    outcome = Outcome(name)
+    try:
+        fig = table[name](ctx)
+        png = results.path(f"{name}.png")
+        save(fig.figure, png, svg=True)
+        results.path(f"{name}.svg")  # written beside the PNG: into the manifest
+        outcome.png = png.read_bytes()  # embedded in the page
+        outcome.figure = fig
+        outcome.files = [f"{name}.png", f"{name}.svg"]
+    except Exception as exc:
+        if isinstance(exc, OSError) and results.from_writing(exc):
+            raise
+        outcome.error = f"{type(exc).__name__}: {exc}"
+        outcome.traceback = traceback.format_exc()
+    return outcome
+
+
+def _made_apart(name: str) -> Outcome:
+    """`_made` in a worker process: the outcome without its Matplotlib figure, which
+    stays behind (its numbers, rows, PNG bytes and files go back)."""
+    outcome = _made(name)
+    if outcome.figure is not None:
+        outcome.figure._drawn = None
+    return outcome
+
+
+#: Linux's prctl option that signals a process when the one that made it ends.
+_PR_SET_PDEATHSIG = 1
+
+
+def _follow(parent: int) -> None:
+    """A worker's start: the worker is killed when ``parent``, the run that forked it,
+    ends (Linux's parent-death signal), so that a run killed outright leaves no worker
+    behind holding the output directory's lock and the watchdog's pipe (which would
+    keep the staging directory from being cleared)."""
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):  # not Linux: no such signal to ask for
+        pass
+    if os.getppid() != parent:  # the run ended before the signal was asked for
+        os._exit(1)
+
+
+def _make_all(names: list[str], results: ResultSet) -> dict[str, Outcome]:
+    """`_made` of every figure of ``names``: one after the other on one core, else in as
+    many worker processes as there are cores (at most one per figure), forked from
+    this one (the figure table as this process has it); the files the workers wrote
+    are entered in ``results`` here."""
+    workers = min(available_cores(), len(names))
+    if workers <= 1:
+        return {name: _made(name) for name in progress(names, desc="reproduce", unit="fig")}
+    made = {}
+    # forked before any thread of the pool (or of the progress bar) starts
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
+                               initializer=_follow, initargs=(os.getpid(),))
+    try:
+        futures = [pool.submit(_made_apart, name) for name in names]
+        for future in progress(as_completed(futures), desc="reproduce", unit="fig",
+                               total=len(names)):
+            outcome = future.result()
+            for name in outcome.files:
+                results.path(name)
+            made[outcome.name] = outcome
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    return made
 
 
 def _fmt(v) -> str:

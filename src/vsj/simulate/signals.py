@@ -18,14 +18,40 @@ from ..engine import Engine, Layout, observation_layout
 from ..network import Signal, Structure
 
 
+#: A matrix with more nonzero entries than this per column, on average, is applied by
+#: `numpy.einsum` in one pass; a sparser one (the network's incidence rows: a flange's
+#: angle is one or two generalised angles) term by term, which costs a fraction.
+SPARSE_TERMS = 4
+
+
 def rows(samples: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     """``samples @ matrix`` (a vector or a matrix; samples along the leading axes), each
-    row of the result summed in the same order however many rows there are. A BLAS
-    product may sum a row otherwise in a block of another height (OpenBLAS's kernels
-    do), and a run sampled in blocks, or in a batch, must give the bits of one sampled
-    at once."""
-    spec = "...j,j->..." if np.ndim(matrix) == 1 else "...j,jk->...k"
-    return np.einsum(spec, samples, matrix, optimize=False)
+    element of the result summed in the same order however many samples there are. A
+    BLAS product may sum a row otherwise in a block of another height (OpenBLAS's
+    kernels do), and a run sampled in blocks, or in a batch, must give the bits of one
+    sampled at once.
+
+    A sparse ``matrix`` (`SPARSE_TERMS`) is applied term by term: each element is the
+    sum of its nonzero products in the order of the rows of ``matrix``, element-wise
+    over the samples. A dense one goes through `numpy.einsum`, whose order depends on
+    the shapes of ``matrix`` only."""
+    matrix = np.asarray(matrix, dtype=float)
+    table = matrix[:, None] if matrix.ndim == 1 else matrix
+    if np.count_nonzero(table) > SPARSE_TERMS * table.shape[1]:
+        spec = "...j,j->..." if matrix.ndim == 1 else "...j,jk->...k"
+        return np.einsum(spec, samples, matrix, optimize=False)
+    samples = np.asarray(samples, dtype=float)
+    # the sums side by side in memory, each contiguous: a signal is one of them
+    out = np.empty((table.shape[1],) + samples.shape[:-1])
+    for c in range(table.shape[1]):
+        used = np.flatnonzero(table[:, c])
+        if not len(used):
+            out[c] = 0.0
+            continue
+        total = np.multiply(samples[..., used[0]], table[used[0], c], out=out[c])
+        for j in used[1:]:
+            total += samples[..., j] * table[j, c]
+    return out[0] if matrix.ndim == 1 else np.moveaxis(out, 0, -1)
 
 
 def contact_rows(structure: Structure, e: int) -> tuple[np.ndarray, np.ndarray]:
@@ -209,8 +235,10 @@ def collect(structure: Structure, engine: Engine, layout: Layout, t_out, out, co
     if ports is False:
         table = [s for s in table if not s.name.startswith("port.")]
     width = controller.width if controller is not None else 0
-    block = Block(raw=engine.observe(t_out, out, coulomb), stuck=stuck,
-                  columns=observation_layout(layout), cache={},
+    # the engine observes sample by sample (rows); every signal reads whole columns, and
+    # the sinks write them: a column-major copy makes each column one contiguous run
+    raw = np.asfortranarray(engine.observe(t_out, out, coulomb))
+    block = Block(raw=raw, stuck=stuck, columns=observation_layout(layout), cache={},
                   control=np.asarray(out)[:, np.asarray(out).shape[1] - width:] if width else None)
     if not len(t_out):
         return ({s.name: np.zeros(0) for s in table if not s.name.startswith("port.")},
@@ -234,12 +262,16 @@ class PortFlows:
 
     def __init__(self, structure: Structure):
         self.structure = structure
-        self.solve = np.linalg.pinv(structure.constraint_rows.T).T
         self.connections = []
+        used = []
         for r, name in enumerate(structure.constraint_names):
             if name.startswith("connection "):
                 a, b = name[len("connection "):].split(" -- ")
-                self.connections.append((r, f"{a}--{b}", structure.index(a)))
+                self.connections.append((len(used), f"{a}--{b}", structure.index(a)))
+                used.append(r)
+        # only the connections' forces are asked for: the other constraints' columns of
+        # the solve are left out
+        self.solve = np.linalg.pinv(structure.constraint_rows.T).T[:, used]
 
     def speed(self, block: Block) -> np.ndarray:
         """Speed of every flange [rad/s] at the block's samples (kept in its cache)."""
@@ -249,8 +281,8 @@ class PortFlows:
         return block.cache["speed"]
 
     def torque(self, block: Block) -> np.ndarray:
-        """Force of every constraint [N m] at the block's samples, from Newton's law
-        per flange (kept in its cache)."""
+        """Force of every connection [N m] at the block's samples (columns in the order
+        of `connections`), from Newton's law per flange (kept in its cache)."""
         if "nu" not in block.cache:
             s = self.structure
             accel = rows(block.col("a"), s.A.T) + rows(block.col("ud"), s.B.T)
