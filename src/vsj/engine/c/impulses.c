@@ -176,42 +176,31 @@ VSJ_ALWAYS_INLINE void stuck_map(impulses *im, int64_t n) {
  * their slips exactly zero; returns 1 if every condition holds (p is then the
  * solution). With z_B = Y_B p_B the stuck impulses are Y_F^T c with
  * c = K (Y_F q_F - Gc z_B), and they add Gc c to z. Gc and K change only with
- * the stuck set or YT and are kept between calls (memo). The passes over the
- * unknowns are few: this runs on nearly every step. */
+ * the stuck set or YT and are kept between calls (memo). */
 VSJ_ALWAYS_INLINE int same_pattern(impulses *im, const double *q, const double *lo,
                                    const double *hi, double *p, int64_t *state,
                                    const unsigned char *active, int64_t n) {
-    int64_t e, i, j, m = im->m, ld = im->ld, n_free;
-    const double *YT = im->YT;
-    double scale = 0.0, tol, *bound = im->d, *stuck = im->g;
-    int known = im->memo[m] > 0.0;
-    for (e = 0, n_free = 0; e < m; e++) { /* snap, and the split into bound and stuck */
-        double me;
-        n_free += snap_one(im, q, lo, hi, p, state, active, e, &scale);
-        me = im->mask[e];
-        bound[e] = p[e] * (1.0 - me); /* p_B */
-        stuck[e] = q[e] * me;         /* q_F */
-        known = known && im->memo[e] == me;
-    }
+    int64_t e, i, j, m = im->m, n_free;
+    double scale, tol;
+    int holds = 1;
+    n_free = snap(im, q, lo, hi, p, state, active, &scale);
     tol = IMPULSE_ABS + IMPULSE_REL * scale;
-    if (n_free > 0 && !known) {
-        stuck_map(im, n);
-        for (e = 0; e < m; e++)
-            im->memo[e] = im->mask[e];
-        im->memo[m] = 1.0;
-    }
-    for (i = 0; i < n; i++) { /* z_B = Y_B p_B and t = Y_F q_F */
-        const double *row = YT + ld * i;
-        double acc_z = 0.0, acc_t = 0.0;
-        for (e = 0; e < m; e++) {
-            acc_z += row[e] * bound[e];
-            acc_t += row[e] * stuck[e];
-        }
-        im->z[i] = acc_z;
-        im->t[i] = acc_t;
-    }
+    for (e = 0; e < m; e++)
+        im->d[e] = p[e] * (1.0 - im->mask[e]);
+    project(im, im->d, im->z, n); /* z_B */
     if (n_free > 0) {
-        int fits = 1;
+        int known = im->memo[m] > 0.0, fits = 1;
+        for (e = 0; e < m; e++)
+            known = known && im->memo[e] == im->mask[e];
+        if (!known) {
+            stuck_map(im, n);
+            for (e = 0; e < m; e++)
+                im->memo[e] = im->mask[e];
+            im->memo[m] = 1.0;
+        }
+        for (e = 0; e < m; e++)
+            im->d[e] = q[e] * im->mask[e];
+        project(im, im->d, im->t, n);
         for (i = 0; i < n; i++) {
             double acc = im->t[i];
             for (j = 0; j < n; j++)
@@ -225,12 +214,17 @@ VSJ_ALWAYS_INLINE int same_pattern(impulses *im, const double *q, const double *
             im->c[i] = acc;
         }
         for (e = 0; e < m; e++)
+            im->d[e] = 0.0;
+        for (i = 0; i < n; i++) {
+            double ci = im->c[i];
+            const double *row = im->YT + im->ld * i;
+            for (e = 0; e < m; e++)
+                im->d[e] += row[e] * ci;
+        }
+        for (e = 0; e < m; e++)
             if (im->mask[e] > 0.0) {
-                double pe = 0.0;
-                for (i = 0; i < n; i++)
-                    pe += YT[ld * i + e] * im->c[i];
-                fits = fits && pe >= lo[e] && pe <= hi[e];
-                p[e] = pe;
+                fits = fits && im->d[e] >= lo[e] && im->d[e] <= hi[e];
+                p[e] = im->d[e];
             }
         if (!fits)
             return 0;
@@ -241,16 +235,15 @@ VSJ_ALWAYS_INLINE int same_pattern(impulses *im, const double *q, const double *
             im->z[i] = acc;
         }
     }
-    for (e = 0; e < m; e++) { /* the slips s = q - Y^T z */
-        double st = (double)state[e], slip = q[e];
-        if (state[e] == 2)
-            continue;
-        for (i = 0; i < n; i++)
-            slip -= YT[ld * i + e] * im->z[i];
-        if (st == 0.0 ? !(fabs(slip) <= tol) : !(slip * st >= -tol))
-            return 0;
+    slips(im, q, im->z, im->g, n);
+    for (e = 0; e < m; e++) {
+        int64_t st = state[e];
+        if (st == 0)
+            holds = holds && fabs(im->g[e]) <= tol;
+        else if (st != 2)
+            holds = holds && im->g[e] * (double)st >= -tol;
     }
-    return 1;
+    return holds;
 }
 
 /* The largest diagonal entry of W = Y Y^T over the unknowns involved. */

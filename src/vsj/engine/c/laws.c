@@ -115,12 +115,13 @@ static void geometry(const double p[VSJ_NPAR], double phi, double q, int which, 
             dt_sum += k * (gxp_l * arm + e * darm);
         }
     }
-    {
+    out[0] = V;
+    out[1] = dV;
+    out[2] = d2V;
+    out[3] = dVq;
+    out[4] = out[5] = 0.0;
+    if (which & REPORT) {
         double scale = R / l.r2; /* sin(alpha) / sin(phi) of eq 3.8 */
-        out[0] = V;
-        out[1] = dV;
-        out[2] = d2V;
-        out[3] = dVq;
         out[4] = t_sum * scale;
         out[5] = dt_sum * scale + t_sum * R * q * R * l.sp / (l.r2 * l.r2 * l.r2);
     }
