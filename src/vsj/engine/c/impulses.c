@@ -19,6 +19,9 @@
 
 #include "internal.h"
 
+/* The functions below are inlined into vsj__solve_impulses; those that loop over the
+ * coordinates take their count n, which it passes as a constant where it can. */
+
 /* impulse solver: absolute and relative (to the largest free slip) tolerance [rad/s] */
 #define IMPULSE_ABS 1e-14
 #define IMPULSE_REL 1e-12
@@ -27,9 +30,9 @@
 #define IMPULSE_REG 1e-9
 
 /* z = YT p */
-static void project(const impulses *im, const double *p, double *z) {
+VSJ_ALWAYS_INLINE void project(const impulses *im, const double *p, double *z, int64_t n) {
     int64_t i, e, m = im->m;
-    for (i = 0; i < im->n; i++) {
+    for (i = 0; i < n; i++) {
         double acc = 0.0;
         const double *row = im->YT + im->ld * i;
         for (e = 0; e < m; e++)
@@ -38,15 +41,18 @@ static void project(const impulses *im, const double *p, double *z) {
     }
 }
 
-/* G = YT diag(mask) YT^T + ridge I and t = YT (mask * vec) */
-static void gram(const impulses *im, const double *vec, double *G, double *t, double ridge) {
-    int64_t i, j, e, n = im->n, m = im->m, ld = im->ld;
+/* G = YT diag(mask) YT^T + ridge I and, with a vector vec, t = YT (mask * vec) */
+VSJ_ALWAYS_INLINE void gram(const impulses *im, const double *vec, double *G, double *t,
+                            double ridge, int64_t n) {
+    int64_t i, j, e, m = im->m, ld = im->ld;
     const double *YT = im->YT, *mask = im->mask;
     for (i = 0; i < n; i++) {
-        double acc_t = 0.0;
-        for (e = 0; e < m; e++)
-            acc_t += YT[ld * i + e] * mask[e] * vec[e];
-        t[i] = acc_t;
+        if (vec) {
+            double acc_t = 0.0;
+            for (e = 0; e < m; e++)
+                acc_t += YT[ld * i + e] * mask[e] * vec[e];
+            t[i] = acc_t;
+        }
         for (j = 0; j <= i; j++) {
             double acc = 0.0;
             for (e = 0; e < m; e++)
@@ -59,11 +65,12 @@ static void gram(const impulses *im, const double *vec, double *G, double *t, do
 }
 
 /* s = q - YT^T z (s may be q) */
-static void slips(const impulses *im, const double *q, const double *z, double *s) {
+VSJ_ALWAYS_INLINE void slips(const impulses *im, const double *q, const double *z, double *s,
+                             int64_t n) {
     int64_t i, e, m = im->m;
     for (e = 0; e < m; e++)
         s[e] = q[e];
-    for (i = 0; i < im->n; i++) {
+    for (i = 0; i < n; i++) {
         double zi = z[i];
         const double *row = im->YT + im->ld * i;
         for (e = 0; e < m; e++)
@@ -71,47 +78,55 @@ static void slips(const impulses *im, const double *q, const double *z, double *
     }
 }
 
-/* Classify the warm start: impulses at (this step's) bound keep their sign,
- * the others are free (stuck); uninvolved unknowns get state 2. Fills mask (1
- * for free); returns the number free, and the largest free slip in *scale. */
-static int64_t snap(const impulses *im, const double *q, const double *lo, const double *hi,
-                    double *p, int64_t *state, const unsigned char *active, double *scale) {
-    int64_t e, n_free = 0;
-    double sc = 0.0;
-    for (e = 0; e < im->m; e++) {
-        im->mask[e] = 0.0;
-        if (active[e] && hi[e] > lo[e]) {
-            sc = vsj__dmax(sc, fabs(q[e]));
-            /* the bounds vary in their last bits from step to step (the step length
-             * does): an impulse at last step's bound is at this step's bound
-             * (lo <= 0 < hi, hi possibly infinite) */
-            if (p[e] >= hi[e] * (1.0 - 1e-9)) {
-                p[e] = hi[e];
-                state[e] = 1;
-            } else if (p[e] <= lo[e] * (1.0 - 1e-9)) {
-                p[e] = lo[e];
-                state[e] = -1;
-            } else {
-                state[e] = 0;
-                im->mask[e] = 1.0;
-                n_free++;
-            }
+/* Classify unknown e of the warm start: an impulse at (this step's) bound keeps its
+ * sign, the others are free (stuck); an uninvolved unknown gets state 2. Sets its
+ * mask (1 for free) and returns it; *scale grows to its free slip. */
+VSJ_ALWAYS_INLINE int snap_one(const impulses *im, const double *q, const double *lo,
+                               const double *hi, double *p, int64_t *state,
+                               const unsigned char *active, int64_t e, double *scale) {
+    im->mask[e] = 0.0;
+    if (active[e] && hi[e] > lo[e]) {
+        *scale = vsj__dmax(*scale, fabs(q[e]));
+        /* the bounds vary in their last bits from step to step (the step length
+         * does): an impulse at last step's bound is at this step's bound
+         * (lo <= 0 < hi, hi possibly infinite) */
+        if (p[e] >= hi[e] * (1.0 - 1e-9)) {
+            p[e] = hi[e];
+            state[e] = 1;
+        } else if (p[e] <= lo[e] * (1.0 - 1e-9)) {
+            p[e] = lo[e];
+            state[e] = -1;
         } else {
-            p[e] = 0.0;
-            state[e] = 2;
+            state[e] = 0;
+            im->mask[e] = 1.0;
+            return 1;
         }
+    } else {
+        p[e] = 0.0;
+        state[e] = 2;
     }
-    *scale = sc;
+    return 0;
+}
+
+/* Classify the warm start (snap_one): returns the number free, and the largest free
+ * slip in *scale. */
+VSJ_ALWAYS_INLINE int64_t snap(const impulses *im, const double *q, const double *lo,
+                               const double *hi, double *p, int64_t *state,
+                               const unsigned char *active, double *scale) {
+    int64_t e, n_free = 0;
+    *scale = 0.0;
+    for (e = 0; e < im->m; e++)
+        n_free += snap_one(im, q, lo, hi, p, state, active, e, scale);
     return n_free;
 }
 
 /* Minimum-norm impulses of the stuck (free) unknowns that cancel their slips
  * `slip`: d = Y_F G^-2 Y_F^T s_F with G = Y_F^T Y_F (n x n solves; a tiny
  * ridge where stuck rows are parallel). Writes d (zero off the free set). */
-static void stuck_impulses(impulses *im, const double *slip) {
-    int64_t i, e, n = im->n, m = im->m;
+VSJ_ALWAYS_INLINE void stuck_impulses(impulses *im, const double *slip, int64_t n) {
+    int64_t i, e, m = im->m;
     double trace = 0.0;
-    gram(im, slip, im->G, im->t, 0.0);
+    gram(im, slip, im->G, im->t, 0.0, n);
     for (i = 0; i < n; i++)
         trace += im->G[n * i + i];
     for (i = 0; i < n; i++)
@@ -134,10 +149,10 @@ static void stuck_impulses(impulses *im, const double *slip) {
  * unknowns' slips s_F. The explicit K loses accuracy when stuck rows are
  * nearly parallel; the fast path may use it because its result is checked,
  * while the active set's final polish solves with the factor. */
-static void stuck_map(impulses *im) {
-    int64_t i, j, n = im->n;
+VSJ_ALWAYS_INLINE void stuck_map(impulses *im, int64_t n) {
+    int64_t i, j;
     double trace = 0.0;
-    gram(im, im->mask, im->Gc, im->t, 0.0);
+    gram(im, NULL, im->Gc, NULL, 0.0, n);
     for (i = 0; i < n; i++)
         trace += im->Gc[n * i + i];
     for (i = 0; i < n; i++) {
@@ -162,29 +177,30 @@ static void stuck_map(impulses *im) {
  * solution). With z_B = Y_B p_B the stuck impulses are Y_F^T c with
  * c = K (Y_F q_F - Gc z_B), and they add Gc c to z. Gc and K change only with
  * the stuck set or YT and are kept between calls (memo). */
-static int same_pattern(impulses *im, const double *q, const double *lo, const double *hi,
-                        double *p, int64_t *state, const unsigned char *active) {
-    int64_t e, i, j, n = im->n, m = im->m, n_free;
+VSJ_ALWAYS_INLINE int same_pattern(impulses *im, const double *q, const double *lo,
+                                   const double *hi, double *p, int64_t *state,
+                                   const unsigned char *active, int64_t n) {
+    int64_t e, i, j, m = im->m, n_free;
     double scale, tol;
     int holds = 1;
     n_free = snap(im, q, lo, hi, p, state, active, &scale);
     tol = IMPULSE_ABS + IMPULSE_REL * scale;
     for (e = 0; e < m; e++)
         im->d[e] = p[e] * (1.0 - im->mask[e]);
-    project(im, im->d, im->z); /* z_B */
+    project(im, im->d, im->z, n); /* z_B */
     if (n_free > 0) {
         int known = im->memo[m] > 0.0, fits = 1;
         for (e = 0; e < m; e++)
             known = known && im->memo[e] == im->mask[e];
         if (!known) {
-            stuck_map(im);
+            stuck_map(im, n);
             for (e = 0; e < m; e++)
                 im->memo[e] = im->mask[e];
             im->memo[m] = 1.0;
         }
         for (e = 0; e < m; e++)
             im->d[e] = q[e] * im->mask[e];
-        project(im, im->d, im->t);
+        project(im, im->d, im->t, n);
         for (i = 0; i < n; i++) {
             double acc = im->t[i];
             for (j = 0; j < n; j++)
@@ -219,7 +235,7 @@ static int same_pattern(impulses *im, const double *q, const double *lo, const d
             im->z[i] = acc;
         }
     }
-    slips(im, q, im->z, im->g);
+    slips(im, q, im->z, im->g, n);
     for (e = 0; e < m; e++) {
         int64_t st = state[e];
         if (st == 0)
@@ -231,13 +247,13 @@ static int same_pattern(impulses *im, const double *q, const double *lo, const d
 }
 
 /* The largest diagonal entry of W = Y Y^T over the unknowns involved. */
-static double largest_delassus(const impulses *im, const int64_t *state) {
+VSJ_ALWAYS_INLINE double largest_delassus(const impulses *im, const int64_t *state, int64_t n) {
     int64_t e, i;
     double w_max = 0.0;
     for (e = 0; e < im->m; e++)
         if (state[e] != 2) {
             double norm = 0.0;
-            for (i = 0; i < im->n; i++)
+            for (i = 0; i < n; i++)
                 norm += im->YT[im->ld * i + e] * im->YT[im->ld * i + e];
             w_max = vsj__dmax(w_max, norm);
         }
@@ -248,14 +264,14 @@ static double largest_delassus(const impulses *im, const int64_t *state) {
  * by Woodbury's identity (an n x n solve), then a ratio test at the caps: the first
  * free unknown the step takes to a bound is put there. Returns whether the step was
  * taken whole (the free set's optimum reached). */
-static int newton_step(impulses *im, const double *lo, const double *hi, double *p,
-                       int64_t *state, double eps) {
-    int64_t e, n = im->n, m = im->m, block = -1;
+VSJ_ALWAYS_INLINE int newton_step(impulses *im, const double *lo, const double *hi, double *p,
+                                  int64_t *state, double eps, int64_t n) {
+    int64_t e, m = im->m, block = -1;
     double alpha = 1.0;
-    gram(im, im->g, im->G, im->t, eps);
+    gram(im, im->g, im->G, im->t, eps, n);
     vsj__cholesky(im->G, im->Lg, n, n, 1);
     vsj__solve(im->Lg, im->t, im->c, n);
-    slips(im, im->g, im->c, im->d); /* d = g - Y c, scaled below */
+    slips(im, im->g, im->c, im->d, n); /* d = g - Y c, scaled below */
     for (e = 0; e < m; e++) {
         double de, a;
         if (state[e] != 0)
@@ -285,7 +301,7 @@ static int newton_step(impulses *im, const double *lo, const double *hi, double 
 
 /* The unknown at a bound whose gradient im->g most wants it off the bound (by more
  * than tol), or -1: none does, and the problem is solved. */
-static int64_t to_release(const impulses *im, const int64_t *state, double tol) {
+VSJ_ALWAYS_INLINE int64_t to_release(const impulses *im, const int64_t *state, double tol) {
     int64_t e, release = -1;
     double worst = tol;
     for (e = 0; e < im->m; e++) {
@@ -300,8 +316,8 @@ static int64_t to_release(const impulses *im, const int64_t *state, double tol) 
 
 /* Remove the regularisation's creep from the stuck unknowns (their remaining slips,
  * of order eps p) by the minimum-norm correction of their impulses. */
-static void polish(impulses *im, const double *q, const double *lo, const double *hi,
-                   double *p, const int64_t *state) {
+VSJ_ALWAYS_INLINE void polish(impulses *im, const double *q, const double *lo,
+                              const double *hi, double *p, const int64_t *state, int64_t n) {
     int64_t e, m = im->m, n_free = 0;
     for (e = 0; e < m; e++) {
         int free_ = state[e] == 0;
@@ -309,9 +325,9 @@ static void polish(impulses *im, const double *q, const double *lo, const double
         n_free += free_;
     }
     if (n_free > 0) {
-        project(im, p, im->z);
-        slips(im, q, im->z, im->g);
-        stuck_impulses(im, im->g);
+        project(im, p, im->z, n);
+        slips(im, q, im->z, im->g, n);
+        stuck_impulses(im, im->g, n);
         for (e = 0; e < m; e++)
             if (state[e] == 0)
                 p[e] = vsj__dmin(hi[e], vsj__dmax(lo[e], p[e] + im->d[e]));
@@ -325,17 +341,17 @@ static void polish(impulses *im, const double *q, const double *lo, const double
  *    steps, each an n x n solve by Woodbury's identity;
  * 2. polish: the stuck unknowns' remaining slips (of order eps p) are removed
  *    by the minimum-norm correction of their impulses. */
-static int active_set(impulses *im, const double *q, const double *lo, const double *hi,
-                      double *p, int64_t *state, const unsigned char *active,
-                      int64_t *iterations) {
+VSJ_ALWAYS_INLINE int active_set(impulses *im, const double *q, const double *lo,
+                                 const double *hi, double *p, int64_t *state,
+                                 const unsigned char *active, int64_t *iterations, int64_t n) {
     int64_t m = im->m, e, it, n_free, release;
     double scale, w_max, eps, tol;
     int converged = 0, at_optimum = 0;
     snap(im, q, lo, hi, p, state, active, &scale);
-    w_max = largest_delassus(im, state);
+    w_max = largest_delassus(im, state, n);
     *iterations = 0;
     if (w_max == 0.0) {
-        project(im, p, im->z);
+        project(im, p, im->z, n);
         return 1;
     }
     eps = IMPULSE_REG * w_max;
@@ -343,8 +359,8 @@ static int active_set(impulses *im, const double *q, const double *lo, const dou
     for (it = 0; it < IMPULSE_MAX_ITER; it++) {
         *iterations = it + 1;
         /* gradient of 1/2 p^T (W + eps I) p - q.p */
-        project(im, p, im->z);
-        slips(im, q, im->z, im->g);
+        project(im, p, im->z, n);
+        slips(im, q, im->z, im->g, n);
         n_free = 0;
         for (e = 0; e < m; e++) {
             int free_ = state[e] == 0;
@@ -353,7 +369,7 @@ static int active_set(impulses *im, const double *q, const double *lo, const dou
             n_free += free_;
         }
         if (n_free > 0 && !at_optimum) {
-            at_optimum = newton_step(im, lo, hi, p, state, eps);
+            at_optimum = newton_step(im, lo, hi, p, state, eps, n);
             continue;
         }
         at_optimum = 0;
@@ -366,21 +382,32 @@ static int active_set(impulses *im, const double *q, const double *lo, const dou
     }
     if (!converged)
         return 0;
-    polish(im, q, lo, hi, p, state);
-    project(im, p, im->z);
+    polish(im, q, lo, hi, p, state, n);
+    project(im, p, im->z, n);
     return 1;
+}
+
+/* The solve for n coordinates. */
+VSJ_ALWAYS_INLINE int solve_sized(impulses *im, const double *q, const double *lo,
+                                  const double *hi, double *p, int64_t *state,
+                                  const unsigned char *active, int64_t *iterations, int64_t n) {
+    *iterations = 0;
+    if (same_pattern(im, q, lo, hi, p, state, active, n))
+        return 1;
+    return active_set(im, q, lo, hi, p, state, active, iterations, n);
 }
 
 /* Exact Coulomb impulses: slips s = q - Y Y^T p with |p_e| <= cap_e. state
  * (-1, 0 stuck, +1; 2 not involved) and p carry the previous step's solution
- * as a warm start; im->z holds YT p on return. */
+ * as a warm start; im->z holds YT p on return. Compiled twice: for two coordinates
+ * (the wrist's two rings, when its motors and pivot are driven by speed), where
+ * the loops over the coordinates unroll, and for any number. */
 int vsj__solve_impulses(impulses *im, const double *q, const double *lo, const double *hi,
                         double *p, int64_t *state, const unsigned char *active,
                         int64_t *iterations) {
-    *iterations = 0;
-    if (same_pattern(im, q, lo, hi, p, state, active))
-        return 1;
-    return active_set(im, q, lo, hi, p, state, active, iterations);
+    if (im->n == 2)
+        return solve_sized(im, q, lo, hi, p, state, active, iterations, 2);
+    return solve_sized(im, q, lo, hi, p, state, active, iterations, im->n);
 }
 
 int vsj_solve_impulses(int64_t n, int64_t m, const double *YT, int64_t count, const double *qs,

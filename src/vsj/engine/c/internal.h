@@ -27,6 +27,8 @@ typedef struct ts_work {
                             * without (0; -1 neither) */
     int64_t n_nonlinear, n_watched, n_mid_ch, n_mid_src, n_end_ch;
     int factored;          /* H_last and its factor are valid */
+    int first;             /* the next step is a call's first (vsj__ts_begin) */
+    int pivot_still;       /* the pivot's angle cannot move (its sources' inputs are 0) */
     double t;              /* time reached */
     double origin;         /* steps end at origin + k h (vsj__ts_advance) */
     int64_t k;
@@ -161,6 +163,17 @@ struct vsj_work {
 #define VSJ_INTERNAL
 #endif
 
+/* Small kernels inlined wherever they are called (GCC and clang; elsewhere a plain
+ * inline), so that a caller compiled for a constant size gets straight-line code. */
+#if defined(__GNUC__)
+#define VSJ_ALWAYS_INLINE static inline __attribute__((always_inline))
+#else
+#define VSJ_ALWAYS_INLINE static inline
+#endif
+
+/* the Cholesky kernels of the time-stepper and its impulse solver */
+#include "linalg.h"
+
 /* A model check's failure: the message formatted into `message` (of `size` bytes);
  * returns VSJ_BAD_ARGUMENT (model.c). */
 VSJ_INTERNAL int vsj__fail(char *message, size_t size, const char *format, ...);
@@ -255,7 +268,8 @@ VSJ_INTERNAL vsj_report vsj__adaptive(const vsj_model *m, vsj_work *w, int metho
                                       double atol, int64_t max_steps, int64_t n_err);
 /* The time-stepper, resumable: begin sets the state at t0 (the work prepared for m,
  * vsj_ts_prepare); advance steps to t_end (the last step shortened to land on it),
- * booking the ledger into y's accumulators with `ledger`. */
+ * booking the ledger into y's accumulators with `ledger`. The callers check that w
+ * fits m (vsj__fits). */
 VSJ_INTERNAL int vsj__ts_prepared_for(const vsj_model *m, const vsj_work *w);
 VSJ_INTERNAL int vsj__ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0);
 VSJ_INTERNAL vsj_report vsj__ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_end,
@@ -274,16 +288,6 @@ VSJ_INTERNAL double vsj__spring(int64_t law, const double *p, double phi, double
  * rigid); 0 if the law has none. */
 VSJ_INTERNAL int vsj__stop(int64_t law, const double *p, double *angle, double *stiffness);
 
-/* small dense linear algebra (linalg.c), on the leading k x k block of a row-major
- * n x n array: the Cholesky factor L of H (0 if H is not positive definite; with
- * `floor` a pivot at or below zero is replaced by a tiny positive one instead),
- * L out = b, L^T out = b (out may be b), and H out = b with both (k = n) */
-VSJ_INTERNAL int vsj__cholesky(const double *H, double *L, int64_t k, int64_t n, int floor);
-VSJ_INTERNAL void vsj__forward(const double *L, const double *b, double *out, int64_t k,
-                               int64_t n);
-VSJ_INTERNAL void vsj__backward(const double *L, const double *b, double *out, int64_t k,
-                                int64_t n);
-VSJ_INTERNAL void vsj__solve(const double *L, const double *b, double *out, int64_t n);
 /* LU factorisation with partial pivoting of the n x n row-major A in place (0 if
  * singular), and the solve of A x = b with it (x may be b). */
 VSJ_INTERNAL int vsj__lu(double *A, int64_t *piv, int64_t n);
@@ -593,14 +597,19 @@ static inline void vsj__uaddv(const vsj_model *m, int64_t r, double *vec, double
 
 /* ---- the pivot --------------------------------------------------------------- */
 
-static inline double vsj__pivot_at(const vsj_model *m, vsj_work *w, double angle) {
+/* The pivot at position q: w->q, and VSJ_PIVOT_RANGE if q is outside its range. */
+static inline double vsj__pivot_record(const vsj_model *m, vsj_work *w, double q) {
     const double *p = vsj__row(m, m->n_rows - 1);
-    double moving = p[2]; /* 1 with a pivot mechanism, 0 for a fixed pivot */
-    double q = moving * p[0] * sin(angle) + (1.0 - moving) * p[1];
     w->q = q;
     if ((q < p[3] - 1e-12 || q > p[4] + 1e-12) && w->status < VSJ_PIVOT_RANGE)
         w->status = VSJ_PIVOT_RANGE;
     return q;
+}
+
+static inline double vsj__pivot_at(const vsj_model *m, vsj_work *w, double angle) {
+    const double *p = vsj__row(m, m->n_rows - 1);
+    double moving = p[2]; /* 1 with a pivot mechanism, 0 for a fixed pivot */
+    return vsj__pivot_record(m, w, moving * p[0] * sin(angle) + (1.0 - moving) * p[1]);
 }
 
 static inline double vsj__pivot_angle(const vsj_model *m, const vsj_work *w, const double *x) {

@@ -151,6 +151,12 @@ static void book_sources(const vsj_model *m, const ts_work *t, double *acc, cons
 
 void vsj__ts_book(const vsj_model *m, ts_work *t, double *acc, double hs, double q_end) {
     offsets a = offsets_of(m);
+    int64_t j;
+    for (j = 0; j < m->n_sources; j++) { /* the sources' mid-step speeds; their torques
+                                          * are summed below */
+        t->um[j] = 0.5 * (t->u0[j] + t->u1[j]);
+        t->srcF[j] = 0.0;
+    }
     book_friction(m, t, acc, &a, hs);
     book_springs(m, t, acc, &a, hs, q_end);
     book_stops(m, t, acc, &a, hs);

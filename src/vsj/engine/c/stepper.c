@@ -26,30 +26,38 @@ static void hold(const vsj_model *m, vsj_work *w, const double *s, const double 
 
 /* The engine state y of s (to_engine), and a model's controller sampled at the
  * period's start. */
-static void to_engine(const vsj_model *m, const double *s, const double *inputs, double *y);
+static void to_engine(const vsj_model *m, const double *s, const double *inputs, double *y,
+                      double *scratch);
 static void begin_period(const vsj_model *m, vsj_work *w, const double *s, const double *inputs,
                          double dt, double *y) {
     hold(m, w, s, inputs);
-    to_engine(m, s, inputs, y);
+    to_engine(m, s, inputs, y, w->sacc);
     if (m->n_acts > 0)
         vsj__control_period(m, w, y, dt);
 }
 
-/* Engine state [x, v, i] from [x, p, i, ...]: v = M^-1 (p - M_su u). */
-static void to_engine(const vsj_model *m, const double *s, const double *inputs, double *y) {
+/* Engine state [x, v, i] from [x, p, i, ...]: v = M^-1 (p - M_su u); `scratch` holds
+ * 2 n values. */
+static void to_engine(const vsj_model *m, const double *s, const double *inputs, double *y,
+                      double *scratch) {
     int64_t n = m->n, ns = m->n_sources, sz = n + ns, i, r, j;
+    double *free_p = scratch, *sizes = scratch + n; /* p - M_su u, and its terms' size */
+    for (r = 0; r < n; r++) {
+        double pr = s[n + r], size = fabs(pr);
+        for (j = 0; j < ns; j++) {
+            double term = m->mass[sz * r + n + j] * inputs[m->src_ch[j]];
+            pr -= term;
+            size += fabs(term);
+        }
+        free_p[r] = pr;
+        sizes[r] = size;
+    }
     for (i = 0; i < n; i++) {
         double acc = 0.0, bound = 0.0;
         y[i] = s[i];
         for (r = 0; r < n; r++) {
-            double pr = s[n + r], size = fabs(pr);
-            for (j = 0; j < ns; j++) {
-                double term = m->mass[sz * r + n + j] * inputs[m->src_ch[j]];
-                pr -= term;
-                size += fabs(term);
-            }
-            acc += m->Minv[n * i + r] * pr;
-            bound += fabs(m->Minv[n * i + r]) * size;
+            acc += m->Minv[n * i + r] * free_p[r];
+            bound += fabs(m->Minv[n * i + r]) * sizes[r];
         }
         /* a speed within the round-off of the cancellation p - M_su u (8 ulp of
          * its terms) is zero: left at 1e-19, it would make the integrator's first
@@ -164,7 +172,7 @@ static int step_timestep(const vsj_model *m, vsj_work *w, double *s, const doubl
     int64_t steps;
     vsj_report rep;
     int status;
-    if (!vsj__fits(m, w) || !(dt > 0.0) || !(h > 0.0) || !(dt / h <= VSJ_MAX_PERIOD_STEPS))
+    if (!(dt > 0.0) || !(h > 0.0) || !(dt / h <= VSJ_MAX_PERIOD_STEPS)) /* w fits m: vsj_step */
         return VSJ_BAD_ARGUMENT;
     steps = (int64_t)ceil(dt / h - 1e-9);
     begin_period(m, w, s, inputs, dt, w->sy);
@@ -185,7 +193,7 @@ int vsj_step_rate(const vsj_model *m, vsj_work *w, const double *s, const double
     if (!vsj__fits(m, w))
         return VSJ_BAD_ARGUMENT;
     hold(m, w, s, inputs);
-    to_engine(m, s, inputs, w->sy);
+    to_engine(m, s, inputs, w->sy, w->sacc);
     w->status = VSJ_OK;
     vsj__eval_derivatives(m, w, 0.0, w->sy, ny, w->sk);
     for (i = 0; i < n; i++) {

@@ -315,9 +315,39 @@ static void levels_and_lists(const vsj_model *m, ts_work *t) {
     }
 }
 
+/* Whether the pivot's angle stays as it is: it follows no free coordinate, and its
+ * sources' speeds are inputs that are zero throughout (a constant zero spline, with
+ * zero integrals, that no controller drives), so that their angles do not move. (Held
+ * inputs, the step function's, are other values: step_inputs checks.) */
+static int pivot_still(const vsj_model *m) {
+    int64_t r_piv = m->n_rows - 1, k, a;
+    if (m->xp[r_piv + 1] > m->xp[r_piv])
+        return 0;
+    for (k = m->up[r_piv]; k < m->up[r_piv + 1]; k++) {
+        int64_t ch = m->src_ch[m->uc[k]], p0 = m->first[ch], koff = p0 + ch;
+        const double *cf = m->coef + 4 * p0;
+        if (m->count[ch] != 1 || cf[0] != 0.0 || cf[1] != 0.0 || cf[2] != 0.0 || cf[3] != 0.0
+            || m->cum[koff] != 0.0 || m->cum[koff + 1] != 0.0 || m->period[2 * ch + 1] != 0.0)
+            return 0;
+        for (a = 0; a < m->n_acts; a++)
+            if (m->act_ch[a] == ch)
+                return 0;
+    }
+    return 1;
+}
+
+/* Whether source j drives the pivot. */
+static int pivot_source(const ts_work *t, int64_t j) {
+    int64_t i;
+    for (i = 0; i < t->n_mid_src; i++)
+        if (t->mid_src[i] == j)
+            return 1;
+    return 0;
+}
+
 /* At mid-step only the loads, the motor voltages and the pivot's sources are read; a
- * load or voltage constant in time (and not a controller's) keeps its value from t = 0. At step end only the
- * sources' channels are read. */
+ * load or voltage constant in time (and not a controller's) keeps its value from t = 0.
+ * At step end only the sources' channels are read. */
 static void channel_lists(const vsj_model *m, ts_work *t) {
     int64_t nf = m->n_frictions, r_load = nf + m->n_springs, r_piv = m->n_rows - 1;
     int64_t rr, e, k, c, j;
@@ -334,9 +364,10 @@ static void channel_lists(const vsj_model *m, ts_work *t) {
         if (vsj__row(m, e)[VSJ_F_CHANNEL] >= 0.0)
             t->wanted[(int64_t)vsj__row(m, e)[VSJ_F_CHANNEL]] = 1;
     t->n_mid_src = 0;
+    t->pivot_still = pivot_still(m);
     for (k = m->up[r_piv]; k < m->up[r_piv + 1]; k++) {
         t->mid_src[t->n_mid_src++] = m->uc[k];
-        t->wanted[m->src_ch[m->uc[k]]] = 1;
+        t->wanted[m->src_ch[m->uc[k]]] |= !t->pivot_still;
     }
     t->n_mid_ch = 0;
     for (c = 0; c < m->n_channels; c++)
@@ -344,7 +375,7 @@ static void channel_lists(const vsj_model *m, ts_work *t) {
             t->mid_ch[t->n_mid_ch++] = c;
     memset(t->wanted, 0, (size_t)m->n_channels);
     for (j = 0; j < m->n_sources; j++)
-        t->wanted[m->src_ch[j]] = 1;
+        t->wanted[m->src_ch[j]] = !t->pivot_still || !pivot_source(t, j);
     t->n_end_ch = 0;
     for (c = 0; c < m->n_channels; c++)
         if (t->wanted[c])
@@ -373,7 +404,9 @@ static void clear_history(const vsj_model *m, ts_work *t) {
     }
     t->hs_prev = NAN;
     t->rl_h = NAN; /* the armature steps follow the parameters */
+    t->angle_prev = NAN; /* the pivot's too */
     t->factored = 0;
+    t->memo_full = -1;
 }
 
 int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
@@ -395,8 +428,10 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
 }
 
 /* every element's slip s = Dx v + Du u (dense rows, one coordinate per row) */
-static void element_slips(const double *DxT, const double *DuT, int64_t cols, int64_t count,
-                          const double *v, int64_t n, const double *u, int64_t s_n, double *s) {
+VSJ_ALWAYS_INLINE void element_slips(const double *restrict DxT, const double *restrict DuT,
+                                     int64_t cols, int64_t count, const double *restrict v,
+                                     int64_t n, const double *restrict u, int64_t s_n,
+                                     double *restrict s) {
     int64_t e, i, j;
     for (e = 0; e < count; e++)
         s[e] = 0.0;
@@ -415,8 +450,8 @@ static void element_slips(const double *DxT, const double *DuT, int64_t cols, in
 }
 
 /* H += scale d d^T with d the free-coordinate part of row r */
-static void outer(const vsj_model *m, int64_t r, double *H, double scale) {
-    int64_t a, b, n = m->n;
+VSJ_ALWAYS_INLINE void outer(const vsj_model *m, int64_t r, double *H, double scale, int64_t n) {
+    int64_t a, b;
     for (a = m->xp[r]; a < m->xp[r + 1]; a++)
         for (b = m->xp[r]; b < m->xp[r + 1]; b++)
             H[n * m->xc[a] + m->xc[b]] += scale * m->xv[a] * m->xv[b];
@@ -455,7 +490,8 @@ int vsj__ts_prepared_for(const vsj_model *m, const vsj_work *w) {
 int vsj__ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
     ts_work *t = &w->ts;
     int64_t n, nm, j;
-    if (!vsj__fits(m, w) || !vsj__ts_prepared_for(m, w))
+    double angle;
+    if (!vsj__ts_prepared_for(m, w)) /* (the callers have checked that w fits m) */
         return VSJ_BAD_ARGUMENT;
     n = m->n;
     nm = m->n_motors;
@@ -468,16 +504,21 @@ int vsj__ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
         t->sg0[j] = w->srcw[SRCW * j + SG];
     }
     w->status = VSJ_OK;
-    t->angle_prev = vsj__pivot_angle(m, w, t->x);
-    t->q_prev = vsj__pivot_at(m, w, t->angle_prev);
-    /* the mid-step pivot position is recomputed only when its angle changes */
-    t->angle_mid = NAN;
+    /* the pivot's position is recomputed only when its angle changes (the step
+     * function's calls follow one another: a pivot held still costs no sine) */
+    angle = vsj__pivot_angle(m, w, t->x);
+    if (angle != t->angle_prev) {
+        t->angle_prev = angle;
+        t->q_prev = vsj__pivot_at(m, w, angle);
+    } else {
+        vsj__pivot_record(m, w, t->q_prev);
+    }
+    t->angle_mid = t->angle_prev;
     t->q_mid = t->q_prev;
     t->t = t0;
     t->origin = t0;
     t->k = 0;
-    t->factored = 0;
-    t->memo_full = -1;
+    t->first = 1; /* (the factor and the impulse memo are kept for the same matrix) */
     element_slips(t->DxT, t->DuT, m->n_frictions + m->n_springs, m->n_frictions, t->v, n, t->u0,
                   m->n_sources, t->slip);
     return w->status;
@@ -518,36 +559,49 @@ static void step_levels(const vsj_model *m, vsj_work *w) {
 
 /* The step's inputs: at mid-step the loads, voltages and normal forces, and the pivot
  * position at the midpoint x + hs/2 v (kept while its angle stays); at the step's end
- * the sources' speeds u1 and angles sg1. Held inputs (the step function) may change
- * from call to call: all of their channels are read. */
-static void step_inputs(const vsj_model *m, vsj_work *w, double tnow, double t1, double hs) {
+ * the sources' speeds u1 and angles sg1. Held inputs (the step function) change only
+ * from call to call, and vsj__ts_begin reads every channel: the steady ones left out
+ * of mid_ch keep the held value it read. */
+VSJ_ALWAYS_INLINE void step_inputs(const vsj_model *m, vsj_work *w, double tnow, double t1,
+                                   double hs, int64_t n) {
     ts_work *t = &w->ts;
-    int64_t i, j, c, ld, mo, r_load = m->n_frictions + m->n_springs;
+    int64_t i, j, ld, mo, r_load = m->n_frictions + m->n_springs;
+    /* a pivot held still keeps its position (held inputs may move it) */
+    int moves = !t->pivot_still || w->held;
     double angle;
-    if (w->held)
-        for (c = 0; c < m->n_channels; c++)
-            vsj__eval_channel(m, w, c, tnow + 0.5 * hs);
-    else
-        for (i = 0; i < t->n_mid_ch; i++)
-            vsj__eval_channel(m, w, t->mid_ch[i], tnow + 0.5 * hs);
-    for (i = 0; i < t->n_mid_src; i++)
+    for (i = 0; i < t->n_mid_ch; i++)
+        vsj__eval_channel(m, w, t->mid_ch[i], tnow + 0.5 * hs);
+    for (i = 0; moves && i < t->n_mid_src; i++) {
+        if (t->pivot_still) /* (then its channels are not in mid_ch) */
+            vsj__eval_channel(m, w, m->src_ch[t->mid_src[i]], tnow + 0.5 * hs);
         vsj__eval_source(m, w, t->mid_src[i]);
+    }
     if (t->any_varying)
         step_levels(m, w);
     for (ld = 0; ld < m->n_loads; ld++)
         t->ldm[ld] = w->chan[3 * m->code[r_load + ld]];
     for (mo = 0; mo < m->n_motors; mo++)
         t->vm[mo] = w->chan[3 * m->code[r_load + m->n_loads + mo]];
-    for (i = 0; i < m->n; i++)
-        t->x1[i] = t->x[i] + 0.5 * hs * t->v[i];
-    angle = vsj__pivot_angle(m, w, t->x1);
-    if (angle != t->angle_mid) {
-        t->angle_mid = angle;
-        t->q_mid = vsj__pivot_at(m, w, angle);
+    if (moves) {
+        for (i = 0; i < n; i++)
+            t->x1[i] = t->x[i] + 0.5 * hs * t->v[i];
+        angle = vsj__pivot_angle(m, w, t->x1);
+        if (angle != t->angle_mid) {
+            t->angle_mid = angle;
+            t->q_mid = vsj__pivot_at(m, w, angle);
+        }
     }
     for (i = 0; i < t->n_end_ch; i++)
         vsj__eval_channel(m, w, t->end_ch[i], t1);
     for (j = 0; j < m->n_sources; j++) {
+        int still = t->pivot_still && pivot_source(t, j);
+        if (still && !moves) { /* held still: speed 0, the same angle */
+            t->u1[j] = t->u0[j];
+            t->sg1[j] = t->sg0[j];
+            continue;
+        }
+        if (still) /* (then its channel is not in end_ch) */
+            vsj__eval_channel(m, w, m->src_ch[j], t1);
         vsj__eval_source(m, w, j);
         t->u1[j] = w->srcw[SRCW * j + U];
         t->sg1[j] = w->srcw[SRCW * j + SG];
@@ -556,8 +610,8 @@ static void step_inputs(const vsj_model *m, vsj_work *w, double tnow, double t1,
 
 /* H v1 = r, its inertia and linear friction: H = M + hs Bx, r = M v - M_su (u1 - u0)
  * - hs Bu u1. */
-static void assemble_inertia(const vsj_model *m, ts_work *t, double hs) {
-    int64_t n = m->n, s_n = m->n_sources, i, j, c;
+VSJ_ALWAYS_INLINE void assemble_inertia(const vsj_model *m, ts_work *t, double hs, int64_t n) {
+    int64_t s_n = m->n_sources, i, j, c;
     for (i = 0; i < n; i++) {
         double total = 0.0;
         for (c = 0; c < n; c++) {
@@ -591,26 +645,45 @@ static double spring_gradient(const vsj_model *m, vsj_work *w, int64_t k, double
     return 0.5 * (tau0 + tau1) + span * (kap1 - kap0) / 12.0;
 }
 
+/* The end speeds that keep spring k within its stop, for its two end-stop unknowns
+ * (from `stop` on): |d| <= stop at the step's end, with d1 = d0 + h/2 (d0' + d1'),
+ * lets the end speed side d1' be at most cb (the trapezoidal position update). d0 and
+ * rate0, its deflection and rate at the step's start, are the spring's own
+ * (assemble_springs). Returns the next stop unknown. */
+static int64_t stop_speeds(ts_work *t, double hs, int64_t k, int64_t stop, double d0,
+                           double rate0) {
+    for (; stop < t->nc && t->cspring[stop] == k; stop++) {
+        double side = t->csign[stop];
+        t->cb[stop] = 2.0 / hs * (t->cstop[stop] - side * d0) - side * rate0;
+    }
+    return stop;
+}
+
 /* The springs, by the trapezoidal rule linearised about the step's start with the
  * law's stiffness (the end stops are constraints of the impulse problem); a law whose
  * torque is its energy's gradient and whose energy is not quadratic in the deflection
  * (the geometric element's potential form) by its discrete gradient, so that the
  * ledger books its work as the change of its energy. */
-static void assemble_springs(const vsj_model *m, vsj_work *w, double hs) {
+VSJ_ALWAYS_INLINE void assemble_springs(const vsj_model *m, vsj_work *w, double hs, int64_t n) {
     ts_work *t = &w->ts;
-    int64_t n = m->n, s_n = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs;
-    int64_t i, j, c, k, rr;
+    int64_t s_n = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs;
+    int64_t i, j, c, k, rr, stop = 0;
     for (k = 0; k < m->n_springs; k++) {
-        double d0 = 0.0, rate = 0.0, dsig = 0.0, kap, en, dvq, tau, c_k;
+        double d0 = 0.0, rate = 0.0, rate0, dsig = 0.0, kap, en, dvq, tau, c_k;
         rr = nf + k;
         for (i = 0; i < n; i++) {
             d0 += t->DxT[cols * i + rr] * t->x[i];
             rate += t->DxT[cols * i + rr] * t->v[i];
         }
+        rate0 = rate; /* the rate with the sources' part (rate: the free coordinates') */
         for (j = 0; j < s_n; j++) {
-            d0 += t->DuT[cols * j + rr] * t->sg0[j];
-            dsig += t->DuT[cols * j + rr] * (t->sg1[j] - t->sg0[j]);
+            double d = t->DuT[cols * j + rr];
+            d0 += d * t->sg0[j];
+            dsig += d * (t->sg1[j] - t->sg0[j]);
+            rate0 += d * t->u0[j];
         }
+        if (t->has_stop[k])
+            stop = stop_speeds(t, hs, k, stop, d0, rate0);
         tau = vsj__spring(m->code[rr], vsj__row(m, rr), d0, t->q_mid, &kap, &en, &dvq,
                           w->spcache + 4 * k, !t->has_stop[k]);
         if (m->code[rr] == VSJ_GEOMETRIC) {
@@ -680,7 +753,7 @@ static double contact_damping(const double *p, double d) {
     return p[VSJ_C_DAMPING] * (n == 1.0 ? d : pow(d, n));
 }
 
-static void assemble_friction(const vsj_model *m, vsj_work *w, double hs) {
+VSJ_ALWAYS_INLINE void assemble_friction(const vsj_model *m, vsj_work *w, double hs, int64_t n) {
     ts_work *t = &w->ts;
     int64_t i, e, ld, r_load = m->n_frictions + m->n_springs;
     memcpy(t->s0, t->slip, (size_t)m->n_frictions * sizeof(double));
@@ -713,7 +786,7 @@ static void assemble_friction(const vsj_model *m, vsj_work *w, double hs) {
             t->df0[e] = dfe;
             cnst = fe + dfe * vsj__udotv(m, e, t->u1);
             vsj__xadd(m, e, t->r, -hs * cnst);
-            outer(m, e, t->H, hs * dfe);
+            outer(m, e, t->H, hs * dfe, n);
             continue;
         }
         fe = vsj__friction(m->code[e], p[0],
@@ -723,7 +796,7 @@ static void assemble_friction(const vsj_model *m, vsj_work *w, double hs) {
         t->df0[e] = dfe;
         cnst = fe - dfe * se + dfe * vsj__udotv(m, e, t->u1);
         vsj__xadd(m, e, t->r, -hs * cnst);
-        outer(m, e, t->H, hs * dfe);
+        outer(m, e, t->H, hs * dfe, n);
     }
     for (ld = 0; ld < m->n_loads; ld++)
         vsj__xadd(m, r_load + ld, t->r, hs * t->ldm[ld]);
@@ -732,7 +805,8 @@ static void assemble_friction(const vsj_model *m, vsj_work *w, double hs) {
 /* The motors' torque impulse k Q, with Q the step's charge (armature_steps) at the
  * mid-step rotor speed (om0 + om1)/2, om1 = d.v1 + (source part at u1): linear in v1,
  * so it joins the step matrix as a damping k^2 gain / 2. */
-static void assemble_motors(const vsj_model *m, ts_work *t, double hs, double h) {
+VSJ_ALWAYS_INLINE void assemble_motors(const vsj_model *m, ts_work *t, double hs, double h,
+                                       int64_t n) {
     int64_t mo, rr, r_mot = m->n_frictions + m->n_springs + m->n_loads;
     armature_steps(m, t, hs, h);
     for (mo = 0; mo < m->n_motors; mo++) {
@@ -745,45 +819,46 @@ static void assemble_motors(const vsj_model *m, ts_work *t, double hs, double h)
         cnst = kt * (gain * (t->vm[mo] - 0.5 * kt * (om0 + vsj__udotv(m, rr, t->u1)))
                      + t->cur[mo] * t->rl_decay[mo]);
         vsj__xadd(m, rr, t->r, cnst);
-        outer(m, rr, t->H, 0.5 * kt * kt * gain);
+        outer(m, rr, t->H, 0.5 * kt * kt * gain, n);
     }
 }
 
 /* H v1 = r: inertia, springs (trapezoidal), smooth friction, loads, motors. */
-static void assemble_step(const vsj_model *m, vsj_work *w, double hs, double h) {
-    assemble_inertia(m, &w->ts, hs);
-    assemble_springs(m, w, hs);
-    assemble_friction(m, w, hs);
-    assemble_motors(m, &w->ts, hs, h);
+VSJ_ALWAYS_INLINE void assemble_step(const vsj_model *m, vsj_work *w, double hs, double h,
+                                     int64_t n) {
+    assemble_inertia(m, &w->ts, hs, n);
+    assemble_springs(m, w, hs, n);
+    assemble_friction(m, w, hs, n);
+    assemble_motors(m, &w->ts, hs, h, n);
 }
 
 /* The speeds without Coulomb impulses, vfree = H^-1 r, and the impulse problem's rows
  * YlT = L^-1 D^T. H changes only with non-linear springs, smooth friction slopes or a
  * moving pivot; while it stays within round-off of the matrix last factored, that
- * factor and YlT are reused. VSJ_NOT_FINITE if H is not positive definite. */
-static int factor_step(const vsj_model *m, ts_work *t, double hs, double h) {
-    int64_t n = m->n, na = t->na, mt = na + t->nc, i, a, c;
+ * factor and YlT are reused. On a call's first step (t->first, vsj__ts_begin) they
+ * are reused only for the very same matrix, to the bit, so that a call's steps do
+ * not depend on the calls before it. VSJ_NOT_FINITE if H is not positive definite. */
+VSJ_ALWAYS_INLINE int factor_step(ts_work *t, double hs, double h, int64_t n) {
+    int64_t na = t->na, mt = na + t->nc, i, c;
     double scale_h = 0.0;
-    int same;
-    for (i = 0; i < n * n; i++)
-        scale_h = vsj__dmax(scale_h, fabs(t->H_last[i]));
-    same = t->factored;
-    for (i = 0; i < n * n; i++)
-        same = same && fabs(t->H[i] - t->H_last[i]) <= H_REUSE * scale_h;
+    int same = t->factored, fresh = 0, first = t->first;
+    if (first) {
+        same = same && memcmp(t->H, t->H_last, (size_t)(n * n) * sizeof(double)) == 0;
+        t->first = 0;
+    } else {
+        for (i = 0; i < n * n; i++)
+            scale_h = vsj__dmax(scale_h, fabs(t->H_last[i]));
+        for (i = 0; i < n * n; i++)
+            same = same && fabs(t->H[i] - t->H_last[i]) <= H_REUSE * scale_h;
+    }
     if (n > 0 && !same) {
         memcpy(t->H_last, t->H, (size_t)(n * n) * sizeof(double));
         if (!vsj__cholesky(t->H, t->Lc, n, n, 0))
             return VSJ_NOT_FINITE;
-        for (a = 0; a < mt; a++) {
-            for (i = 0; i < n; i++)
-                t->drow[i] = t->DxA[mt * i + a];
-            vsj__forward(t->Lc, t->drow, t->col, n, n); /* L^-1 d_e: W = Y Y^T */
-            for (i = 0; i < n; i++)
-                t->YlT[mt * i + a] = t->col[i];
-        }
+        vsj__forward_block(t->Lc, t->DxA, t->YlT, mt, mt, n); /* L^-1 d_e: W = Y Y^T */
         forget_memo(t); /* it was made with the old YlT */
         t->factored = 1;
-        t->hs_prev = NAN; /* the compliance rows below are written afresh */
+        fresh = 1;
     }
     if (n > 0)
         vsj__solve(t->Lc, t->r, t->vfree, n);
@@ -791,8 +866,10 @@ static int factor_step(const vsj_model *m, ts_work *t, double hs, double h) {
      * diagonal: a row of its own in YlT, so that W = Y Y^T still */
     /* step lengths t1 - tnow differ by round-off from step to step: only a
      * real change (the last, shortened step) rewrites the rows and drops the
-     * solver's memo */
-    if (t->ncomp > 0 && !(fabs(hs - t->hs_prev) <= STEP_SAME * h)) {
+     * solver's memo; with a fresh factor (whose rows they join), and on a call's
+     * first step, they follow the step's length to the bit */
+    if (t->ncomp > 0
+        && (fresh || first ? hs != t->hs_prev : !(fabs(hs - t->hs_prev) <= STEP_SAME * h))) {
         memset(t->YlT + mt * n, 0, (size_t)(t->ncomp * mt) * sizeof(double));
         for (c = 0; c < t->nc; c++)
             if (t->ccomp[c] >= 0)
@@ -807,32 +884,14 @@ static int factor_step(const vsj_model *m, ts_work *t, double hs, double h) {
  * impulses, and each end stop's bound on its end speed. A stop is in the problem if
  * the free motion would pass it, or it pushed last step; the others are checked
  * after the solve. */
-static void impulse_bounds(const vsj_model *m, ts_work *t, double hs) {
-    int64_t n = m->n, s_n = m->n_sources, nf = m->n_frictions, cols = nf + m->n_springs;
-    int64_t na = t->na, mt = na + t->nc, a, c, i, j, rr;
-    double d0 = 0.0, rate0 = 0.0;
+VSJ_ALWAYS_INLINE void impulse_bounds(const vsj_model *m, ts_work *t, double hs, int64_t n) {
+    int64_t na = t->na, mt = na + t->nc, a, c;
     for (a = 0; a < na; a++) {
         t->lo[a] = -hs * t->level[a];
         t->hi[a] = hs * t->level[a];
     }
-    element_slips(t->DxA, t->DuA, mt, mt, t->vfree, n, t->u1, s_n, t->qv);
-    for (c = 0; c < t->nc; c++) {
-        /* |d| <= stop at the step's end: with d1 = d0 + h/2 (d0' + d1') the
-         * end speed side d1' may be at most cb (the trapezoidal position update) */
-        double side = t->csign[c];
-        if (c == 0 || t->cspring[c] != t->cspring[c - 1]) { /* a spring's two sides */
-            d0 = rate0 = 0.0;
-            rr = nf + t->cspring[c];
-            for (i = 0; i < n; i++) {
-                d0 += t->DxT[cols * i + rr] * t->x[i];
-                rate0 += t->DxT[cols * i + rr] * t->v[i];
-            }
-            for (j = 0; j < s_n; j++) {
-                d0 += t->DuT[cols * j + rr] * t->sg0[j];
-                rate0 += t->DuT[cols * j + rr] * t->u0[j];
-            }
-        }
-        t->cb[c] = 2.0 / hs * (t->cstop[c] - side * d0) - side * rate0;
+    element_slips(t->DxA, t->DuA, mt, mt, t->vfree, n, t->u1, m->n_sources, t->qv);
+    for (c = 0; c < t->nc; c++) { /* cb: stop_speeds */
         a = na + c;
         t->qv[a] -= t->cb[c];
         t->lo[a] = 0.0;
@@ -843,7 +902,7 @@ static void impulse_bounds(const vsj_model *m, ts_work *t, double hs) {
 
 /* End stops left out of the problem that its impulses drove into their stop: put in.
  * Returns whether any was. */
-static int stops_reached(ts_work *t, const impulses *im) {
+VSJ_ALWAYS_INLINE int stops_reached(ts_work *t, int64_t n) {
     int64_t na = t->na, mt = na + t->nc, a, c, i;
     int added = 0;
     for (c = 0; c < t->nc; c++) {
@@ -852,7 +911,7 @@ static int stops_reached(ts_work *t, const impulses *im) {
         if (t->involved[a])
             continue;
         slip = t->qv[a];
-        for (i = 0; i < im->n; i++)
+        for (i = 0; i < n; i++)
             slip -= t->YlT[mt * i + a] * t->z[i];
         if (slip > 0.0) {
             t->involved[a] = 1;
@@ -865,14 +924,14 @@ static int stops_reached(ts_work *t, const impulses *im) {
 /* A group that slipped at the step's start and comes to rest or turns within it meets
  * its static level there (MSL's peak): its bounds become that level. Returns whether
  * any group's did. */
-static int peaks_met(ts_work *t, const impulses *im, double hs) {
+VSJ_ALWAYS_INLINE int peaks_met(ts_work *t, double hs, int64_t n) {
     int64_t na = t->na, mt = na + t->nc, a, i;
     int added = 0;
     for (a = 0; a < na; a++) {
         double s0 = t->slip[t->lead[a]], s1 = t->qv[a];
         if (!(t->hold[a] > t->level[a]) || fabs(s0) <= STUCK_SPEED)
             continue;
-        for (i = 0; i < im->n; i++)
+        for (i = 0; i < n; i++)
             s1 -= t->YlT[mt * i + a] * t->z[i];
         if (fabs(s1) <= STUCK_SPEED || (s1 > 0.0) != (s0 > 0.0)) {
             t->lo[a] = -hs * t->hold[a];
@@ -887,15 +946,15 @@ static int peaks_met(ts_work *t, const impulses *im, double hs) {
  * the end stops' impulses, decided all together, take. The problem is solved again
  * while the solution drives an end stop left out into its stop (at most once per
  * stop) and, once, with the static levels of groups that come to rest. */
-static int impulse_step(const vsj_model *m, vsj_work *w, double hs) {
+VSJ_ALWAYS_INLINE int impulse_step(const vsj_model *m, vsj_work *w, double hs, int64_t n) {
     ts_work *t = &w->ts;
     impulses im;
-    int64_t n = m->n, na = t->na, c, i, pass, iterations;
+    int64_t na = t->na, c, i, pass, iterations;
     if (na + t->nc == 0) {
         memcpy(t->v1, t->vfree, (size_t)n * sizeof(double));
         return VSJ_OK;
     }
-    impulse_bounds(m, t, hs);
+    impulse_bounds(m, t, hs, n);
     for (pass = 0;; pass++) {
         int added, full = 0;
         for (c = 0; c < t->nc; c++)
@@ -904,9 +963,9 @@ static int impulse_step(const vsj_model *m, vsj_work *w, double hs) {
         if (!vsj__solve_impulses(&im, t->qv, t->lo, t->hi, t->p, t->state, t->involved,
                                  &iterations))
             return VSJ_FRICTION_SOLVER;
-        added = stops_reached(t, &im);
+        added = stops_reached(t, n);
         if (pass == 0)
-            added = peaks_met(t, &im, hs) || added;
+            added = peaks_met(t, hs, n) || added;
         if (!added || pass > t->nc)
             break;
     }
@@ -920,9 +979,9 @@ static int impulse_step(const vsj_model *m, vsj_work *w, double hs) {
 /* The step's end: positions by the trapezoidal rule, and the motors' armature
  * currents, charge and Joule heat over the step (armature_steps) with the mid-step
  * back-EMF. */
-static void step_end(const vsj_model *m, ts_work *t, double hs) {
+VSJ_ALWAYS_INLINE void step_end(const vsj_model *m, ts_work *t, double hs, int64_t n) {
     int64_t i, mo, rr, r_mot = m->n_frictions + m->n_springs + m->n_loads;
-    for (i = 0; i < m->n; i++)
+    for (i = 0; i < n; i++)
         t->x1[i] = t->x[i] + 0.5 * hs * (t->v[i] + t->v1[i]);
     for (mo = 0; mo < m->n_motors; mo++) {
         const double *p;
@@ -945,15 +1004,11 @@ static void step_end(const vsj_model *m, ts_work *t, double hs) {
 /* The elements' slips at the step's end and, where `forces` (the ledger and the
  * samples want them), each friction element's torque as the step took it: its smooth
  * part plus its share of the group's Coulomb impulse (a driven element: its level
- * against its slip). The sources' mid-step speeds and torques are set up for the
- * booking. */
-static void element_forces(const vsj_model *m, ts_work *t, double hs, int forces) {
-    int64_t e, j, nf = m->n_frictions, s_n = m->n_sources;
-    for (j = 0; j < s_n; j++) {
-        t->um[j] = 0.5 * (t->u0[j] + t->u1[j]);
-        t->srcF[j] = 0.0;
-    }
-    element_slips(t->DxT, t->DuT, nf + m->n_springs, nf, t->v1, m->n, t->u1, s_n, t->slip);
+ * against its slip). */
+VSJ_ALWAYS_INLINE void element_forces(const vsj_model *m, ts_work *t, double hs, int forces,
+                                      int64_t n) {
+    int64_t e, nf = m->n_frictions;
+    element_slips(t->DxT, t->DuT, nf + m->n_springs, nf, t->v1, n, t->u1, m->n_sources, t->slip);
     if (forces) {
         double inv_hs = 1.0 / hs;
         for (e = 0; e < nf; e++) {
@@ -984,17 +1039,25 @@ static double pivot_end(const vsj_model *m, vsj_work *w, int wanted) {
     return q_end;
 }
 
+static void exchange(double **a, double **b) {
+    double *c = *a;
+    *a = *b;
+    *b = c;
+}
+
 /* The step's end becomes the start of the next: state, time (on the grid origin +
  * k h, or off it after a shortened step), pivot, and the stick phases counted. */
 static void advance_state(const vsj_model *m, vsj_work *w, double t1, int on_grid,
                           double q_end) {
     ts_work *t = &w->ts;
-    int64_t i, e, n = m->n, s_n = m->n_sources;
-    memcpy(t->x, t->x1, (size_t)n * sizeof(double));
-    memcpy(t->v, t->v1, (size_t)n * sizeof(double));
-    memcpy(t->cur, t->i1, (size_t)m->n_motors * sizeof(double));
-    memcpy(t->u0, t->u1, (size_t)s_n * sizeof(double));
-    memcpy(t->sg0, t->sg1, (size_t)s_n * sizeof(double));
+    int64_t i, e;
+    /* the end's arrays trade places with the start's (each step writes all of its
+     * end's afresh) */
+    exchange(&t->x, &t->x1);
+    exchange(&t->v, &t->v1);
+    exchange(&t->cur, &t->i1);
+    exchange(&t->u0, &t->u1);
+    exchange(&t->sg0, &t->sg1);
     t->t = t1;
     if (on_grid) {
         t->k++;
@@ -1034,28 +1097,39 @@ static int put_state(const vsj_model *m, const ts_work *t, double *y) {
     return 1;
 }
 
-/* One step from tnow to t1, the ledger booked into acc (NULL: none); `forces`: the
- * elements' torques are wanted (the ledger's, or a sample's), `last`: the call's last
- * step. Returns the status. */
-static int one_step(const vsj_model *m, vsj_work *w, double tnow, double t1, double h,
-                    int on_grid, int last, double *acc, int forces) {
+/* One step from tnow to t1 of a model with n free coordinates, the ledger booked
+ * into acc (NULL: none); `forces`: the elements' torques are wanted (the ledger's,
+ * or a sample's), `last`: the call's last step. Returns the status. */
+VSJ_ALWAYS_INLINE int step_sized(const vsj_model *m, vsj_work *w, double tnow, double t1,
+                                 double h, int on_grid, int last, double *acc, int forces,
+                                 int64_t n) {
     ts_work *t = &w->ts;
     double hs = t1 - tnow, q_end;
     int status;
-    step_inputs(m, w, tnow, t1, hs);
-    assemble_step(m, w, hs, h);
-    status = factor_step(m, t, hs, h);
+    step_inputs(m, w, tnow, t1, hs, n);
+    assemble_step(m, w, hs, h, n);
+    status = factor_step(t, hs, h, n);
     if (status == VSJ_OK)
-        status = impulse_step(m, w, hs);
+        status = impulse_step(m, w, hs, n);
     if (status != VSJ_OK)
         return status;
-    step_end(m, t, hs);
-    element_forces(m, t, hs, forces || acc);
+    step_end(m, t, hs, n);
+    element_forces(m, t, hs, forces || acc, n);
     q_end = pivot_end(m, w, acc || last); /* at t1, for the ledger */
     if (acc)
         vsj__ts_book(m, t, acc, hs, q_end);
     advance_state(m, w, t1, on_grid, q_end);
     return VSJ_OK;
+}
+
+/* One step (step_sized), compiled for two free coordinates (the wrist's two rings, when
+ * its motors and pivot are driven by speed), where the loops over the coordinates
+ * unroll, and for any number. */
+static int one_step(const vsj_model *m, vsj_work *w, double tnow, double t1, double h,
+                    int on_grid, int last, double *acc, int forces) {
+    if (m->n == 2)
+        return step_sized(m, w, tnow, t1, h, on_grid, last, acc, forces, 2);
+    return step_sized(m, w, tnow, t1, h, on_grid, last, acc, forces, m->n);
 }
 
 /* ---- the run ----------------------------------------------------------------- */
@@ -1083,7 +1157,7 @@ vsj_report vsj__ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_
     rep.t = t0;
     rep.steps = 0;
     rep.rejected = 0;
-    if (!vsj__fits(m, w) || !vsj__ts_prepared_for(m, w) || !(h > 0.0) || !(t_end >= t0)) {
+    if (!vsj__ts_prepared_for(m, w) || !(h > 0.0) || !(t_end >= t0)) { /* w fits m */
         rep.status = VSJ_BAD_ARGUMENT;
         return rep;
     }
