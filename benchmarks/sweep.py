@@ -18,10 +18,11 @@ drifts; each way sees every moment alike, and the order rotates from block to bl
   storage and each sweep's start-up of its worker processes included; no figures);
 * dask: the same through a two-worker `LocalCluster` started once beforehand.
 
-Each block also runs both sweeps with one chunk per core (chunked as the block's): a
-straight line through the two sizes splits a sweep's time into a fixed part (start-up
-of its processes, preparation, files) and a part per run, and gives the time of the
-issue's full study, which is compared with the kernel's. With fewer runs than the full
+The sweeps are chunked as the full study is (256 runs a chunk, fewer where the blocks
+are small). Each block also runs both sweeps on one chunk: a straight line through the
+two sizes splits a sweep's time into a fixed part (start-up of its processes,
+preparation, files) and a part per run, and gives the time of the issue's full study,
+which is compared with the kernel's. With fewer runs than the full
 study, that is the figure the issue's target is checked on; the ratios measured at
 the block's size are printed above it.
 
@@ -151,15 +152,16 @@ def main() -> int:
     runs = per_block * blocks
     cores = available_cores()
     note = "" if runs >= FULL_RUNS else f" (the issue's study is {FULL_RUNS} runs)"
+    # the full study's chunks (fewer runs each where the blocks are small): the costs of a
+    # chunk (its transfer, storing, each task's start) then weigh on a run as there
+    chunk = min(sweep.default_chunk(FULL_RUNS), max(1, per_block // 4))
     print(f"sweep benchmark: {runs} runs{note} in {blocks} interleaved blocks of "
-          f"{per_block}, chunks of {sweep.default_chunk(per_block)} runs, {cores} cores",
-          flush=True)
+          f"{per_block}, chunks of {chunk} runs, {cores} cores", flush=True)
     root = Path(tempfile.mkdtemp(prefix="vsj-sweep-bench-"))
     cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                            dashboard_address=None)
     totals = {"kernel": 0.0, "sweep": 0.0, "dask": 0.0}
-    chunk = sweep.default_chunk(per_block)
-    small = min(per_block - 1, chunk * cores)  # one chunk per core
+    small = chunk  # one chunk, which the workers share in parts
     small_totals = {"sweep": 0.0, "dask": 0.0}
     blockwise = {k: [] for k in totals}  # each block's seconds
     size = storing = chunks = 0
@@ -174,13 +176,14 @@ def main() -> int:
                     seconds = bare_kernel(spec)
                 else:
                     seconds, size, stored, n = swept(
-                        spec, root / way, None if way == "sweep" else cluster.scheduler_address)
+                        spec, root / way, None if way == "sweep" else cluster.scheduler_address,
+                        chunk=chunk)
                     if way == "sweep":
                         storing, chunks = storing + stored, chunks + n
                 totals[way] += seconds
                 blockwise[way].append(seconds)
-            # the same sweeps with one chunk per core, chunked alike: what a sweep costs
-            # whatever its size (start-up, preparation, files) against what each run adds
+            # the same sweeps of one chunk: what a sweep costs whatever its size
+            # (start-up, preparation, files) against what each run adds
             small_path = root / f"small{block}.toml"
             small_path.write_text(SPEC.format(seed=block, samples=small))
             small_spec = sweep.load(small_path)
@@ -225,7 +228,7 @@ def main() -> int:
     kernel_run = totals["kernel"] / runs  # seconds per run (the kernel has no fixed part)
     if per_block < 4 * small:
         print(f"blocks of {per_block} runs are too few to tell a sweep's fixed cost from its "
-              f"cost per run (one chunk per core is {small}); run at least {4 * small * blocks}")
+              f"cost per run; run at least {4 * blocks} runs")
         return 0
     projected = {}
     print(f"\n{'way':<34}{'fixed per sweep':>16}{'per run vs kernel':>19}"
