@@ -14,9 +14,10 @@ speeds are the scenario's mean speeds over each step, held.
   in interleaved rounds it steps the FMU's model file (``resources/model.vsjm``,
   read by ``vsj_load_model``) with the C core's ``vsj_step`` on the same
   inputs, without and with its energy ledger. The first ratio is the FMI layer's
-  overhead (target: within 1.5x); the FMU keeps the ledger (its power outputs and
-  the check of the run's ledger at fmi2Terminate), so the second ratio is the
-  part the FMI layer adds around the same engine work (its checks, its bookkeeping).
+  overhead (target: within 1.5x, and issue 32's 1.1x); the FMU keeps the ledger (its
+  power outputs and the check of the run's ledger at fmi2Terminate), so the second
+  ratio is the part the FMI layer adds around the same engine work (its checks, its
+  bookkeeping), which is also checked against issue 32's 1.1x.
 
 Times are the minimum over interleaved rounds (this VM's speed drifts); from C, of the
 thread's CPU time, which leaves out the time other work on a shared machine takes.
@@ -44,6 +45,8 @@ DURATION = 10.0
 ROUNDS = 3
 C_ROUNDS = 25
 TARGET = 1.5
+#: issue 32's target for the FMU's step against the core's
+TARGET_32 = 1.1
 
 DRIVER = r"""
 /* FMU from C (dlopen, fmi2DoStep) against vsj_step on the same inputs. */
@@ -289,6 +292,11 @@ def main() -> int:
               f"({'within' if ratio <= TARGET else 'ABOVE'} the {TARGET}x target), FMU / core "
               f"with ledger {per_fmu / per_ledger:.2f}x; theta_x at 10 s: FMU {theta_fmu:.9g} "
               f"rad, core {theta_core:.9g} rad, FMPy {out['theta_x'][-1]:.9g} rad")
+        with_ledger = per_fmu / per_ledger
+        print(f"target (issue 32): the FMU step within {TARGET_32}x the core's: {ratio:.2f}x "
+              f"({'met' if ratio <= TARGET_32 else 'NOT met'}); with the ledger on both, as "
+              f"the FMU keeps it: {with_ledger:.2f}x "
+              f"({'met' if with_ledger <= TARGET_32 else 'NOT met'})")
         if abs(theta_fmu - theta_core) > 1e-9 or abs(theta_fmu - out["theta_x"][-1]) > 1e-9:
             print("failed: the FMU and the C core disagree")
             return 1
