@@ -105,6 +105,39 @@ def test_a_work_prepared_for_another_model_is_prepared_again(model):
     assert not np.array_equal(reused, first)  # the heavier model moved otherwise
 
 
+def test_a_step_that_failed_fails_again_when_tried_again(model):
+    """A step whose matrix is not positive definite fails (a viscous coefficient made
+    negative enough that M + h B is indefinite at the period's step but not at half of
+    it). Tried again from the same state, it must fail again: the failed attempt's half
+    written factor is not a factor of this matrix, and a step from it is not a result."""
+    rows = np.asarray(model.rows)
+    n = int(model.dims[0])
+    e = next(i for i in range(int(model.dims[2])) if np.any(model.xv[model.xp[i]:model.xp[i + 1]]))
+    state = np.zeros(int(2 * n + model.dims[5] + model.dims[1]))
+    inputs = np.zeros(int(model.dims[6]))
+    h = 1e-3
+
+    def statuses(viscous, periods):
+        par = np.array(model.par, dtype=float).reshape(len(rows), -1)
+        par[e, 0] = viscous
+        engine = Engine(model._replace(par=par.reshape(np.shape(model.par))))
+        y = state.copy()
+        return [_core.run(engine.c, engine.work, y, _held(model, 1, h), dt, held=inputs)[0]
+                for dt in periods]
+
+    # the least negative coefficient with which a step of h fails, to a part in 1e6
+    works, fails = 0.0, -1.0
+    while statuses(fails, [h])[0] == 0:
+        works, fails = fails, 2.0 * fails
+    while fails - works < -1e-6 * abs(fails):
+        middle = 0.5 * (works + fails)
+        works, fails = (middle, fails) if statuses(middle, [h])[0] == 0 else (works, middle)
+    # 1.3 times it: the step of h fails, one of h / 2 (half the damping's weight) does not
+    first, *again = statuses(1.3 * fails, [h / 2, h, h, h])
+    assert first == 0
+    assert all(status != 0 for status in again), again
+
+
 def test_a_work_that_served_another_model_evaluates_this_ones_inputs(model):
     """The engine keeps the inputs it evaluated last (a Rosenbrock step evaluates its
     last stages and its end at one time). On a work that evaluated another model's

@@ -17,12 +17,15 @@ import numpy as np
 import pytest
 
 from conftest import _once
+from vsj import components as C
 from vsj import export
 from vsj.cli import main
 from vsj.engine.core import IMPULSE_REL
 from vsj.engine.plan import METHODS
 from vsj.inputs import Constant
+from vsj.network import Network
 from vsj.simulate import InitialState, SimulationOptions, simulate
+from vsj.stepper import Stepper
 from vsj.wrist import build_wrist
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -224,3 +227,91 @@ def test_the_engine_sources_need_only_the_c_standard_library():
                    "sanitizer/asan_interface"}  # only in builds under AddressSanitizer
         for line in includes:
             assert line[len("#include <"):-len(".h>")] in allowed, (source.name, line)
+
+
+LEDGER_DRIVER = r"""
+#include <stdio.h>
+#include <stdlib.h>
+#include "vsj.h"
+
+/* ledger_step MODEL PERIODS SPEED: steps MODEL with its first input held at SPEED and
+ * prints each period's energy ledger (vsj_n_acc values) on a line. */
+int main(int argc, char **argv) {
+    char message[512];
+    vsj_loaded *loaded;
+    vsj_work *work;
+    double *state, *ledger, *inputs;
+    long periods, p;
+    int64_t i;
+    if (argc != 4 || !(loaded = vsj_load_model(argv[1], message, sizeof message)))
+        return 2;
+    work = vsj_work_new(&loaded->model);
+    state = malloc((size_t)vsj_step_state_size(&loaded->model) * sizeof(double));
+    ledger = malloc((size_t)vsj_n_acc(&loaded->model) * sizeof(double));
+    inputs = calloc((size_t)loaded->n_inputs + 1, sizeof(double));
+    if (!work || !state || !ledger || !inputs)
+        return 2;
+    for (i = 0; i < vsj_step_state_size(&loaded->model); i++)
+        state[i] = loaded->initial_state[i];
+    inputs[0] = strtod(argv[3], NULL);
+    periods = strtol(argv[2], NULL, 10);
+    for (p = 0; p < periods; p++) {
+        if (vsj_step(&loaded->model, work, &loaded->scheme, state, inputs, loaded->period,
+                     ledger) != VSJ_OK)
+            return 1;
+        for (i = 0; i < vsj_n_acc(&loaded->model); i++)
+            printf(i ? " %.17g" : "%.17g", ledger[i]);
+        printf("\n");
+    }
+    free(state);
+    free(ledger);
+    free(inputs);
+    vsj_work_free(work);
+    vsj_free_loaded(loaded);
+    return 0;
+}
+"""
+
+
+def test_a_source_on_the_channel_of_a_still_pivots_drive_ends_each_step_at_its_angle(
+        tmp_path):
+    """The time-stepper leaves a still pivot's drive unevaluated at the steps' ends, but
+    not the channel it reads when another source reads it too: a velocity source on the
+    pivot drive's channel, holding a linear spring against the ground, must load it by
+    exactly its held speed times the time. The step function's ledger shows it: each
+    period the spring's own work is minus its energy's change,
+    -1/2 k ((u t1)^2 - (u t0)^2)."""
+    stiffness, speed, periods = 50.0, 2.0, 3
+    net = Network("shared channel")
+    net.add(C.VelocitySource("drive", "w"), C.SpringDamper("spring", stiffness=stiffness),
+            C.Fixed("ground"), C.Inertia("body", 1e-3), C.TorqueSource("load", "tau"),
+            C.VelocitySource("pivot_drive", "w"),
+            C.PivotMechanism("pivot", amplitude=0.02, ratio=10.0, inertia=1e-4))
+    net.connect("drive.flange", "spring.a").connect("spring.b", "ground.flange")
+    net.connect("body.flange", "load.flange").connect("pivot_drive.flange", "pivot.input")
+    stepper = Stepper(net.assemble(), 1e-3, method="timestep",
+                      options=SimulationOptions(friction="viscous", step=1e-4))
+    assert stepper.input_names[0] == "w"
+    model = tmp_path / "shared.vsjm"
+    export.write_model(model, export.model_document(stepper), stepper)
+    source = tmp_path / "ledger_step.c"
+    source.write_text(LEDGER_DRIVER)
+    exe = tmp_path / "ledger_step"
+    subprocess.run([compiler(), "-std=c99", "-O1", *EXTRA_FLAGS, "-I", str(ENGINE), "-o",
+                    str(exe), str(source), *sorted(str(p) for p in ENGINE.glob("*.c")), "-lm"],
+                   check=True, capture_output=True, text=True)
+    done = subprocess.run([str(exe), str(model), str(periods), repr(speed)],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    ledgers = np.array([[float(v) for v in line.split()] for line in done.stdout.splitlines()])
+    sizes = stepper.model.sizes
+    # the ledger's order (engine/c/ledger.c): sources, loads, motors' supplies, friction,
+    # motors' resistance, then the springs' own work
+    spring = (sizes["n_sources"] + sizes["n_loads"] + 2 * sizes["n_motors"]
+              + sizes["n_frictions"])
+    t = np.arange(periods + 1) * stepper.period
+    expected = -0.5 * stiffness * np.diff((speed * t) ** 2)  # the spring's own work
+    # the spring's deflection is the source's angle to round-off (a few operations a
+    # step, ten steps a period), and the trapezoidal rule is exact for a linear spring
+    assert np.allclose(ledgers[:, spring], expected, rtol=100 * EPS, atol=0.0), \
+        (ledgers[:, spring], expected)

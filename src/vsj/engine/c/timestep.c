@@ -374,8 +374,9 @@ static void channel_lists(const vsj_model *m, ts_work *t) {
         if (t->wanted[c])
             t->mid_ch[t->n_mid_ch++] = c;
     memset(t->wanted, 0, (size_t)m->n_channels);
+    /* a channel is read at the end unless only a still pivot's sources read it */
     for (j = 0; j < m->n_sources; j++)
-        t->wanted[m->src_ch[j]] = !t->pivot_still || !pivot_source(t, j);
+        t->wanted[m->src_ch[j]] |= !(t->pivot_still && pivot_source(t, j));
     t->n_end_ch = 0;
     for (c = 0; c < m->n_channels; c++)
         if (t->wanted[c])
@@ -853,8 +854,10 @@ VSJ_ALWAYS_INLINE int factor_step(ts_work *t, double hs, double h, int64_t n) {
     }
     if (n > 0 && !same) {
         memcpy(t->H_last, t->H, (size_t)(n * n) * sizeof(double));
-        if (!vsj__cholesky(t->H, t->Lc, n, n, 0))
+        if (!vsj__cholesky(t->H, t->Lc, n, n, 0)) {
+            t->factored = 0; /* Lc is half written: no step, now or on a retry, uses it */
             return VSJ_NOT_FINITE;
+        }
         vsj__forward_block(t->Lc, t->DxA, t->YlT, mt, mt, n); /* L^-1 d_e: W = Y Y^T */
         forget_memo(t); /* it was made with the old YlT */
         t->factored = 1;
