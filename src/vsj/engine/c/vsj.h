@@ -9,7 +9,11 @@
  * caller; the run-time state of a computation lives in a `vsj_work`, allocated
  * once per model and passed explicitly to every function. Nothing is global:
  * any number of models and works may be used at once, from any number of
- * threads, as long as each work is used by one thread at a time.
+ * threads, as long as each work is used by one thread at a time. A work also
+ * holds one computation at a time: a run (vsj_begin to its last vsj_advance) or a
+ * step function keeps its state in it between calls, and a one-shot call
+ * (vsj_derivatives, vsj_jacobian, ...) on the same work in between overwrites that
+ * state; give such calls a work of their own.
  *
  * State vector y = [x (n), v (n), i (motors), accumulators (optional)]:
  * generalised angles and speeds, armature currents, then the energy
