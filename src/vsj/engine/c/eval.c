@@ -428,15 +428,36 @@ static void pivot_motion(const vsj_model *m, vsj_work *w) {
     }
 }
 
-/* Friction element e's slope in its slip at `slip`: its law's, a contact's as its
- * evaluation left it (it depends on the penetration too). */
-static double friction_slope(const vsj_model *m, const vsj_work *w, int64_t e, double slip) {
-    const double *p = vsj__row(m, e);
+/* Friction element e's torque's derivatives at `slip`: in the slip (returned) and, at
+ * a fixed slip, in time (*rate). A contact's slope is as its evaluation left it (it
+ * depends on the penetration too; no rate). The laws are linear in their level
+ * k N(slip, t), so a level that varies (vsj__normal: a normal force in time, a table's
+ * coefficient in the speed |slip|) adds k shape(slip) dN, where shape is the law at
+ * unit level without its viscous part. */
+static double friction_slope(const vsj_model *m, const vsj_work *w, int64_t e, double slip,
+                             double *rate) {
+    const double *p = vsj__row(m, e), *fp = m->par + e * VSJ_NPAR;
+    double slope, kshape, force = 1.0, coefficient = 1.0, dforce = 0.0, dcoefficient = 0.0;
+    *rate = 0.0;
     if (m->code[e] == VSJ_CONTACT)
         return w->frw[FRW * e + DSLIP];
-    return vsj__friction_slope(
-        m->code[e], p[0], vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1],
-        p[2], p[3], slip);
+    if (!vsj__varying(m, e))
+        return vsj__friction_slope(m->code[e], p[0], p[1], p[2], p[3], slip);
+    slope = vsj__friction_slope(m->code[e], p[0], p[1] * vsj__normal(m, w, e, slip, 0), p[2],
+                                p[3], slip);
+    kshape = vsj__friction(m->code[e], 0.0, p[1], p[2], p[3], slip, NULL);
+    if (fp[VSJ_F_CHANNEL] >= 0.0) { /* clipped to [0, 1]: no rate where clipped */
+        const double *ch = w->chan + 3 * (int64_t)fp[VSJ_F_CHANNEL];
+        force = ch[0] < 0.0 ? 0.0 : (ch[0] > 1.0 ? 1.0 : ch[0]);
+        dforce = ch[0] > 0.0 && ch[0] < 1.0 ? ch[1] : 0.0;
+    }
+    if (fp[VSJ_F_ROWS] > 0.0) { /* of |slip|: its slope's sign is the slip's */
+        int64_t first = (int64_t)fp[VSJ_F_TABLE], rows = (int64_t)fp[VSJ_F_ROWS];
+        coefficient = vsj__table(m, first, rows, fabs(slip));
+        dcoefficient = vsj__table_slope(m, first, rows, fabs(slip)) * (slip < 0.0 ? -1.0 : 1.0);
+    }
+    *rate = kshape * dforce * coefficient;
+    return slope + kshape * force * dcoefficient;
 }
 
 /* The generalised forces' derivatives in the state (x, v, motor currents) and in
@@ -456,13 +477,16 @@ static void force_derivatives(const vsj_model *m, vsj_work *w, double *jg) {
         }
     }
     for (e = 0; e < f; e++) { /* torque -f(s), s = X v + U u; a contact's, f(s, d) */
-        double slip = w->frw[FRW * e + SLIP], slope;
+        double slip = w->frw[FRW * e + SLIP], slope, rate;
         if (m->xp[e + 1] == m->xp[e])
             continue;
-        slope = friction_slope(m, w, e, slip);
+        slope = friction_slope(m, w, e, slip, &rate);
         add_outer(m, e, jg, cols, n, -slope);
-        for (i = m->xp[e]; i < m->xp[e + 1]; i++)
+        for (i = m->xp[e]; i < m->xp[e + 1]; i++) {
             jg[cols * m->xc[i] + ns] -= slope * vsj__udot(m, e, w->srcw, UD) * m->xv[i];
+            if (rate != 0.0)
+                jg[cols * m->xc[i] + ns] -= rate * m->xv[i];
+        }
         if (m->code[e] == VSJ_CONTACT) { /* and its position: d = X x + U sigma - gap */
             double dpos = w->frw[FRW * e + DPOS];
             add_outer(m, e, jg, cols, 0, -dpos);
@@ -536,14 +560,16 @@ static void source_force_derivatives(const vsj_model *m, const vsj_work *w, doub
         }
     }
     for (e = 0; e < f; e++) { /* - tau, tau = f(slip) */
-        double slip = w->frw[FRW * e + SLIP], slope;
+        double slip = w->frw[FRW * e + SLIP], slope, rate;
         if (m->up[e + 1] == m->up[e])
             continue;
-        slope = friction_slope(m, w, e, slip);
+        slope = friction_slope(m, w, e, slip, &rate);
         for (c = m->up[e]; c < m->up[e + 1]; c++) {
             double *row = dF + cols * m->uc[c];
             add_x(m, e, row, n, -slope * m->uv[c]);
             row[ns] -= slope * vsj__udot(m, e, w->srcw, UD) * m->uv[c];
+            if (rate != 0.0)
+                row[ns] -= rate * m->uv[c];
             if (m->code[e] == VSJ_CONTACT) {
                 double dpos = w->frw[FRW * e + DPOS];
                 add_x(m, e, row, 0, -dpos * m->uv[c]);
@@ -619,11 +645,13 @@ void vsj__eval_ledger_rows(const vsj_model *m, vsj_work *w, const double *y, con
         row[ns] = w->chan[3 * m->code[base_m + mo] + 1] * y[2 * n + mo];
     }
     for (e = 0; e < f; e++, row += cols) { /* tau slip */
-        double slip = w->frw[FRW * e + SLIP], slope, dp;
-        slope = friction_slope(m, w, e, slip);
+        double slip = w->frw[FRW * e + SLIP], slope, dp, rate;
+        slope = friction_slope(m, w, e, slip, &rate);
         dp = slope * slip + w->frw[FRW * e + TORQUE];
         add_x(m, e, row, n, dp);
         row[ns] = dp * vsj__udot(m, e, w->srcw, UD);
+        if (rate != 0.0)
+            row[ns] += rate * slip;
         if (m->code[e] == VSJ_CONTACT) { /* the force's position: slip dF/dd */
             double dpos = w->frw[FRW * e + DPOS];
             add_x(m, e, row, 0, slip * dpos);

@@ -354,6 +354,21 @@ static inline double vsj__table(const vsj_model *m, int64_t first, int64_t rows,
     return row[2 * rows - 1];
 }
 
+/* The table's slope d(coefficient)/d(speed) at `speed` >= 0, where vsj__table reads
+ * it: the slope of the row pair it interpolates between (the upper one at a row's
+ * speed), zero below the first row and from the last on. */
+static inline double vsj__table_slope(const vsj_model *m, int64_t first, int64_t rows,
+                                      double speed) {
+    const double *row = m->table + 2 * first;
+    int64_t i;
+    if (speed <= row[0])
+        return 0.0;
+    for (i = 1; i < rows; i++)
+        if (speed < row[2 * i])
+            return (row[2 * i + 1] - row[2 * i - 1]) / (row[2 * i] - row[2 * i - 2]);
+    return 0.0;
+}
+
 /* The factor on friction element e's Coulomb level k pi/2: the normal force's
  * input (clipped to [0, 1]) times the table's coefficient at |slip|, or at zero
  * speed times the peak when `stuck`. 1 for an element without either. */

@@ -6,12 +6,13 @@
  * fast modes the steps do not resolve (a stiff, lightly damped torque sensor) are
  * damped rather than carried along. Each step factorises I/(gamma h) - J once,
  * evaluates the model at five stages (its first stage takes the previous step's end
- * point) and, accepted, once more at its end point. J and the time derivative df/dt are analytic (vsj__eval_jacobian: the
- * friction slopes, spring stiffnesses, the pivot's motion, motors and the
- * sources' accelerations). Where J is only approximate (a friction table's speed
- * dependence, a normal-force input's time dependence) the error control still holds;
- * the steps are shorter. As x' = v, the linear systems reduce to the speeds and motor
- * currents.
+ * point) and, accepted, once more at its end point. J and the time derivative df/dt
+ * are analytic (vsj__eval_jacobian: the friction slopes, with a level that follows a
+ * speed table or a normal force in time, spring stiffnesses, the pivot's motion,
+ * motors and the sources' accelerations). They also give the second derivatives the
+ * interpolant below uses, so an approximate J would cost accuracy between the steps
+ * as well as shorter steps. As x' = v, the linear systems reduce to the speeds and
+ * motor currents.
  *
  * The energy ledger's accumulators (components n_state .. ny-1) ride along as in
  * dopri, outside the error norm, with their own rows of the Jacobian (the rates'
