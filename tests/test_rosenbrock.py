@@ -53,11 +53,11 @@ def moving_pivot_plan(params, drive="velocity"):
     return prepare(structure, inputs, 2.0, SimulationOptions(), InitialState(q=-0.01))
 
 
-def clutch_plan(params):
+def clutch_plan(params, forces=None):
     """Friction whose level varies: two clutches and a brake with speed-dependent
-    coefficients (tables) and normal forces that change in time (0.5 +- 0.3, never
-    clipped), so that their torques depend on the slip through the table as well as the
-    law, and on time through the force."""
+    coefficients (tables) and normal forces that change in time (by default 0.5 +- 0.3,
+    never clipped), so that their torques depend on the slip through the table as well
+    as the law, and on time through the force."""
     net = Network("clutches")
     net.add(TorqueSource("torque", "torque"), *(Inertia(f"J{i}", 0.2 * i) for i in (1, 2, 3)),
             Clutch("c1", fn_max=20.0, mu=((0.0, 0.5), (1.0, 0.3), (30.0, 0.25))),
@@ -69,7 +69,7 @@ def clutch_plan(params):
     net.connect("J3.flange", "b.flange")
     inputs = {"torque": Sine(3.0, 2.0), "c1_force": Sine(0.3, 1.3, offset=0.5),
               "c2_force": Sine(0.3, 0.7, phase=1.0, offset=0.5),
-              "b_force": Sine(0.3, 0.4, phase=2.0, offset=0.5)}
+              "b_force": Sine(0.3, 0.4, phase=2.0, offset=0.5), **(forces or {})}
     return prepare(net.assemble(), inputs, 2.0, SimulationOptions(),
                    InitialState(speeds={"J1.flange": 6.0, "J2.flange": 2.0, "J3.flange": -1.5}))
 
@@ -189,17 +189,45 @@ def test_the_error_stays_within_the_tolerance_at_steps_and_between_them(rtol, pa
     assert len(times) < 0.1 * len(grid)  # steps many samples long: the interpolant is tested
 
 
+def test_a_normal_force_leaving_its_limit_has_its_rate_in_the_time_derivative(params):
+    """A clutch's normal force ramping up from 0 and a brake's ramping down from 1, both
+    from t = 0: the forces stand on their clipping limits there, but move inside at
+    once, so df/dt (the derivative after t, as at any corner of an input) has their
+    rates. Forward differences at steps h and h/2 check it: their truncation error
+    falls as h, so their gap bounds the finer one's, plus the round-off of a
+    difference, 4 eps / h times the size of the terms."""
+    plan = clutch_plan(params, {"c1_force": Table((0.0, 0.4, 2.0), (0.0, 1.0, 1.0)),
+                                "b_force": Table((0.0, 0.3, 2.0), (1.0, 0.2, 0.2))})
+    engine = plan.engine()
+    ns = engine.n_state
+    y = np.asarray(plan.y0[:ns], dtype=float)
+    status, jac, ft = engine.jacobian(0.0, y, ledger=False)
+    assert status == 0
+    f0 = engine.derivatives(0.0, y)[1]
+    h = STEP
+
+    def forward(step):
+        return (engine.derivatives(step, y)[1] - f0) / step
+
+    coarse, fine = forward(h), forward(h / 2)
+    allowed = np.abs(coarse - fine) + 4 * EPS * (np.abs(f0) + np.abs(ft) * h) / (h / 2)
+    assert np.abs(fine).max() > 0  # the forces move
+    assert np.all(np.abs(ft - fine) <= 2 * allowed), (ft, fine, allowed)
+
+
 @pytest.mark.parametrize("rtol", [1e-5, 1e-6])
 def test_friction_whose_level_varies_is_integrated_to_the_tolerance(rtol, params):
     """Clutches and a brake whose level follows speed tables and time-varying normal
     forces (`clutch_plan`): the Rosenbrock samples every millisecond lie within the
     scale the tolerance sets for each state, atol + rtol max|y|, of a tight dopri run
-    (a scheme that uses no Jacobian). Each accepted step's error is at most the
-    tolerance in the RMS norm over the ns states, so one component at most sqrt(ns)
-    times it; friction only dissipates, so earlier steps' errors do not grow. The
-    steps' second derivatives, which the interpolant between them uses, come from the
-    Jacobian: with the level's derivatives missing there, the samples were off by up
-    to ten times the scale at rtol 1e-6."""
+    (a scheme that uses no Jacobian), to within the bound of one step: each accepted
+    step's error is at most the tolerance in the RMS norm over the ns states, so one
+    component at most sqrt(ns) times it. This is a local bound used as a global one:
+    the speeds' errors are damped by the friction, but the angles' add up, and the runs
+    stay well inside it (an order of magnitude at these tolerances). The steps' second
+    derivatives, which the interpolant between them uses, come from the Jacobian: with
+    the level's derivatives missing there, the samples were off by up to twenty times
+    the scale at rtol 1e-6, eight times the bound."""
     plan = clutch_plan(params)
     ns = plan.layout.n_state
     grid = np.arange(0, 2001) * 1e-3

@@ -448,8 +448,14 @@ static double friction_slope(const vsj_model *m, const vsj_work *w, int64_t e, d
     kshape = vsj__friction(m->code[e], 0.0, p[1], p[2], p[3], slip, NULL);
     if (fp[VSJ_F_CHANNEL] >= 0.0) { /* clipped to [0, 1]: no rate where clipped */
         const double *ch = w->chan + 3 * (int64_t)fp[VSJ_F_CHANNEL];
+        /* on a limit, the rate counts if the input is inside on the side the evaluation
+         * looks at: after the time (a ramp leaving 0 or 1), or before it with w->left (a
+         * ramp arriving there, at a step's end on the ramp's corner) */
+        double ahead = w->left ? -ch[1] : ch[1];
         force = ch[0] < 0.0 ? 0.0 : (ch[0] > 1.0 ? 1.0 : ch[0]);
-        dforce = ch[0] > 0.0 && ch[0] < 1.0 ? ch[1] : 0.0;
+        if ((ch[0] > 0.0 && ch[0] < 1.0) || (ch[0] == 0.0 && ahead > 0.0)
+            || (ch[0] == 1.0 && ahead < 0.0))
+            dforce = ch[1];
     }
     if (fp[VSJ_F_ROWS] > 0.0) { /* of |slip|: its slope's sign is the slip's */
         int64_t first = (int64_t)fp[VSJ_F_TABLE], rows = (int64_t)fp[VSJ_F_ROWS];

@@ -253,13 +253,14 @@ static int end_point(const vsj_model *m, vsj_work *w, const dopri_state *d, int 
     int64_t ny = d->ny;
     double *K = w->K;
     int status;
-    if (end == 2) { /* on a corner: the step's own end for its interpolant */
+    if (end == 2) { /* on a corner: the step's own end for its interpolant (the
+                     * Jacobian's time derivatives, too, from before the corner) */
         w->left = 1;
         vsj__eval_derivatives(m, w, t_land, w->y1, ny, K + ny * F_END);
-        w->left = 0;
         w->status = VSJ_OK;
         jacobian_at(m, w, d, w->y1, K + ny * F_END, w->jac_new, w->ft_new, w->jacc_new,
                     K + ny * S_END);
+        w->left = 0;
     }
     vsj__eval_derivatives(m, w, t_land, w->y1, ny, K + ny * F_STAGE);
     status = w->status;

@@ -236,9 +236,9 @@ int vsj_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y, 
  * vsj_n_state of them, or the state and the ledger's accumulators; J: row-major
  * ny x vsj_n_state, as the accumulators' rates do not depend on the accumulators)
  * and their partial derivative in time, ft (ny values): the Rosenbrock scheme's
- * linearisation. Exact where friction levels are constants: the speed dependence
- * of friction tables and the time dependence of normal-force inputs are left out. Returns the status of the
- * evaluation at (t, y). */
+ * linearisation, friction levels that follow speed tables or normal-force inputs
+ * included. At a corner of an input (a table's knot) time derivatives are those after
+ * it. Returns the status of the evaluation at (t, y). */
 int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, int64_t ny,
                  double *J, double *ft);
 
