@@ -74,6 +74,8 @@ every = "20 ms"
 """
 #: the issue's Monte Carlo
 FULL_RUNS = 100_000
+#: issue 32's target: the full study at this fraction of the bare kernel's speed or more
+TARGET = 0.95
 #: runs per call of the kernel (bounds the memory of the sampled states)
 KERNEL_SLICE = 512
 
@@ -239,13 +241,15 @@ def main() -> int:
         fixed = little - small * per_run
         projected[way] = kernel_run * FULL_RUNS / (fixed + per_run * FULL_RUNS)
         print(f"{names[way]:<34}{fixed:>15.2f}s{per_run / kernel_run - 1:>+18.1%}"
-              f"{projected[way]:>22.0%}")
+              f"{projected[way]:>22.1%}")
     # issue 32's acceptance: the 1e5-run Monte Carlo at >= 95 % of the bare kernel's
     # speed, locally and on a Dask LocalCluster
     measured = ("" if runs >= FULL_RUNS else
                 f" ({runs}-run sweeps measured, {FULL_RUNS} from the line)")
-    print(f"targets (issue 32, at {FULL_RUNS} runs{measured}): sweep >= 95 % of kernel: "
-          f"{projected['sweep']:.0%}; dask >= 95 %: {projected['dask']:.0%}")
+    verdict = {way: "met" if projected[way] >= TARGET else "NOT met" for way in projected}
+    print(f"targets (issue 32, at {FULL_RUNS} runs{measured}): sweep >= {TARGET:.0%} of kernel: "
+          f"{projected['sweep']:.1%} ({verdict['sweep']}); dask >= {TARGET:.0%}: "
+          f"{projected['dask']:.1%} ({verdict['dask']})")
     return 0
 
 
