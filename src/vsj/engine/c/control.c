@@ -130,22 +130,13 @@ static int check_sensors(const vsj_model *m, char *message, size_t size) {
     return VSJ_OK;
 }
 
-/* Whether channel c is read by a velocity source (whose angle is the channel's
- * integral: a controller does not drive one). */
-static int source_channel(const vsj_model *m, int64_t c) {
-    int64_t j;
-    for (j = 0; j < m->n_sources; j++)
-        if (m->src_ch[j] == c)
-            return 1;
-    return 0;
-}
-
 static int check_actuators(const vsj_model *m, char *message, size_t size) {
     int64_t a, b, c;
     for (a = 0; a < m->n_acts; a++) {
         const double *p = m->act_par + VSJ_NACT * a;
         c = m->act_ch[a];
-        if (c < 0 || c >= m->n_channels || source_channel(m, c))
+        /* a velocity source reads its channel's integral: a controller drives none */
+        if (c < 0 || c >= m->n_channels || vsj__among(m->src_ch, m->n_sources, c))
             return vsj__fail(message, size, "controller actuator %lld: channel %lld is not a "
                              "load's or a motor's input", (long long)a, (long long)c);
         for (b = 0; b < a; b++)

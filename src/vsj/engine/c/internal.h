@@ -354,6 +354,15 @@ static inline double vsj__table(const vsj_model *m, int64_t first, int64_t rows,
     return row[2 * rows - 1];
 }
 
+/* Whether v is one of the n values of a. */
+static inline int vsj__among(const int64_t *a, int64_t n, int64_t v) {
+    int64_t i;
+    for (i = 0; i < n; i++)
+        if (a[i] == v)
+            return 1;
+    return 0;
+}
+
 /* The table's slope d(coefficient)/d(speed) at `speed` >= 0, where vsj__table reads
  * it: the slope of the row pair it interpolates between (the upper one at a row's
  * speed), zero below the first row and from the last on. */

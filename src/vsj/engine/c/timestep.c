@@ -320,7 +320,7 @@ static void levels_and_lists(const vsj_model *m, ts_work *t) {
  * zero integrals, that no controller drives), so that their angles do not move. (Held
  * inputs, the step function's, are other values: step_inputs checks.) */
 static int pivot_still(const vsj_model *m) {
-    int64_t r_piv = m->n_rows - 1, k, a;
+    int64_t r_piv = m->n_rows - 1, k;
     if (m->xp[r_piv + 1] > m->xp[r_piv])
         return 0;
     for (k = m->up[r_piv]; k < m->up[r_piv + 1]; k++) {
@@ -329,20 +329,15 @@ static int pivot_still(const vsj_model *m) {
         if (m->count[ch] != 1 || cf[0] != 0.0 || cf[1] != 0.0 || cf[2] != 0.0 || cf[3] != 0.0
             || m->cum[koff] != 0.0 || m->cum[koff + 1] != 0.0 || m->period[2 * ch + 1] != 0.0)
             return 0;
-        for (a = 0; a < m->n_acts; a++)
-            if (m->act_ch[a] == ch)
-                return 0;
+        if (vsj__among(m->act_ch, m->n_acts, ch))
+            return 0;
     }
     return 1;
 }
 
 /* Whether source j drives the pivot. */
 static int pivot_source(const ts_work *t, int64_t j) {
-    int64_t i;
-    for (i = 0; i < t->n_mid_src; i++)
-        if (t->mid_src[i] == j)
-            return 1;
-    return 0;
+    return vsj__among(t->mid_src, t->n_mid_src, j);
 }
 
 /* At mid-step only the loads, the motor voltages and the pivot's sources are read; a
