@@ -443,9 +443,6 @@ static double friction_slope(const vsj_model *m, const vsj_work *w, int64_t e, d
         return w->frw[FRW * e + DSLIP];
     if (!vsj__varying(m, e))
         return vsj__friction_slope(m->code[e], p[0], p[1], p[2], p[3], slip);
-    slope = vsj__friction_slope(m->code[e], p[0], p[1] * vsj__normal(m, w, e, slip, 0), p[2],
-                                p[3], slip);
-    kshape = vsj__friction(m->code[e], 0.0, p[1], p[2], p[3], slip, NULL);
     if (fp[VSJ_F_CHANNEL] >= 0.0) { /* clipped to [0, 1]: no rate where clipped */
         const double *ch = w->chan + 3 * (int64_t)fp[VSJ_F_CHANNEL];
         /* on a limit, the rate counts if the input is inside on the side the evaluation
@@ -462,6 +459,10 @@ static double friction_slope(const vsj_model *m, const vsj_work *w, int64_t e, d
         coefficient = vsj__table(m, first, rows, fabs(slip));
         dcoefficient = vsj__table_slope(m, first, rows, fabs(slip)) * (slip < 0.0 ? -1.0 : 1.0);
     }
+    /* force * coefficient is vsj__normal's factor for a sliding element */
+    slope = vsj__friction_slope(m->code[e], p[0], p[1] * (force * coefficient), p[2], p[3],
+                                slip);
+    kshape = vsj__friction(m->code[e], 0.0, p[1], p[2], p[3], slip, NULL);
     *rate = kshape * dforce * coefficient;
     return slope + kshape * force * dcoefficient;
 }
