@@ -56,3 +56,39 @@ def test_viscous_law_drops_the_coulomb_part():
 def test_unknown_law_is_named():
     with pytest.raises(ValueError, match="unknown friction law 'coulomb'"):
         friction.law_code("coulomb")
+
+
+def _engine_atan(x):
+    """The engine's arctangent, as the arctan law with k = 1, k_b = 1, b = 0 gives it
+    (k atan(k_b s) with unit factors: the products are exact)."""
+    return friction.torque("arctan", x, stiction=1.0, sharpness=1.0)
+
+
+def test_the_engines_arctangent_is_within_two_ulps_of_the_c_librarys():
+    # the engine's own arctangent (engine/c/internal.h): its polynomial is within half
+    # an ulp on |t| <= tan(pi/8) (tools/atan_coefficients.py), and each reduction adds
+    # a division and a sum, each rounded once; glibc's atan is correctly rounded
+    rng = np.random.default_rng(7)
+    wide = np.sign(rng.normal(size=200_000)) * 10.0 ** rng.uniform(-308, 308, 200_000)
+    near = rng.uniform(-5.0, 5.0, 200_000)
+    # a thousand neighbours on each side of each switch of the reduction, and of 1
+    edges = [b + np.arange(-1000, 1001) * np.spacing(b)
+             for b in (math.tan(math.pi / 8), 1.0, math.tan(3 * math.pi / 8))]
+    x = np.concatenate([wide, near, *edges, -np.concatenate(edges)])
+    got = _engine_atan(x)
+    expected = np.array([math.atan(v) for v in x])
+    ulps = np.abs(got - expected) / np.spacing(np.abs(expected))
+    assert ulps.max() <= 2.0, x[np.argmax(ulps)]
+    # and it rises wherever x rises, across the switches too (a friction law's slope
+    # is never negative)
+    order = np.sort(x)
+    assert np.all(np.diff(_engine_atan(order)) >= 0.0)
+
+
+def test_the_engines_arctangent_keeps_zeros_tiny_values_and_nans():
+    x = np.array([0.0, -0.0, 5e-324, -5e-324, 1e-310, 1e300, -1e300, np.nan])
+    got = _engine_atan(x)
+    assert np.array_equal(np.signbit(got[:2]), [False, True]) and np.all(got[:2] == 0.0)
+    assert np.array_equal(got[2:5], x[2:5])  # atan(x) = x to the last bit below 1e-8
+    assert got[5] == math.pi / 2 and got[6] == -math.pi / 2  # the double nearest pi/2
+    assert np.isnan(got[7])

@@ -109,7 +109,7 @@ static double memo_atan(atan_memo *c, double x) {
     i = c->used < 4 ? c->used++ : c->next;
     c->next = (i + 1) & 3;
     c->x[i] = x;
-    c->value[i] = atan(x);
+    c->value[i] = vsj__atan(x);
     return c->value[i];
 }
 

@@ -425,6 +425,37 @@ static inline double vsj__contact(const double *p, double d, double s, double *d
     return f;
 }
 
+/* The arctangent, within 2 units in the last place of the correctly rounded value
+ * (tests/test_friction.py checks it against the C library's). glibc's atan saves and
+ * restores the floating-point environment on every call, which costs as much as its
+ * arithmetic, and the friction laws call it a dozen times per evaluation. |x| is reduced to |t| <= tan(pi/8) by
+ * atan(x) = pi/2 + atan(-1/x) above tan(3pi/8) and by atan(x) = pi/4 + atan((x-1)/(x+1))
+ * between, then atan(t) = t + t^3 P(t^2) with the degree-10 polynomial P of
+ * tools/atan_coefficients.py (evaluated in Estrin's order: shorter chains of dependent
+ * operations). The reductions are selections, not branches, as slips change sign and
+ * size from one call to the next. */
+static inline double vsj__atan(double x) {
+    static const double c[11] = {
+        -0.3333333333333333, 0.1999999999999552, -0.14285714284666542, 0.11111111015256361,
+        -0.09090904578123903, 0.07692183190826087, -0.06664511447381948, 0.0585814891280221,
+        -0.0508544973794026, 0.03923165829558719, -0.01917688711906226};
+    /* pi/2 and pi/4, each as a double and the double nearest to what it leaves out */
+    static const double half_pi[2] = {1.5707963267948966, 6.123233995736766e-17};
+    static const double quarter_pi[2] = {0.7853981633974483, 3.061616997868383e-17};
+    double a = fabs(x), t, u, u2, u4, p, hi, lo;
+    int big = a > 2.414213562373095, mid = a > 0.41421356237309503;
+    t = (big ? -1.0 : (mid ? a - 1.0 : a)) / (big ? a : (mid ? a + 1.0 : 1.0));
+    hi = big ? half_pi[0] : (mid ? quarter_pi[0] : 0.0);
+    lo = big ? half_pi[1] : (mid ? quarter_pi[1] : 0.0);
+    u = t * t;
+    u2 = u * u;
+    u4 = u2 * u2;
+    p = (c[0] + c[1] * u) + u2 * (c[2] + c[3] * u)
+        + u4 * ((c[4] + c[5] * u) + u2 * (c[6] + c[7] * u))
+        + u4 * u4 * ((c[8] + c[9] * u) + u2 * c[10]);
+    return copysign(hi + (lo + (t + t * u * p)), x);
+}
+
 /* The slope df/ds of a friction law at s (vsj__friction's, without its torque). */
 static inline double vsj__friction_slope(int64_t law, double b, double k, double kb, double w,
                                          double s) {
@@ -441,7 +472,7 @@ static inline double vsj__friction(int64_t law, double b, double k, double kb, d
     double f = b * s;
     double df = b;
     if (law == VSJ_ARCTAN) {
-        f += k * atan(kb * s);
+        f += k * vsj__atan(kb * s);
         df += k * kb / (1.0 + (kb * s) * (kb * s));
     } else if (law == VSJ_SIGN) {
         if (s > 0.0)
