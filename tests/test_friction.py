@@ -65,30 +65,32 @@ def _engine_atan(x):
 
 
 def test_the_engines_arctangent_is_within_two_ulps_of_the_c_librarys():
-    # the engine's own arctangent (engine/c/internal.h): its polynomial is within half
-    # an ulp on |t| <= tan(pi/8) (tools/atan_coefficients.py), and each reduction adds
-    # a division and a sum, each rounded once; glibc's atan is correctly rounded
+    # the engine's arctangent (engine/c/internal.h) is within 0.9 ulp of the exact value
+    # on every interval of its reduction (tools/atan_coefficients.py measures it), and a
+    # C library's atan within an ulp (glibc's within 0.52): the two are less than two
+    # ulps apart
     rng = np.random.default_rng(7)
     wide = np.sign(rng.normal(size=200_000)) * 10.0 ** rng.uniform(-308, 308, 200_000)
     near = rng.uniform(-5.0, 5.0, 200_000)
-    # a thousand neighbours on each side of each switch of the reduction, and of 1
+    # a thousand neighbours on each side of each switch of the reduction
     edges = [b + np.arange(-1000, 1001) * np.spacing(b)
-             for b in (math.tan(math.pi / 8), 1.0, math.tan(3 * math.pi / 8))]
+             for b in (0.4375, 0.6875, 1.1875, 2.4375)]
     x = np.concatenate([wide, near, *edges, -np.concatenate(edges)])
     got = _engine_atan(x)
     expected = np.array([math.atan(v) for v in x])
     ulps = np.abs(got - expected) / np.spacing(np.abs(expected))
-    assert ulps.max() <= 2.0, x[np.argmax(ulps)]
+    assert ulps.max() < 2.0, x[np.argmax(ulps)]
     # and it rises wherever x rises, across the switches too (a friction law's slope
     # is never negative)
     order = np.sort(x)
     assert np.all(np.diff(_engine_atan(order)) >= 0.0)
 
 
-def test_the_engines_arctangent_keeps_zeros_tiny_values_and_nans():
-    x = np.array([0.0, -0.0, 5e-324, -5e-324, 1e-310, 1e300, -1e300, np.nan])
+def test_the_engines_arctangent_keeps_signed_zeros_and_tiny_and_huge_values():
+    # (through the law with b = 0: its 0 s term is a zero of the speed's sign, so that
+    # atan(-0) must be -0 for the torque to be -0)
+    x = np.array([0.0, -0.0, 5e-324, -5e-324, 1e-310, 1e-20, 1e300, -1e300])
     got = _engine_atan(x)
     assert np.array_equal(np.signbit(got[:2]), [False, True]) and np.all(got[:2] == 0.0)
-    assert np.array_equal(got[2:5], x[2:5])  # atan(x) = x to the last bit below 1e-8
-    assert got[5] == math.pi / 2 and got[6] == -math.pi / 2  # the double nearest pi/2
-    assert np.isnan(got[7])
+    assert np.array_equal(got[2:6], x[2:6])  # atan(x) = x to the last bit below 1e-8
+    assert got[6] == math.pi / 2 and got[7] == -math.pi / 2  # the double nearest pi/2

@@ -425,35 +425,48 @@ static inline double vsj__contact(const double *p, double d, double s, double *d
     return f;
 }
 
-/* The arctangent, within 2 units in the last place of the correctly rounded value
- * (tests/test_friction.py checks it against the C library's). glibc's atan saves and
- * restores the floating-point environment on every call, which costs as much as its
- * arithmetic, and the friction laws call it a dozen times per evaluation. |x| is reduced to |t| <= tan(pi/8) by
- * atan(x) = pi/2 + atan(-1/x) above tan(3pi/8) and by atan(x) = pi/4 + atan((x-1)/(x+1))
- * between, then atan(t) = t + t^3 P(t^2) with the degree-10 polynomial P of
- * tools/atan_coefficients.py (evaluated in Estrin's order: shorter chains of dependent
- * operations). The reductions are selections, not branches, as slips change sign and
- * size from one call to the next. */
+/* The arctangent, within an ulp of the exact value. glibc's atan guards the rounding
+ * mode on every call, which is slow on x86, and the friction laws take a dozen
+ * arctangents per evaluation. |x| is reduced about the centre c nearest it (0, 1/2, 1,
+ * 3/2 or infinity) by atan(x) = atan(c) + atan(t), t = (x - c) / (1 + c x), or -1/x
+ * about infinity. Each x - c is exact, so |t| <= 7/16 carries little error, and
+ * atan(c) is added as a double and the double nearest to what it leaves out, the
+ * latter to the small terms first. atan(t) = t + t^3 P(t^2) with the degree-10
+ * polynomial of tools/atan_coefficients.py (evaluated in Estrin's order: shorter
+ * chains of dependent operations); that script also measures this sequence of
+ * operations against the exact arctangent on every interval. The comparisons are
+ * quiet (a NaN raises no flag); for |x| below about 1e-19 or above 1e19 the polynomial
+ * may raise the underflow flag, its term far below the result's last place. */
 static inline double vsj__atan(double x) {
     static const double c[11] = {
-        -0.3333333333333333, 0.1999999999999552, -0.14285714284666542, 0.11111111015256361,
-        -0.09090904578123903, 0.07692183190826087, -0.06664511447381948, 0.0585814891280221,
-        -0.0508544973794026, 0.03923165829558719, -0.01917688711906226};
-    /* pi/2 and pi/4, each as a double and the double nearest to what it leaves out */
-    static const double half_pi[2] = {1.5707963267948966, 6.123233995736766e-17};
-    static const double quarter_pi[2] = {0.7853981633974483, 3.061616997868383e-17};
-    double a = fabs(x), t, u, u2, u4, p, hi, lo;
-    int big = a > 2.414213562373095, mid = a > 0.41421356237309503;
-    t = (big ? -1.0 : (mid ? a - 1.0 : a)) / (big ? a : (mid ? a + 1.0 : 1.0));
-    hi = big ? half_pi[0] : (mid ? quarter_pi[0] : 0.0);
-    lo = big ? half_pi[1] : (mid ? quarter_pi[1] : 0.0);
+        -0.33333333333333326, 0.1999999999998777, -0.1428571428314864, 0.11111110900560475,
+        -0.09090900195560148, 0.07692087348767168, -0.06663239299107136, 0.05847724720645106,
+        -0.05033942776485848, 0.03782521866106712, -0.017547235157290005};
+    /* atan of each centre: the double nearest, and the double nearest the rest */
+    static const double hi[5] = {0.0, 0.4636476090008061, 0.7853981633974483,
+                                 0.982793723247329, 1.5707963267948966};
+    static const double lo[5] = {0.0, 2.2698777452961687e-17, 3.061616997868383e-17,
+                                 1.3903311031230998e-17, 6.123233995736766e-17};
+    double a = fabs(x), t, u, u2, u4, p;
+    int r = isgreater(a, 0.4375) + isgreater(a, 0.6875) + isgreater(a, 1.1875)
+            + isgreater(a, 2.4375);
+    if (r == 0)
+        t = a;
+    else if (r == 1)
+        t = (a - 0.5) / (1.0 + 0.5 * a);
+    else if (r == 2)
+        t = (a - 1.0) / (a + 1.0);
+    else if (r == 3)
+        t = (a - 1.5) / (1.0 + 1.5 * a);
+    else
+        t = -1.0 / a;
     u = t * t;
     u2 = u * u;
     u4 = u2 * u2;
     p = (c[0] + c[1] * u) + u2 * (c[2] + c[3] * u)
         + u4 * ((c[4] + c[5] * u) + u2 * (c[6] + c[7] * u))
         + u4 * u4 * ((c[8] + c[9] * u) + u2 * c[10]);
-    return copysign(hi + (lo + (t + t * u * p)), x);
+    return copysign(hi[r] + (t + (lo[r] + t * u * p)), x);
 }
 
 /* The slope df/ds of a friction law at s (vsj__friction's, without its torque). */
