@@ -214,8 +214,8 @@ def test_smooth_laws_scale_a_clutch_by_its_normal_force(friction):
         shape = 2 / math.pi * np.arctan(structure.frictions[0].sharpness * speed[fast])
     else:
         shape = 1.0
-    # two arctangents (the engine's and numpy's, each within an ulp of the exact value)
-    # and a few products
+    # two arctangents (the engine's within an ulp of the exact value, numpy's within a
+    # few, as its vectorised loops allow) and a few products
     np.testing.assert_allclose(np.abs(r["friction.brake.torque"][fast]), 5.0 * shape,
                                rtol=8 * EPS, atol=0.0)
     # every ledger term is integrated by the same error-controlled steps as the state
