@@ -259,6 +259,11 @@ def test_batches_and_blocks_give_the_bits_of_a_single_run():
     (dict(actuators=(Actuator("v", "u", limits=(5.0, -5.0)),)), "limits need low < high"),
     (dict(sensors=(Sensor("nowhere"),)), "unknown signal 'nowhere'"),
     (dict(sensors=(Sensor("angle", delay=-1),)), "delay must be a whole number"),
+    # beyond what the engine's arrays hold: refused here, not by the binding's ValueError
+    (dict(sensors=(Sensor("angle", delay=10 ** 9),)), r"in 0\.\.100000000, got 1000000000"),
+    (dict(sensors=(Sensor("angle", delay=6 * 10 ** 7), Sensor("angle", delay=6 * 10 ** 7,
+                                                               name="late"))),
+     "delays add up to 120000000 samples"),
     (dict(sensors=(Sensor("angle", quantity="torque"),)), "quantity must be one of"),
     (dict(blocks=(PID("u", "r", "angle", k=1.0, Ti=-1.0),)), "Ti must be a finite number > 0"),
     (dict(blocks=(PID("u", "r", "angle", k=1.0, anti_windup="maybe"),)), "anti_windup"),

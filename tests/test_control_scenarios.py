@@ -336,6 +336,9 @@ BAD = {
                          "controller.sensors[0].delay", "whole number of samples"),
     "delay with a unit": (edit('signal = "motor_1"\n', 'signal = "motor_1"\ndelay = "1 ms"\n'),
                           "controller.sensors[0].delay", "whole number of samples"),
+    "a delay beyond the engine's arrays": (
+        edit('signal = "motor_1"\n', 'signal = "motor_1"\ndelay = 1000000000\n'),
+        "controller.sensors[0].delay", "from 0 to 100000000"),
     "current limit on a torque": (
         edit('command = "u1"\n', 'command = "u1"\n[[controller.actuators]]\nchannel = "tau_x"'
              '\ncommand = "t"\ncurrent_limit = "1 A"\n[[controller.pid]]\nname = "t"\n'

@@ -165,7 +165,7 @@ import numpy as np
 from . import benches
 from .components.planetary import MESH_RELATIONS
 from .control import PID, Actuator, Controller, Linear, Sensor, compile_controller
-from .control.controller import ANTI_WINDUP, Combination
+from .control.controller import ANTI_WINDUP, MAX_DELAY, Combination
 from .errors import InputError, read_text
 from .friction import law_code
 from .inputs import Constant, Input, Position, Sine, Step, Table, circle
@@ -872,7 +872,7 @@ def _sensor(entry: Mapping, where: Where, structure: Structure) -> Sensor:
         raise InputError(f"{where.key('name')}: expected a name, got {name!r}")
     return Sensor(signal, quantity, resolution=resolution,
                   noise=_quantity(entry, "noise", unit, where, 0.0, nonnegative=True),
-                  delay=_whole(entry, "delay", where, 0, high=10 ** 9,
+                  delay=_whole(entry, "delay", where, 0, high=MAX_DELAY,
                                what="a whole number of samples"), name=name)
 
 

@@ -25,6 +25,10 @@ from ..errors import InputError, finite_number
 from ..inputs import as_inputs
 from ..network import Structure
 
+#: The most samples a controller's delay lines may hold, all its sensors together: the
+#: C engine refuses any array longer than this (engine/c/blob.c, the binding's checks).
+MAX_DELAY = 10 ** 8
+
 #: A bus signal, or a weighted sum of bus signals.
 Combination = Union[str, Mapping[str, float]]
 
@@ -302,9 +306,9 @@ def _sensor_arrays(sensor: Sensor, structure: Structure, where: str):
     resolution = _finite(sensor.resolution, f"{where}: resolution", low=0.0)
     noise = _finite(sensor.noise, f"{where}: noise", low=0.0)
     if not isinstance(sensor.delay, (int, np.integer)) or isinstance(sensor.delay, bool) \
-            or sensor.delay < 0:
-        raise InputError(f"{where}: delay must be a whole number of samples >= 0, got "
-                         f"{sensor.delay!r}")
+            or not 0 <= sensor.delay <= MAX_DELAY:
+        raise InputError(f"{where}: delay must be a whole number of samples in 0..{MAX_DELAY}, "
+                         f"got {sensor.delay!r}")
     return kind, row, np.array([resolution, noise, float(sensor.delay), motor]), unit
 
 
@@ -375,6 +379,10 @@ def compile_controller(controller: Controller, structure: Structure,
         meas_rows.append(row)
         meas_par.append(par)
         units.append(unit)
+    held = sum(int(s.delay) for s in controller.sensors)
+    if held > MAX_DELAY:
+        raise InputError(f"the controller's sensors' delays add up to {held} samples; its "
+                         f"delay lines may hold at most {MAX_DELAY} together")
     known = {name: i for i, name in enumerate(names[:len(refs) + len(controller.sensors)])}
     width = len(names)
     blk, blk_in, blk_par, n_state = [], [], [], 0
