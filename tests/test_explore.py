@@ -5,6 +5,7 @@ model's."""
 
 from __future__ import annotations
 
+import socket
 from dataclasses import replace
 
 import numpy as np
@@ -141,6 +142,19 @@ def test_short_run_has_no_lag(explorer):
 def test_cli_refuses_a_bad_port(capsys):
     assert main(["explore", "--port", "0", "--no-browser"]) == 2
     assert "--port" in capsys.readouterr().err
+
+
+def test_cli_refuses_a_port_in_use_naming_it(capsys):
+    """A port another program listens on: exit 2 and the port named, not the server's
+    traceback."""
+    with socket.socket() as taken:
+        taken.bind(("localhost", 0))  # a free port, chosen by the system, now in use
+        taken.listen()
+        port = taken.getsockname()[1]
+        assert main(["explore", "--port", str(port), "--no-browser"]) == 2
+    err = capsys.readouterr().err
+    assert f"option --port: cannot serve on localhost:{port}" in err
+    assert "Traceback" not in err
 
 
 def test_setting_is_plain_data():

@@ -531,10 +531,16 @@ def application(explorer: Explorer, out: Path):
 def serve(explorer: Explorer, *, port: int, out: Path, show: bool, address: str = "localhost",
           ready=None) -> None:
     """Serve the explorer at ``http://address:port/`` until interrupted; ``show`` opens it in
-    the browser; ``ready`` (if given) is called with the port once it listens."""
-    server = Server({"/": application(explorer, out)}, port=port, address=address,
-                    allow_websocket_origin=[f"{address}:{port}", f"127.0.0.1:{port}",
-                                            f"localhost:{port}"], num_procs=1)
+    the browser; ``ready`` (if given) is called with the port once it listens. A port that
+    cannot be listened on (in use, or reserved) is an `InputError` naming it."""
+    try:
+        server = Server({"/": application(explorer, out)}, port=port, address=address,
+                        allow_websocket_origin=[f"{address}:{port}", f"127.0.0.1:{port}",
+                                                f"localhost:{port}"], num_procs=1)
+    except OSError as exc:  # the socket's bind: EADDRINUSE, EACCES below 1024, ...
+        why = exc.strerror or str(exc)
+        raise InputError(f"option --port: cannot serve on {address}:{port} ({why}); give "
+                         "another port") from None
     server.start()
     if show:
         server.io_loop.add_callback(server.show, "/")
