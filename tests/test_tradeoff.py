@@ -8,6 +8,7 @@ import pytest
 
 from vsj.cli import main
 from vsj.errors import InputError
+from vsj.output import verify
 from vsj.reproduce.base import CATEGORIES
 from vsj.safety import tradeoff
 
@@ -43,6 +44,8 @@ def test_the_command_writes_the_figure_the_numbers_and_the_page(tmp_path, capsys
     page = (out / "tracking-safety.html").read_text()
     assert "What is new" in page and "<img" in page and "Bicchi and Tonietti" in page
     assert (out / "tracking-safety.png").stat().st_size > 10_000
+    # one result set, recorded in the directory's manifest
+    assert verify(out) == []
 
 
 def test_the_command_runs_the_optimised_studies(tmp_path, capsys):
@@ -56,6 +59,21 @@ def test_the_command_runs_the_optimised_studies(tmp_path, capsys):
     assert {r["category"] for r in record["rows"]} <= set(CATEGORIES)
     page = (out / "study-explosive-motion.html").read_text()
     assert "What it tests" in page and "<img" in page
+    assert verify(out) == []  # its four files, and nothing else, as one result set
+
+
+@pytest.mark.parametrize("study", ["impact-speed", "explosive-motion"])
+def test_a_file_the_user_wrote_is_never_replaced(study, tmp_path, capsys):
+    """A directory holding a file named as the study names its own, but not written by
+    vsj: refused before any work (exit 2, the file named), the file left as it was."""
+    out = tmp_path / "study"
+    out.mkdir()
+    mine = out / f"{'study-' if study == 'explosive-motion' else ''}{study}.json"
+    mine.write_text("my notes")
+    assert main(["study", study, "--quick", "--out", str(out)]) == 2
+    assert f"{mine.name}: not recorded in a vsj-manifest.json" in capsys.readouterr().err
+    assert mine.read_text() == "my notes"
+    assert sorted(p.name for p in out.iterdir()) == [mine.name]
 
 
 @pytest.mark.parametrize("argv, message", [

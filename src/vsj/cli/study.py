@@ -11,7 +11,7 @@ import numpy as np
 
 from .. import params
 from ..errors import InputError
-from ..output import atomic_write
+from ..output import SMALL_OUTPUT_BYTES, ResultSet
 from ..units import to_si
 
 #: The studies, by name: what each shows.
@@ -44,10 +44,8 @@ def _positions(text: str | None, lo: float, hi: float, count: int) -> list[float
 
 def cmd_study(args) -> int:
     """``vsj study NAME``: run a study and write ``NAME.png``, ``NAME.json`` and
-    ``NAME.html`` into ``--out``. Returns the exit code."""
-    # lazy: the studies' modules (and the controllers, the environment) are for this command
-    from ..safety import impact, tradeoff
-
+    ``NAME.html`` into ``--out`` as one result set (`vsj.output.ResultSet`). Returns the
+    exit code."""
     if args.name not in STUDIES:
         raise InputError(f"unknown study {args.name!r}; studies: {', '.join(STUDIES)}")
     p = params.load(args.params)
@@ -61,7 +59,24 @@ def cmd_study(args) -> int:
     pivot = build_wrist(p, WristOptions(motors="dc", pivot_drive="dc")).assemble().pivot
     qs = _positions(args.q, pivot.q_min, pivot.q_max, args.settings)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    with ResultSet(out, "study", name=f"study {args.name}", size=SMALL_OUTPUT_BYTES) as results:
+        result, module = _run(args, p, qs, quick)
+        png = results.path(f"{args.name}.png")
+        module.figure(result, png)
+        with results.write(f"{args.name}.json", "w") as handle:
+            json.dump(result.as_dict(), handle, indent=1)
+        with results.write(f"{args.name}.html", "w") as handle:
+            handle.write(module.page(result, png.read_bytes()))
+    print(result.summary())
+    print(f"wrote {', '.join(str(out / name) for name in results.written)}")
+    return 0
+
+
+def _run(args, p, qs, quick):
+    """Run the fixed-setting study `args.name`: (its result, the module that draws it)."""
+    # lazy: the studies' modules (and the controllers, the environment) are for this command
+    from ..safety import impact, tradeoff
+
     print(f"vsj study {args.name}: {len(qs)} stiffness settings", file=sys.stderr)
     if args.name == "tracking-safety":
         module = tradeoff
@@ -71,15 +86,7 @@ def cmd_study(args) -> int:
         module = impact
         result = impact.run(p, qs, progress=lambda name: print(f"  {name} done",
                                                                 file=sys.stderr))
-    png = out / f"{args.name}.png"
-    module.figure(result, png)
-    with atomic_write(out / f"{args.name}.json", "w") as handle:
-        json.dump(result.as_dict(), handle, indent=1)
-    with atomic_write(out / f"{args.name}.html", "w") as handle:
-        handle.write(module.page(result, png.read_bytes()))
-    print(result.summary())
-    print(f"wrote {png}, {out / (args.name + '.json')}, {out / (args.name + '.html')}")
-    return 0
+    return result, module
 
 
 def _optimised(args, p) -> int:
@@ -91,13 +98,16 @@ def _optimised(args, p) -> int:
     from ..studies import STUDIES as RUNS, write
 
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    print(f"vsj study {args.name}: optimising{' (reduced)' if args.quick else ''}",
-          file=sys.stderr)
-    figure = RUNS[OPTIMISED[args.name]](Context(params=p, reduced=args.quick))
-    files = write(figure, out)
+    with ResultSet(out, "study", name=f"study {args.name}", size=SMALL_OUTPUT_BYTES) as results:
+        print(f"vsj study {args.name}: optimising{' (reduced)' if args.quick else ''}",
+              file=sys.stderr)
+        figure = RUNS[OPTIMISED[args.name]](Context(params=p, reduced=args.quick))
+        # `write` names its four files after the figure: each is a file of this set
+        staging = {results.path(f"{figure.name}.{ext}").parent
+                   for ext in ("png", "svg", "json", "html")}
+        write(figure, staging.pop())
     print(figure.caption)
-    print("wrote " + ", ".join(str(f) for f in files))
+    print(f"wrote {', '.join(str(out / name) for name in results.written)}")
     return 0
 
 

@@ -91,6 +91,8 @@ OUTPUTS = {
     "synth stiffness": r"stiffness_q[+-]\d+\.\dcm\.csv",
     "fit wrist": r"wrist-fit\.(?:json|html)|wrist-(?:fit|validation)\.png",
     "sweep": r"sweep\.json|metrics\.csv|sensitivity\.csv|summary\.html|sweep-[\w.-]+\.png",
+    "study": r"(?:tracking-safety|impact-speed|(?:study-)?(?:safe-and-fast|explosive-motion))"
+             r"\.(?:png|svg|json|html)",
 }
 
 _ANY_OUTPUT = "|".join(f"(?:{p})" for p in OUTPUTS.values())
