@@ -438,7 +438,7 @@ def compile_controller(controller: Controller, structure: Structure,
     }
     sizes = dict(n_refs=len(refs), n_meas=len(kinds), n_blocks=len(blk), n_acts=len(act_ch),
                  n_bus=width, n_cstate=n_state,
-                 n_delay=int(sum(s.delay for s in controller.sensors)),
+                 n_delay=held,
                  n_blk_in=len(blk_in), n_blk_par=int(arrays["blk_par"].size))
     given = dict(controller.units)
     unknown = sorted(set(given) - set(names))
