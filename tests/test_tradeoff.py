@@ -3,12 +3,14 @@ joint lags the tracking and lowers a collision's force, as the model says, and t
 command writes its figure, numbers and page."""
 
 import json
+import re
 
 import pytest
 
 from vsj.cli import main
+from vsj.cli.study import OPTIMISED, STUDIES
 from vsj.errors import InputError
-from vsj.output import verify
+from vsj.output import OUTPUTS, verify
 from vsj.reproduce.base import CATEGORIES
 from vsj.safety import tradeoff
 
@@ -60,6 +62,17 @@ def test_the_command_runs_the_optimised_studies(tmp_path, capsys):
     page = (out / "study-explosive-motion.html").read_text()
     assert "What it tests" in page and "<img" in page
     assert verify(out) == []  # its four files, and nothing else, as one result set
+
+
+def test_every_studys_files_are_files_of_a_study_result_set():
+    """The result set's names (`OUTPUTS`) are written apart from the studies' list: each
+    study's four files, under the name the command gives them, match it."""
+    pattern = re.compile(OUTPUTS["study"])
+    for name in STUDIES:
+        stem = OPTIMISED.get(name, name)
+        for ext in ("png", "svg", "json", "html"):
+            assert pattern.fullmatch(f"{stem}.{ext}"), (name, ext)
+    assert not pattern.fullmatch("my-notes.json")  # not a name vsj claims
 
 
 @pytest.mark.parametrize("study", ["impact-speed", "explosive-motion"])
