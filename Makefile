@@ -83,9 +83,12 @@ docs-browser: $(DOCS_STAMP)
 explore-browser: $(TEST_STAMP)
 	$(BIN)/python -m pytest -q -p no:cacheprovider tests/browser_explorer.py
 
-# the engine under AddressSanitizer and UndefinedBehaviorSanitizer (also run by make test)
+# the engine under AddressSanitizer and UndefinedBehaviorSanitizer: the job of
+# tests/sanitize.py (an instrumented build, every regression scenario, batches, the step
+# function, the C example, the FMU's C layer through FMPy) and the checks of its output.
+# Outside make test (the suite's longest single job); .ci/run calls it
 sanitize: $(TEST_STAMP)
-	$(BIN)/python tests/sanitize.py build/sanitize
+	$(BIN)/python -m pytest -q -p no:cacheprovider tests/sanitizers_check.py
 
 # the suite under other floating-point configurations: -O0 without contraction, fused
 # multiply-add, -O3 -march=native, clang, OpenBLAS's oldest x86-64 kernel (tools/portable.py)

@@ -115,13 +115,13 @@ def wrist_fmu_file(tmp_path_factory):
 
 
 #: The test files that hold most of a session's work (the identification studies, the
-#: sanitizer job, the FMUs, the reproduction, the streamed runs, the README's commands),
+#: FMUs, the reproduction, the streamed runs, the README's commands),
 #: costliest first. They are collected first (`pytest_collection_modifyitems`), and
 #: ``make test`` keeps that order when it hands files to its workers (xdist's
 #: --no-loadscope-reorder; by default xdist starts with the files of most tests, which
 #: leaves the long single studies to the end): the session ends on short files, with
 #: every worker busy until then.
-FIRST = ("test_identify_wrist.py", "test_identify_wrist_calibration.py", "test_sanitizers.py",
+FIRST = ("test_identify_wrist.py", "test_identify_wrist_calibration.py",
          "test_fmu.py", "test_reproduce_honest.py", "test_streaming.py", "test_readme.py",
          "test_docs.py")
 

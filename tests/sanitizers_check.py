@@ -1,9 +1,10 @@
 """The engine under AddressSanitizer and UndefinedBehaviorSanitizer (see tests/sanitize.py).
 
-Runs the same job as ``make sanitize``: every regression scenario, batches on two
-threads, the step function with each method, the C example on good and bad model
-files, and the binding's refusal of bad arrays, all through an instrumented build
-of the engine. Under AddressSanitizer the work's arrays are separated by poisoned
+Run by ``make sanitize`` (and so by ``.ci/run``), not by ``make test``: the instrumented
+build and its workload are the longest single job of the suite. The job runs every
+regression scenario, batches on two threads, the step function with each method, the C
+example on good and bad model files, the FMU's C layer through FMPy, and the binding's
+refusal of bad arrays, all through an instrumented build of the engine. Under AddressSanitizer the work's arrays are separated by poisoned
 gaps (engine/c/model.c), so an overrun from one array into the next is reported too.
 """
 
