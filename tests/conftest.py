@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from pathlib import Path
 
 import pytest
 
@@ -77,6 +78,17 @@ def _reproduce(out) -> int:
     from vsj.cli import main
 
     return main(["reproduce", "--reduced", "--out", str(out)])
+
+
+@pytest.fixture(scope="session", autouse=True)
+def vsj_cache(tmp_path_factory):
+    """vsj's cache of compiled FMU binaries (`vsj.fmu.cache_dir`) in this session's
+    temporary directory: each session compiles afresh (nothing from the user's cache), and
+    its workers share what one of them compiled."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    base = tmp_path_factory.getbasetemp()
+    os.environ["VSJ_CACHE"] = str((base.parent if worker else base) / "vsj-cache")
+    return Path(os.environ["VSJ_CACHE"])
 
 
 @pytest.fixture(scope="session")

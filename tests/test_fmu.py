@@ -18,9 +18,11 @@ FMU's held speeds differ from the scenario's smooth ones by O(h^2)) at a 0.25 ms
 communication step against `simulate` of the scenario itself.
 """
 
+import json
 import re
 import shutil
 import subprocess
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -569,6 +571,49 @@ def test_win64_dll_exports_every_fmi2_function_and_builds_warning_free(cross_che
     assert exported == declared  # the engine's own functions stay inside
     imported = set(re.findall(r"DLL Name: (\S+)", text))
     assert imported <= {"KERNEL32.dll", "msvcrt.dll"}  # nothing an importer lacks
+
+
+class _Compiled(Exception):
+    """Raised in place of compiling: the test wanted to know whether it would."""
+
+
+def _would_compile(*args):
+    raise _Compiled
+
+
+def test_another_process_reuses_a_compiled_binary_and_never_a_damaged_one(
+        tmp_path, monkeypatch, wrist_fmu_file):
+    """`fmu.compile_binary` keeps what it compiles in `fmu.cache_dir` (this session's:
+    conftest's ``VSJ_CACHE``), so that another process builds an FMU without the
+    compiler: a process with an empty memory gets the very binary this session's FMU
+    carries. An entry whose binary was damaged or edited (one bit) is compiled anew,
+    never used; so is one whose record names another key."""
+    path, _ = wrist_fmu_file()  # this session has compiled the binary: it is in the cache
+    with zipfile.ZipFile(path) as archive:
+        carried = archive.read(f"binaries/linux64/{fmu.MODEL_IDENTIFIER}.so")
+    cache = tmp_path / "cache"
+    shutil.copytree(fmu.cache_dir().parent, cache)
+    monkeypatch.setenv("VSJ_CACHE", str(cache))
+    monkeypatch.setattr(fmu, "_compile", _would_compile)
+    monkeypatch.setattr(fmu, "_COMPILED", {})  # as a fresh process
+    out = tmp_path / "binary.so"
+    assert fmu.compile_binary("linux64", out) == ""  # what the compiler said: nothing
+    assert out.read_bytes() == carried
+    [record] = [p for p in (cache / "fmu").glob("*.json")
+                if json.loads(p.read_text())["key"].startswith("('linux64'")]
+    binary = record.with_suffix(".bin")
+    damaged = bytearray(carried)
+    damaged[len(damaged) // 2] ^= 1
+    binary.write_bytes(bytes(damaged))
+    monkeypatch.setattr(fmu, "_COMPILED", {})
+    with pytest.raises(_Compiled):
+        fmu.compile_binary("linux64", out)
+    binary.write_bytes(carried)
+    meta = json.loads(record.read_text())
+    record.write_text(json.dumps({**meta, "key": meta["key"].replace("linux64", "win64")}))
+    monkeypatch.setattr(fmu, "_COMPILED", {})
+    with pytest.raises(_Compiled):
+        fmu.compile_binary("linux64", out)
 
 
 def test_the_binary_is_compiled_once_per_process_for_the_same_files(tmp_path):

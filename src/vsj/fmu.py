@@ -46,6 +46,7 @@ judged at fmi2Terminate.
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import os
 import shutil
@@ -379,10 +380,10 @@ def compiler(kind: str = "linux64") -> str | None:
     return shutil.which("x86_64-w64-mingw32-gcc")
 
 
-#: The binaries this process compiled: (platform, compiler, flags, digest of the
-#: sources) -> (the binary's bytes, its file mode, what the compiler said). The binary
-#: is the engine and its FMI layer only (the model and its parameters are resources of
-#: the FMU), so a process that builds several FMUs (the cross-check, a script exporting
+#: The binaries this process compiled or read from the cache: the key of `compile_binary`
+#: -> (the binary's bytes, its file mode, what the compiler said). The binary is the
+#: engine and its FMI layer only (the model and its parameters are resources of the
+#: FMU), so a process that builds several FMUs (the cross-check, a script exporting
 #: several parameter sets, the tests) compiles the same sources once.
 _COMPILED: dict[tuple, tuple[bytes, int, str]] = {}
 
@@ -395,10 +396,66 @@ def _sources_digest(paths: list[Path]) -> str:
     return digest.hexdigest()
 
 
+def cache_dir() -> Path:
+    """Where compiled FMU binaries are kept between runs: ``$VSJ_CACHE/fmu``, else
+    ``$XDG_CACHE_HOME/vsj/fmu`` (``~/.cache/vsj/fmu`` where neither is set). Deleting it
+    is always safe: the next build compiles again."""
+    base = os.environ.get("VSJ_CACHE")
+    if not base:
+        base = str(Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "vsj")
+    return Path(base) / "fmu"
+
+
+def _cached(key: tuple) -> tuple[bytes, int, str] | None:
+    """The binary, mode and compiler output stored for ``key``, or None: nothing stored,
+    the cache unreadable, or an entry that is not what was stored (its key, or the
+    SHA-256 of the binary, differs from its record: a damaged or edited entry is
+    compiled anew, never used)."""
+    stem = cache_dir() / hashlib.sha256(repr(key).encode()).hexdigest()
+    try:
+        meta = json.loads(stem.with_suffix(".json").read_text())
+        binary = stem.with_suffix(".bin").read_bytes()
+        if (meta.get("key") != repr(key)
+                or hashlib.sha256(binary).hexdigest() != meta.get("sha256")):
+            return None
+        return binary, int(meta["mode"]), str(meta["said"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _store(key: tuple, entry: tuple[bytes, int, str]) -> None:
+    """Keep a compiled binary for other processes (best effort: a cache that cannot be
+    written only costs the next build its compile). Each file appears whole (written
+    aside, then renamed), the metadata last."""
+    binary, mode, said = entry
+    stem = cache_dir() / hashlib.sha256(repr(key).encode()).hexdigest()
+    meta = json.dumps({"key": repr(key), "sha256": hashlib.sha256(binary).hexdigest(),
+                       "mode": mode, "said": said})
+    try:
+        stem.parent.mkdir(parents=True, exist_ok=True)
+        for suffix, data in ((".bin", binary), (".json", meta.encode())):
+            aside = stem.parent / f"{stem.name}{suffix}.{os.getpid()}.tmp"
+            try:
+                aside.write_bytes(data)
+                os.replace(aside, stem.with_suffix(suffix))
+            finally:
+                aside.unlink(missing_ok=True)
+    except OSError:
+        pass
+
+
+def _compiler_version(cc: str) -> str:
+    """What ``cc --version`` says (a compiler upgraded in place builds anew)."""
+    done = subprocess.run([cc, "--version"], capture_output=True, text=True, check=False)
+    return done.stdout.strip()
+
+
 def compile_binary(kind: str, out: Path) -> str:
     """Build the FMU's binary for ``kind`` (linux64 or win64) into ``out``; returns
     what the compiler said (empty: no warning under -Wall -Wextra). The same sources,
-    compiler and flags give the same binary: compiled once per process (`_COMPILED`)."""
+    compiler (its path and version) and flags give the same binary: it is compiled once
+    and then copied, from this process's memory (`_COMPILED`) or from the files of
+    `cache_dir`."""
     cc = compiler(kind)
     if cc is None:
         raise InputError(f"vsj fmu: no C compiler for {kind}")
@@ -411,18 +468,25 @@ def compile_binary(kind: str, out: Path) -> str:
     else:
         flags += ["-static-libgcc"]
     key = (kind, shutil.which(cc), tuple(flags), _sources_digest(paths))
-    if key in _COMPILED:
-        binary, mode, said = _COMPILED[key]
-        Path(out).write_bytes(binary)
-        os.chmod(out, mode)
-        return said
+    if key not in _COMPILED:
+        stored = (*key, _compiler_version(cc))
+        _COMPILED[key] = _cached(stored)
+        if _COMPILED[key] is None:
+            _COMPILED[key] = _compile(cc, flags, sources, kind, out)
+            _store(stored, _COMPILED[key])
+    binary, mode, said = _COMPILED[key]
+    Path(out).write_bytes(binary)
+    os.chmod(out, mode)
+    return said
+
+
+def _compile(cc, flags, sources, kind, out) -> tuple[bytes, int, str]:
+    """Compile the binary into ``out``: its bytes, mode and what the compiler said."""
     done = subprocess.run([cc, *flags, "-o", str(out), *sources, "-lm"], capture_output=True,
                           text=True, check=False)
     if done.returncode != 0:
         raise InputError(f"vsj fmu: building the {kind} binary failed:\n{done.stderr[-2000:]}")
-    said = done.stderr.strip()
-    _COMPILED[key] = (Path(out).read_bytes(), os.stat(out).st_mode & 0o7777, said)
-    return said
+    return Path(out).read_bytes(), os.stat(out).st_mode & 0o7777, done.stderr.strip()
 
 
 METHODS = ("auto", "timestep", "dopri", "rosenbrock")
