@@ -70,17 +70,39 @@ def compiler() -> str:
 EXTRA_FLAGS = os.environ.get("VSJ_TEST_CFLAGS", "").split()
 
 
+#: The flags the C programs here are built with: C99, every warning an error, and the
+#: configuration's own.
+C_FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", *EXTRA_FLAGS]
+
+
+def cc(*args: str) -> None:
+    """Run the C compiler with ``C_FLAGS`` and the engine's headers; what it said on a failure."""
+    done = subprocess.run([compiler(), *C_FLAGS, "-I", str(ENGINE), *args], capture_output=True,
+                          text=True)
+    assert done.returncode == 0, done.stderr[-3000:]
+
+
 @pytest.fixture(scope="session")
-def step_wrist(tmp_path_factory) -> Path:
+def engine_objects(tmp_path_factory) -> list[str]:
+    """The engine's C sources compiled once per test session (`conftest._once`: the
+    workers share them), for the C programs here to link: the engine alone, no Python."""
+    def make(out: Path) -> list[str]:
+        out.mkdir(parents=True, exist_ok=True)
+        for source in sorted(ENGINE.glob("*.c")):
+            cc("-c", "-o", str(out / f"{source.stem}.o"), str(source))
+        return sorted(f"{source.stem}.o" for source in ENGINE.glob("*.c"))
+
+    names, out = _once(tmp_path_factory, "engine-objects", make)
+    return [str(out / name) for name in names]
+
+
+@pytest.fixture(scope="session")
+def step_wrist(tmp_path_factory, engine_objects) -> Path:
     """The C example, built once per test session (`conftest._once`: the workers share
     it; test_control.py runs it too)."""
     def make(out: Path) -> None:
         out.mkdir(parents=True, exist_ok=True)
-        sources = sorted(str(p) for p in ENGINE.glob("*.c"))
-        subprocess.run([compiler(), "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror",
-                        "-pedantic", *EXTRA_FLAGS, "-I", str(ENGINE), "-o",
-                        str(out / "step_wrist"), str(EXAMPLE), *sources, "-lm"],
-                       check=True, capture_output=True, text=True)
+        cc("-o", str(out / "step_wrist"), str(EXAMPLE), *engine_objects, "-lm")
 
     return _once(tmp_path_factory, "step-wrist", make)[1] / "step_wrist"
 
@@ -274,7 +296,7 @@ int main(int argc, char **argv) {
 
 
 def test_a_source_on_the_channel_of_a_still_pivots_drive_ends_each_step_at_its_angle(
-        tmp_path):
+        tmp_path, engine_objects):
     """The time-stepper leaves a still pivot's drive unevaluated at the steps' ends, but
     not the channel it reads when another source reads it too: a velocity source on the
     pivot drive's channel, holding a linear spring against the ground, must load it by
@@ -297,9 +319,7 @@ def test_a_source_on_the_channel_of_a_still_pivots_drive_ends_each_step_at_its_a
     source = tmp_path / "ledger_step.c"
     source.write_text(LEDGER_DRIVER)
     exe = tmp_path / "ledger_step"
-    subprocess.run([compiler(), "-std=c99", "-O1", *EXTRA_FLAGS, "-I", str(ENGINE), "-o",
-                    str(exe), str(source), *sorted(str(p) for p in ENGINE.glob("*.c")), "-lm"],
-                   check=True, capture_output=True, text=True)
+    cc("-o", str(exe), str(source), *engine_objects, "-lm")
     done = subprocess.run([str(exe), str(model), str(periods), repr(speed)],
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stderr

@@ -17,7 +17,7 @@ from vsj.errors import InputError
 from vsj.inputs import Constant, Hold, Sine, Step
 from vsj.network import Network, Signal
 
-from test_c_api import step_wrist  # noqa: F401  (the C example, built once: a fixture)
+from test_c_api import engine_objects, step_wrist  # noqa: F401  (fixtures: the C example)
 from vsj.simulate import InitialState, SimulationOptions, simulate
 
 R, L, KT, J_ROTOR, GEAR, J_LOAD, B_LOAD = 2.0, 2e-4, 0.025, 1e-6, 10.0, 1e-4, 2e-3
