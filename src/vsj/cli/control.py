@@ -303,8 +303,10 @@ def register(sub) -> None:
                     "Simulink, FMPy)",
         description="Write a standalone FMI 2.0 co-simulation FMU of the wrist: binaries "
                     "built from the C engine with the system compiler (and for win64 with "
-                    "mingw-w64 where installed), its sources with buildDescription.xml, and "
-                    "the model in resources/. See the README, 'The wrist as an FMU'.")
+                    "mingw-w64 where installed; each kept in ~/.cache/vsj/fmu and reused while "
+                    "the sources, compiler and flags stay the same), its sources with "
+                    "buildDescription.xml, and the model in resources/. See the README, 'The "
+                    "wrist as an FMU'.")
     p.add_argument("--out", metavar="FILE", help="FMU to write (.fmu)")
     p.add_argument("--force", action="store_true",
                    help="replace --out even if vsj did not write it")
