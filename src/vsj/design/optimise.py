@@ -9,14 +9,12 @@ that is 1 for a design whose evaluation failed). pymoo's constraint handling the
 prefers any feasible design to an infeasible one and the less violating of two
 infeasible ones (Deb's rules, in its tournament and survival).
 
-Before the first generation and after each one, the whole state (pymoo's algorithm
-object, which holds its own random generator seeded from ``design.seed``, and every
-design evaluated so far) is pickled to ``DIR/design-checkpoint.pkl``, committed as a
-result set of its own (`vsj.output.ResultSet`, named `CHECKPOINT_SET` in the
-directory's manifest): a directory holding files vsj did not write is refused before
-any work, and the file is replaced as a whole. A run killed at any moment resumes from
-the last generation written and, since each evaluation is a pure function of the
-design, reaches the same designs, bit for bit, as a run that was never stopped. The Pareto set is taken from every design evaluated: the feasible ones
+After each generation the whole state (pymoo's algorithm object, which holds its own
+random generator seeded from ``design.seed``, and every design evaluated so far) is
+pickled to ``DIR/design-checkpoint.pkl`` through a temporary file. A run killed at
+any moment resumes from the last generation written and, since each evaluation is a
+pure function of the design, reaches the same designs, bit for bit, as a run that was
+never stopped. The Pareto set is taken from every design evaluated: the feasible ones
 that no other feasible one dominates.
 """
 
@@ -41,14 +39,12 @@ from pymoo.util.ref_dirs import get_reference_directions
 
 from .. import __version__, params as params_module
 from ..errors import InputError
-from ..output import ResultSet
+from ..output import atomic_write
 from ..sweep.schedulers import Pool
 from .evaluate import OK, Problem, evaluate_chunk, margins_violation, objective_matrix
 from .spec import DesignSpec
 
 CHECKPOINT = "design-checkpoint.pkl"
-#: The checkpoint's result set in the directory's manifest.
-CHECKPOINT_SET = "design checkpoint"
 #: Version of the checkpoint's layout (a file of another is refused).
 FORMAT = 1
 
@@ -157,16 +153,6 @@ def _read_checkpoint(path: Path, spec: DesignSpec) -> dict:
     return state
 
 
-def _checkpoint(out: Path, spec: DesignSpec, algorithm, archive: Archive, done: int) -> None:
-    """The state after ``done`` generations into ``out``'s checkpoint, as its result set."""
-    state = pickle.dumps({"format": FORMAT, "spec": spec.sha256(), "vsj_version": __version__,
-                          "generation": done, "algorithm": algorithm, "archive": archive},
-                         protocol=pickle.HIGHEST_PROTOCOL)
-    with ResultSet(out, "design", name=CHECKPOINT_SET, files=[CHECKPOINT],
-                   size=len(state)) as results, results.write(CHECKPOINT) as handle:
-        handle.write(state)
-
-
 def run(spec: DesignSpec, out: str | Path, *, resume: bool = False,
         scheduler: str | None = None, workers: int | None = None, say=None) -> Outcome:
     """Optimise ``spec`` with its checkpoint in ``out`` (see the module docstring);
@@ -188,7 +174,6 @@ def run(spec: DesignSpec, out: str | Path, *, resume: bool = False,
                              "with --resume, or choose another directory")
         n_g = sum(c.role == "margin" for c in problem.columns) + 1
         algorithm, archive, done = algorithm_for(spec, n_g), Archive(), 0
-    _checkpoint(out, spec, algorithm, archive, done)  # the directory checked before any work
     ran, engine = 0, 0.0
     if done < spec.generations:
         with Pool(scheduler, workers) as pool:
@@ -214,7 +199,11 @@ def run(spec: DesignSpec, out: str | Path, *, resume: bool = False,
                 archive.generation.extend([done] * len(x))
                 done += 1
                 ran += 1
-                _checkpoint(out, spec, algorithm, archive, done)
+                with atomic_write(path, "wb") as handle:
+                    pickle.dump({"format": FORMAT, "spec": spec.sha256(),
+                                 "vsj_version": __version__, "generation": done,
+                                 "algorithm": algorithm, "archive": archive}, handle,
+                                protocol=pickle.HIGHEST_PROTOCOL)
                 feasible = int(np.count_nonzero(np.all(G <= 0.0, axis=1)))
                 say(f"generation {done}/{spec.generations}: {len(x)} designs, {feasible} "
                     "feasible")

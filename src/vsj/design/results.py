@@ -20,7 +20,7 @@ import numpy as np
 
 from .. import __version__, pages
 from ..errors import InputError
-from ..output import PLOT_BYTES, SMALL_OUTPUT_BYTES, ResultSet
+from ..output import atomic_write
 from ..output.trajectory import write_dataset
 from ..params import DEFAULT_FILE, bundled_names, exact_text
 from ..units import to_si
@@ -292,22 +292,20 @@ def _display(unit: str) -> str:
 
 
 def write(outcome: Outcome, out: Path, *, plots: bool = True) -> tuple[list[str], bool]:
-    """Write ``pareto.nc``, the figures and ``design.html`` into ``out``, as one result set
-    (`vsj.output.ResultSet`, ``design`` in the directory's manifest: it replaces the
-    last one as a whole); returns the files written and whether a feasible design was
-    found."""
+    """Write ``pareto.nc``, the figures and ``design.html`` into ``out``; returns the
+    files written and whether a feasible design was found."""
     base_x, base_row, base_message = prototype(outcome.problem)
     ds = dataset(outcome, base_row, base_x, base_message)
+    write_dataset(out / PARETO, ds)
+    files = [PARETO]
     pngs = figures(outcome, base_row, base_x) if plots else {}
-    with ResultSet(out, "design", files=[PARETO, FRONT, PARALLEL, PAGE],
-                   size=SMALL_OUTPUT_BYTES + len(pngs) * PLOT_BYTES) as results:
-        write_dataset(results.path(PARETO), ds)
-        for name, png in pngs.items():
-            with results.write(name) as handle:
-                handle.write(png)
-        with results.write(PAGE, "w") as handle:
-            handle.write(page(outcome, base_row, base_x, base_message, pngs))
-        files = results.written
+    for name, png in pngs.items():
+        with atomic_write(out / name, "wb") as handle:
+            handle.write(png)
+        files.append(name)
+    with atomic_write(out / PAGE) as handle:
+        handle.write(page(outcome, base_row, base_x, base_message, pngs))
+    files.append(PAGE)
     return files, bool(len(outcome.front))
 
 
@@ -333,13 +331,12 @@ def write_params(spec: DesignSpec, out: Path, index: int) -> Path:
         values = [float(v) for v in ds["parameters"].values[index]]
         objectives = {str(n): float(v) for n, v in zip(ds["objective"].values,
                                                        ds["objectives"].values[index])}
-    name = f"design-{index}.toml"
+    target = out / f"design-{index}.toml"
     text = params_text(spec, out, names, values, f"design {index} of its Pareto set",
                        objectives)
-    with ResultSet(out, "design", name=f"design {index}", files=[name],
-                   size=SMALL_OUTPUT_BYTES) as results, results.write(name, "w") as handle:
+    with atomic_write(target) as handle:
         handle.write(text)
-    return out / name
+    return target
 
 
 def params_text(spec: DesignSpec, out: Path, names, values, label: str,

@@ -8,8 +8,8 @@ killed meanwhile leaves nothing behind; elsewhere it is a hidden
 ``.NAME.vsj-tmp-XXXX`` beside the target.
 
 **Result sets.** A command that writes several files into a directory (``vsj
-simulate``, ``reproduce``, ``datasheet``, ``fit``, ``synth stiffness``, ``study``,
-``design``) writes them as one `ResultSet`, which
+simulate``, ``reproduce``, ``datasheet``, ``fit``, ``synth stiffness``) writes
+them as one `ResultSet`, which
 
 1. checks the directory before any work is done (`OutputError`, exit code 2,
    naming the option and the path): not an existing file, creatable, writable,
@@ -93,8 +93,6 @@ OUTPUTS = {
     "sweep": r"sweep\.json|metrics\.csv|sensitivity\.csv|summary\.html|sweep-[\w.-]+\.png",
     "study": r"(?:tracking-safety|impact-speed|(?:study-)?(?:safe-and-fast|explosive-motion))"
              r"\.(?:png|svg|json|html)",
-    "design": r"pareto\.nc|front\.png|parallel\.png|design\.html|design-checkpoint\.pkl"
-              r"|design-\d+\.toml",
 }
 
 _ANY_OUTPUT = "|".join(f"(?:{p})" for p in OUTPUTS.values())
