@@ -586,8 +586,9 @@ def test_another_process_reuses_a_compiled_binary_and_never_a_damaged_one(
     """`fmu.compile_binary` keeps what it compiles in `fmu.cache_dir` (this session's:
     conftest's ``VSJ_CACHE``), so that another process builds an FMU without the
     compiler: a process with an empty memory gets the very binary this session's FMU
-    carries. An entry whose binary was damaged or edited (one bit) is compiled anew,
-    never used; so is one whose record names another key."""
+    carries. An entry whose binary (one bit) or record (the compiler's words, the file
+    mode, the record's shape) was damaged is compiled anew, never used; and a compile
+    that failed is not remembered as if it had succeeded."""
     path, _ = wrist_fmu_file()  # this session has compiled the binary: it is in the cache
     with zipfile.ZipFile(path) as archive:
         carried = archive.read(f"binaries/linux64/{fmu.MODEL_IDENTIFIER}.so")
@@ -610,10 +611,19 @@ def test_another_process_reuses_a_compiled_binary_and_never_a_damaged_one(
         fmu.compile_binary("linux64", out)
     binary.write_bytes(carried)
     meta = json.loads(record.read_text())
-    record.write_text(json.dumps({**meta, "key": meta["key"].replace("linux64", "win64")}))
+    for damaged_record in ({**meta, "said": "warning: made up"}, {**meta, "mode": 0o6755},
+                           {**meta, "mode": "755"}, [meta]):
+        record.write_text(json.dumps(damaged_record))
+        monkeypatch.setattr(fmu, "_COMPILED", {})
+        with pytest.raises(_Compiled):
+            fmu.compile_binary("linux64", out)
+    record.write_text(json.dumps(meta))
+    monkeypatch.setenv("VSJ_CACHE", str(tmp_path / "empty"))  # nothing kept: it compiles,
     monkeypatch.setattr(fmu, "_COMPILED", {})
-    with pytest.raises(_Compiled):
+    with pytest.raises(_Compiled):  # and the compile fails
         fmu.compile_binary("linux64", out)
+    monkeypatch.setenv("VSJ_CACHE", str(cache))
+    assert fmu.compile_binary("linux64", out) == "" and out.read_bytes() == carried
 
 
 def test_the_binary_is_compiled_once_per_process_for_the_same_files(tmp_path):

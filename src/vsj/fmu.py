@@ -45,6 +45,7 @@ judged at fmi2Terminate.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -406,40 +407,55 @@ def cache_dir() -> Path:
     return Path(base) / "fmu"
 
 
+def _checksum(key: tuple, binary: bytes, mode: int, said: str) -> str:
+    """SHA-256 over everything a cache entry holds: its key, the binary, its file mode
+    and what the compiler said."""
+    digest = hashlib.sha256(json.dumps([repr(key), mode, said]).encode() + b"\0")
+    digest.update(binary)
+    return digest.hexdigest()
+
+
 def _cached(key: tuple) -> tuple[bytes, int, str] | None:
     """The binary, mode and compiler output stored for ``key``, or None: nothing stored,
-    the cache unreadable, or an entry that is not what was stored (its key, or the
-    SHA-256 of the binary, differs from its record: a damaged or edited entry is
-    compiled anew, never used)."""
+    the cache unreadable, or an entry whose checksum (`_checksum`, recorded beside the
+    binary) does not match what it holds: a damaged entry is compiled anew, never used.
+    (The checksum does not stop someone who rewrites an entry and its record together,
+    as nothing stops an edit of the installed package.)"""
     stem = cache_dir() / hashlib.sha256(repr(key).encode()).hexdigest()
     try:
         meta = json.loads(stem.with_suffix(".json").read_text())
         binary = stem.with_suffix(".bin").read_bytes()
-        if (meta.get("key") != repr(key)
-                or hashlib.sha256(binary).hexdigest() != meta.get("sha256")):
+        if not isinstance(meta, dict) or not isinstance(meta.get("mode"), int) \
+                or not isinstance(meta.get("said"), str):
             return None
-        return binary, int(meta["mode"]), str(meta["said"])
-    except (OSError, ValueError, KeyError, TypeError):
+        mode, said = meta["mode"], meta["said"]
+        if mode & ~0o777 or _checksum(key, binary, mode, said) != meta.get("sha256"):
+            return None
+        return binary, mode, said
+    except (OSError, ValueError):
         return None
 
 
 def _store(key: tuple, entry: tuple[bytes, int, str]) -> None:
     """Keep a compiled binary for other processes (best effort: a cache that cannot be
     written only costs the next build its compile). Each file appears whole (written
-    aside, then renamed), the metadata last."""
+    under a temporary name, then renamed), the record last."""
     binary, mode, said = entry
     stem = cache_dir() / hashlib.sha256(repr(key).encode()).hexdigest()
-    meta = json.dumps({"key": repr(key), "sha256": hashlib.sha256(binary).hexdigest(),
+    meta = json.dumps({"key": repr(key), "sha256": _checksum(key, binary, mode, said),
                        "mode": mode, "said": said})
     try:
         stem.parent.mkdir(parents=True, exist_ok=True)
         for suffix, data in ((".bin", binary), (".json", meta.encode())):
-            aside = stem.parent / f"{stem.name}{suffix}.{os.getpid()}.tmp"
+            handle, aside = tempfile.mkstemp(dir=stem.parent, prefix=f".{stem.name}",
+                                             suffix=".tmp")
             try:
-                aside.write_bytes(data)
+                with os.fdopen(handle, "wb") as file:
+                    file.write(data)
                 os.replace(aside, stem.with_suffix(suffix))
             finally:
-                aside.unlink(missing_ok=True)
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(aside)
     except OSError:
         pass
 
@@ -470,10 +486,11 @@ def compile_binary(kind: str, out: Path) -> str:
     key = (kind, shutil.which(cc), tuple(flags), _sources_digest(paths))
     if key not in _COMPILED:
         stored = (*key, _compiler_version(cc))
-        _COMPILED[key] = _cached(stored)
-        if _COMPILED[key] is None:
-            _COMPILED[key] = _compile(cc, flags, sources, kind, out)
-            _store(stored, _COMPILED[key])
+        entry = _cached(stored)
+        if entry is None:
+            entry = _compile(cc, flags, sources, kind, out)  # kept only if it succeeds
+            _store(stored, entry)
+        _COMPILED[key] = entry
     binary, mode, said = _COMPILED[key]
     Path(out).write_bytes(binary)
     os.chmod(out, mode)
@@ -481,12 +498,13 @@ def compile_binary(kind: str, out: Path) -> str:
 
 
 def _compile(cc, flags, sources, kind, out) -> tuple[bytes, int, str]:
-    """Compile the binary into ``out``: its bytes, mode and what the compiler said."""
+    """Compile the binary into ``out``: its bytes, its mode (permission bits) and what the
+    compiler said."""
     done = subprocess.run([cc, *flags, "-o", str(out), *sources, "-lm"], capture_output=True,
                           text=True, check=False)
     if done.returncode != 0:
         raise InputError(f"vsj fmu: building the {kind} binary failed:\n{done.stderr[-2000:]}")
-    return Path(out).read_bytes(), os.stat(out).st_mode & 0o7777, done.stderr.strip()
+    return Path(out).read_bytes(), os.stat(out).st_mode & 0o777, done.stderr.strip()
 
 
 METHODS = ("auto", "timestep", "dopri", "rosenbrock")
