@@ -22,6 +22,7 @@ from conftest import SHORT_SCENARIO
 from vsj.cli import main
 from vsj.output import (MANIFEST, OutputError, ResultSet, clear_staging, read_manifest,
                         signals_bound, trajectory_bytes, verify)
+from vsj.output import files as files_module
 
 
 def _short(duration: str, output_step: str = "10 ms") -> str:
@@ -508,6 +509,30 @@ def test_a_set_is_replaced_whole_and_verified(tmp_path):
     (out / "meta.json").unlink()
     assert verify(out) == ["set 'simulate': meta.json is missing",
                            "set 'simulate': trajectory.nc has changed (its SHA-256 differs)"]
+
+
+def test_a_file_put_into_the_directory_while_a_set_is_committed_is_kept(tmp_path,
+                                                                         monkeypatch):
+    """A file that appears in the directory after the other sets' files are carried over
+    and before the exchange ends up among the old set's files, which are removed: it is
+    moved back, even under the name of another command's result (the old set's own
+    files and manifest are what goes)."""
+    out = tmp_path / "out"
+    for text in ("first", "second"):
+        with ResultSet(out, "datasheet") as results, results.write("datasheet.json", "w") as f:
+            f.write(json.dumps({"vsj": text}))
+    exchange = files_module._exchange
+
+    def meanwhile(staging, target):
+        (target / "results.json").write_text("the user's")  # a name of vsj reproduce's
+        exchange(staging, target)
+
+    monkeypatch.setattr(files_module, "_exchange", meanwhile)
+    with ResultSet(out, "datasheet") as results, results.write("datasheet.json", "w") as f:
+        f.write(json.dumps({"vsj": "third"}))
+    assert (out / "results.json").read_text() == "the user's"
+    assert json.loads((out / "datasheet.json").read_text()) == {"vsj": "third"}
+    assert sorted(os.listdir(out)) == sorted(["datasheet.json", MANIFEST, "results.json"])
 
 
 def test_sets_of_several_commands_share_a_directory(tmp_path, capsys):

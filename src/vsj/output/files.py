@@ -888,7 +888,9 @@ class ResultSet:
             self.committed = True
             with contextlib.suppress(OSError):
                 _fsync_directory(self.dir.parent)
-            clear_staging(str(staging), str(self.dir), _DISPOSABLE)  # the old set
+            # the old set: its own files and manifest go, and the other sets' links; a file
+            # put into the directory since `_carry_others` is moved back, whatever its name
+            clear_staging(str(staging), str(self.dir), self._old_files())
             return
         self._write_manifest(self.dir, written, complete=False)
         self.committed = None  # from here on the directory holds a mixed set
@@ -902,6 +904,12 @@ class ResultSet:
         with contextlib.suppress(OSError):
             _fsync_directory(self.dir)
             os.rmdir(staging)
+
+    def _old_files(self) -> str:
+        """The names (a regular expression) of what the directory held of this set before
+        the commit: its files and the manifest, and `atomic_write`'s temporaries of them."""
+        names = _names_pattern(sorted(self._old) + [MANIFEST])
+        return rf"{names}|\.(?:{names})\.vsj-tmp-\w+"
 
     def _carry_others(self, staging: Path, written: dict) -> None:
         """Hard-link the other sets' files into the staging directory (copies where the
