@@ -407,6 +407,11 @@ def cache_dir() -> Path:
     return Path(base) / "fmu"
 
 
+def _entry(key: tuple) -> Path:
+    """The cache entry of ``key``: its binary is ``.bin``, its record ``.json``."""
+    return cache_dir() / hashlib.sha256(repr(key).encode()).hexdigest()
+
+
 def _checksum(key: tuple, binary: bytes, mode: int, said: str) -> str:
     """SHA-256 over everything a cache entry holds: its key, the binary, its file mode
     and what the compiler said."""
@@ -421,7 +426,7 @@ def _cached(key: tuple) -> tuple[bytes, int, str] | None:
     binary) does not match what it holds: a damaged entry is compiled anew, never used.
     (The checksum does not stop someone who rewrites an entry and its record together,
     as nothing stops an edit of the installed package.)"""
-    stem = cache_dir() / hashlib.sha256(repr(key).encode()).hexdigest()
+    stem = _entry(key)
     try:
         meta = json.loads(stem.with_suffix(".json").read_text())
         binary = stem.with_suffix(".bin").read_bytes()
@@ -441,7 +446,7 @@ def _store(key: tuple, entry: tuple[bytes, int, str]) -> None:
     written only costs the next build its compile). Each file appears whole (written
     under a temporary name, then renamed), the record last."""
     binary, mode, said = entry
-    stem = cache_dir() / hashlib.sha256(repr(key).encode()).hexdigest()
+    stem = _entry(key)
     meta = json.dumps({"key": repr(key), "sha256": _checksum(key, binary, mode, said),
                        "mode": mode, "said": said})
     try:
