@@ -12,7 +12,8 @@ from setuptools.command.build_ext import build_ext
 ENGINE = Path("src/vsj/engine")
 SOURCES = ["src/vsj/_core.c"] + sorted(str(p) for p in (ENGINE / "c").glob("*.c"))
 #: Warnings on for gcc and clang (the engine and its binding build without any);
-#: VSJ_WERROR=1 makes them errors (tests/test_c_source.py builds that way).
+#: VSJ_WERROR=1 makes them errors. tests/test_c_source.py reads this line and builds the
+#: binding with it, warnings as errors.
 WARNINGS = ["-Wall", "-Wextra"] + (["-Werror"] if os.environ.get("VSJ_WERROR") == "1" else [])
 
 
