@@ -34,6 +34,7 @@ from fmpy.validation import validate_fmu
 
 from vsj import fmu, params, scenario
 from vsj.engine.core import IMPULSE_REL
+from vsj.errors import InputError
 from vsj.inputs import Constant, Hold
 from vsj.simulate import InitialState, SimulationOptions, simulate
 from vsj.simulate.signals import catalogue
@@ -649,3 +650,32 @@ def test_the_binary_is_compiled_once_per_process_for_the_same_files(tmp_path):
         assert fmu._sources_digest(copies) != digest, edited.name
         edited.write_bytes(original)
     assert fmu._sources_digest(copies) == digest
+
+
+def test_each_source_is_compiled_apart_and_every_warning_or_failure_is_reported(tmp_path):
+    """`fmu._compile` compiles the sources side by side, one object each, then links
+    them: the linked binary exports what both sources define, every source's warnings
+    reach what the compiler said, and a failing compile or link raises `InputError` with
+    the compiler's words (the first failure), leaving no binary behind."""
+    cc = fmu.compiler("linux64")
+    flags = ["-std=c99", "-O2", "-Wall", "-Wextra", "-fPIC"]
+    link = ["-shared"]
+    one, two = tmp_path / "one.c", tmp_path / "two.c"
+    one.write_text("int vsj_test_one(void) { return 1; }\n")
+    two.write_text("int vsj_test_two(int a) { int unused_here; return a + 1; }\n")
+    out = tmp_path / "both.so"
+    binary, mode, said = fmu._compile(cc, flags, link, [str(one), str(two)], "linux64", out)
+    symbols = subprocess.run(["nm", "-D", "--defined-only", str(out)], capture_output=True,
+                             text=True, check=True).stdout
+    assert "vsj_test_one" in symbols and "vsj_test_two" in symbols
+    assert binary == out.read_bytes() and mode & 0o100  # executable by its owner
+    assert "unused_here" in said and "two.c" in said and "one.c" not in said
+    broken = tmp_path / "broken.c"
+    broken.write_text("int vsj_test_broken(void) { return missing_name; }\n")
+    for sources, extra, words in (([one, broken], [], "missing_name"),
+                                  ([one], ["-lvsj-no-such-library"], "vsj-no-such-library")):
+        target = tmp_path / f"failed-{len(extra)}.so"
+        with pytest.raises(InputError, match=words) as failed:
+            fmu._compile(cc, flags, link + extra, [str(s) for s in sources], "linux64", target)
+        assert "building the linux64 binary failed" in str(failed.value)
+        assert not target.exists()
