@@ -143,7 +143,7 @@ def cmd_datasheet(args) -> int:
 
 def cmd_export_model(args) -> int:
     """``vsj export-model``: write the wrist, with a parameter set and model options, as a
-    JSON model file that the C library loads (``vsj_load_model``) and steps one control
+    model file (binary, `vsj.export`) that the C library loads (``vsj_load_model``) and steps one control
     period at a time. Returns the exit code: 0 (bad input raises `InputError`, which
     `main` turns into 2)."""
     # lazy: only this command needs these, and every vsj command imports vsj.cli
@@ -271,10 +271,10 @@ def register(sub) -> None:
 
     p = sub.add_parser(
         "export-model", help="write the wrist as a model file for the C engine (vsj.h)",
-        description="Write the wrist, with a parameter set and model options, as a JSON file "
-                    "that the C library reads (vsj_load_model) and steps one control period "
+        description="Write the wrist, with a parameter set and model options, as a model file "
+                    "(binary, with a checksum) that the C library reads (vsj_load_model) and steps one control period "
                     "at a time (examples/c/step_wrist.c).")
-    p.add_argument("--out", metavar="FILE", required=True, help="model file to write (JSON)")
+    p.add_argument("--out", metavar="FILE", required=True, help="model file to write (e.g. wrist.vsjm)")
     p.add_argument("--force", action="store_true",
                    help="replace --out even if vsj did not write it")
     p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
@@ -305,8 +305,8 @@ def register(sub) -> None:
                     "built from the C engine with the system compiler (and for win64 with "
                     "mingw-w64 where installed; each kept in ~/.cache/vsj/fmu and reused while "
                     "the sources, compiler and flags stay the same), its sources with "
-                    "buildDescription.xml, and the model in resources/. See the README, 'The "
-                    "wrist as an FMU'.")
+                    "buildDescription.xml, and the model in resources/. See the user guide's page "
+                    "'The FMU and the C API' (docs/user-guide/c-api-fmu.md).")
     p.add_argument("--out", metavar="FILE", help="FMU to write (.fmu)")
     p.add_argument("--force", action="store_true",
                    help="replace --out even if vsj did not write it")
