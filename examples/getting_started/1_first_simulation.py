@@ -23,7 +23,7 @@ wrist = vsj.build_wrist(params).assemble()
 # %%
 # A run
 # -----
-# Motor 1 follows a 0.5 Hz sine of 3 rad amplitude (``Sine(amplitude, frequency)``,
+# Motor 1's speed follows a 0.5 Hz sine of 3 rad/s amplitude (``Sine(amplitude, frequency)``,
 # faded in over the first second); the pivot starts at q = -0.4 cm.
 result = vsj.simulate(wrist, {"motor_1": Sine(3.0, 0.5, fade_in=1.0)}, 5.0,
                       initial=vsj.InitialState(q=-0.004))

@@ -2,10 +2,10 @@
 First plot
 ==========
 
-The end-effector angle and a VSM spring's deflection at the two ends of the pivot's
-range: the same motor motion, a stiff and a soft setting of the variable stiffness
-mechanism. Every signal is a NumPy array over ``result.time``, so any plotting library
-draws it.
+The end-effector angle and a VSM spring's deflection at the stiffest and the most
+compliant setting of fig 4.15 (q = -1.5 and +0.5 cm): the same motor motion, a stiff and
+a soft setting of the variable stiffness mechanism. Every signal is a NumPy array over
+``result.time``, so any plotting library draws it.
 """
 
 import matplotlib.pyplot as plt
@@ -18,7 +18,7 @@ wrist = vsj.build_wrist(params).assemble()
 motion = {"motor_1": Sine(3.0, 0.5, fade_in=1.0), "motor_2": Sine(3.0, 0.5, fade_in=1.0)}
 
 fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7, 5))
-for q in (-0.015, 0.005):  # pivot position [m]: the stiff and the soft end of the range
+for q in (-0.015, 0.005):  # pivot position [m]: fig 4.15's stiffest and softest setting
     result = vsj.simulate(wrist, motion, 6.0, initial=vsj.InitialState(q=q))
     assert result.success, result.message
     label = f"q = {q * 100:+.1f} cm"
