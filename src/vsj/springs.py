@@ -8,7 +8,8 @@ Geometry (report section 3.2.1, fig 3.3; restated in docs/model-notes/elastic-el
 origin is the ring centre, y points up. The pivot sits at ``(0, q)``; the
 lever is pinned to the ring at ``X_R = R (sin phi, -cos phi)`` (eq 3.2) and
 slides through the pivot, so its direction is fixed by the angle ``alpha`` of
-eq 3.1 (computed with ``atan2``, which stays right when ``q + R cos phi < 0``).
+eq 3.1 (its sine and cosine taken from the pin-to-pivot vector over its length, which
+stays right when ``q + R cos phi < 0``).
 At the lever's far end, ``L`` along the lever and ``W`` to either side
 (eq 3.3-3.4), two equal springs run to the fixed anchors ``(+x0, y0)`` and
 ``(-x0, y0)``. A spring only pulls: shorter than its rest length ``s0`` it
