@@ -131,8 +131,8 @@ def test_the_binding_builds_without_a_warning(tmp_path):
              *(sysconfig.get_config_var("CCSHARED") or "").split(),
              *os.environ.get("CFLAGS", "").split()]
     core = ROOT / "src" / "vsj" / "_core.c"
-    done = subprocess.run([*cc, *flags, *warnings, "-Werror", "-I",
-                           sysconfig.get_paths()["include"], "-I", str(core.parent / "engine" / "c"),
+    includes = ["-I", sysconfig.get_paths()["include"], "-I", str(core.parent / "engine" / "c")]
+    done = subprocess.run([*cc, *flags, *warnings, "-Werror", *includes,
                            "-c", str(core), "-o", str(tmp_path / "core.o")],
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-3000:]

@@ -143,9 +143,9 @@ def cmd_datasheet(args) -> int:
 
 def cmd_export_model(args) -> int:
     """``vsj export-model``: write the wrist, with a parameter set and model options, as a
-    model file (binary, `vsj.export`) that the C library loads (``vsj_load_model``) and steps one control
-    period at a time. Returns the exit code: 0 (bad input raises `InputError`, which
-    `main` turns into 2)."""
+    model file (binary, `vsj.export`) that the C library loads (``vsj_load_model``) and
+    steps one control period at a time. Returns the exit code: 0 (bad input raises
+    `InputError`, which `main` turns into 2)."""
     # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import export
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
@@ -271,10 +271,12 @@ def register(sub) -> None:
 
     p = sub.add_parser(
         "export-model", help="write the wrist as a model file for the C engine (vsj.h)",
-        description="Write the wrist, with a parameter set and model options, as a model file "
-                    "(binary, with a checksum) that the C library reads (vsj_load_model) and steps one control period "
-                    "at a time (examples/c/step_wrist.c).")
-    p.add_argument("--out", metavar="FILE", required=True, help="model file to write (e.g. wrist.vsjm)")
+        description="Write the wrist, with a parameter set and model options, as a model "
+                    "file (binary, with a checksum) that the C library reads "
+                    "(vsj_load_model) and steps one control period at a time "
+                    "(examples/c/step_wrist.c).")
+    p.add_argument("--out", metavar="FILE", required=True,
+                   help="model file to write (e.g. wrist.vsjm)")
     p.add_argument("--force", action="store_true",
                    help="replace --out even if vsj did not write it")
     p.add_argument("--params", metavar="FILE", help="parameter file (default: bundled set)")
