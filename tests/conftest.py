@@ -95,10 +95,24 @@ def vsj_cache(tmp_path_factory):
 def reproduction(tmp_path_factory):
     """``vsj reproduce --reduced`` run once per test session: ``(exit code, output dir)``.
 
-    It makes every report figure (about a minute of work), and three test files
-    read what it writes (made once for all workers, `_once`). Tests must not change them.
+    It makes every report figure (about a minute of work), once per session: the tests
+    of the figures read what it writes (made once for all workers, `_once`), and
+    `reproduced` the figures themselves. Tests must not change them.
     """
     return _once(tmp_path_factory, "reproduction", _reproduce)
+
+
+@pytest.fixture(scope="session")
+def reproduced_figures(reproduction):
+    """Every figure of the session's reproduction, read back from the ``.npz`` file it
+    wrote (`vsj.reproduce.base.Figure.load`): the tests of the figures' numbers and
+    drawings use these rather than computing the figures again."""
+    from vsj.reproduce import figures
+    from vsj.reproduce.base import Figure
+
+    code, out = reproduction
+    assert code == 0
+    return {name: Figure.load(out / f"{name}.npz") for name in figures()}
 
 
 @pytest.fixture(scope="session")

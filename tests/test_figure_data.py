@@ -1,74 +1,83 @@
-"""The report figures' numbers, computed without Matplotlib (`vsj.reproduce`, `Figure.data`).
-
-One fresh interpreter computes every figure in reduced mode, without drawing,
-and reports whether Matplotlib was imported and the figures' data; the tests
-then check numbers of that data against the model computed independently here:
-things a figure that draws the wrong arrays, or computes them in the drawing,
-gets wrong.
+"""The report figures' numbers (`vsj.reproduce`, `Figure.data`), as the session's
+reproduction wrote them (``fig-X.Y.npz``, read back by `Figure.load`), checked against
+the model computed independently here: things a figure that draws the wrong arrays, or
+computes them in the drawing, gets wrong. And that computing a figure needs no
+Matplotlib.
 """
 
 from __future__ import annotations
 
-import json
+import ast
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from vsj.reproduce.data_figures import MEASURED_K
 
-#: Computes every figure (reduced) in a clean interpreter and prints, as JSON, whether
-#: Matplotlib was imported, each figure's data (arrays as lists) and whether any
-#: figure was drawn.
-SCRIPT = """
-import json, sys
-import numpy as np
-from vsj import params
-from vsj.reproduce import figures
-from vsj.reproduce.base import Context
-
-def plain(value):
-    if isinstance(value, dict):
-        return {k: plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-ctx = Context(params.default(), reduced=True)
-made = {name: make(ctx) for name, make in figures().items()}
-print(json.dumps({"matplotlib": sorted(m for m in sys.modules if m.split(".")[0] == "matplotlib"),
-                  "drawn": [n for n, f in made.items() if f._drawn is not None],
-                  "rows": {n: len(f.rows) for n, f in made.items()},
-                  "data": {n: plain(dict(f.data)) for n, f in made.items()}}))
-"""
+#: The modules that compute the figures, and what they must never import: Matplotlib,
+#: and the modules that draw (reached only through `vsj.reproduce.base.Drawing`).
+COMPUTING = ("base", "model_figures", "data_figures")
+DRAWING = ("matplotlib", "vsj.plots", "vsj.reproduce.draw_model", "vsj.reproduce.draw_data")
 
 
 @pytest.fixture(scope="module")
-def computed():
-    done = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    return json.loads(done.stdout.strip().splitlines()[-1])
+def computed(reproduced_figures):
+    return {"data": {name: fig.data for name, fig in reproduced_figures.items()},
+            "rows": {name: len(fig.rows) for name, fig in reproduced_figures.items()}}
 
 
-def _array(value) -> np.ndarray:
-    return np.asarray(value, dtype=float)
-
-
-def test_every_figure_is_computed_without_matplotlib(computed):
+def test_every_figures_numbers_are_written(computed):
     from vsj.reproduce import figures
 
-    assert computed["matplotlib"] == []
-    assert computed["drawn"] == []
     assert set(computed["data"]) == set(figures())
     for name, data in computed["data"].items():
         assert data, name
         assert computed["rows"][name] > 0, name
+
+
+def _imported(path: Path) -> set[str]:
+    """Every module an ``import`` anywhere in ``path`` names (relative ones resolved
+    within vsj.reproduce), with the packages above it."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = (["vsj", "reproduce"][:3 - node.level] if node.level else []) \
+                + (node.module.split(".") if node.module else [])
+            names |= {".".join(base + [alias.name]) for alias in node.names}
+            names.add(".".join(base))
+    return {".".join(n.split(".")[:k + 1]) for n in names for k in range(n.count(".") + 1)}
+
+
+def test_computing_a_figure_imports_no_matplotlib(tmp_path):
+    """The modules that compute the figures import nothing that draws, at their top or
+    in a function, and importing them with `vsj.reproduce` (which imports `vsj.plots`
+    to save what is drawn, and `vsj.plots` Matplotlib only when it draws) loads neither
+    Matplotlib nor a drawing module; a module that did is found."""
+    import vsj.reproduce
+
+    folder = Path(vsj.reproduce.__file__).parent
+    for name in COMPUTING:
+        assert not _imported(folder / f"{name}.py") & set(DRAWING), name
+    bad = tmp_path / "bad.py"
+    bad.write_text("def f():\n    from .draw_model import fig_3_5\n")
+    assert _imported(bad) & set(DRAWING) == {"vsj.reproduce.draw_model"}
+    code = ("import sys; import vsj.reproduce; "
+            + "; ".join(f"import vsj.reproduce.{name}" for name in COMPUTING)
+            + "; print(sorted(m for m in sys.modules if m.split('.')[0] == 'matplotlib'"
+            " or m in ('vsj.reproduce.draw_model', 'vsj.reproduce.draw_data')))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
+
+
+def _array(value) -> np.ndarray:
+    return np.asarray(value, dtype=float)
 
 
 def test_fig_3_5_deflection_reaches_the_end_stop_where_the_load_is_not_held(computed, params):
@@ -110,7 +119,7 @@ def test_fig_4_15_softer_settings_lag_more(computed):
         assert np.all(lag > 0) and np.all(np.diff(lag) > 0), law["law"]
         assert np.allclose(lag, 0.5 * (_array(law["lag_x"]) + _array(law["lag_y"])))
         # the traces drawn are the runs at the same settings, under this law
-        assert [t["q"] for t in law["traces"]] == law["q"]
+        assert [t["q"] for t in law["traces"]] == list(law["q"])
         for trace in law["traces"]:
             deflection = max(np.max(np.abs(_array(trace[k]))) for k in ("phi_1", "phi_2"))
             assert 0 < deflection < 1.4  # within the end stop

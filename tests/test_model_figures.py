@@ -1,4 +1,6 @@
-"""The model-side figures of the report (fig 3.5-3.7, 4.14, 4.15), in reduced mode.
+"""The model-side figures of the report (fig 3.5-3.7, 4.14, 4.15), in reduced mode, as the
+session's reproduction wrote them (`conftest.reproduced_figures`) and drawn again from
+those files.
 
 Checks that each figure is complete (rows, labelled axes, a caption naming the
 parameter set), that its rows are plain deterministic values, and that the
@@ -15,16 +17,16 @@ import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-from vsj.reproduce.base import Context, Row
+from vsj.reproduce.base import Row
 from vsj.reproduce.model_figures import FIGURES
 
 NAMES = ("fig-3.5", "fig-3.6", "fig-3.7", "fig-4.14", "fig-4.15")
 
 
 @pytest.fixture(scope="module")
-def figures(params):
-    ctx = Context(params, reduced=True)
-    return {name: make(ctx) for name, make in FIGURES.items()}
+def figures(reproduced_figures):
+    """The model figures of the session's reproduction, read back from its files."""
+    return {name: reproduced_figures[name] for name in FIGURES}
 
 
 def _filled(value) -> bool:
@@ -68,18 +70,17 @@ def test_axes_are_labelled_and_the_figure_renders(figures, name, params):
     assert buffer.getvalue().startswith(b"\x89PNG")
 
 
-def test_rows_are_the_same_on_every_run(figures, reproduction):
-    """The session's ``vsj reproduce`` (`conftest.reproduction`) made the same figures
-    in a run of its own, possibly in another process: every row agrees exactly
-    (JSON keeps a float's every digit)."""
+def test_the_figures_file_holds_the_rows_of_results_json(figures, reproduction):
+    """Each figure's ``.npz`` (`Figure.save`) and ``results.json``, written by one run,
+    give the same rows, every field of every row (JSON keeps a float's every digit)."""
+    from vsj.reproduce import _row_json
+
     code, out = reproduction
     assert code == 0
     recorded = json.loads((out / "results.json").read_text())["rows"]
     for name in NAMES:
-        mine = [(r.quantity, r.report, r.vsj, r.unit) for r in figures[name].rows]
-        theirs = [(r["quantity"], r["report"], r["vsj"], r["unit"]) for r in recorded
-                  if r["figure"] == name]
-        assert mine == theirs, name
+        mine = [_row_json(name, r) for r in figures[name].rows]
+        assert mine and mine == [r for r in recorded if r["figure"] == name], name
 
 
 def _row(figures, name, start):

@@ -99,3 +99,44 @@ def test_a_failing_figure_is_reported_and_the_rest_written(tmp_path, capsys, mon
 def test_unknown_figure_is_bad_input(tmp_path, capsys):
     assert main(["reproduce", "--only", "fig-9.9", "--out", str(tmp_path)]) == 2
     assert "fig-9.9" in capsys.readouterr().err
+
+
+def test_a_figures_numbers_come_back_from_its_file_as_they_were(tmp_path):
+    """`Figure.save` and `Figure.load`: nested dicts and lists, arrays of any dtype and
+    shape (bit for bit, NaN included), plain values, rows and the drawing come back;
+    sequences as lists. A key that would read as an array, a file that is no figure
+    and a figure of another format are refused, naming the file."""
+    import numpy as np
+
+    from vsj.errors import InputError
+    from vsj.reproduce.base import Drawing, Figure, Row
+
+    data = {"t": np.linspace(0.0, 1.0, 7), "grid": np.arange(6).reshape(2, 3),
+            "flags": np.array([True, False]), "cases": [{"q": -0.01, "y": np.array([np.nan, 2.5])},
+                                                         {"q": np.float64(0.5), "y": np.zeros(0)}],
+            "pair": (1.0, "two"), "none": None, "title": "a figure"}
+    rows = [Row("a quantity", 1.5, 1.4, "N m", "table 4.1", note="n", tolerance=0.2,
+                statement="s"), Row("another", "yes", "no", "", "fig 4.7", agrees=False)]
+    fig = Figure("fig-9.9", data, "caption", rows, synthetic=True,
+                 draw=Drawing("draw_model", "fig_3_5"))
+    fig.save(tmp_path / "f.npz")
+    back = Figure.load(tmp_path / "f.npz")
+    assert (back.name, back.caption, back.rows, back.synthetic, back.draw) == \
+        ("fig-9.9", "caption", rows, True, Drawing("draw_model", "fig_3_5"))
+    for key in ("t", "grid", "flags"):
+        assert back.data[key].dtype == data[key].dtype
+        np.testing.assert_array_equal(back.data[key], data[key])
+    assert back.data["cases"][0]["q"] == -0.01 and back.data["cases"][1]["q"] == 0.5
+    np.testing.assert_array_equal(back.data["cases"][0]["y"], [np.nan, 2.5])
+    assert back.data["cases"][1]["y"].shape == (0,)
+    assert back.data["pair"] == [1.0, "two"] and back.data["none"] is None
+    assert back.data["title"] == "a figure"
+
+    with pytest.raises(ValueError, match="__array__"):
+        Figure("fig-9.9", {"__array__": 1.0}, "c").save(tmp_path / "g.npz")
+    (tmp_path / "h.npz").write_text("not a figure")
+    with pytest.raises(InputError, match="h.npz"):
+        Figure.load(tmp_path / "h.npz")
+    np.savez(tmp_path / "i.npz", figure=np.array(json.dumps({"format": "vsj-figure-0"})))
+    with pytest.raises(InputError, match="i.npz: figure format .vsj-figure-0."):
+        Figure.load(tmp_path / "i.npz")

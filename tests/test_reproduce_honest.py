@@ -32,11 +32,9 @@ from vsj.reproduce.base import (
     PREDICTION,
     ROUND_TRIP,
     VARIANT,
-    Context,
     Figure,
     Row,
 )
-from vsj.reproduce.data_figures import FIGURES as DATA
 from vsj.reproduce.data_figures import MEASURED_K
 
 #: Tolerance of the closed-form checks of the re-fitted c1..c6: the fit of eq 4.2 to a
@@ -57,9 +55,9 @@ def record(reproduction):
 
 
 @pytest.fixture(scope="module")
-def data_figures(params):
-    ctx = Context(params, reduced=True)
-    return {name: DATA[name](ctx) for name in ("fig-4.7", "fig-4.13", "fig-4.10")}
+def data_figures(reproduced_figures):
+    """Fig 4.7, 4.10 and 4.13 of the session's reproduction, read back from its files."""
+    return {name: reproduced_figures[name] for name in ("fig-4.7", "fig-4.13", "fig-4.10")}
 
 
 def _row(rows, start):

@@ -82,7 +82,7 @@ MANIFEST = "vsj-manifest.json"
 #: never replaces or removes any other.
 OUTPUTS = {
     "simulate": r"trajectory\.(?:nc|csv|png)|meta\.json",
-    "reproduce": r"fig-\d+\.\d+(?:-[a-z]+)?\.(?:png|svg)|results\.json|report\.html",
+    "reproduce": r"fig-\d+\.\d+(?:-[a-z]+)?\.(?:png|svg|npz)|results\.json|report\.html",
     "datasheet": r"datasheet\.(?:html|json)",
     "fit friction": r"[^/]+-friction\.(?:json|png)",
     "fit planetary": r"planetary\.(?:json|png)",

@@ -1,8 +1,9 @@
 """``vsj reproduce``: every result of the report regenerated, beside the report's numbers.
 
 `run` calls each figure function (`model_figures`, `data_figures`: numbers,
-rows and caption, no Matplotlib), draws it (`draw_model`, `draw_data`), writes
-``fig-X.Y.png`` and ``.svg``, then ``results.json`` (every row with its
+rows and caption, no Matplotlib), writes them to ``fig-X.Y.npz`` (`Figure.save`;
+`Figure.load` reads them back, to draw again or plot otherwise), draws the figure
+(`draw_model`, `draw_data`), writes ``fig-X.Y.png`` and ``.svg``, then ``results.json`` (every row with its
 category, statement and verdict, and the statements the predictions test,
 machine readable) and ``report.html`` (one self-contained page: a summary whose
 headline counts predictions only, one per report statement, then each figure,
@@ -254,20 +255,22 @@ _JOB: tuple | None = None
 
 
 def _made(name: str) -> Outcome:
-    """Figure ``name`` of the run in progress (`_JOB`) computed, drawn and written as
-    PNG and SVG: its `Outcome`, with the error where it failed (a failing figure does
-    not stop the others). An `OSError` from writing the set is raised: a failing disk
-    ends the run, and the set is discarded."""
+    """Figure ``name`` of the run in progress (`_JOB`) computed, its numbers written
+    (`Figure.save`), then drawn and written as PNG and SVG: its `Outcome`, with the
+    error where it failed (a failing figure does not stop the others). An `OSError`
+    from writing the set is raised: a failing disk ends the run, and the set is
+    discarded."""
     table, ctx, results = _JOB
     outcome = Outcome(name)
     try:
         fig = table[name](ctx)
+        fig.save(results.path(f"{name}.npz"))
         png = results.path(f"{name}.png")
         save(fig.figure, png, svg=True)
         results.path(f"{name}.svg")  # written beside the PNG: into the manifest
         outcome.png = png.read_bytes()  # embedded in the page
         outcome.figure = fig
-        outcome.files = [f"{name}.png", f"{name}.svg"]
+        outcome.files = [f"{name}.png", f"{name}.svg", f"{name}.npz"]
     except Exception as exc:
         if isinstance(exc, OSError) and results.from_writing(exc):
             raise

@@ -52,11 +52,18 @@ agrees when none of its predictions differs and at least one agrees
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
+import io
+import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from ..errors import InputError
 from ..params import Parameters
 
 PREDICTION = "prediction"
@@ -209,3 +216,71 @@ class Figure:
                 raise ValueError(f"{self.name} has no drawing")
             self._drawn = self.draw(self.data)
         return self._drawn
+
+    def save(self, path: Path) -> None:
+        """Write the figure's numbers to ``path`` (NumPy's ``.npz``): each array of `data`
+        as an entry ``a0``, ``a1``, ... and, in the entry ``figure``, a JSON text with
+        the name, caption, rows, drawing and the layout of `data` (its dicts, lists and
+        plain values, with ``{"__array__": "a3"}`` where an array stands). `load` reads it
+        back; any NumPy-format reader gets the arrays."""
+        arrays: dict[str, np.ndarray] = {}
+        record = {"format": FIGURE_FORMAT, "name": self.name, "caption": self.caption,
+                  "synthetic": self.synthetic,
+                  "drawing": ([self.draw.module, self.draw.function]
+                              if isinstance(self.draw, Drawing) else None),
+                  "rows": [dataclasses.asdict(row) for row in self.rows],
+                  "data": _layout(self.data, arrays)}
+        buffer = io.BytesIO()
+        np.savez(buffer, figure=np.array(json.dumps(record)), **arrays)
+        Path(path).write_bytes(buffer.getvalue())
+
+    @classmethod
+    def load(cls, path: Path) -> "Figure":
+        """The figure `save` wrote to ``path``, undrawn: its `figure` draws it again from
+        the numbers (sequences come back as lists)."""
+        try:
+            with np.load(path, allow_pickle=False) as stored:
+                record = json.loads(str(stored["figure"]))
+                fmt = record.get("format")
+                data = _filled(record["data"], stored) if fmt == FIGURE_FORMAT else None
+        except (OSError, ValueError, KeyError, AttributeError) as exc:
+            raise InputError(f"{path}: not a figure written by vsj reproduce ({exc})") from exc
+        if fmt != FIGURE_FORMAT:
+            raise InputError(f"{path}: figure format {fmt!r}; this vsj reads {FIGURE_FORMAT!r}")
+        drawing = record["drawing"]
+        return cls(record["name"], data, record["caption"],
+                   [Row(**row) for row in record["rows"]], record["synthetic"],
+                   Drawing(*drawing) if drawing else None)
+
+
+#: The version of the file layout `Figure.save` writes, and the key that marks an array
+#: in its layout.
+FIGURE_FORMAT, ARRAY = "vsj-figure-1", "__array__"
+
+
+def _layout(value, arrays: dict):
+    """``value`` with each array put into ``arrays`` and replaced by its reference."""
+    if isinstance(value, Mapping):
+        if ARRAY in value:
+            raise ValueError(f"figure data may not use the key {ARRAY!r}")
+        return {str(k): _layout(v, arrays) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_layout(v, arrays) for v in value]
+    if isinstance(value, np.ndarray):
+        key = f"a{len(arrays)}"
+        arrays[key] = value
+        return {ARRAY: key}
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _filled(layout, stored):
+    """The inverse of `_layout`: the references replaced by ``stored``'s arrays."""
+    if isinstance(layout, dict):
+        if ARRAY in layout:
+            return stored[layout[ARRAY]]
+        return {k: _filled(v, stored) for k, v in layout.items()}
+    if isinstance(layout, list):
+        return [_filled(v, stored) for v in layout]
+    return layout
