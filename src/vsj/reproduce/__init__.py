@@ -203,7 +203,7 @@ def _row_json(where: str, row: Row) -> dict:
             "verdict": row.verdict(), "note": row.note}
 
 
-#: A conservative bound on the bytes `run` writes (a full run writes about 8 MB).
+#: A conservative bound on the bytes `run` writes: a few times what a full run writes.
 OUTPUT_BYTES = 64 * 2 ** 20
 
 
