@@ -54,7 +54,6 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
-import io
 import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -64,6 +63,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..output import atomic_write
 from ..params import Parameters
 
 PREDICTION = "prediction"
@@ -230,9 +230,8 @@ class Figure:
                               if isinstance(self.draw, Drawing) else None),
                   "rows": [dataclasses.asdict(row) for row in self.rows],
                   "data": _layout(self.data, arrays)}
-        buffer = io.BytesIO()
-        np.savez(buffer, figure=np.array(json.dumps(record)), **arrays)
-        Path(path).write_bytes(buffer.getvalue())
+        with atomic_write(Path(path), "wb") as handle:  # whole, or not at all
+            np.savez(handle, figure=np.array(json.dumps(record)), **arrays)
 
     @classmethod
     def load(cls, path: Path) -> "Figure":
