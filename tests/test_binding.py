@@ -105,6 +105,39 @@ def test_a_work_prepared_for_another_model_is_prepared_again(model):
     assert not np.array_equal(reused, first)  # the heavier model moved otherwise
 
 
+def test_a_work_that_stepped_another_model_reads_this_ones_rows(model):
+    """The evaluation notes in its work which friction elements share a slip row (a
+    bearing and a lever on one shaft: fig 4.15 has four such pairs) and evaluates such a
+    slip once. A held period (the step function, which keeps its work's notes from one
+    call to the next) of a model whose rows differ, on a work that stepped the other
+    model, equals one on a fresh work, bit for bit: no element takes a slip that its row
+    no longer shares."""
+    xp, xv, uv = (np.asarray(a) for a in (model.xp, model.xv, model.uv))
+    f = int(model.dims[2])
+    rows = [(tuple(model.xc[xp[e]:xp[e + 1]]), tuple(xv[xp[e]:xp[e + 1]]),
+             tuple(model.uc[model.up[e]:model.up[e + 1]]),
+             tuple(uv[model.up[e]:model.up[e + 1]])) for e in range(f)]
+    pairs = [(a, b) for b in range(f) for a in range(b) if rows[a] == rows[b] and rows[a][0]]
+    assert len(pairs) >= 4
+    split = xv.copy()
+    for _, b in pairs:  # each pair's second element on a slip of its own
+        split[xp[b]:xp[b + 1]] *= 1.25
+    other = model._replace(xv=split)
+    state = np.zeros(int(2 * model.dims[0] + model.dims[5] + model.dims[1]))
+    state[2:4] = (0.3, -0.2)
+    inputs = np.full(int(model.dims[6]), 0.2)
+    for method in (0, 2, 3):  # dopri, rk4, rosenbrock
+        scheme = (method, 1e-8, 1e-10, 1e300, 0, 1e-3, 10 ** 5, False, 4)
+        a, b = Engine(model), Engine(other)
+        first = state.copy()
+        assert _core.run(a.c, a.work, first, scheme, 1e-3, held=inputs)[0] == 0
+        reused, fresh = state.copy(), state.copy()
+        assert _core.run(b.c, a.work, reused, scheme, 1e-3, held=inputs)[0] == 0
+        assert _core.run(b.c, b.work, fresh, scheme, 1e-3, held=inputs)[0] == 0
+        assert np.array_equal(reused, fresh), method
+        assert not np.array_equal(reused, first)  # the split rows moved otherwise
+
+
 def test_a_step_that_failed_fails_again_when_tried_again(model):
     """A step whose matrix is not positive definite fails (a viscous coefficient made
     negative enough that M + h B is indefinite at the period's step but not at half of

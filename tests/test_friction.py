@@ -94,3 +94,71 @@ def test_the_engines_arctangent_keeps_signed_zeros_and_tiny_and_huge_values():
     assert np.array_equal(np.signbit(got[:2]), [False, True]) and np.all(got[:2] == 0.0)
     assert np.array_equal(got[2:6], x[2:6])  # atan(x) = x to the last bit below 1e-8
     assert got[6] == math.pi / 2 and got[7] == -math.pi / 2  # the double nearest pi/2
+
+
+def test_elements_on_one_shaft_each_keep_their_own_law():
+    """Bearings and a slip friction on two shafts, several on one shaft (the engine
+    evaluates a shared slip once, and an arctangent once where the sharpness is the
+    same): each element's torque is its own law at its own slip, as computed here by
+    hand, in the accelerations and in each element's dissipation rate (the ledger
+    evaluates every element, the dynamics only those the shafts feel)."""
+    from vsj.components import Bearing, Inertia, TorqueSource
+    from vsj.components.basic import SlipFriction
+    from vsj.inputs import Constant
+    from vsj.network import Network
+    from vsj.simulate import InitialState, SimulationOptions, prepare
+
+    # name: (shaft or the slip "J1-J2", viscous, stiction k, sharpness), in network order
+    elements = {"b1": ("J1", 0.01, 0.2, 10.0), "slip": ("J1-J2", 0.0, 0.05, 10.0),
+                "b2": ("J1", 0.0, 0.3, 30.0), "b3": ("J2", 0.02, 0.1, 10.0),
+                "b4": ("J1", 0.03, 0.15, 10.0), "b5": ("J2", 0.0, 0.25, 3.0)}
+    inertia = {"J1": 0.2, "J2": 0.5}
+    net = Network("shafts")
+    net.add(TorqueSource("torque", "torque"), *(Inertia(j, v) for j, v in inertia.items()))
+    net.connect("torque.flange", "J1.flange")
+    for name, (shaft, b, k, kb) in elements.items():
+        if shaft == "J1-J2":
+            net.add(SlipFriction(name, viscous=b, stiction=k, sharpness=kb))
+            net.connect("J1.flange", f"{name}.a").connect(f"{name}.b", "J2.flange")
+        else:
+            net.add(Bearing(name, viscous=b, stiction=k, sharpness=kb))
+            net.connect(f"{shaft}.flange", f"{name}.flange")
+    structure = net.assemble()
+    assert [f.name for f in structure.frictions] == list(elements)
+    plan = prepare(structure, {"torque": Constant(0.4)}, 1.0,
+                   SimulationOptions(friction="arctan"),
+                   InitialState(speeds={"J1.flange": 0.3, "J2.flange": -0.07}))
+    engine = plan.engine()
+    n = structure.n
+    speed = {"J1": 0.3, "J2": -0.07}
+    y = np.zeros(engine.n_state)
+    column = {}  # each shaft's generalised coordinate
+    for shaft, w in speed.items():
+        rx, _ = structure.rows(f"{shaft}.flange")
+        column[shaft] = int(np.flatnonzero(rx)[0])
+        assert rx[column[shaft]] == 1.0 and np.count_nonzero(rx) == 1
+        y[n + column[shaft]] = w
+    slips = {name: speed["J1"] - speed["J2"] if shaft == "J1-J2" else speed[shaft]
+             for name, (shaft, *_) in elements.items()}
+    torques = {name: b * slips[name] + k * math.atan(kb * slips[name])
+               for name, (_, b, k, kb) in elements.items()}
+    load = {"J1": 0.4 - torques["slip"], "J2": torques["slip"]}
+    for name, (shaft, *_) in elements.items():
+        if shaft != "J1-J2":
+            load[shaft] -= torques[name]
+    status, dy = engine.derivatives(0.1, y)
+    assert status == 0
+    layout = plan.layout
+    acc = np.concatenate([y, np.zeros(layout.n_acc)])
+    status, dy_ledger = engine.derivatives(0.1, acc)
+    assert status == 0
+    rates = dy_ledger[engine.n_state:][layout.acc_slices()["friction"]]
+    for name, rate in zip(elements, rates):
+        # a law is a product, an arctangent (within two ulps) and a sum
+        assert rate == pytest.approx(torques[name] * slips[name], rel=ULPS * EPS, abs=0)
+    for shaft, J in inertia.items():
+        i = n + column[shaft]
+        # each acceleration sums six torques of size up to 0.4 N m, each within a few ulps
+        for derivative in (dy, dy_ledger):
+            assert derivative[i] == pytest.approx(load[shaft] / J, rel=0,
+                                                  abs=6 * ULPS * EPS * 0.4 / J)

@@ -35,12 +35,12 @@ int64_t vsj_n_acc(const vsj_model *m) {
     return m->n_sources + m->n_loads + 2 * m->n_motors + m->n_frictions + 3 * m->n_springs;
 }
 
-/* Pivot position and rate; y holds the angles and then the speeds (offset n). */
-static double eval_pivot(const vsj_model *m, vsj_work *w, const double *y) {
+/* Pivot position and, with `rates`, its rate; y holds the angles and then the speeds
+ * (offset n). */
+static double eval_pivot(const vsj_model *m, vsj_work *w, const double *y, int rates) {
     int64_t r = m->n_rows - 1;
     const double *p = vsj__row(m, r);
     double angle = vsj__pivot_angle(m, w, y);
-    double rate = vsj__xdot(m, r, y + m->n) + vsj__udot(m, r, w->srcw, U);
     double q;
     /* a pivot held still (the usual case) costs no sine and cosine */
     if (angle == w->pivot_key[0] && p[0] == w->pivot_key[1] && p[1] == w->pivot_key[2]
@@ -58,7 +58,9 @@ static double eval_pivot(const vsj_model *m, vsj_work *w, const double *y) {
         w->pivot_q = q;
         w->pivot_cos = cos(angle);
     }
-    w->qdot = p[2] * p[0] * w->pivot_cos * rate;
+    if (rates)
+        w->qdot = p[2] * p[0] * w->pivot_cos
+                  * (vsj__xdot(m, r, y + m->n) + vsj__udot(m, r, w->srcw, U));
     return q;
 }
 
@@ -75,8 +77,11 @@ int vsj__rigid_stop(const vsj_model *m) {
 
 /* ---- forces ----------------------------------------------------------------- */
 
-static void eval_springs(const vsj_model *m, vsj_work *w, const double *y) {
-    double q = eval_pivot(m, w, y);
+/* The springs' deflections, torques, stiffnesses and energies at y and, with `rates`
+ * (which only the energy ledger and the observations read), their rates of deflection
+ * and the pivot's rate. */
+static void eval_springs(const vsj_model *m, vsj_work *w, const double *y, int rates) {
+    double q = eval_pivot(m, w, y, rates);
     int64_t kk, f = m->n_frictions, n = m->n;
     for (kk = 0; kk < m->n_springs; kk++) {
         int64_t r = f + kk;
@@ -86,7 +91,8 @@ static void eval_springs(const vsj_model *m, vsj_work *w, const double *y) {
         double tau = vsj__spring(m->code[r], vsj__row(m, r), d, q, &stiff, &energy, &dvq,
                                  w->spcache + 4 * kk, 1);
         sp[DEFL] = d;
-        sp[RATE] = vsj__xdot(m, r, y + n) + vsj__udot(m, r, w->srcw, U);
+        if (rates)
+            sp[RATE] = vsj__xdot(m, r, y + n) + vsj__udot(m, r, w->srcw, U);
         sp[SPTAU] = tau;
         sp[STIFF] = stiff;
         sp[ENERGY] = energy;
@@ -94,23 +100,39 @@ static void eval_springs(const vsj_model *m, vsj_work *w, const double *y) {
     }
 }
 
-/* The arctangents of one evaluation: elements that turn at the same speed with the
- * same sharpness (a bearing and a lever on one shaft) share one. */
-typedef struct atan_memo {
-    double x[4], value[4];
-    int used, next;
-} atan_memo;
+/* Whether friction rows a and b have the same slip: the same entries in the same order
+ * (so that the same sums give the same bits). */
+static int same_row(const vsj_model *m, int64_t a, int64_t b) {
+    int64_t i, na = m->xp[a + 1] - m->xp[a], ua = m->up[a + 1] - m->up[a];
+    if (na != m->xp[b + 1] - m->xp[b] || ua != m->up[b + 1] - m->up[b])
+        return 0;
+    for (i = 0; i < na; i++)
+        if (m->xc[m->xp[a] + i] != m->xc[m->xp[b] + i] || m->xv[m->xp[a] + i] != m->xv[m->xp[b] + i])
+            return 0;
+    for (i = 0; i < ua; i++)
+        if (m->uc[m->up[a] + i] != m->uc[m->up[b] + i] || m->uv[m->up[a] + i] != m->uv[m->up[b] + i])
+            return 0;
+    return 1;
+}
 
-static double memo_atan(atan_memo *c, double x) {
-    int i;
-    for (i = 0; i < c->used; i++)
-        if (c->x[i] == x)
-            return c->value[i];
-    i = c->used < 4 ? c->used++ : c->next;
-    c->next = (i + 1) & 3;
-    c->x[i] = x;
-    c->value[i] = vsj__atan(x);
-    return c->value[i];
+void vsj__eval_prepare(const vsj_model *m, vsj_work *w) {
+    int64_t e, j, f = m->n_frictions;
+    w->ev_nd = 0;
+    for (e = 0; e < f; e++) {
+        if (m->xp[e + 1] > m->xp[e])
+            w->ev_list[w->ev_nd++] = e;
+        w->ev_same[e] = -1;
+        for (j = 0; j < e && w->ev_same[e] < 0; j++)
+            if (w->ev_same[j] < 0 && same_row(m, e, j))
+                w->ev_same[e] = j;
+    }
+    w->ev_model = m;
+    w->ev_xp = m->xp;
+    w->ev_xc = m->xc;
+    w->ev_xv = m->xv;
+    w->ev_up = m->up;
+    w->ev_uc = m->uc;
+    w->ev_uv = m->uv;
 }
 
 /* All element torques at y, as generalised forces in w->gen and, with `full`,
@@ -118,13 +140,12 @@ static double memo_atan(atan_memo *c, double x) {
  * sources feel are skipped (the dynamics do not need them). */
 static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int full) {
     int64_t n = m->n, s = m->n_sources, f = m->n_frictions, k = m->n_springs;
-    int64_t nl = m->n_loads, i, j, kk, e, ld, mo;
-    atan_memo memo;
+    int64_t nl = m->n_loads, i, j, kk, e, ld, mo, count, first;
     for (i = 0; i < n; i++)
         w->gen[i] = 0.0;
     for (j = 0; j < s; j++)
         w->srcw[SRCW * j + SRCF] = 0.0;
-    eval_springs(m, w, y);
+    eval_springs(m, w, y, full);
     for (kk = 0; kk < k; kk++) {
         int64_t r = f + kk;
         double tau = w->spw[SPW * kk + SPTAU];
@@ -132,18 +153,27 @@ static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int fu
         if (full)
             vsj__uadd(m, r, w->srcw, SRCF, tau);
     }
-    memo.used = memo.next = 0;
-    for (e = 0; e < f; e++) {
+    if (w->ev_model != m || w->ev_xp != m->xp || w->ev_xc != m->xc || w->ev_xv != m->xv
+        || w->ev_up != m->up || w->ev_uc != m->uc || w->ev_uv != m->uv)
+        vsj__eval_prepare(m, w);
+    count = full ? f : w->ev_nd;
+    for (i = 0; i < count; i++) {
         const double *p;
         double slip, torque, level;
-        if (!full && m->xp[e + 1] == m->xp[e])
-            continue;
+        e = full ? i : w->ev_list[i];
         p = vsj__row(m, e);
-        slip = vsj__xdot(m, e, y + n) + vsj__udot(m, e, w->srcw, U);
+        first = w->ev_same[e];
+        slip = first >= 0 ? w->frw[FRW * first + SLIP]
+                           : vsj__xdot(m, e, y + n) + vsj__udot(m, e, w->srcw, U);
         level = vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1];
-        if (m->code[e] == VSJ_ARCTAN) /* vsj__friction's arctan law, sharing the arctangent */
-            torque = p[0] * slip + level * memo_atan(&memo, p[2] * slip);
-        else if (m->code[e] == VSJ_CONTACT)
+        if (m->code[e] == VSJ_ARCTAN) { /* vsj__friction's arctan law; elements on one shaft
+                                         * with the same sharpness share the arctangent */
+            w->ev_atan[e] = first >= 0 && m->code[first] == VSJ_ARCTAN
+                                    && vsj__row(m, first)[2] == p[2]
+                                ? w->ev_atan[first]
+                                : vsj__atan(p[2] * slip);
+            torque = p[0] * slip + level * w->ev_atan[e];
+        } else if (m->code[e] == VSJ_CONTACT)
             torque = vsj__contact(p, vsj__penetration(m, w, e, y), slip,
                                   &w->frw[FRW * e + DSLIP], &w->frw[FRW * e + DPOS]);
         else
@@ -155,9 +185,8 @@ static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int fu
     }
     /* the torques' sums apart from the laws: each sum is one chain of additions
      * through memory, which the laws' evaluations would otherwise wait on */
-    for (e = 0; e < f; e++) {
-        if (!full && m->xp[e + 1] == m->xp[e])
-            continue;
+    for (i = 0; i < count; i++) {
+        e = full ? i : w->ev_list[i];
         vsj__xadd(m, e, w->gen, -w->frw[FRW * e + TORQUE]);
         if (full)
             vsj__uadd(m, e, w->srcw, SRCF, -w->frw[FRW * e + TORQUE]);
@@ -166,7 +195,8 @@ static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int fu
         int64_t r = f + k + ld;
         double tau = w->chan[3 * m->code[r]];
         w->ldw[2 * ld] = tau;
-        w->ldw[2 * ld + 1] = vsj__xdot(m, r, y + n) + vsj__udot(m, r, w->srcw, U);
+        if (full) /* the load's speed, for the ledger */
+            w->ldw[2 * ld + 1] = vsj__xdot(m, r, y + n) + vsj__udot(m, r, w->srcw, U);
         vsj__xadd(m, r, w->gen, tau);
         if (full)
             vsj__uadd(m, r, w->srcw, SRCF, tau);
@@ -242,7 +272,7 @@ void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const doub
 int vsj_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y, int64_t ny,
                     double *dy) {
     w->status = VSJ_OK;
-    w->in_model = NULL;
+    w->in_model = w->ev_model = NULL;
     w->ctl_on = 0; /* the inputs from their splines */
     vsj__eval_derivatives(m, w, t, y, ny, dy);
     return w->status;
@@ -255,7 +285,7 @@ int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, int
     if (!vsj__fits(m, w) || !y || !J || !ft || (ny != ns && ny != ns + na))
         return VSJ_BAD_ARGUMENT;
     w->status = VSJ_OK;
-    w->in_model = NULL;
+    w->in_model = w->ev_model = NULL;
     w->ctl_on = 0;
     vsj__eval_derivatives(m, w, t, y, ny, w->dy);
     vsj__eval_jacobian(m, w, J, ft);
@@ -274,7 +304,7 @@ int vsj_jacobian(const vsj_model *m, vsj_work *w, double t, const double *y, int
 void vsj_source_signals(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_out,
                         double *angles, double *speeds) {
     int64_t i, j, s = m->n_sources;
-    w->in_model = NULL;
+    w->in_model = w->ev_model = NULL;
     w->ctl_on = 0;
     for (i = 0; i < n_out; i++) {
         vsj__eval_inputs(m, w, t_out[i]);
@@ -290,10 +320,10 @@ void vsj_stored_energy(const vsj_model *m, vsj_work *w, double t, const double *
     int64_t n = m->n, s = m->n_sources, nm = m->n_motors, sz = n + s, i, r, kk, mo;
     int64_t base_m = m->n_frictions + m->n_springs + m->n_loads;
     double kin = 0.0, pot = 0.0, ind = 0.0;
-    w->in_model = NULL;
+    w->in_model = w->ev_model = NULL;
     w->ctl_on = 0;
     vsj__eval_inputs(m, w, t);
-    eval_springs(m, w, y);
+    eval_springs(m, w, y, 0);
     for (i = 0; i < sz; i++) {
         double a = i < n ? y[n + i] : w->srcw[SRCW * (i - n) + U];
         for (r = 0; r < sz; r++) {
@@ -329,7 +359,7 @@ int vsj_observe(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_
     int status = VSJ_OK;
     if (ny < ns + vsj_control_width(m))
         return VSJ_BAD_ARGUMENT;
-    w->in_model = NULL;
+    w->in_model = w->ev_model = NULL;
     w->ctl_on = 0;
     for (i = 0; i < n_out; i++) {
         const double *y = out + ny * i;
@@ -404,17 +434,21 @@ static void add_angle(const vsj_model *m, const vsj_work *w, double *row, int64_
 /* The pivot's motion where the last evaluation was: w->pivot_dq = dq/d(angle) (0 for
  * a fixed pivot) and, for a moving one, each spring's derivatives of its torque and of
  * dV/dq by q, and of dV/dq by its deflection, in spw (central differences of the law
- * alone, four evaluations of it, steps of cbrt(eps) of the scale). */
+ * alone, four evaluations of it, steps of cbrt(eps) of the scale). Every term they
+ * enter is a multiple of the pivot angle's rate or of its derivative in the state, so
+ * a pivot angle that depends on no state and stands still now (a pivot motor held)
+ * needs none of them. */
 static void pivot_motion(const vsj_model *m, vsj_work *w) {
-    const double *pp = vsj__row(m, m->n_rows - 1);
+    int64_t kk, rp = m->n_rows - 1;
+    const double *pp = vsj__row(m, rp);
     const double step = 6.0554544523933395e-06; /* cbrt(eps) */
-    int64_t kk;
+    int still = m->xp[rp + 1] == m->xp[rp] && vsj__udot(m, rp, w->srcw, U) == 0.0;
     w->pivot_dq = pp[2] * pp[0] * w->pivot_cos;
     for (kk = 0; kk < m->n_springs; kk++) {
         int64_t r = m->n_frictions + kk;
         double *sp = w->spw + SPW * kk, phi = sp[DEFL], q = w->q, hq, hp, st, en, a, b, ta, tb;
         sp[DTQ] = sp[DVQQ] = sp[DVQP] = 0.0;
-        if (w->pivot_dq == 0.0)
+        if (w->pivot_dq == 0.0 || still)
             continue;
         hq = step * vsj__dmax(fabs(q), 1e-3);
         hp = step * vsj__dmax(fabs(phi), 1e-3);

@@ -105,6 +105,16 @@ struct vsj_work {
     int in_left;
     double *srcw;          /* s x SRCW */
     double *frw;           /* f x FRW */
+    /* the friction elements' rows analysed for evaluations (vsj__eval_prepare), for
+     * model ev_model with these row arrays: the elements the dynamics feel (ev_nd of
+     * them, in order, in ev_list) and, for each element, the first element with the same
+     * slip row (-1: it is the first); and each element's arctangent in the last
+     * evaluation (an arctan law), which later elements of its row share */
+    const vsj_model *ev_model;
+    const int64_t *ev_xp, *ev_xc, *ev_up, *ev_uc;
+    const double *ev_xv, *ev_uv;
+    int64_t ev_nd, *ev_list, *ev_same;
+    double *ev_atan;
     double *spw;           /* k x SPW */
     double *ldw;           /* nl x 2: torque, speed */
     double *mow;           /* nm x 2: rotor speed, voltage */
@@ -195,7 +205,10 @@ VSJ_INTERNAL void vsj__control_hold(const vsj_model *m, vsj_work *w, const doubl
 VSJ_INTERNAL void vsj__control_period(const vsj_model *m, vsj_work *w, const double *y,
                                       double dt);
 
-/* evaluation (eval.c) */
+/* evaluation (eval.c); vsj__eval_prepare analyses the friction elements' rows for it
+ * (the evaluation does when the work's analysis is of other row arrays; vsj_begin and
+ * the one-off evaluations anew, in case the rows changed in place) */
+VSJ_INTERNAL void vsj__eval_prepare(const vsj_model *m, vsj_work *w);
 VSJ_INTERNAL void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y,
                            int64_t ny, double *dy);
 

@@ -264,6 +264,9 @@ static void layout(vsj_work *w, carver *cv) {
     w->brk = DOUBLES(nch);
     w->srcw = DOUBLES(SRCW * s);
     w->frw = DOUBLES(FRW * f);
+    w->ev_list = INTS(f);
+    w->ev_same = INTS(f);
+    w->ev_atan = DOUBLES(f);
     w->spw = DOUBLES(SPW * k);
     w->ldw = DOUBLES(2 * nl);
     w->mow = DOUBLES(2 * nm);

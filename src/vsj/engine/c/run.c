@@ -31,6 +31,7 @@ int vsj_begin(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, const d
     vsj__control_begin(m, w, t0, y0);
     w->held = NULL;
     w->in_model = NULL; /* the work may have served another model at this address */
+    w->ev_model = NULL;
     if (scheme->method == VSJ_METHOD_DOPRI) {
         status = vsj__dopri_begin(m, w, y0, ny, t0, t_end, scheme->rtol, scheme->atol,
                                  scheme->h_max, scheme->max_steps, scheme->n_err);
