@@ -205,9 +205,11 @@ VSJ_INTERNAL void vsj__control_hold(const vsj_model *m, vsj_work *w, const doubl
 VSJ_INTERNAL void vsj__control_period(const vsj_model *m, vsj_work *w, const double *y,
                                       double dt);
 
-/* evaluation (eval.c); vsj__eval_prepare analyses the friction elements' rows for it
- * (the evaluation does when the work's analysis is of other row arrays; vsj_begin and
- * the one-off evaluations anew, in case the rows changed in place) */
+/* evaluation (eval.c); vsj__eval_prepare analyses the friction elements' rows for it.
+ * Every entry point that evaluates (vsj_begin, a step function's period, the one-off
+ * evaluations) clears w->ev_model, so that each analyses the model it is given, even
+ * one at another's freed addresses or with rows changed in place; the evaluation
+ * analyses again, too, when the work's analysis is of other row arrays. */
 VSJ_INTERNAL void vsj__eval_prepare(const vsj_model *m, vsj_work *w);
 VSJ_INTERNAL void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y,
                            int64_t ny, double *dy);

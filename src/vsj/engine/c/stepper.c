@@ -17,10 +17,12 @@ int64_t vsj_step_state_size(const vsj_model *m) {
 
 /* Hold the inputs over the period and start the sources at s[base:]; a controller
  * (whose actuators override the channels they drive) is off until the period begins
- * (begin_period). */
+ * (begin_period). The evaluation analyses the model's rows anew: the work may have
+ * stepped another model at these addresses since, or these rows before they changed. */
 static void hold(const vsj_model *m, vsj_work *w, const double *s, const double *inputs) {
     w->held = inputs;
     w->ctl_on = 0;
+    w->ev_model = NULL;
     memcpy(w->pos0, s + 2 * m->n + m->n_motors, (size_t)m->n_sources * sizeof(double));
 }
 

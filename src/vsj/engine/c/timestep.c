@@ -416,7 +416,6 @@ int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
     levels_and_lists(m, t);
     channel_lists(m, t);
     clear_history(m, t);
-    w->ev_model = NULL; /* the evaluation's analysis of the rows, anew at its next use */
     t->prepared = 1;
     t->for_par = m->par;
     t->for_rows = m->xv;

@@ -13,10 +13,7 @@
  * holds one computation at a time: a run (vsj_begin to its last vsj_advance) or a
  * step function keeps its state in it between calls, and a one-shot call
  * (vsj_derivatives, vsj_jacobian, ...) on the same work in between overwrites that
- * state; give such calls a work of their own. A work also keeps what it derived
- * from the element rows (which elements share a slip) while the row arrays stay the
- * same; after changing rows in place, begin a run or call vsj_ts_prepare before the
- * next vsj_step.
+ * state; give such calls a work of their own.
  *
  * State vector y = [x (n), v (n), i (motors), accumulators (optional)]:
  * generalised angles and speeds, armature currents, then the energy
@@ -317,7 +314,9 @@ typedef struct vsj_scheme {
 } vsj_scheme;
 
 /* Starts a run of `scheme` (dopri, rosenbrock or the time-stepper) from y0 (ny values: the state, or the state and the
- * ledger's accumulators, see vsj_n_acc) at time t0, to end at t_end. */
+ * ledger's accumulators, see vsj_n_acc) at time t0, to end at t_end. The run takes
+ * which friction elements share a slip from the element rows as they stand here:
+ * change the rows between runs (or a step function's periods), not within one. */
 int vsj_begin(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, const double *y0,
               int64_t ny, double t0, double t_end);
 /* Samples the run at samples->t (increasing, after earlier calls' samples, none past
@@ -330,8 +329,7 @@ vsj_report vsj_advance(const vsj_model *m, vsj_work *w, double *y, double t_unti
 /* The time-stepper's analysis of a model (report section 4.1.3: true sticking; end
  * stops are unilateral constraints solved with the friction impulses): vsj_begin and
  * vsj_step make it for a work that has none for this model; call it again after
- * changing a model's parameters or rows in place (it redoes the evaluation's analysis
- * of the rows too). It clears the stick/slip history. */
+ * changing a model's parameters in place. It clears the stick/slip history. */
 int vsj_ts_prepare(const vsj_model *m, vsj_work *w);
 /* Per element: the stick-phase transitions counted since vsj_ts_prepare, and
  * whether it holds now. Arrays of n_frictions. */
