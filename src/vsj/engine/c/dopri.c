@@ -57,7 +57,7 @@ static vsj_report report_of(const dopri_state *d) {
 }
 
 /* The samples of t_out[*i_out ..] that the last accepted step covers (its start yo,
- * end y and Hairer's dense coefficients r3..r5), up to `last` samples. */
+ * end y and Hairer's dense coefficients r3..r5; a sample at its end is y). */
 static void sample_step(const vsj_work *w, const dopri_state *d, const double *t_out,
                         int64_t n_out, int64_t *i_out, double *out, int64_t out_cols) {
     int64_t i, n_keep = d->ny < out_cols ? d->ny : out_cols;
@@ -65,8 +65,13 @@ static void sample_step(const vsj_work *w, const dopri_state *d, const double *t
     while (*i_out < n_out && t_out[*i_out] <= d->t) {
         double th = (t_out[*i_out] - d->t_prev) / d->h_prev, th1 = 1.0 - th;
         double *row = out + out_cols * *i_out;
-        for (i = 0; i < n_keep; i++)
-            row[i] = yo[i] + th * ((y[i] - yo[i]) + th1 * (r3[i] + th * (r4[i] + th1 * r5[i])));
+        if (t_out[*i_out] == d->t) /* the step's end: its state itself, which the
+                                    * interpolant gives only to round-off */
+            memcpy(row, y, (size_t)n_keep * sizeof(double));
+        else
+            for (i = 0; i < n_keep; i++)
+                row[i] = yo[i] + th * ((y[i] - yo[i])
+                                       + th1 * (r3[i] + th * (r4[i] + th1 * r5[i])));
         if (out_cols >= n_keep + w->nbus + w->nact)
             vsj__control_record(w, t_out[*i_out], row + n_keep);
         (*i_out)++;

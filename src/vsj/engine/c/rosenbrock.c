@@ -377,8 +377,11 @@ void vsj__ros_sample(const vsj_work *w, const dopri_state *d, const double *t_ou
                      int64_t n_out, int64_t *i_out, double *out, int64_t out_cols) {
     int64_t n_keep = d->ny < out_cols ? d->ny : out_cols;
     while (*i_out < n_out && t_out[*i_out] <= d->t) {
-        hermite(w, d, (t_out[*i_out] - d->t_prev) / d->h_prev, n_keep,
-                out + out_cols * *i_out);
+        if (t_out[*i_out] == d->t) /* the step's end: its state itself */
+            memcpy(out + out_cols * *i_out, w->y, (size_t)n_keep * sizeof(double));
+        else
+            hermite(w, d, (t_out[*i_out] - d->t_prev) / d->h_prev, n_keep,
+                    out + out_cols * *i_out);
         if (out_cols >= n_keep + w->nbus + w->nact)
             vsj__control_record(w, t_out[*i_out], out + out_cols * *i_out + n_keep);
         (*i_out)++;
