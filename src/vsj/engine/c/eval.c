@@ -116,7 +116,7 @@ static int same_row(const vsj_model *m, int64_t a, int64_t b) {
 }
 
 void vsj__eval_prepare(const vsj_model *m, vsj_work *w) {
-    int64_t e, j, f = m->n_frictions;
+    int64_t e, j, c, f = m->n_frictions;
     w->ev_nd = 0;
     for (e = 0; e < f; e++) {
         if (m->xp[e + 1] > m->xp[e])
@@ -125,14 +125,14 @@ void vsj__eval_prepare(const vsj_model *m, vsj_work *w) {
         for (j = 0; j < e && w->ev_same[e] < 0; j++)
             if (w->ev_same[j] < 0 && same_row(m, e, j))
                 w->ev_same[e] = j;
+        w->ev_vary[e] = (unsigned char)vsj__varying(m, e);
+    }
+    for (c = 0; c < m->n_channels; c++) {
+        const double *cf = m->coef + 4 * m->first[c];
+        w->ev_const[c] = m->count[c] == 1 && !(m->period[2 * c] > 0.0) && cf[1] == 0.0
+                         && cf[2] == 0.0 && cf[3] == 0.0;
     }
     w->ev_model = m;
-    w->ev_xp = m->xp;
-    w->ev_xc = m->xc;
-    w->ev_xv = m->xv;
-    w->ev_up = m->up;
-    w->ev_uc = m->uc;
-    w->ev_uv = m->uv;
 }
 
 /* All element torques at y, as generalised forces in w->gen and, with `full`,
@@ -153,9 +153,6 @@ static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int fu
         if (full)
             vsj__uadd(m, r, w->srcw, SRCF, tau);
     }
-    if (w->ev_model != m || w->ev_xp != m->xp || w->ev_xc != m->xc || w->ev_xv != m->xv
-        || w->ev_up != m->up || w->ev_uc != m->uc || w->ev_uv != m->uv)
-        vsj__eval_prepare(m, w);
     count = full ? f : w->ev_nd;
     for (i = 0; i < count; i++) {
         const double *p;
@@ -165,7 +162,7 @@ static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int fu
         first = w->ev_same[e];
         slip = first >= 0 ? w->frw[FRW * first + SLIP]
                            : vsj__xdot(m, e, y + n) + vsj__udot(m, e, w->srcw, U);
-        level = vsj__varying(m, e) ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1];
+        level = w->ev_vary[e] ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1];
         if (m->code[e] == VSJ_ARCTAN) { /* vsj__friction's arctan law; elements on one shaft
                                          * with the same sharpness share the arctangent */
             w->ev_atan[e] = first >= 0 && m->code[first] == VSJ_ARCTAN
@@ -218,6 +215,8 @@ void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const doub
     int64_t sz = n + s;
     int64_t base_m = m->n_frictions + m->n_springs + m->n_loads;
     int full = ny > 2 * n + nm;
+    if (w->ev_model != m)
+        vsj__eval_prepare(m, w);
     vsj__eval_inputs(m, w, t);
     eval_forces(m, w, y, full);
     for (i = 0; i < n; i++)
@@ -475,7 +474,7 @@ static double friction_slope(const vsj_model *m, const vsj_work *w, int64_t e, d
     *rate = 0.0;
     if (m->code[e] == VSJ_CONTACT)
         return w->frw[FRW * e + DSLIP];
-    if (!vsj__varying(m, e))
+    if (!w->ev_vary[e])
         return vsj__friction_slope(m->code[e], p[0], p[1], p[2], p[3], slip);
     if (fp[VSJ_F_CHANNEL] >= 0.0) { /* clipped to [0, 1]: no rate where clipped */
         const double *ch = w->chan + 3 * (int64_t)fp[VSJ_F_CHANNEL];

@@ -105,15 +105,15 @@ struct vsj_work {
     int in_left;
     double *srcw;          /* s x SRCW */
     double *frw;           /* f x FRW */
-    /* the friction elements' rows analysed for evaluations (vsj__eval_prepare), for
-     * model ev_model with these row arrays: the elements the dynamics feel (ev_nd of
-     * them, in order, in ev_list) and, for each element, the first element with the same
-     * slip row (-1: it is the first); and each element's arctangent in the last
-     * evaluation (an arctan law), which later elements of its row share */
+    /* model ev_model analysed for evaluations (vsj__eval_prepare; NULL: none): the
+     * friction elements the dynamics feel (ev_nd of them, in order, in ev_list); for each
+     * element, the first element with the same slip row (-1: it is the first) and
+     * whether its level varies (vsj__varying); each input channel that is one constant
+     * piece (ev_const); and each element's arctangent in the last evaluation (an arctan
+     * law), which later elements of its row share */
     const vsj_model *ev_model;
-    const int64_t *ev_xp, *ev_xc, *ev_up, *ev_uc;
-    const double *ev_xv, *ev_uv;
     int64_t ev_nd, *ev_list, *ev_same;
+    unsigned char *ev_vary, *ev_const;
     double *ev_atan;
     double *spw;           /* k x SPW */
     double *ldw;           /* nl x 2: torque, speed */
@@ -205,11 +205,10 @@ VSJ_INTERNAL void vsj__control_hold(const vsj_model *m, vsj_work *w, const doubl
 VSJ_INTERNAL void vsj__control_period(const vsj_model *m, vsj_work *w, const double *y,
                                       double dt);
 
-/* evaluation (eval.c); vsj__eval_prepare analyses the friction elements' rows for it.
+/* evaluation (eval.c); vsj__eval_prepare analyses the model's rows and inputs for it.
  * Every entry point that evaluates (vsj_begin, a step function's period, the one-off
  * evaluations) clears w->ev_model, so that each analyses the model it is given, even
- * one at another's freed addresses or with rows changed in place; the evaluation
- * analyses again, too, when the work's analysis is of other row arrays. */
+ * one at another's freed addresses or with rows changed in place. */
 VSJ_INTERNAL void vsj__eval_prepare(const vsj_model *m, vsj_work *w);
 VSJ_INTERNAL void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const double *y,
                            int64_t ny, double *dy);
@@ -547,9 +546,22 @@ static inline void vsj__eval_channel(const vsj_model *m, vsj_work *w, int64_t c,
     }
     w->chan_dd[c] = 0.0;
     p0 = m->first[c];
-    npieces = m->count[c];
     koff = p0 + c;
     t0 = m->knots[koff];
+    if (w->ev_model == m && w->ev_const[c]) { /* one constant piece: the branches below */
+        double v = m->coef[4 * p0];
+        t_last = m->knots[koff + 1];
+        ch[0] = v;
+        ch[1] = 0.0;
+        if (t < t0 || (w->left && t == t0))
+            ch[2] = (t - t0) * v;
+        else if (t > t_last || (t == t_last && !w->left))
+            ch[2] = m->cum[koff + 1] + (t - t_last) * v;
+        else
+            ch[2] = m->cum[koff] + (t - t0) * v;
+        return;
+    }
+    npieces = m->count[c];
     if (t < t0 || (w->left && t == t0)) {
         double v = m->coef[4 * p0];
         ch[0] = v;

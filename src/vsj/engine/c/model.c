@@ -266,6 +266,8 @@ static void layout(vsj_work *w, carver *cv) {
     w->frw = DOUBLES(FRW * f);
     w->ev_list = INTS(f);
     w->ev_same = INTS(f);
+    w->ev_vary = BYTES(f);
+    w->ev_const = BYTES(nch);
     w->ev_atan = DOUBLES(f);
     w->spw = DOUBLES(SPW * k);
     w->ldw = DOUBLES(2 * nl);
