@@ -7,6 +7,7 @@ import re
 import struct
 
 import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 from vsj.cli import main
 from vsj.reproduce import TABLE_4_1, figures
@@ -32,6 +33,19 @@ def test_every_figure_is_written(reproduced):
         width, height = struct.unpack(">II", png[16:24])
         assert width > 300 and height > 200
         assert (out / f"{name}.svg").read_text().lstrip().startswith(("<?xml", "<svg"))
+
+
+def test_every_figure_is_drawn_inside_its_canvas(reproduced_figures):
+    """The reproduction writes the figures uncropped (`vsj.reproduce._made`): each must
+    lie inside its canvas as its layout engine placed it. Matplotlib's layouts pad by
+    3 pt, more than a pixel of text extent at any resolution, so the bound is exact."""
+    for name in FIGURES:
+        fig = reproduced_figures[name].figure
+        FigureCanvasAgg(fig).draw()
+        inside = fig.get_tightbbox()
+        width, height = fig.get_size_inches()
+        assert inside.x0 >= 0 and inside.y0 >= 0, name
+        assert inside.x1 <= width and inside.y1 <= height, name
 
 
 def test_every_table_row_is_in_results_json(reproduced):

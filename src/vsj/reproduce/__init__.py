@@ -266,7 +266,10 @@ def _made(name: str) -> Outcome:
         fig = table[name](ctx)
         fig.save(results.path(f"{name}.npz"))
         png = results.path(f"{name}.png")
-        save(fig.figure, png, svg=True)
+        # uncropped: every figure is laid out by Matplotlib's layout engines, inside its
+        # canvas (tests/test_reproduce.py), so cropping would cost a drawing pass per file
+        # to take off the layout's padding
+        save(fig.figure, png, svg=True, tight=False)
         results.path(f"{name}.svg")  # written beside the PNG: into the manifest
         outcome.png = png.read_bytes()  # embedded in the page
         outcome.figure = fig
