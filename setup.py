@@ -19,7 +19,8 @@ WARNINGS = ["-Wall", "-Wextra"] + (["-Werror"] if os.environ.get("VSJ_WERROR") =
 
 class BuildOnEveryCore(build_ext):
     """Compiles the engine's source files in parallel, one per core (setuptools
-    itself runs only separate extensions in parallel)."""
+    itself runs only separate extensions in parallel), the largest first: a large file
+    started last would leave the other cores idle while it compiles."""
 
     def build_extension(self, ext):
         if self.compiler.compiler_type == "unix":
@@ -27,9 +28,11 @@ class BuildOnEveryCore(build_ext):
         compile_all = self.compiler.compile
 
         def compile_each(sources, *args, **kwargs):
+            largest_first = sorted(sources, key=lambda source: -os.path.getsize(source))
             with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-                parts = pool.map(lambda source: compile_all([source], *args, **kwargs), sources)
-                return [obj for objects in parts for obj in objects]
+                parts = dict(zip(largest_first, pool.map(
+                    lambda source: compile_all([source], *args, **kwargs), largest_first)))
+            return [obj for source in sources for obj in parts[source]]  # the link's order
 
         self.compiler.compile = compile_each
         try:
