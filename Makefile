@@ -4,6 +4,9 @@ PYTHON ?= python3
 CC ?= cc
 VENV := .venv
 BIN := $(VENV)/bin
+# uv installs into .venv: it resolves, downloads and installs on every core, where
+# pip takes most of a fresh install's time over one package after the other.
+UV := $(BIN)/uv pip install --quiet --python $(BIN)/python
 STAMP := $(VENV)/.installed
 TEST_STAMP := $(VENV)/.test-installed
 ENGINE := $(wildcard src/vsj/engine/c/*.c src/vsj/engine/c/*.h) src/vsj/_core.c
@@ -14,24 +17,32 @@ install: $(TEST_STAMP)
 
 # vsj and what it runs on ($(STAMP)), then the test suite's extras ($(TEST_STAMP):
 # pytest, FMPy, Bokeh, Selenium, ...), which make reproduce does without.
-# The engine is C: (re)installing compiles it, so the stamp follows its sources.
-# The bytecode is compiled after each install, on every core (pip compiles one file at
-# a time), so that no command compiles modules as it starts, even where
-# PYTHONDONTWRITEBYTECODE keeps Python from saving what it compiles. Left out: the
-# libraries' own test suites and the installers (pip, setuptools), which neither vsj
-# nor its tests import: a third of the source in .venv, and of the install's time.
+# The engine is C: (re)installing compiles it, so the stamp follows its sources, and
+# vsj is rebuilt on every install (uv would keep a build whose pyproject.toml and
+# setup.py did not change). The bytecode is compiled after each install, on every core,
+# so that no command compiles modules as it starts, even where PYTHONDONTWRITEBYTECODE
+# keeps Python from saving what it compiles. Left out: the libraries' own test suites
+# and the installers (pip, setuptools), which neither vsj nor its tests import: a third
+# of the source in .venv, and of the compile's time.
 NO_BYTECODE := site-packages/(.+/)?tests?/|site-packages/(pip|setuptools|pkg_resources)/
-$(STAMP): pyproject.toml setup.py $(ENGINE)
-	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --no-compile -e .
+$(STAMP): pyproject.toml setup.py $(ENGINE) | $(BIN)/uv
+	$(UV) --reinstall-package vsj -e .
 	$(BIN)/python -m compileall -q -j 0 -x '$(NO_BYTECODE)' $(VENV)/lib src
 	touch $(STAMP)
 
-# the test extra of pyproject.toml (its requirements only: vsj itself is installed
-# already); compileall compiles what is new and passes over what it compiled before
+# .venv without pip (installing pip into it is most of python -m venv's time), and uv
+# into it by the pip of $(PYTHON); where $(PYTHON) has no pip, or one older than 22.3
+# (no --python), by the pip that ensurepip puts into .venv
+$(BIN)/uv:
+	$(PYTHON) -m venv --without-pip $(VENV)
+	$(PYTHON) -m pip --python $(BIN)/python install --quiet 'uv>=0.4' || \
+	    { $(BIN)/python -m ensurepip --default-pip >/dev/null && \
+	      $(BIN)/python -m pip install --quiet 'uv>=0.4'; }
+
+# the test extra of pyproject.toml (with vsj's own requirements, installed already);
+# compileall compiles what is new and passes over what it compiled before
 $(TEST_STAMP): $(STAMP)
-	$(BIN)/python -c "import tomllib; print('\n'.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['test']))" > $(VENV)/test-requirements.txt
-	$(BIN)/python -m pip install --quiet --no-compile -r $(VENV)/test-requirements.txt
+	$(UV) -r pyproject.toml --extra test
 	$(BIN)/python -m compileall -q -j 0 -x '$(NO_BYTECODE)' $(VENV)/lib
 	touch $(TEST_STAMP)
 
@@ -62,8 +73,7 @@ test: $(TEST_STAMP)
 # offline check of every internal link and anchor and of the references' coverage
 DOCS_STAMP := $(VENV)/.docs-installed
 $(DOCS_STAMP): $(TEST_STAMP) pyproject.toml
-	$(BIN)/python -c "import tomllib; print('\n'.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['docs']))" > $(VENV)/docs-requirements.txt
-	$(BIN)/python -m pip install --quiet -r $(VENV)/docs-requirements.txt
+	$(UV) -r pyproject.toml --extra docs
 	touch $(DOCS_STAMP)
 
 docs: $(DOCS_STAMP)
