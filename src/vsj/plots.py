@@ -61,8 +61,15 @@ def save(fig, path: Path, *, svg: bool = False, tight: bool = True) -> None:
     with atomic_write(path, "wb") as handle:
         fig.savefig(handle, format="png", dpi=120, bbox_inches="tight" if tight else None)
     if svg:
-        with atomic_write(path.with_suffix(".svg"), "wb") as handle:
-            fig.savefig(handle, format="svg", bbox_inches="tight")
+        # the same figure at the same size: the layout computed for the PNG holds for the
+        # SVG, which Matplotlib then draws once rather than laying it out first
+        engine = fig.get_layout_engine()
+        fig.set_layout_engine("none")
+        try:
+            with atomic_write(path.with_suffix(".svg"), "wb") as handle:
+                fig.savefig(handle, format="svg", bbox_inches="tight" if tight else None)
+        finally:
+            fig.set_layout_engine(engine)
     if "matplotlib.pyplot" in sys.modules:  # a figure of pyplot's (`figure`'s need not)
         pyplot().close(fig)
 
