@@ -507,8 +507,9 @@ def compile_binary(kind: str, out: Path) -> str:
 
 def _compile(cc, flags, link, sources, kind, out) -> tuple[bytes, int, str]:
     """Compile the binary into ``out``: each source to an object, side by side (one
-    compiler per core: the engine's files take seconds each), then the objects linked
-    with ``link``. Returns its bytes, its mode (permission bits) and what the compiler
+    compiler per core: the engine's files take seconds each, and the largest start
+    first, not last on one core while the others idle), then the objects linked with
+    ``link``. Returns its bytes, its mode (permission bits) and what the compiler
     said."""
     def run(command):
         return subprocess.run(command, capture_output=True, text=True, check=False)
@@ -516,9 +517,11 @@ def _compile(cc, flags, link, sources, kind, out) -> tuple[bytes, int, str]:
     with tempfile.TemporaryDirectory(prefix="vsj-fmu-") as scratch:
         objects = [str(Path(scratch) / f"{k}-{Path(source).stem}.o")
                    for k, source in enumerate(sources)]
+        largest_first = sorted(range(len(sources)), key=lambda k: -os.path.getsize(sources[k]))
         with ThreadPoolExecutor(min(len(sources), available_cores())) as pool:
-            steps = list(pool.map(lambda s, o: run([cc, *flags, "-c", "-o", o, s]),
-                                  sources, objects))
+            done_in_order = dict(zip(largest_first, pool.map(
+                lambda k: run([cc, *flags, "-c", "-o", objects[k], sources[k]]), largest_first)))
+        steps = [done_in_order[k] for k in range(len(sources))]
         if all(done.returncode == 0 for done in steps):
             steps.append(run([cc, *link, "-o", str(out), *objects, "-lm"]))
         for done in steps:  # the first failure: a compile's, else the link's
