@@ -5,7 +5,7 @@ Workload: the default wrist (velocity-driven motors and pivot, geometric elastic
 elements), q = -0.4 cm, a control period of 1 ms, motor speeds and a load torque
 that change every period (a 2000-period loop). Methods:
 
-* ``dopri``: adaptive, at the simulator's default tolerances (rtol 1e-8),
+* ``dopri``: adaptive, at the simulator's default tolerances (`vsj.engine.plan.RTOL`),
   arctan friction;
 * ``rk4``: 4 fixed substeps, arctan friction;
 * ``timestep``: the time-stepper, one 1 ms step per period, with arctan friction
@@ -37,6 +37,7 @@ import numpy as np
 
 from vsj import export
 from vsj import params as params_module
+from vsj.engine.plan import RTOL
 from vsj.inputs import Constant
 from vsj.simulate import InitialState, SimulationOptions, simulate
 from vsj.stepper import Stepper
@@ -159,7 +160,7 @@ def main() -> int:
           f"{t_long * 1e6:.2f} us per period")
     n = structure.n
     diff = float(np.max(np.abs(final["rk4"][0][:n] - final["dopri"][0][:n])))
-    print(f"rk4 (4 substeps) vs dopri (rtol 1e-8) after {PERIODS} periods: {diff:.2g} rad in "
+    print(f"rk4 (4 substeps) vs dopri (rtol {RTOL:g}) after {PERIODS} periods: {diff:.2g} rad in "
           f"the ring angles")
     fastest = min(t_c, key=t_c.get)
     met = t_c["timestep, stiction"] <= TARGET_C

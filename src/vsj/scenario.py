@@ -493,32 +493,36 @@ def _network(network: str, model: Mapping, bench: Mapping, where: Where,
 
 
 def _options(solver: Mapping, where: Where) -> SimulationOptions:
-    """The [solver] table as simulation options, every value checked."""
+    """The [solver] table as simulation options, every value checked; a key left out
+    takes `SimulationOptions`' default."""
     _check_keys(solver, SOLVER_KEYS, where)
-    friction = solver.get("friction", "arctan")
+    default = SimulationOptions()
+    friction = solver.get("friction", default.friction)
     with _context(where.key("friction")):
         law_code(friction)
     overrides = _table(solver, "friction_overrides", where)
     for pattern, law in overrides.items():
         with _context(where.key("friction_overrides").key(pattern)):
             law_code(law)
-    rtol = _quantity(solver, "rtol", "1", where, 1e-8, positive=True)
+    rtol = _quantity(solver, "rtol", "1", where, default.rtol, positive=True)
     if not rtol < 1.0:
         raise InputError(f"{where.key('rtol')} = {solver['rtol']!r}: must be below 1 (a "
                          "relative tolerance)")
-    max_steps = solver.get("max_steps", 20_000_000)
+    max_steps = solver.get("max_steps", default.max_steps)
     if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
         raise InputError(f"{where.key('max_steps')}: expected a whole number >= 1, got "
                          f"{max_steps!r}")
     return SimulationOptions(
         friction=friction,
         friction_overrides=dict(overrides),
-        solver=_choice(solver, "method", SOLVERS, where, "auto"), rtol=rtol,
-        atol=_quantity(solver, "atol", "1", where, 1e-10, positive=True),
-        step=_quantity(solver, "step", "s", where, 1e-3, positive=True),
-        output_step=_quantity(solver, "output_step", "s", where, 1e-3, positive=True),
-        slope_width=_quantity(solver, "slope_width", "rad/s", where, 0.01, positive=True),
-        max_step=_quantity(solver, "max_step", "s", where, math.inf, positive=True),
+        solver=_choice(solver, "method", SOLVERS, where, default.solver), rtol=rtol,
+        atol=_quantity(solver, "atol", "1", where, default.atol, positive=True),
+        step=_quantity(solver, "step", "s", where, default.step, positive=True),
+        output_step=_quantity(solver, "output_step", "s", where, default.output_step,
+                              positive=True),
+        slope_width=_quantity(solver, "slope_width", "rad/s", where, default.slope_width,
+                              positive=True),
+        max_step=_quantity(solver, "max_step", "s", where, default.max_step, positive=True),
         max_steps=max_steps)
 
 

@@ -71,6 +71,11 @@ REFERENCES = {
 
 #: Top-level tables that an override amends rather than replaces.
 MERGED = ("model", "solver")
+#: The adaptive schemes' tolerances every reference was recorded at (the simulator's
+#: default then, since loosened to `vsj.engine.plan.RTOL`), under the scenarios' own
+#: [solver] keys: the tubes hold runs at the tolerance of their reference, whatever the
+#: default.
+RECORDED = {"rtol": 1e-8, "atol": 1e-10}
 
 
 def kept(name: str) -> bool:
@@ -87,6 +92,7 @@ def load(name: str, solver: dict | None = None):
     base, over = REFERENCES[name]
     scen = scenarios.load(base)
     table = dict(scen.table)
+    table["solver"] = {**RECORDED, **table.get("solver", {})}
     for key, value in list(over.items()) + [("solver", solver or {})]:
         if key in MERGED:
             merged = dict(table.get(key, {}))

@@ -292,10 +292,10 @@ def register(sub) -> None:
     p.add_argument("--step", default="1 ms", metavar="TIME",
                    help="time-stepper step (default 1 ms)")
     p.add_argument("--substeps", type=int, default=4, help="rk4 substeps per period (default 4)")
-    p.add_argument("--rtol", type=float, default=1e-8,
-                   help="dopri/rosenbrock relative tolerance")
-    p.add_argument("--atol", type=float, default=1e-10,
-                   help="dopri/rosenbrock absolute tolerance")
+    p.add_argument("--rtol", type=float, default=SimulationOptions.rtol,
+                   help="dopri/rosenbrock relative tolerance (default %(default)g)")
+    p.add_argument("--atol", type=float, default=SimulationOptions.atol,
+                   help="dopri/rosenbrock absolute tolerance (default %(default)g)")
     p.add_argument("--q", metavar="LENGTH",
                    help="pivot position of the initial state, e.g. --q=-1cm (default 0 cm)")
     p.set_defaults(func=cmd_export_model)

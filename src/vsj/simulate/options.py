@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Mapping
 
 from .. import friction as friction_laws
+from ..engine.plan import ATOL, RTOL
 from ..errors import InputError
 
 #: Sane ranges of the numerical settings (SI): outside them a run cannot be trusted
@@ -17,8 +18,8 @@ RANGES = {"rtol": (1e-14, 1e-2), "atol": (1e-20, 1e-2), "step": (1e-7, 0.05),
           "max_step": (1e-9, math.inf), "ledger_tolerance": (1e-15, 1.0)}
 #: A run fails when its energy ledger's residual exceeds this fraction of the energy
 #: in play (the work done, the energy dissipated, or the energy the mechanism holds;
-#: a sound run closes it to 1e-15 with the time-stepper, to about rtol with dopri;
-#: the default tolerance of 1e-8 gives about 1e-11).
+#: a sound run closes it to 1e-15 with the time-stepper, and to about rtol or better
+#: with dopri).
 LEDGER_TOLERANCE = 1e-3
 #: the solvers a run may ask for ("auto": the time-stepper where stiction or a rigid
 #: end stop needs it, else dopri)
@@ -41,8 +42,8 @@ class SimulationOptions:
     friction_overrides: Mapping[str, str] = field(default_factory=dict)
     slope_width: float = 0.01
     solver: str = "auto"
-    rtol: float = 1e-8
-    atol: float = 1e-10
+    rtol: float = RTOL
+    atol: float = ATOL
     max_step: float = math.inf
     step: float = 1e-3
     output_step: float = 1e-3
