@@ -27,6 +27,7 @@ from vsj import params as params_module
 from vsj import scenario as scenarios
 from vsj.cli import main
 from vsj.errors import InputError
+from vsj.simulate import SimulationOptions
 from vsj.units import to_si
 
 DEFAULT = Path(params_module._bundled(params_module.DEFAULT_FILE)).read_text()
@@ -531,6 +532,15 @@ def test_rewritten_scenarios_load_or_raise_input_error(params, edits):
             scenarios.prepare_case(scen, case, params)
     except InputError as exc:
         assert str(exc).startswith("fuzz.toml"), str(exc)
+
+
+def test_a_solver_table_without_keys_takes_the_simulators_defaults():
+    """Every [solver] key a scenario leaves out is `SimulationOptions`' default: the
+    file and the Python interface cannot drift apart."""
+    text = SHORT.replace('friction = "arctan"\noutput_step = "10 ms"\n', "")
+    assert text != SHORT
+    (case,) = scenarios.loads(text, "defaults.toml").cases
+    assert case.options == SimulationOptions()
 
 
 def test_a_scenario_with_a_byte_order_mark_loads(tmp_path):
