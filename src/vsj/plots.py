@@ -62,7 +62,7 @@ def save(fig, path: Path, *, svg: bool = False, tight: bool = True) -> None:
         fig.savefig(handle, format="png", dpi=120, bbox_inches="tight" if tight else None)
     if svg:
         # the same figure at the same size: the layout computed for the PNG holds for the
-        # SVG, which Matplotlib then draws once rather than laying it out first
+        # SVG, which Matplotlib then draws without laying it out again
         engine = fig.get_layout_engine()
         fig.set_layout_engine("none")
         try:
