@@ -30,11 +30,12 @@ $(STAMP): pyproject.toml setup.py $(ENGINE) | $(BIN)/uv
 	$(BIN)/python -m compileall -q -j 0 -x '$(NO_BYTECODE)' $(VENV)/lib src
 	touch $(STAMP)
 
-# .venv without pip (installing pip into it is most of python -m venv's time), and uv
-# into it by the pip of $(PYTHON); where $(PYTHON) has no pip, or one older than 22.3
-# (no --python), by the pip that ensurepip puts into .venv
+# .venv without pip (installing pip into it is most of python -m venv's time; an
+# existing .venv is kept as it is), and uv into it by the pip of $(PYTHON); where
+# $(PYTHON) has no pip, or one older than 22.3 (no --python), by the pip that ensurepip
+# puts into .venv
 $(BIN)/uv:
-	$(PYTHON) -m venv --without-pip $(VENV)
+	test -x $(BIN)/python || $(PYTHON) -m venv --without-pip $(VENV)
 	$(PYTHON) -m pip --python $(BIN)/python install --quiet 'uv>=0.4' || \
 	    { $(BIN)/python -m ensurepip --default-pip >/dev/null && \
 	      $(BIN)/python -m pip install --quiet 'uv>=0.4'; }
