@@ -245,7 +245,7 @@ def test_an_impedance_that_the_rotors_cannot_keep_passive_is_refused(params):
 
 
 #: 3.4e-4 of the slowest mode left at the end of the run (8 time constants), and the
-#: solver's rtol 1e-8: a relative 1e-3 holds both
+#: solver's default rtol (`vsj.engine.plan.RTOL`, 1e-6): a relative 1e-3 holds both
 RTOL_STATIC = 1e-3
 
 

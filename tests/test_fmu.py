@@ -45,7 +45,7 @@ Q0 = -0.01
 EPS = np.finfo(float).eps
 #: FMU against `vsj simulate`, a fraction of each signal's range: the acceptance of the
 #: FMU's issue (a requirement on the FMU, not a numerical tolerance); each comparison
-#: also checks the bound its numerics give, which is at least as tight.
+#: also checks the bound its numerics give.
 OF_RANGE = 1e-6
 #: The FMU's q: the pivot angle is set from q0 by asin and read back by sin, a few
 #: roundings of the crank radius.
