@@ -32,9 +32,9 @@ from .model import EngineModel, Layout, compile_model
 #: Codes of the schemes in ``vsj._core.run`` (engine/c/run.c).
 METHODS = {"dopri": 0, "timestep": 1, "rk4": 2, "rosenbrock": 3}
 #: The adaptive schemes' default relative and absolute tolerances (rad, rad/s, A): every
-#: run, scenario and command that sets none. The global error they leave in the report's
-#: runs is orders of magnitude below what a plot or a fit can see (the regression
-#: references measure it), at half the steps of a tolerance a hundred times tighter.
+#: run, scenario, FMU and command that sets none. The global error they leave in the
+#: report's runs is orders of magnitude below what a plot or a fit can see, at less than
+#: half the steps of a tolerance a hundred times tighter.
 RTOL, ATOL = 1e-6, 1e-8
 
 
