@@ -21,6 +21,7 @@ communication step against `simulate` of the scenario itself.
 import json
 import re
 import shutil
+import struct
 import subprocess
 import zipfile
 from pathlib import Path
@@ -33,6 +34,7 @@ from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.validation import validate_fmu
 
 from vsj import fmu, params, scenario
+from vsj.cli import main
 from vsj.engine.core import IMPULSE_REL
 from vsj.errors import InputError
 from vsj.inputs import Constant, Hold
@@ -679,3 +681,27 @@ def test_each_source_is_compiled_apart_and_every_warning_or_failure_is_reported(
             fmu._compile(cc, flags, link + extra, [str(s) for s in sources], "linux64", target)
         assert "building the linux64 binary failed" in str(failed.value)
         assert not target.exists()
+
+
+def test_the_tolerances_given_to_vsj_fmu_are_the_ones_its_model_integrates_to(tmp_path,
+                                                                               capsys):
+    """``vsj fmu --rtol --atol`` reach the scheme settings of the model the FMU carries
+    (resources/model.vsjm, whose header `vsj.export.program_bytes` writes); left out,
+    they are the simulator's defaults; out of range, the command refuses them."""
+    def settings(path):
+        with zipfile.ZipFile(path) as archive:
+            blob = archive.read("resources/model.vsjm")
+        assert blob[:4] == b"VSJP"
+        _, _, rtol, atol, _, _ = struct.unpack_from("<qddddq", blob, 16)
+        return rtol, atol
+
+    tight, default = tmp_path / "tight.fmu", tmp_path / "default.fmu"
+    common = ["--friction", "arctan", "--method", "dopri", "--win64", "no"]
+    assert main(["fmu", "--out", str(tight), *common, "--rtol", "1e-9", "--atol", "1e-11"]) == 0
+    assert main(["fmu", "--out", str(default), *common]) == 0
+    assert settings(tight) == (1e-9, 1e-11)
+    assert settings(default) == (SimulationOptions().rtol, SimulationOptions().atol)
+    capsys.readouterr()
+    assert main(["fmu", "--out", str(tmp_path / "bad.fmu"), *common, "--rtol", "0.5"]) == 2
+    assert "rtol" in capsys.readouterr().err
+    assert not (tmp_path / "bad.fmu").exists()

@@ -66,6 +66,7 @@ import numpy as np
 from . import __version__, export, pages, scenario
 from .errors import InputError
 from .engine.core import available_cores
+from .engine.plan import ATOL, RTOL
 from .output import atomic_write
 from .params import RELATIONS, SCHEMA, Parameters
 from .params import default as default_params
@@ -559,16 +560,17 @@ def _pivot_range(document: dict) -> tuple[float, float]:
 
 def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None = None,
           friction: str = "stiction", step: float = 1e-3, q0: float = -0.01,
-          win64: bool | None = None, method: str = "auto") -> dict:
+          win64: bool | None = None, method: str = "auto", rtol: float = RTOL,
+          atol: float = ATOL) -> dict:
     """Write the FMU to ``out``; returns what was built (tunable parameters,
     platforms, compiler warnings). ``win64``: None builds the Windows DLL where the
     cross-compiler is installed, True requires it, False skips it. ``method``: the
     engine's step function, ``timestep`` (the time-stepper at ``step``; needed by
-    true stiction), ``dopri`` or ``rosenbrock`` (adaptive); ``auto`` takes the time-stepper for
-    stiction and dopri for the smooth laws."""
+    true stiction), ``dopri`` or ``rosenbrock`` (adaptive, to ``rtol`` and ``atol``);
+    ``auto`` takes the time-stepper for stiction and dopri for the smooth laws."""
     wrist_options = wrist_options or WristOptions()
     method = choose_method(friction, method)
-    options = SimulationOptions(friction=friction, step=step)
+    options = SimulationOptions(friction=friction, step=step, rtol=rtol, atol=atol)
     stepper = export.wrist_stepper(params, wrist_options, options=options, method=method,
                                    period=step)
     document = export.model_document(stepper, params=params, initial=InitialState(q=q0),
@@ -688,7 +690,7 @@ def _csv(path: Path, names, rows) -> None:
 def cross_check(directory: Path, params: Parameters, *,
                 wrist_options: WristOptions | None = None, friction: str = "stiction",
                 step: float = 1e-3, q0: float = -0.01, win64: bool | None = None,
-                method: str = "auto") -> dict:
+                method: str = "auto", rtol: float = RTOL, atol: float = ATOL) -> dict:
     """Write an FMI cross-check folder (the modelica/fmi-cross-check layout):
     ``fmus/2.0/cs/<platform>/vsj/<version>/vsj_wrist/`` with the FMU,
     ``vsj_wrist_in.csv`` (held commands, a step at each change),
@@ -703,9 +705,10 @@ def cross_check(directory: Path, params: Parameters, *,
     with tempfile.TemporaryDirectory() as scratch:
         fmu_path = Path(scratch) / f"{MODEL_IDENTIFIER}.fmu"
         info = build(fmu_path, params, wrist_options=wrist_options, friction=friction,
-                     step=step, q0=q0, win64=win64, method=chosen)
+                     step=step, q0=q0, win64=win64, method=chosen, rtol=rtol, atol=atol)
         stepper = Stepper.wrist(params, wrist_options, period,
-                                options=SimulationOptions(friction=friction, step=step),
+                                options=SimulationOptions(friction=friction, step=step,
+                                                          rtol=rtol, atol=atol),
                                 method=chosen)
         names = list(stepper.input_names)
         commands = cross_check_commands(names, period, steps)

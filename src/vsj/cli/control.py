@@ -58,6 +58,14 @@ def _wrist_options(args):
     return options
 
 
+def _add_tolerance_arguments(p) -> None:
+    """--rtol and --atol of the adaptive step functions, defaulting to the simulator's."""
+    p.add_argument("--rtol", type=float, default=SimulationOptions.rtol,
+                   help="dopri/rosenbrock relative tolerance (default %(default)g)")
+    p.add_argument("--atol", type=float, default=SimulationOptions.atol,
+                   help="dopri/rosenbrock absolute tolerance (default %(default)g)")
+
+
 def _add_wrist_arguments(p, elastic_models, drives, *, pivot_drive: bool = False) -> None:
     """The wrist's sub-model options (`vsj.wrist.WristOptions`) of a command; with
     ``pivot_drive`` the stiffness motor's too (the exported models)."""
@@ -198,7 +206,8 @@ def cmd_fmu(args) -> int:
         raise InputError("--win64 yes: the mingw-w64 cross-compiler (x86_64-w64-mingw32-gcc; "
                          "Debian: apt-get install gcc-mingw-w64-x86-64) is not installed")
     settings = dict(wrist_options=_wrist_options(args), friction=args.friction, step=step,
-                    q0=_quantity(args.q, "m", "--q"), win64=win64, method=args.method)
+                    q0=_quantity(args.q, "m", "--q"), win64=win64, method=args.method,
+                    rtol=args.rtol, atol=args.atol)
     info = None
     if args.out is not None:
         info = fmu.build(Path(args.out), params, **settings)
@@ -292,10 +301,7 @@ def register(sub) -> None:
     p.add_argument("--step", default="1 ms", metavar="TIME",
                    help="time-stepper step (default 1 ms)")
     p.add_argument("--substeps", type=int, default=4, help="rk4 substeps per period (default 4)")
-    p.add_argument("--rtol", type=float, default=SimulationOptions.rtol,
-                   help="dopri/rosenbrock relative tolerance (default %(default)g)")
-    p.add_argument("--atol", type=float, default=SimulationOptions.atol,
-                   help="dopri/rosenbrock absolute tolerance (default %(default)g)")
+    _add_tolerance_arguments(p)
     p.add_argument("--q", metavar="LENGTH",
                    help="pivot position of the initial state, e.g. --q=-1cm (default 0 cm)")
     p.set_defaults(func=cmd_export_model)
@@ -329,6 +335,7 @@ def register(sub) -> None:
                         "stiction, else dopri")
     p.add_argument("--step", default="1 ms", metavar="TIME",
                    help="internal step (the time-stepper's; default 1 ms)")
+    _add_tolerance_arguments(p)
     p.add_argument("--q", default="-1 cm", metavar="LENGTH",
                    help="default initial pivot position, the parameter pivot_q0 (default -1 cm)")
     p.add_argument("--win64", choices=("auto", "yes", "no"), default="auto",
