@@ -64,12 +64,14 @@ def save(fig, path: Path, *, svg: bool = False, tight: bool = True) -> None:
         # the same figure at the same size: the layout computed for the PNG holds for the
         # SVG, which Matplotlib then draws without laying it out again
         engine = fig.get_layout_engine()
-        fig.set_layout_engine("none")
+        if engine is not None:
+            fig.set_layout_engine("none")
         try:
             with atomic_write(path.with_suffix(".svg"), "wb") as handle:
                 fig.savefig(handle, format="svg", bbox_inches="tight" if tight else None)
         finally:
-            fig.set_layout_engine(engine)
+            if engine is not None:  # None would mean rcParams' engine, not none
+                fig.set_layout_engine(engine)
     if "matplotlib.pyplot" in sys.modules:  # a figure of pyplot's (`figure`'s need not)
         pyplot().close(fig)
 
