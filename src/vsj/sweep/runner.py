@@ -467,50 +467,77 @@ def run_chunk(job: Job, start: int, values: np.ndarray, threads: int | None = No
         status[r], steps[r] = st, batch.steps[i]
         messages[r] = (STATUS_TEXT[st] if st == core.OK else
                        f"{STATUS_TEXT[st]} at t = {batch.stop_time[i]:.6g} s")
-        _measure(p, built[r], batch.states[i], int(batch.transitions[i]), kept[r], metrics[r])
+    if members:
+        kept[members], metrics[members] = _measure(p, [built[r] for r in members], batch)
     return ChunkResult(start, kept, metrics, status, messages, steps, kernel)
 
 
-def _measure(p: Prepared, run: _Run, states: np.ndarray, transitions: int,
-             kept: np.ndarray, metrics: np.ndarray) -> None:
-    """Fill one run's kept signals and metrics from its sampled states."""
+def _measure(p: Prepared, runs: list[_Run], batch) -> tuple[np.ndarray, np.ndarray]:
+    """``(kept, metrics)`` of ``runs`` (the rows of ``batch``) from their sampled states:
+    the kept signals (runs x samples x kept) and the metrics (runs x metrics).
+
+    The table's signals are evaluated once for all runs, over their samples stacked one
+    run after another: each is a function of a sample alone, whose sums take their terms
+    in the same order however many samples there are (`vsj.simulate.signals.rows`), so
+    a run's numbers are those it would have on its own. The [signals] expressions and
+    the metrics, which may reduce over a run's samples, are evaluated run by run."""
+    n_t, n_state, n_runs = len(p.t_out), p.layout.n_state, len(runs)
+    kept = np.full((n_runs, n_t, len(p.keep)), np.nan)
+    metrics = np.full((n_runs, len(p.metrics)), np.nan)
     if not (p.keep or p.metrics):
-        return
-    engine = run.plan.engine()
+        return kept, metrics
+    states = batch.states
     if p.light:  # the same numbers observe writes in these columns, the rest left NaN
         cols = p.columns
-        raw = np.empty((len(p.t_out), cols["u"].stop))
-        n_state = p.layout.n_state
-        raw[:, :n_state] = states[:, :n_state]
-        raw[:, cols["a"]] = np.nan
-        raw[:, cols["sigma"]], raw[:, cols["u"]] = engine.source_signals(p.t_out)
+        raw = np.empty((n_runs, n_t, cols["u"].stop))
+        raw[:, :, :n_state] = states[:, :, :n_state]
+        raw[:, :, cols["a"]] = np.nan
+        for i, run in enumerate(runs):
+            raw[i, :, cols["sigma"]], raw[i, :, cols["u"]] = \
+                run.plan.engine().source_signals(p.t_out)
     else:
-        raw = engine.observe(p.t_out, states, np.zeros((len(p.t_out), p.layout.n_frictions)))
+        no_impulses = np.zeros((n_t, p.layout.n_frictions))
+        raw = np.stack([run.plan.engine().observe(p.t_out, states[i], no_impulses)
+                        for i, run in enumerate(runs)])
     # batch runs sample no stick states: friction.*.stuck is 0 (dopri) or not offered
-    n_state = p.layout.n_state
-    block = Block(raw=raw, stuck=np.zeros((len(p.t_out), p.layout.n_frictions), dtype=bool),
+    block = Block(raw=raw.reshape(n_runs * n_t, -1),
+                  stuck=np.zeros((n_runs * n_t, p.layout.n_frictions), dtype=bool),
                   columns=p.columns, cache={},
-                  control=states[:, n_state:] if p.compiled_controller is not None else None)
-    cache: dict[str, np.ndarray] = {}
-    values = run.params.values
+                  control=(states[:, :, n_state:].reshape(n_runs * n_t, -1)
+                           if p.compiled_controller is not None else None))
+    table: dict[str, np.ndarray] = {}
 
-    def signal(name: str) -> np.ndarray:
-        if name not in cache:
-            if name in p.recipes:
-                cache[name] = np.ascontiguousarray(p.recipes[name].values(block))
-            else:
-                cache[name] = sampled(p.derived[name](context), p.t_out.shape)
-        return cache[name]
+    def tabled(name: str) -> np.ndarray:
+        """A signal of the table, for every run (runs x samples)."""
+        if name not in table:
+            table[name] = np.ascontiguousarray(
+                sampled(p.recipes[name].values(block), (n_runs * n_t,))).reshape(n_runs, n_t)
+        return table[name]
 
-    context = Context(p.t_out, signal, values, transitions)
     for j, name in enumerate(p.keep):
-        kept[:, j] = signal(name)
-    with np.errstate(all="ignore"):  # a failed run's samples are NaN after the failure
-        for j, metric in enumerate(p.metrics):
-            try:
-                metrics[j] = metric(context)
-            except (FloatingPointError, ValueError, np.linalg.LinAlgError):
-                metrics[j] = math.nan
+        if name in p.recipes:
+            kept[:, :, j] = tabled(name)
+    for i, run in enumerate(runs):
+        cache: dict[str, np.ndarray] = {}
+
+        def signal(name: str, i=i, cache=cache) -> np.ndarray:
+            if name in p.recipes:
+                return tabled(name)[i]
+            if name not in cache:
+                cache[name] = sampled(p.derived[name](context), p.t_out.shape)
+            return cache[name]
+
+        context = Context(p.t_out, signal, run.params.values, int(batch.transitions[i]))
+        for j, name in enumerate(p.keep):
+            if name not in p.recipes:
+                kept[i, :, j] = signal(name)
+        with np.errstate(all="ignore"):  # a failed run's samples are NaN after the failure
+            for j, metric in enumerate(p.metrics):
+                try:
+                    metrics[i, j] = metric(context)
+                except (FloatingPointError, ValueError, np.linalg.LinAlgError):
+                    metrics[i, j] = math.nan
+    return kept, metrics
 
 
 def job_for(spec: SweepSpec) -> Job:
