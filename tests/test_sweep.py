@@ -401,3 +401,77 @@ every = "20 ms"
     # sample; |a - b| = |b - a| in IEEE arithmetic): equal up to an ulp
     assert ds["metrics"].sel(metric="offset").values[0] == pytest.approx(
         np.max(np.abs(3.0 - theta)), rel=np.finfo(float).eps, abs=0.0)
+
+
+def test_each_metric_of_a_block_of_runs_is_its_run_alone():
+    """Every metric kind and reduction, evaluated on a block of runs at once (as a chunk
+    evaluates them), gives each run the bits it has in a block of its own, and the number
+    its definition gives."""
+    from vsj.sweep.metrics import Context, Evaluator
+    from vsj.sweep.spec import Metric
+
+    rng = np.random.default_rng(5)
+    t = np.arange(201) * 0.01
+    t.flags.writeable = False
+    runs = 6
+    lag = rng.uniform(0.01, 0.05, runs)
+    tau = rng.uniform(0.05, 0.3, runs)
+    signals = {"r": np.sin(2 * np.pi * t) * np.ones((runs, 1)),
+               "s": np.sin(2 * np.pi * (t - lag[:, None])),
+               "step": 1.0 - np.exp(-t / tau[:, None]),
+               "p": -rng.uniform(0.0, 1.0, (runs, len(t)))}
+    k = rng.uniform(1.0, 2.0, runs)
+    transitions = rng.integers(0, 9, runs)
+    kinds = {"peak": {"signal": "s", "start": 0.5}, "rms": {"signal": "s"},
+             "mean": {"signal": "s", "stop": 1.2}, "final": {"signal": "s"},
+             "tracking_rms": {"signal": "s", "reference": "r"},
+             "tracking_peak": {"signal": "s", "reference": "r", "start": 0.3},
+             "lag": {"signal": "s", "reference": "r", "frequency": 1.0, "start": 0.5},
+             "settling_time": {"signal": "step", "tolerance": 0.02},
+             "energy_dissipated": {}, "stick_slip_transitions": {}}
+    reductions = ["max", "min", "mean", "std", "rms", "peak", "final", "initial", "integral"]
+    metrics = [Metric(kind, kind, options, f"metrics.{kind}") for kind, options in kinds.items()]
+    metrics += [Metric(f"{f}(s)", "expression", {"expression": f"{f}(s) * k + 1"},
+                       f"metrics.{f}") for f in reductions]
+    evaluators = [Evaluator(m, set(signals), {"k"}, {}, ["p"]) for m in metrics]
+
+    def context(rows):
+        return Context(t, lambda name: signals[name][rows], {"k": k[rows, None]},
+                       transitions[rows])
+
+    block = np.column_stack([e(context(slice(None))) for e in evaluators])
+    for i in range(runs):
+        alone = [e(context(slice(i, i + 1)))[0] for e in evaluators]
+        assert np.array_equal(block[i], alone)
+    got = dict(zip([m.name for m in metrics], block.T))
+    s, r, step, p = (signals[n] for n in ("s", "r", "step", "p"))
+    at = {"start": t >= 0.5 - 1e-12, "stop": t <= 1.2 + 1e-12, "0.3": t >= 0.3 - 1e-12}
+
+    def each(fn, x, window=slice(None)):
+        """``fn`` of each run's samples in ``window``, one run at a time."""
+        return np.array([fn(row[window]) for row in x])
+
+    assert np.array_equal(got["peak"], each(lambda v: np.max(np.abs(v)), s, at["start"]))
+    assert np.array_equal(got["rms"], each(lambda v: np.sqrt(np.mean(v ** 2)), s))
+    assert np.array_equal(got["mean"], each(np.mean, s, at["stop"]))
+    assert np.array_equal(got["final"], s[:, -1])
+    assert np.array_equal(got["tracking_rms"], each(lambda v: np.sqrt(np.mean(v ** 2)), s - r))
+    assert np.array_equal(got["tracking_peak"],
+                          each(lambda v: np.max(np.abs(v)), s - r, at["0.3"]))
+    # pure sines: their least-squares fit is exact, up to the solve's rounding
+    assert np.allclose(got["lag"], lag, rtol=0, atol=1e-12)
+    # the first sample at or after the time the exponential enters its 2 % band
+    final = step[:, -1]
+    entered = -tau * np.log(np.exp(-t[-1] / tau) + 0.02 * final)
+    assert np.all((got["settling_time"] >= entered - 1e-12)
+                  & (got["settling_time"] < entered + 0.01))
+    assert np.allclose(got["energy_dissipated"], -np.trapezoid(p, t, axis=1), rtol=1e-14)
+    assert np.array_equal(got["stick_slip_transitions"], transitions)
+    reduced = {"max": np.max(s, axis=1), "min": np.min(s, axis=1), "mean": np.mean(s, axis=1),
+               "std": np.std(s, axis=1), "rms": np.sqrt(np.mean(s ** 2, axis=1)),
+               "peak": np.max(np.abs(s), axis=1), "final": s[:, -1], "initial": s[:, 0],
+               "integral": np.trapezoid(s, t, axis=1)}
+    for f, value in reduced.items():
+        # one multiplication and one addition after the reduction (integral: the
+        # trapezoids summed in another order than numpy's)
+        assert np.allclose(got[f"{f}(s)"], value * k + 1, rtol=1e-14, atol=1e-15), f

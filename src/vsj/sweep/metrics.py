@@ -8,8 +8,9 @@ Expressions are parsed with `ast` and only a small grammar is accepted: numbers,
 subscript, no call of anything else. Names are resolved when the sweep file is
 read, so an unknown one is refused before any run.
 
-A metric is evaluated on one run's samples (every ``[output] every`` seconds);
-``start`` and ``stop`` limit it to a window of time.
+A metric is evaluated on a block of runs at once (`Context`: their samples every
+``[output] every`` seconds, one row a run), each run's number from its own row
+alone; ``start`` and ``stop`` limit it to a window of time.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from __future__ import annotations
 import ast
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -29,11 +30,16 @@ ELEMENTWISE: dict[str, tuple[int, Callable]] = {
     "sign": (1, np.sign), "arctan2": (2, np.arctan2), "minimum": (2, np.minimum),
     "maximum": (2, np.maximum),
 }
+#: Reductions over each run's samples (the last axis), one number a run, kept as a
+#: column (runs x 1) so that it combines with signals (runs x samples) sample by sample.
 REDUCTIONS: dict[str, Callable] = {
-    "max": np.max, "min": np.min, "mean": np.mean, "std": np.std,
-    "rms": lambda v: np.sqrt(np.mean(np.square(v))),
-    "peak": lambda v: np.max(np.abs(v)),
-    "final": lambda v: v[-1], "initial": lambda v: v[0],
+    "max": lambda v: np.max(v, axis=-1, keepdims=True),
+    "min": lambda v: np.min(v, axis=-1, keepdims=True),
+    "mean": lambda v: np.mean(v, axis=-1, keepdims=True),
+    "std": lambda v: np.std(v, axis=-1, keepdims=True),
+    "rms": lambda v: np.sqrt(np.mean(np.square(v), axis=-1, keepdims=True)),
+    "peak": lambda v: np.max(np.abs(v), axis=-1, keepdims=True),
+    "final": lambda v: v[..., -1:], "initial": lambda v: v[..., :1],
 }
 #: Reductions that need the sample times.
 TIMED = {"integral"}
@@ -43,13 +49,19 @@ _BINARY = {ast.Add: np.add, ast.Sub: np.subtract, ast.Mult: np.multiply,
 
 @dataclass
 class Context:
-    """One run as metrics see it: sample times, signals on demand, parameters."""
+    """A block of runs as metrics see them: their sample times (the same for every run),
+    their signals on demand (runs x samples), their parameters (each a column, runs x
+    1) and each run's count of stick-slip transitions."""
 
     time: np.ndarray
     signal: Callable[[str], np.ndarray]
-    parameters: Mapping[str, float]
-    transitions: int = 0
-    units: Mapping[str, str] = field(default_factory=dict)
+    parameters: Mapping[str, np.ndarray]
+    transitions: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(runs, samples)``: the shape of a signal."""
+        return (len(self.transitions), len(self.time))
 
 
 def dotted(node) -> str | None:
@@ -114,9 +126,9 @@ class Expression:
                     self._fail(f"{name} takes 1 argument, got {len(args)}")
                 (arg,) = args
                 if name == "integral":
-                    return (lambda c: _integral(sampled(arg(c), c.time.shape), c.time)), False
+                    return (lambda c: _integral(runs_of(arg(c), c.shape), c.time)), False
                 reduce = REDUCTIONS[name]
-                return (lambda c: float(reduce(sampled(arg(c), c.time.shape)))), False
+                return (lambda c: reduce(runs_of(arg(c), c.shape))), False
             self._fail(f"unknown function {name!r}; allowed: "
                        f"{', '.join(sorted([*ELEMENTWISE, *REDUCTIONS, *TIMED]))}")
         self._fail(f"{type(node).__name__} is not allowed; write arithmetic (+ - * / **) of "
@@ -141,6 +153,8 @@ class Expression:
                    f"entry, a parameter, t or pi{hint}")
 
     def __call__(self, context: Context):
+        """The expression's value on ``context``: a number, a column (runs x 1) or an
+        array of runs x samples."""
         return self._fn(context)
 
 
@@ -152,11 +166,20 @@ def sampled(value, shape: tuple) -> np.ndarray:
     return np.broadcast_to(value, shape)
 
 
-def _integral(values: np.ndarray, time: np.ndarray) -> float:
-    """Trapezoidal integral over the samples."""
+def runs_of(value, shape: tuple, window=slice(None)) -> np.ndarray:
+    """``value`` as runs x samples (`sampled`), the samples in ``window`` only, each run
+    one contiguous row: a reduction along a row then sums it in the order it sums a
+    single run's samples, however many runs there are (along a strided axis, numpy
+    sums in another order)."""
+    return np.ascontiguousarray(sampled(value, shape)[:, window])
+
+
+def _integral(values: np.ndarray, time: np.ndarray) -> np.ndarray:
+    """Trapezoidal integral of each run's samples (a column, runs x 1)."""
     if len(time) < 2:
-        return 0.0
-    return float(np.sum((values[1:] + values[:-1]) * np.diff(time)) / 2.0)
+        return np.zeros(values.shape[:-1] + (1,))
+    steps = (values[..., 1:] + values[..., :-1]) * np.diff(time)
+    return np.sum(steps, axis=-1, keepdims=True) / 2.0
 
 
 @dataclass(frozen=True)
@@ -251,33 +274,38 @@ class Evaluator:
         """Names of the signals the metric's expressions read."""
         return set().union(*(e.signals for e in self.expressions.values()))
 
-    def __call__(self, c: Context) -> float:
+    def __call__(self, c: Context) -> np.ndarray:
+        """The metric of every run of ``c`` (one number a run)."""
+        return np.broadcast_to(self._value(c), (c.shape[0], 1))[:, 0].astype(float)
+
+    def _value(self, c: Context):
         kind = self.kind
         if kind == "stick_slip_transitions":
-            return float(c.transitions)
+            return c.transitions[:, None]
         if kind == "expression":
-            return float(self.expressions["expression"](c))
+            return self.expressions["expression"](c)
         window = self._window(c.time)
         t = c.time[window]
         if len(t) == 0:
             return math.nan
-        s = sampled(self.expressions["signal"](c), c.time.shape)[window]
+        s = runs_of(self.expressions["signal"](c), c.shape, window)
         if kind == "energy_dissipated":
             return -_integral(s, t)
         if kind in ("tracking_rms", "tracking_peak", "lag"):
-            r = sampled(self.expressions["reference"](c), c.time.shape)[window]
+            r = runs_of(self.expressions["reference"](c), c.shape, window)
             if kind == "lag":
-                return _lag(s, r, self._projection(t))
+                return _lag(s, r, self._projection(t))[:, None]
             s = s - r
         if kind in ("peak", "tracking_peak"):
-            return float(np.max(np.abs(s)))
+            return REDUCTIONS["peak"](s)
         if kind in ("rms", "tracking_rms"):
-            return float(np.sqrt(np.mean(np.square(s))))
+            return REDUCTIONS["rms"](s)
         if kind == "mean":
-            return float(np.mean(s))
+            return REDUCTIONS["mean"](s)
         if kind == "final":
-            return float(s[-1])
-        return _settling(s, t, self.options.get("tolerance", 0.02))
+            return s[:, -1:]
+        tolerance = self.options.get("tolerance", 0.02)
+        return np.array([[_settling(row, t, tolerance)] for row in s])
 
 
 def sine_projection(t: np.ndarray, frequency: float) -> tuple[np.ndarray, float]:
@@ -291,16 +319,19 @@ def phase_lag(t: np.ndarray, signal: np.ndarray, reference: np.ndarray,
               frequency: float) -> float:
     """The time [s] ``signal`` lags ``reference`` at ``frequency`` [Hz] over the samples at
     ``t`` (their phase difference at that frequency over 2 pi f, in (-1/2f, 1/2f])."""
-    return _lag(signal, reference, sine_projection(t, frequency))
+    return float(_lag(signal, reference, sine_projection(t, frequency)))
 
 
-def _lag(signal, reference, projection) -> float:
-    """Phase lag [s] of ``signal`` behind ``reference`` at a frequency: both projected
-    (least squares) on sine and cosine at it over the window; ``projection`` is
-    (the pseudo-inverse of that basis, the angular frequency)."""
+def _lag(signal, reference, projection) -> np.ndarray:
+    """Phase lag [s] of ``signal`` behind ``reference`` at a frequency, for each run
+    (the leading axes; samples along the last): both projected (least squares) on sine
+    and cosine at it over the window; ``projection`` is (the pseudo-inverse of that
+    basis, the angular frequency). Each projection is a sum over the run's own samples
+    (not a matrix product, whose sums a BLAS may order by the number of runs)."""
     pinv, w = projection
-    (a_s, b_s), (a_r, b_r) = pinv @ signal, pinv @ reference
-    delta = math.atan2(b_r, a_r) - math.atan2(b_s, a_s)
+    a_s, b_s = (np.sum(signal * row, axis=-1) for row in pinv)
+    a_r, b_r = (np.sum(reference * row, axis=-1) for row in pinv)
+    delta = np.arctan2(b_r, a_r) - np.arctan2(b_s, a_s)
     delta = (delta + math.pi) % (2.0 * math.pi) - math.pi
     return delta / w
 

@@ -476,11 +476,12 @@ def _measure(p: Prepared, runs: list[_Run], batch) -> tuple[np.ndarray, np.ndarr
     """``(kept, metrics)`` of ``runs`` (the rows of ``batch``) from their sampled states:
     the kept signals (runs x samples x kept) and the metrics (runs x metrics).
 
-    The table's signals are evaluated once for all runs, over their samples stacked one
-    run after another: each is a function of a sample alone, whose sums take their terms
-    in the same order however many samples there are (`vsj.simulate.signals.rows`), so
-    a run's numbers are those it would have on its own. The [signals] expressions and
-    the metrics, which may reduce over a run's samples, are evaluated run by run."""
+    Every signal and metric is evaluated once for all runs. The table's signals take
+    the runs' samples stacked one run after another: each is a function of one sample,
+    whose sums take their terms in the same order however many samples there are
+    (`vsj.simulate.signals.rows`). The [signals] expressions and the metrics take them
+    as runs x samples and reduce along each run's own row (`vsj.sweep.metrics`). So a
+    run's numbers are those it would have on its own, in a chunk of any size."""
     n_t, n_state, n_runs = len(p.t_out), p.layout.n_state, len(runs)
     kept = np.full((n_runs, n_t, len(p.keep)), np.nan)
     metrics = np.full((n_runs, len(p.metrics)), np.nan)
@@ -505,39 +506,44 @@ def _measure(p: Prepared, runs: list[_Run], batch) -> tuple[np.ndarray, np.ndarr
                   columns=p.columns, cache={},
                   control=(states[:, :, n_state:].reshape(n_runs * n_t, -1)
                            if p.compiled_controller is not None else None))
-    table: dict[str, np.ndarray] = {}
+    shape = (n_runs, n_t)
+    computed: dict[str, np.ndarray] = {}
 
-    def tabled(name: str) -> np.ndarray:
-        """A signal of the table, for every run (runs x samples)."""
-        if name not in table:
-            table[name] = np.ascontiguousarray(
-                sampled(p.recipes[name].values(block), (n_runs * n_t,))).reshape(n_runs, n_t)
-        return table[name]
-
-    for j, name in enumerate(p.keep):
-        if name in p.recipes:
-            kept[:, :, j] = tabled(name)
-    for i, run in enumerate(runs):
-        cache: dict[str, np.ndarray] = {}
-
-        def signal(name: str, i=i, cache=cache) -> np.ndarray:
+    def signal(name: str) -> np.ndarray:
+        """A signal of every run (runs x samples)."""
+        if name not in computed:
             if name in p.recipes:
-                return tabled(name)[i]
-            if name not in cache:
-                cache[name] = sampled(p.derived[name](context), p.t_out.shape)
-            return cache[name]
+                value = np.ascontiguousarray(
+                    sampled(p.recipes[name].values(block), (n_runs * n_t,))).reshape(shape)
+            else:
+                value = sampled(p.derived[name](context), shape)
+            computed[name] = value
+        return computed[name]
 
-        context = Context(p.t_out, signal, run.params.values, int(batch.transitions[i]))
-        for j, name in enumerate(p.keep):
-            if name not in p.recipes:
-                kept[i, :, j] = signal(name)
-        with np.errstate(all="ignore"):  # a failed run's samples are NaN after the failure
-            for j, metric in enumerate(p.metrics):
-                try:
-                    metrics[i, j] = metric(context)
-                except (FloatingPointError, ValueError, np.linalg.LinAlgError):
-                    metrics[i, j] = math.nan
+    context = Context(p.t_out, signal, _Columns(runs),
+                      np.asarray(batch.transitions, dtype=np.int64))
+    for j, name in enumerate(p.keep):
+        kept[:, :, j] = signal(name)
+    with np.errstate(all="ignore"):  # a failed run's samples are NaN after the failure
+        for j, metric in enumerate(p.metrics):
+            try:
+                metrics[:, j] = metric(context)
+            except (FloatingPointError, ValueError, np.linalg.LinAlgError):
+                metrics[:, j] = math.nan
     return kept, metrics
+
+
+class _Columns(dict):
+    """The runs' values of each parameter the expressions read, as columns (runs x 1),
+    made on first use."""
+
+    def __init__(self, runs: list[_Run]):
+        super().__init__()
+        self.runs = runs
+
+    def __missing__(self, name: str) -> np.ndarray:
+        column = self[name] = np.array([[run.params.values[name]] for run in self.runs])
+        return column
 
 
 def job_for(spec: SweepSpec) -> Job:
