@@ -475,3 +475,18 @@ def test_each_metric_of_a_block_of_runs_is_its_run_alone():
         # one multiplication and one addition after the reduction (integral: the
         # trapezoids summed in another order than numpy's)
         assert np.allclose(got[f"{f}(s)"], value * k + 1, rtol=1e-14, atol=1e-15), f
+
+
+def test_a_chunk_measured_in_groups_of_runs_gives_the_same_numbers(spec_file, monkeypatch):
+    """A chunk's signals and metrics are evaluated on groups of its runs that fit
+    `BLOCK_BYTES`; groups of one run give the bits of the whole chunk at once."""
+    from vsj.sweep import runner
+
+    job = runner.job_for(sweep.load(spec_file))
+    values, _ = sampling.design(job.spec)
+    whole = runner.run_chunk(job, 0, values, threads=1)
+    monkeypatch.setattr(runner, "BLOCK_BYTES", 1)
+    apart = runner.run_chunk(job, 0, values, threads=1)
+    assert np.isfinite(whole.metrics[whole.status == 0]).all()
+    assert np.array_equal(whole.kept, apart.kept, equal_nan=True)
+    assert np.array_equal(whole.metrics, apart.metrics, equal_nan=True)

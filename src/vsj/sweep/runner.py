@@ -47,6 +47,10 @@ SETUP_FAILED = -1
 #: Compiled models a process keeps for runs that retune them (one per distinct set
 #: of values of the parameters that are not pass-through).
 MAX_SHARED = 64
+#: Bytes of the observation a chunk's signals are evaluated on at once: its runs are
+#: taken in groups that fit (a chunk of many runs with many samples would otherwise
+#: hold all their observations at the same time).
+BLOCK_BYTES = 1 << 24
 
 
 @dataclass(frozen=True)
@@ -476,18 +480,31 @@ def _measure(p: Prepared, runs: list[_Run], batch) -> tuple[np.ndarray, np.ndarr
     """``(kept, metrics)`` of ``runs`` (the rows of ``batch``) from their sampled states:
     the kept signals (runs x samples x kept) and the metrics (runs x metrics).
 
-    Every signal and metric is evaluated once for all runs. The table's signals take
-    the runs' samples stacked one run after another: each is a function of one sample,
-    whose sums take their terms in the same order however many samples there are
-    (`vsj.simulate.signals.rows`). The [signals] expressions and the metrics take them
-    as runs x samples and reduce along each run's own row (`vsj.sweep.metrics`). So a
-    run's numbers are those it would have on its own, in a chunk of any size."""
-    n_t, n_state, n_runs = len(p.t_out), p.layout.n_state, len(runs)
+    Every signal and metric is evaluated for a group of runs at once (as many as fit
+    `BLOCK_BYTES`). The table's signals take the runs' samples stacked one run after
+    another: each is a function of one sample, whose sums take their terms in the same
+    order however many samples there are (`vsj.simulate.signals.rows`). The [signals]
+    expressions and the metrics take them as runs x samples and reduce along each run's
+    own row (`vsj.sweep.metrics`). So a run's numbers are those it would have on its
+    own, in a chunk of any size."""
+    n_t, n_runs = len(p.t_out), len(runs)
     kept = np.full((n_runs, n_t, len(p.keep)), np.nan)
     metrics = np.full((n_runs, len(p.metrics)), np.nan)
     if not (p.keep or p.metrics):
         return kept, metrics
-    states = batch.states
+    width = p.columns["u"].stop if p.light else max(c.stop for c in p.columns.values())
+    group = max(1, BLOCK_BYTES // (8 * max(1, n_t * width)))
+    for a in range(0, n_runs, group):
+        b = min(a + group, n_runs)
+        _measure_group(p, runs[a:b], batch.states[a:b], batch.transitions[a:b], kept[a:b],
+                       metrics[a:b])
+    return kept, metrics
+
+
+def _measure_group(p: Prepared, runs: list[_Run], states: np.ndarray,
+                   transitions: np.ndarray, kept: np.ndarray, metrics: np.ndarray) -> None:
+    """`_measure` for one group of runs, into the views ``kept`` and ``metrics``."""
+    n_t, n_state, n_runs = len(p.t_out), p.layout.n_state, len(runs)
     if p.light:  # the same numbers observe writes in these columns, the rest left NaN
         cols = p.columns
         raw = np.empty((n_runs, n_t, cols["u"].stop))
@@ -510,7 +527,7 @@ def _measure(p: Prepared, runs: list[_Run], batch) -> tuple[np.ndarray, np.ndarr
     computed: dict[str, np.ndarray] = {}
 
     def signal(name: str) -> np.ndarray:
-        """A signal of every run (runs x samples)."""
+        """A signal of every run of the group (runs x samples)."""
         if name not in computed:
             if name in p.recipes:
                 value = np.ascontiguousarray(
@@ -520,8 +537,7 @@ def _measure(p: Prepared, runs: list[_Run], batch) -> tuple[np.ndarray, np.ndarr
             computed[name] = value
         return computed[name]
 
-    context = Context(p.t_out, signal, _Columns(runs),
-                      np.asarray(batch.transitions, dtype=np.int64))
+    context = Context(p.t_out, signal, _Columns(runs), np.asarray(transitions, dtype=np.int64))
     for j, name in enumerate(p.keep):
         kept[:, :, j] = signal(name)
     with np.errstate(all="ignore"):  # a failed run's samples are NaN after the failure
@@ -530,7 +546,6 @@ def _measure(p: Prepared, runs: list[_Run], batch) -> tuple[np.ndarray, np.ndarr
                 metrics[:, j] = metric(context)
             except (FloatingPointError, ValueError, np.linalg.LinAlgError):
                 metrics[:, j] = math.nan
-    return kept, metrics
 
 
 class _Columns(dict):
