@@ -255,7 +255,13 @@ for name, stiction in (("a", 0.001), ("b", 0.01)):
     s = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier="vsj_wrist",
                   instanceName=name)
     s.instantiate()
-    s.setupExperiment(startTime=0.0)
+    try:                                           # a tolerance out of range: refused
+        s.setupExperiment(tolerance=2.0, startTime=0.0)
+    except Exception:
+        pass
+    else:
+        raise AssertionError("the FMU accepted a tolerance of 2")
+    s.setupExperiment(tolerance=1e-4 if name == "a" else None, startTime=0.0)
     s.enterInitializationMode()
     s.setReal([vr["transmission.stiction"]], [stiction])
     s.exitInitializationMode()

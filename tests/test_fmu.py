@@ -93,14 +93,19 @@ def held_inputs(tau_x, duration):
 class Slave:
     """One FMPy instance of the FMU, stepped by hand."""
 
-    def __init__(self, path, unzipped, name="wrist", start=None):
+    def __init__(self, path, unzipped, name="wrist", start=None, tolerance=None):
         md = read_model_description(str(path))
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
                              modelIdentifier=md.coSimulation.modelIdentifier,
                              instanceName=name)
         self.fmu.instantiate()
-        self.fmu.setupExperiment(startTime=0.0)
+        self.start(start, tolerance)
+
+    def start(self, start=None, tolerance=None):
+        """Set up the experiment (with the importer's ``tolerance``, if given) and
+        initialise, with the parameter values ``start``."""
+        self.fmu.setupExperiment(tolerance=tolerance, startTime=0.0)
         self.fmu.enterInitializationMode()
         for key, value in (start or {}).items():
             self.fmu.setReal([self.vr[key]], [value])
@@ -705,3 +710,68 @@ def test_the_tolerances_given_to_vsj_fmu_are_the_ones_its_model_integrates_to(tm
     assert main(["fmu", "--out", str(tmp_path / "bad.fmu"), *common, "--rtol", "0.5"]) == 2
     assert "rtol" in capsys.readouterr().err
     assert not (tmp_path / "bad.fmu").exists()
+
+
+def circle(slave, steps):
+    """``theta_x``, ``theta_y`` of ``slave`` after each of ``steps`` communication steps
+    of the fig-4.15-like circle (motor speeds 3 rad/s at 0.5 Hz, 90 degrees apart)."""
+    out = []
+    for k in range(steps):
+        t = k * H
+        slave.step({"motor_1": 3.0 * np.sin(np.pi * t), "motor_2": 3.0 * np.cos(np.pi * t),
+                    "tau_y": 0.05})
+        out.append(slave.get("theta_x", "theta_y"))
+    return np.array(out)
+
+
+def test_an_importers_tolerance_drives_the_adaptive_schemes(tmp_path, wrist_fmu, unzipped):
+    """The relative tolerance an importer passes to fmi2SetupExperiment replaces the model
+    file's rtol (atol scaled alike) for the run it sets up: the model file's own value
+    gives the run without one bit for bit, a looser one a less accurate run, an instance
+    reset and set up without one runs at the model file's again, and one outside vsj's
+    range is an error with its reason. The time-stepper's fixed step has no tolerance to
+    take."""
+    own = SimulationOptions().rtol
+    path = tmp_path / "dopri.fmu"
+    fmu.build(path, params.default(), friction="arctan", method="dopri", step=H, q0=Q0,
+              win64=False)
+    assert float(read_model_description(str(path)).defaultExperiment.tolerance) == own
+    directory = extract(str(path))
+    runs = {}
+    for tolerance in (None, own, 1e-3, 1e-10):
+        slave = Slave(path, directory, tolerance=tolerance)
+        runs[tolerance] = circle(slave, 400)
+        if tolerance == 1e-3:  # the same instance reset, set up without a tolerance
+            slave.fmu.reset()
+            slave.start()
+            runs["reset"] = circle(slave, 400)
+        slave.close()
+    assert np.array_equal(runs[None], runs[own]) and np.array_equal(runs[None], runs["reset"])
+    # against the run at 1e-10: the looser tolerance, the larger the error
+    error = {k: np.max(np.abs(runs[k] - runs[1e-10])) for k in (own, 1e-3)}
+    assert 0.0 < error[own] < error[1e-3]
+
+    messages = []
+    md = read_model_description(str(path))
+    bad = FMU2Slave(guid=md.guid, unzipDirectory=directory, modelIdentifier="vsj_wrist",
+                    instanceName="bad")
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(
+        lambda env, name, status, category, text: messages.append(text.decode()))
+    bad.instantiate(callbacks=callbacks, loggingOn=True)
+    for tolerance in (0.5, 0.0, float("nan")):
+        with pytest.raises(FMICallException):
+            bad.setupExperiment(tolerance=tolerance, startTime=0.0)
+    bad.freeInstance()
+    shutil.rmtree(directory, ignore_errors=True)
+    assert sum("the tolerance (relative) must be from 1e-14 to 1e-2" in m
+               for m in messages) == 3
+
+    stiction, _ = wrist_fmu  # the time-stepper's FMU
+    assert read_model_description(str(stiction)).defaultExperiment.tolerance is None
+    fixed = []
+    for tolerance in (None, 1e-3):
+        slave = Slave(stiction, unzipped, tolerance=tolerance)
+        fixed.append(circle(slave, 200))
+        slave.close()
+    assert np.array_equal(fixed[0], fixed[1])

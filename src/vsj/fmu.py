@@ -249,12 +249,15 @@ def _display(si_unit: str) -> str:
 
 def model_description(document: dict, tunables: list[Tunable], params: Parameters,
                       q0: float, q_range: tuple[float, float], guid: str, step: float,
-                      description: str, signals: dict[str, SignalSpec]) -> str:
+                      description: str, signals: dict[str, SignalSpec],
+                      tolerance: float | None = None) -> str:
     """The FMU's modelDescription.xml: its inputs, outputs (units and descriptions from
     ``signals``, the run's signal table), the initial pivot position and the tunable
-    parameters, with FMI's unit definitions."""
+    parameters, with FMI's unit definitions; ``tolerance``, an adaptive scheme's relative
+    tolerance, is the default experiment's."""
     units: dict[str, str] = {}  # FMI unit name -> the same in pint's notation
     variables = []
+    experiment_tolerance = f' tolerance="{tolerance!r}"' if tolerance is not None else ""
 
     def real(name, vr, causality, variability, unit, text, start=None, minimum=None,
              maximum=None, initial=None):
@@ -326,7 +329,7 @@ def model_description(document: dict, tunables: list[Tunable], params: Parameter
       description="a spring past its end stop, a motor above its voltage limit"/>
     <Category name="logAll" description="every message"/>
   </LogCategories>
-  <DefaultExperiment startTime="0" stopTime="10" stepSize="{step!r}"/>
+  <DefaultExperiment startTime="0" stopTime="10" stepSize="{step!r}"{experiment_tolerance}/>
   <ModelVariables>
 {chr(10).join(variables)}
   </ModelVariables>
@@ -534,6 +537,9 @@ def _compile(cc, flags, link, sources, kind, out) -> tuple[bytes, int, str]:
 
 
 METHODS = ("auto", "timestep", "dopri", "rosenbrock")
+#: The step functions with an error control, which follow an importer's tolerance
+#: (fmi2SetupExperiment) in place of the model file's rtol, atol scaled alike.
+ADAPTIVE = ("dopri", "rosenbrock")
 
 
 def choose_method(friction: str, method: str = "auto") -> str:
@@ -566,7 +572,8 @@ def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None =
     platforms, compiler warnings). ``win64``: None builds the Windows DLL where the
     cross-compiler is installed, True requires it, False skips it. ``method``: the
     engine's step function, ``timestep`` (the time-stepper at ``step``; needed by
-    true stiction), ``dopri`` or ``rosenbrock`` (adaptive, to ``rtol`` and ``atol``);
+    true stiction), ``dopri`` or ``rosenbrock`` (adaptive, to ``rtol`` and ``atol``,
+    or to the tolerance an importer passes to fmi2SetupExperiment, with atol scaled alike);
     ``auto`` takes the time-stepper for stiction and dopri for the smooth laws."""
     wrist_options = wrist_options or WristOptions()
     method = choose_method(friction, method)
@@ -600,7 +607,8 @@ def build(out: Path, params: Parameters, *, wrist_options: WristOptions | None =
         (root / "documentation").mkdir()
         signals = {spec.name: spec for spec in catalogue(stepper.structure, ports=False)}
         (root / "modelDescription.xml").write_text(model_description(
-            document, tunables, params, q0, q_range, guid, step, description, signals))
+            document, tunables, params, q0, q_range, guid, step, description, signals,
+            rtol if method in ADAPTIVE else None))
         (root / "resources" / "model.vsjm").write_bytes(program)
         (root / "resources" / "fmu.txt").write_text(map_text(guid, body))
         for path in _source_paths():

@@ -158,12 +158,28 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
     return fmi2OK;
 }
 
+/* The adaptive schemes' tolerances for the experiment being set up (each
+ * fmi2SetupExperiment sets them anew, also after fmi2Reset): the model file's, or, with
+ * the importer's relative `tolerance` (defined), that one and the model file's absolute
+ * tolerance scaled by the same factor. The time-stepper's fixed step has none. */
+static void use_tolerance(fmu *f, int defined, double tolerance) {
+    const vsj_scheme *own = &f->loaded->scheme;
+    f->scheme.rtol = own->rtol;
+    f->scheme.atol = own->atol;
+    if (!defined || f->scheme.method == VSJ_METHOD_TIMESTEP)
+        return;
+    f->scheme.rtol = tolerance;
+    f->scheme.atol = own->atol * (tolerance / own->rtol);
+    fmu__say(f, fmi2OK, "logAll", "fmi2SetupExperiment: the importer's tolerance: relative "
+             "%g, absolute %g (the model file's %g and %g)", f->scheme.rtol, f->scheme.atol,
+             own->rtol, own->atol);
+}
+
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
                                fmi2Real startTime, fmi2Boolean stopTimeDefined,
                                fmi2Real stopTime) {
     fmu *f = (fmu *)c;
-    (void)toleranceDefined;
-    (void)tolerance;
+    int defined = toleranceDefined != fmi2False;
     if (!f)
         return fmi2Error;
     if (f->mode != INSTANTIATED)
@@ -173,9 +189,13 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime))
         return fmu__fail(f, "fmi2SetupExperiment: the stop time must be finite and not before "
                             "the start time%s", "");
+    if (defined && !(tolerance >= 1e-14 && tolerance <= 1e-2)) /* NaN fails too */
+        return fmu__fail(f, "fmi2SetupExperiment: the tolerance (relative) must be from "
+                            "1e-14 to 1e-2, as vsj's rtol%s", "");
     f->time = startTime;
     f->stop_defined = stopTimeDefined != fmi2False;
     f->stop_time = stopTime;
+    use_tolerance(f, defined, tolerance);
     return fmi2OK;
 }
 
