@@ -332,17 +332,24 @@ def test_a_state_taken_while_stuck_repeats_the_breakaway_bit_for_bit(wrist_fmu, 
     assert np.array_equal(first, again) and np.array_equal(first, thawed)
 
 
-def test_bad_calls_are_errors_with_a_logged_reason(wrist_fmu, unzipped):
-    path, _ = wrist_fmu
+def logged_instance(path, unzipped):
+    """An instance of the FMU at ``path`` with logging on: ``(slave, messages)``, the
+    messages its logger receives collected in the list."""
     messages = []
     md = read_model_description(str(path))
-    vr = refs(path)
     slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier="vsj_wrist",
                       instanceName="bad")
     callbacks = fmi2CallbackFunctions()
     callbacks.logger = fmi2CallbackLoggerTYPE(
         lambda env, name, status, category, text: messages.append(text.decode()))
     slave.instantiate(callbacks=callbacks, loggingOn=True)
+    return slave, messages
+
+
+def test_bad_calls_are_errors_with_a_logged_reason(wrist_fmu, unzipped):
+    path, _ = wrist_fmu
+    vr = refs(path)
+    slave, messages = logged_instance(path, unzipped)
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
     with pytest.raises(FMICallException):
@@ -751,14 +758,7 @@ def test_an_importers_tolerance_drives_the_adaptive_schemes(tmp_path, wrist_fmu,
     error = {k: np.max(np.abs(runs[k] - runs[1e-10])) for k in (own, 1e-3)}
     assert 0.0 < error[own] < error[1e-3]
 
-    messages = []
-    md = read_model_description(str(path))
-    bad = FMU2Slave(guid=md.guid, unzipDirectory=directory, modelIdentifier="vsj_wrist",
-                    instanceName="bad")
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(
-        lambda env, name, status, category, text: messages.append(text.decode()))
-    bad.instantiate(callbacks=callbacks, loggingOn=True)
+    bad, messages = logged_instance(path, directory)
     for tolerance in (0.5, 0.0, float("nan")):
         with pytest.raises(FMICallException):
             bad.setupExperiment(tolerance=tolerance, startTime=0.0)
