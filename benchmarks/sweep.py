@@ -24,7 +24,9 @@ two sizes splits a sweep's time into a fixed part (start-up of its processes,
 preparation, files) and a part per run, and gives the time of the issue's full study,
 which is compared with the kernel's. With fewer runs than the full
 study, that is the figure the issue's target is checked on; the ratios measured at
-the block's size are printed above it.
+the block's size are printed above it. Beside them, without the drift between the
+ways: the share of each sweep's own cores x wall time that its workers spent in the
+kernel (`vsj.sweep.Outcome.kernel`), start-up and all, at the blocks' size.
 
 Then, for the README's estimate of where a cluster's scheduler becomes the
 bottleneck: the work in one chunk of the full study, the bytes a chunk sends back,
@@ -99,9 +101,10 @@ def bare_kernel(spec) -> float:
     return elapsed
 
 
-def swept(spec, out: Path, scheduler=None, chunk=None) -> tuple[float, int, float, int]:
+def swept(spec, out: Path, scheduler=None, chunk=None) -> tuple[float, int, float, int, float]:
     """Seconds of a whole sweep, its bytes on disk, the client's seconds storing
-    chunks, and the chunk count (``chunk``: runs per chunk, default the sweep's own)."""
+    chunks, the chunk count (``chunk``: runs per chunk, default the sweep's own) and the
+    core-seconds its workers spent in the batch kernel."""
     from vsj import sweep
 
     shutil.rmtree(out, ignore_errors=True)
@@ -111,7 +114,7 @@ def swept(spec, out: Path, scheduler=None, chunk=None) -> tuple[float, int, floa
     elapsed = time.perf_counter() - started
     assert outcome.failed == 0 and outcome.ran == outcome.runs
     size = sum(f.stat().st_size for f in out.rglob("*") if f.is_file())
-    return elapsed, size, outcome.storing, outcome.chunks
+    return elapsed, size, outcome.storing, outcome.chunks, outcome.kernel
 
 
 def task_overhead(address: str, tasks: int = 2000) -> float:
@@ -166,6 +169,7 @@ def main() -> int:
     small = chunk  # one chunk, which the workers share in parts
     small_totals = {"sweep": 0.0, "dask": 0.0}
     blockwise = {k: [] for k in totals}  # each block's seconds
+    inside = {"sweep": 0.0, "dask": 0.0}  # the sweeps' core-seconds in the kernel
     size = storing = chunks = 0
     try:
         for block in range(blocks):
@@ -177,9 +181,10 @@ def main() -> int:
                 if way == "kernel":
                     seconds = bare_kernel(spec)
                 else:
-                    seconds, size, stored, n = swept(
+                    seconds, size, stored, n, kernel = swept(
                         spec, root / way, None if way == "sweep" else cluster.scheduler_address,
                         chunk=chunk)
+                    inside[way] += kernel
                     if way == "sweep":
                         storing, chunks = storing + stored, chunks + n
                 totals[way] += seconds
@@ -211,6 +216,11 @@ def main() -> int:
               f"{statistics.median(ratios):>17.0%}")
     print(f"size on disk: {size / per_block:.0f} bytes per run (sweep.zarr, metrics.csv, "
           "sweep.json; no signal kept)")
+    # the kernel's share of each sweep's own time, both measured in the same moments (no
+    # drift between them): what the sweep adds to the kernel, start-up and all, at this size
+    for way in ("sweep", "dask"):
+        print(f"{names[way]}: its workers spent {inside[way] / (cores * totals[way]):.1%} of "
+              f"the sweeps' {cores} cores x wall time in the batch kernel")
     full_chunk = sweep.default_chunk(FULL_RUNS)
     work = full_chunk * cores / rates["kernel"]  # core-seconds of kernel in one chunk
     per_run_extra = cores / rates["sweep"] - cores / rates["kernel"]

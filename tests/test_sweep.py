@@ -490,3 +490,15 @@ def test_a_chunk_measured_in_groups_of_runs_gives_the_same_numbers(spec_file, mo
     assert np.isfinite(whole.metrics[whole.status == 0]).all()
     assert np.array_equal(whole.kept, apart.kept, equal_nan=True)
     assert np.array_equal(whole.metrics, apart.metrics, equal_nan=True)
+
+
+def test_a_sweep_reports_the_kernel_time_of_the_chunks_it_ran(spec_file, tmp_path):
+    """`Outcome.kernel` sums the chunks' time in the batch kernel: positive and within
+    the sweep's wall time on its one in-process worker; none for a resumed sweep that
+    finds nothing left to run."""
+    spec = sweep.load(spec_file)
+    outcome = sweep.run(spec, tmp_path / "out", workers=1, plots=False, show_progress=False)
+    assert outcome.ran == 8 and 0.0 < outcome.kernel < outcome.seconds
+    again = sweep.run(spec, tmp_path / "out", resume=True, workers=1, plots=False,
+                      show_progress=False)
+    assert again.ran == 0 and again.kernel == 0.0

@@ -62,6 +62,9 @@ class Outcome:
     method: str | None = None
     #: seconds this process spent storing returned chunks (zarr regions, manifest)
     storing: float = 0.0
+    #: seconds the chunks run now spent in the batch kernel, summed over the workers
+    #: (core-seconds; the rest of their time is building runs and measuring them)
+    kernel: float = 0.0
     #: what a resumed sweep found damaged and redid (one sentence each)
     notes: list[str] = field(default_factory=list)
 
@@ -168,7 +171,7 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
     done = set(record["done"]) if record is not None else set()
     todo = [(i, a, values[a:b]) for i, a, b in bounds if str(i) not in done]
     ran = 0
-    storing = 0.0
+    storing = kernel = 0.0
     bar = None
     # the workers start on their first chunks while this process makes the store
     running = schedulers.execute(probed(job), todo, scheduler, workers)
@@ -200,6 +203,7 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
                                                 key=lambda kv: int(kv[0])))
             store.write_manifest(out, record)
             storing += time.perf_counter() - began
+            kernel += result.kernel_time
             ran += len(result.status)
             if bar is not None:
                 bar.update(len(result.status))
@@ -208,7 +212,7 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
         if bar is not None:
             bar.close()
     outcome = Outcome(out, runs, ran, len(record["failed_runs"]), len(bounds), True,
-                      0.0, method=spec.method, storing=storing, notes=notes)
+                      0.0, method=spec.method, storing=storing, kernel=kernel, notes=notes)
     _finish(spec, out, directory.zarr, record, unit, outcome, plots)
     written = {name: file_record(out / name) for name in outcome.files
                if name not in (store.ZARR, store.MANIFEST)}
