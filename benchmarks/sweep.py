@@ -80,6 +80,8 @@ FULL_RUNS = 100_000
 TARGET = 0.95
 #: runs per call of the kernel (bounds the memory of the sampled states)
 KERNEL_SLICE = 512
+#: the LocalCluster's worker processes, one thread each
+DASK_WORKERS = 2
 
 
 def bare_kernel(spec) -> float:
@@ -163,7 +165,7 @@ def main() -> int:
     print(f"sweep benchmark: {runs} runs{note} in {blocks} interleaved blocks of "
           f"{per_block}, chunks of {chunk} runs, {cores} cores", flush=True)
     root = Path(tempfile.mkdtemp(prefix="vsj-sweep-bench-"))
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+    cluster = LocalCluster(n_workers=DASK_WORKERS, threads_per_worker=1, processes=True,
                            dashboard_address=None)
     totals = {"kernel": 0.0, "sweep": 0.0, "dask": 0.0}
     small = chunk  # one chunk, which the workers share in parts
@@ -218,9 +220,10 @@ def main() -> int:
           "sweep.json; no signal kept)")
     # the kernel's share of each sweep's own time, both measured in the same moments (no
     # drift between them): what the sweep adds to the kernel, start-up and all, at this size
-    for way in ("sweep", "dask"):
-        print(f"{names[way]}: its workers spent {inside[way] / (cores * totals[way]):.1%} of "
-              f"the sweeps' {cores} cores x wall time in the batch kernel")
+    for way, workers in (("sweep", cores), ("dask", DASK_WORKERS)):
+        print(f"{names[way]}: its {workers} one-thread workers spent "
+              f"{inside[way] / (workers * totals[way]):.1%} of the sweeps' wall time in the "
+              "batch kernel")
     full_chunk = sweep.default_chunk(FULL_RUNS)
     work = full_chunk * cores / rates["kernel"]  # core-seconds of kernel in one chunk
     per_run_extra = cores / rates["sweep"] - cores / rates["kernel"]

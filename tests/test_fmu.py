@@ -102,10 +102,11 @@ class Slave:
         self.fmu.instantiate()
         self.start(start, tolerance)
 
-    def start(self, start=None, tolerance=None):
-        """Set up the experiment (with the importer's ``tolerance``, if given) and
-        initialise, with the parameter values ``start``."""
-        self.fmu.setupExperiment(tolerance=tolerance, startTime=0.0)
+    def start(self, start=None, tolerance=None, setup=True):
+        """Set up the experiment (with the importer's ``tolerance``, if given; not with
+        ``setup`` False) and initialise, with the parameter values ``start``."""
+        if setup:
+            self.fmu.setupExperiment(tolerance=tolerance, startTime=0.0)
         self.fmu.enterInitializationMode()
         for key, value in (start or {}).items():
             self.fmu.setReal([self.vr[key]], [value])
@@ -734,10 +735,10 @@ def circle(slave, steps):
 def test_an_importers_tolerance_drives_the_adaptive_schemes(tmp_path, wrist_fmu, unzipped):
     """The relative tolerance an importer passes to fmi2SetupExperiment replaces the model
     file's rtol (atol scaled alike) for the run it sets up: the model file's own value
-    gives the run without one bit for bit, a looser one a less accurate run, an instance
-    reset and set up without one runs at the model file's again, and one outside vsj's
-    range is an error with its reason. The time-stepper's fixed step has no tolerance to
-    take."""
+    gives the run without one bit for bit, a looser one a less accurate run. fmi2Reset
+    returns to the model file's (set up again or not), an FMU state carries the
+    tolerance it was taken at, and one outside vsj's range is an error with its reason.
+    The time-stepper's fixed step has no tolerance: it takes any and ignores it."""
     own = SimulationOptions().rtol
     path = tmp_path / "dopri.fmu"
     fmu.build(path, params.default(), friction="arctan", method="dopri", step=H, q0=Q0,
@@ -748,15 +749,29 @@ def test_an_importers_tolerance_drives_the_adaptive_schemes(tmp_path, wrist_fmu,
     for tolerance in (None, own, 1e-3, 1e-10):
         slave = Slave(path, directory, tolerance=tolerance)
         runs[tolerance] = circle(slave, 400)
-        if tolerance == 1e-3:  # the same instance reset, set up without a tolerance
+        if tolerance == 1e-3:  # the same instance reset, initialised without a set-up
             slave.fmu.reset()
+            slave.start(setup=False)
+            runs["reset, not set up"] = circle(slave, 400)
+            slave.fmu.reset()  # reset, set up with it and again without: the last counts
+            slave.fmu.setupExperiment(tolerance=1e-3, startTime=0.0)
             slave.start()
-            runs["reset"] = circle(slave, 400)
+            runs["set up again"] = circle(slave, 400)
         slave.close()
-    assert np.array_equal(runs[None], runs[own]) and np.array_equal(runs[None], runs["reset"])
+    for again in (own, "reset, not set up", "set up again"):
+        assert np.array_equal(runs[None], runs[again]), again
     # against the run at 1e-10: the looser tolerance, the larger the error
     error = {k: np.max(np.abs(runs[k] - runs[1e-10])) for k in (own, 1e-3)}
     assert 0.0 < error[own] < error[1e-3]
+    # a state taken at 1e-3, serialized, set into an instance set up without a tolerance
+    loose, other = Slave(path, directory, tolerance=1e-3), Slave(path, directory, "other")
+    circle(loose, 200)
+    blob = loose.fmu.serializeFMUstate(loose.fmu.getFMUstate())
+    other.fmu.setFMUstate(other.fmu.deSerializeFMUstate(blob))
+    other.t = loose.t
+    assert np.array_equal(circle(other, 200), circle(loose, 200))
+    loose.close()
+    other.close()
 
     bad, messages = logged_instance(path, directory)
     for tolerance in (0.5, 0.0, float("nan")):
@@ -770,8 +785,8 @@ def test_an_importers_tolerance_drives_the_adaptive_schemes(tmp_path, wrist_fmu,
     stiction, _ = wrist_fmu  # the time-stepper's FMU
     assert read_model_description(str(stiction)).defaultExperiment.tolerance is None
     fixed = []
-    for tolerance in (None, 1e-3):
+    for tolerance in (None, 1e-3, 0.5):
         slave = Slave(stiction, unzipped, tolerance=tolerance)
         fixed.append(circle(slave, 200))
         slave.close()
-    assert np.array_equal(fixed[0], fixed[1])
+    assert np.array_equal(fixed[0], fixed[1]) and np.array_equal(fixed[0], fixed[2])

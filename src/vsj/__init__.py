@@ -11,7 +11,7 @@ port-based model: sub-models in `vsj.components`, assembled by
 """
 
 #: The package's version (pyproject.toml reads it from here).
-__version__ = "0.2.0"
+__version__ = "0.2.1"
 
 import os as _os  # noqa: E402
 import sys as _sys  # noqa: E402

@@ -257,7 +257,7 @@ def model_description(document: dict, tunables: list[Tunable], params: Parameter
     tolerance, is the default experiment's."""
     units: dict[str, str] = {}  # FMI unit name -> the same in pint's notation
     variables = []
-    experiment_tolerance = f' tolerance="{tolerance!r}"' if tolerance is not None else ""
+    experiment_tolerance = f' tolerance="{float(tolerance)!r}"' if tolerance is not None else ""
 
     def real(name, vr, causality, variability, unit, text, start=None, minimum=None,
              maximum=None, initial=None):
@@ -329,7 +329,7 @@ def model_description(document: dict, tunables: list[Tunable], params: Parameter
       description="a spring past its end stop, a motor above its voltage limit"/>
     <Category name="logAll" description="every message"/>
   </LogCategories>
-  <DefaultExperiment startTime="0" stopTime="10" stepSize="{step!r}"{experiment_tolerance}/>
+  <DefaultExperiment startTime="0" stopTime="10" stepSize="{float(step)!r}"{experiment_tolerance}/>
   <ModelVariables>
 {chr(10).join(variables)}
   </ModelVariables>

@@ -12,13 +12,14 @@
 
 #define SNAPSHOT_MAGIC 0x736a7376u /* an fmi2FMUstate of this FMU */
 #define STATE_MAGIC 0x53736a76u    /* "vjsS": a serialized one */
-#define STATE_FORMAT 2u            /* its layout (1: vsj 1.x, no fingerprint) */
+#define STATE_FORMAT 3u            /* its layout (1: no fingerprint; 2: no tolerances) */
 
-/* what fmi2GetFMUstate keeps: everything that a later step depends on */
+/* what fmi2GetFMUstate keeps: everything that a later step depends on (the adaptive
+ * schemes' tolerances too, which fmi2SetupExperiment may have set) */
 typedef struct {
     uint32_t magic;
     char guid[GUID_MAX];
-    double time, power_in, power_dissipated;
+    double time, power_in, power_dissipated, rtol, atol;
     int mode;
     double *s, *inputs, *values, *record;
     unsigned char *history;
@@ -57,6 +58,8 @@ static void take(const fmu *f, snapshot *st) {
     st->time = f->time;
     st->power_in = f->power_in;
     st->power_dissipated = f->power_dissipated;
+    st->rtol = f->scheme.rtol;
+    st->atol = f->scheme.atol;
     st->mode = f->mode;
     memcpy(st->s, f->s, (size_t)f->ns * sizeof(double));
     memcpy(st->inputs, f->inputs, (size_t)f->ni * sizeof(double));
@@ -77,6 +80,8 @@ static fmi2Status give(fmu *f, const snapshot *st) {
     f->time = st->time;
     f->power_in = st->power_in;
     f->power_dissipated = st->power_dissipated;
+    f->scheme.rtol = st->rtol;
+    f->scheme.atol = st->atol;
     f->mode = st->mode;
     memcpy(f->s, st->s, (size_t)f->ns * sizeof(double));
     memcpy(f->inputs, st->inputs, (size_t)f->ni * sizeof(double));
@@ -136,7 +141,7 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
 #define HEADER_SIZE (2 * sizeof(uint32_t) + GUID_MAX + 5 * sizeof(int64_t))
 
 static size_t serialized_size(const fmu *f) {
-    return HEADER_SIZE + 3 * sizeof(double) + sizeof(int32_t)
+    return HEADER_SIZE + 5 * sizeof(double) + sizeof(int32_t)
            + (size_t)(f->ns + f->ni + f->n_parameters + f->at.size) * sizeof(double)
            + f->history_size + sizeof(uint64_t);
 }
@@ -193,6 +198,8 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate,
     PUT(&st->time, sizeof(double));
     PUT(&st->power_in, sizeof(double));
     PUT(&st->power_dissipated, sizeof(double));
+    PUT(&st->rtol, sizeof(double));
+    PUT(&st->atol, sizeof(double));
     PUT(&mode, sizeof mode);
     PUT(st->s, (size_t)f->ns * sizeof(double));
     PUT(st->inputs, (size_t)f->ni * sizeof(double));
@@ -255,6 +262,8 @@ static const char *bad_fields(const fmu *f, const snapshot *st, char *why, size_
     counts[3] = f->at.size;
     if (!isfinite(st->time) || !isfinite(st->power_in) || !isfinite(st->power_dissipated))
         return "its time or power is not finite";
+    if (!(st->rtol > 0.0 && st->rtol <= 1e-2 && st->atol > 0.0 && st->atol <= 1e-2))
+        return "its tolerances are outside vsj's ranges";
     if (st->mode < INSTANTIATED || st->mode > FAILED)
         return "its mode is not one of this FMU's";
     for (a = 0; a < 4; a++)
@@ -296,6 +305,8 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     GET(&st->time, sizeof(double));
     GET(&st->power_in, sizeof(double));
     GET(&st->power_dissipated, sizeof(double));
+    GET(&st->rtol, sizeof(double));
+    GET(&st->atol, sizeof(double));
     GET(&mode, sizeof mode);
     st->mode = (int)mode;
     GET(st->s, (size_t)f->ns * sizeof(double));

@@ -158,18 +158,24 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
     return fmi2OK;
 }
 
-/* The adaptive schemes' tolerances for the experiment being set up (each
- * fmi2SetupExperiment sets them anew, also after fmi2Reset): the model file's, or, with
- * the importer's relative `tolerance` (defined), that one and the model file's absolute
- * tolerance scaled by the same factor. The time-stepper's fixed step has none. */
+/* Whether the scheme has an error control (dopri, rosenbrock), which a tolerance from
+ * the importer drives; the time-stepper's fixed step has none. */
+static int adaptive(const fmu *f) {
+    return f->scheme.method == VSJ_METHOD_DOPRI || f->scheme.method == VSJ_METHOD_ROSENBROCK;
+}
+
+/* The adaptive schemes' tolerances for the experiment being set up (fmi2SetupExperiment,
+ * and fmi2Reset back to the model file's): the model file's, or, with the importer's
+ * relative `tolerance` (defined), that one and the model file's absolute tolerance
+ * scaled by the same factor, kept within vsj's range of atol. */
 static void use_tolerance(fmu *f, int defined, double tolerance) {
     const vsj_scheme *own = &f->loaded->scheme;
     f->scheme.rtol = own->rtol;
     f->scheme.atol = own->atol;
-    if (!defined || f->scheme.method == VSJ_METHOD_TIMESTEP)
+    if (!defined || !adaptive(f))
         return;
     f->scheme.rtol = tolerance;
-    f->scheme.atol = own->atol * (tolerance / own->rtol);
+    f->scheme.atol = fmin(fmax(own->atol * (tolerance / own->rtol), 1e-20), 1e-2);
     fmu__say(f, fmi2OK, "logAll", "fmi2SetupExperiment: the importer's tolerance: relative "
              "%g, absolute %g (the model file's %g and %g)", f->scheme.rtol, f->scheme.atol,
              own->rtol, own->atol);
@@ -189,7 +195,7 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime))
         return fmu__fail(f, "fmi2SetupExperiment: the stop time must be finite and not before "
                             "the start time%s", "");
-    if (defined && !(tolerance >= 1e-14 && tolerance <= 1e-2)) /* NaN fails too */
+    if (defined && adaptive(f) && !(tolerance >= 1e-14 && tolerance <= 1e-2)) /* NaN too */
         return fmu__fail(f, "fmi2SetupExperiment: the tolerance (relative) must be from "
                             "1e-14 to 1e-2, as vsj's rtol%s", "");
     f->time = startTime;
@@ -247,9 +253,11 @@ fmi2Status fmi2Terminate(fmi2Component c) {
     relative = fabs(residual) / scale;
     if (!(relative <= f->ledger_tolerance)) {
         snprintf(text, sizeof text, "its residual is %.6g of the energy in play, above the "
-                 "ledger tolerance %g (the numerical settings are too coarse for this run: "
-                 "export the FMU with a shorter step, vsj fmu --step)", relative,
-                 f->ledger_tolerance);
+                 "ledger tolerance %g (the numerical settings are too coarse for this run: %s)",
+                 relative, f->ledger_tolerance,
+                 adaptive(f) ? "set it up with a smaller tolerance (fmi2SetupExperiment), or "
+                               "export the FMU with a smaller one, vsj fmu --rtol --atol"
+                             : "export the FMU with a shorter step, vsj fmu --step");
         f->mode = FAILED;
         return fmu__fail(f, "fmi2Terminate: the run cannot be trusted: its energy ledger "
                             "does not close: %s", text);
@@ -270,6 +278,7 @@ fmi2Status fmi2Reset(fmi2Component c) {
         f->values[p] = f->parameters[p].start;
     f->q0 = f->q0_start;
     f->stop_defined = 0;
+    use_tolerance(f, 0, 0.0);
     memset(f->inputs, 0, (size_t)f->ni * sizeof(double));
     f->rebuild = 1;
     if (fmu__rebuild(f) != fmi2OK) {

@@ -62,8 +62,11 @@ class Outcome:
     method: str | None = None
     #: seconds this process spent storing returned chunks (zarr regions, manifest)
     storing: float = 0.0
-    #: seconds the chunks run now spent in the batch kernel, summed over the workers
-    #: (core-seconds; the rest of their time is building runs and measuring them)
+    #: seconds the kernel calls of the chunks run now took, summed (each call's wall time:
+    #: core-seconds where a worker runs its kernel on one thread, as the worker processes
+    #: of the default scheduler and of a LocalCluster of one-thread workers do; a sweep
+    #: run in this process alone runs it on every core). The rest of a worker's time is
+    #: building the runs and measuring them.
     kernel: float = 0.0
     #: what a resumed sweep found damaged and redid (one sentence each)
     notes: list[str] = field(default_factory=list)

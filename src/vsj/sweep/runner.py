@@ -472,13 +472,15 @@ def run_chunk(job: Job, start: int, values: np.ndarray, threads: int | None = No
         messages[r] = (STATUS_TEXT[st] if st == core.OK else
                        f"{STATUS_TEXT[st]} at t = {batch.stop_time[i]:.6g} s")
     if members:
-        kept[members], metrics[members] = _measure(p, [built[r] for r in members], batch)
+        _measure(p, built, members, batch, kept, metrics)
     return ChunkResult(start, kept, metrics, status, messages, steps, kernel)
 
 
-def _measure(p: Prepared, runs: list[_Run], batch) -> tuple[np.ndarray, np.ndarray]:
-    """``(kept, metrics)`` of ``runs`` (the rows of ``batch``) from their sampled states:
-    the kept signals (runs x samples x kept) and the metrics (runs x metrics).
+def _measure(p: Prepared, built: Mapping[int, _Run], members: list[int], batch,
+             kept: np.ndarray, metrics: np.ndarray) -> None:
+    """Fill the rows ``members`` of ``kept`` (runs x samples x kept signals) and
+    ``metrics`` (runs x metrics) for the runs ``built[r]`` of those rows, whose sampled
+    states are the rows of ``batch`` in that order.
 
     Every signal and metric is evaluated for a group of runs at once (as many as fit
     `BLOCK_BYTES`). The table's signals take the runs' samples stacked one run after
@@ -487,18 +489,17 @@ def _measure(p: Prepared, runs: list[_Run], batch) -> tuple[np.ndarray, np.ndarr
     expressions and the metrics take them as runs x samples and reduce along each run's
     own row (`vsj.sweep.metrics`). So a run's numbers are those it would have on its
     own, in a chunk of any size."""
-    n_t, n_runs = len(p.t_out), len(runs)
-    kept = np.full((n_runs, n_t, len(p.keep)), np.nan)
-    metrics = np.full((n_runs, len(p.metrics)), np.nan)
+    n_t = len(p.t_out)
     if not (p.keep or p.metrics):
-        return kept, metrics
+        return
     width = p.columns["u"].stop if p.light else max(c.stop for c in p.columns.values())
     group = max(1, BLOCK_BYTES // (8 * max(1, n_t * width)))
-    for a in range(0, n_runs, group):
-        b = min(a + group, n_runs)
-        _measure_group(p, runs[a:b], batch.states[a:b], batch.transitions[a:b], kept[a:b],
-                       metrics[a:b])
-    return kept, metrics
+    for a in range(0, len(members), group):
+        rows = members[a:a + group]
+        part = (np.empty((len(rows), n_t, len(p.keep))), np.empty((len(rows), len(p.metrics))))
+        _measure_group(p, [built[r] for r in rows], batch.states[a:a + group],
+                       batch.transitions[a:a + group], *part)
+        kept[rows], metrics[rows] = part
 
 
 def _measure_group(p: Prepared, runs: list[_Run], states: np.ndarray,
