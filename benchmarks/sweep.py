@@ -26,7 +26,10 @@ which is compared with the kernel's. With fewer runs than the full
 study, that is the figure the issue's target is checked on; the ratios measured at
 the block's size are printed above it. Beside them, without the drift between the
 ways: the share of each sweep's own cores x wall time that its workers spent in the
-kernel (`vsj.sweep.Outcome.kernel`), start-up and all, at the blocks' size.
+kernel's calls (`vsj.sweep.Outcome.kernel`), start-up and all, at the blocks' size.
+That share is wall time inside the calls: time the system gives other processes
+meanwhile (this process storing chunks, Dask's scheduler) counts as the kernel's, so
+it is an upper bound of the kernel's share, not the comparison with the bare kernel.
 
 Then, for the README's estimate of where a cluster's scheduler becomes the
 bottleneck: the work in one chunk of the full study, the bytes a chunk sends back,
@@ -223,7 +226,7 @@ def main() -> int:
     for way, workers in (("sweep", cores), ("dask", DASK_WORKERS)):
         print(f"{names[way]}: its {workers} one-thread workers spent "
               f"{inside[way] / (workers * totals[way]):.1%} of the sweeps' wall time in the "
-              "batch kernel")
+              "batch kernel's calls")
     full_chunk = sweep.default_chunk(FULL_RUNS)
     work = full_chunk * cores / rates["kernel"]  # core-seconds of kernel in one chunk
     per_run_extra = cores / rates["sweep"] - cores / rates["kernel"]
