@@ -379,7 +379,7 @@ def test_a_python_callback_closes_the_same_loop_as_the_engines_pid():
     assert np.max(np.abs(by_python["angle"] - in_c["angle"])) < 100 * PAIRED_RTOL
     # the voltages: the angles' difference through gains up to k Nd = 400 V/rad
     gain = settings["k"] * settings["Nd"]
-    assert np.max(np.abs(by_python["v"] - in_c["actuator.v"])) < gain * 100 * SimulationOptions().rtol
+    assert np.max(np.abs(by_python["v"] - in_c["actuator.v"])) < gain * 100 * PAIRED_RTOL
     with pytest.raises(InputError, match="unknown channel 'volts'"):
         run_callback(stepper, lambda t, s: {"volts": 1.0}, 0.01)
 
