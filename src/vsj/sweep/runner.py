@@ -504,7 +504,8 @@ def _measure(p: Prepared, built: Mapping[int, _Run], members: list[int], batch,
 
 def _measure_group(p: Prepared, runs: list[_Run], states: np.ndarray,
                    transitions: np.ndarray, kept: np.ndarray, metrics: np.ndarray) -> None:
-    """`_measure` for one group of runs, into the views ``kept`` and ``metrics``."""
+    """`_measure` for one group of runs: their kept signals and metrics into ``kept``
+    and ``metrics`` (the group's rows)."""
     n_t, n_state, n_runs = len(p.t_out), p.layout.n_state, len(runs)
     if p.light:  # the same numbers observe writes in these columns, the rest left NaN
         cols = p.columns
