@@ -81,8 +81,7 @@ def cmd_simulate(args) -> int:
                                 "parameters_hash": case.params.hash(),
                                 "parameter_overrides": dict(case.case.params)})
                 if any(f.contact is not None for f in case.structure.frictions):
-                    records[-1]["safety"] = _safety(trajectory, k, case.structure,
-                                                    case.case.environment)
+                    records[-1]["safety"] = _safety(trajectory, k, case)
             trajectory.close()
             if args.csv:
                 write_trajectory_csv(results.path("trajectory.csv"), trajectory)
@@ -117,10 +116,11 @@ def cmd_simulate(args) -> int:
     return 0
 
 
-def _safety(trajectory, k: int, structure, environment) -> dict:
-    """The safety figures (`vsj.safety.run_report`) of case ``k`` of a streamed trajectory
-    (with ``environment``'s tip geometry): its contact, spring and speed signals read
-    back from the file."""
+def _safety(trajectory, k: int, case) -> dict:
+    """The safety figures (`vsj.safety.run_report`) of case ``k`` (a prepared case) of a
+    streamed trajectory (with its environment's tip geometry): its contact, spring and
+    speed signals read back from the file, the contacts sampled again from its plan where
+    the file's samples could miss them."""
     from ..safety.run_report import report  # lazy: only runs with contacts need it
 
     reached = trajectory.reached[k]
@@ -130,7 +130,9 @@ def _safety(trajectory, k: int, structure, environment) -> dict:
     signals = {name: trajectory.read(name, k, 0, reached) for name in wanted}
     run = Result(time=trajectory.time[:reached], signals=signals, units={}, ledger={},
                  success=True, message="", solver={})
-    return report(run, structure, None if environment is None else environment.tip)
+    environment = case.case.environment
+    return report(run, case.structure, None if environment is None else environment.tip,
+                  plan=case.plan)
 
 
 def cmd_scenarios(args) -> int:

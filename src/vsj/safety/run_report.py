@@ -3,8 +3,13 @@ with the joint's deflections and spring torques, and its verdict against ISO/TS 
 
 `report` reads a run's `vsj.simulate.Result` (its ``contact.<name>.*`` signals, the
 elastic elements' ``spring.*.deflection`` and ``.torque``) with the network it ran;
-`vsj simulate` writes it as ``safety.json`` beside the trajectory of a scenario with an
-``[environment]``.
+`vsj simulate` writes it into ``meta.json`` (each case's ``safety``) for a scenario with
+an ``[environment]``.
+
+A run's samples (its output step, 1 ms by default) can miss a short impact or its peak.
+Given the run's plan, `report` samples the contacts again where they need it
+(`vsj.simulate.refine`: the same trajectory, sampled finer), so that the figures do not
+depend on the output step; each event says whether its samples resolve it.
 """
 
 from __future__ import annotations
@@ -12,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..network import Structure
+from ..simulate.refine import contact_samples, suspect_intervals
+from ..simulate.result import Result
 from ..springs import end_stop
 from .events import contact_events
 from .iso_ts_15066 import REGIONS, Tip, region
@@ -34,42 +41,64 @@ def _body_velocity(structure: Structure, e: int, result) -> np.ndarray | None:
     return speed
 
 
-def report(result, structure: Structure, tip: Tip | None = None) -> dict:
+def report(result, structure: Structure, tip: Tip | None = None, *, plan=None) -> dict:
     """Per contact of ``structure``'s environment: its events (peak force, impulse,
     duration, energy transferred to a body, the joint's peak deflection, spring torque
     and margin to the end stop; the peak pressure with the tip's geometry ``tip``) and
     each event's verdict for the hand and the lower arm (ISO/TS 15066 Table A.2,
     transient force, and with ``tip`` the pressure on each region's most sensitive
-    area). JSON-ready; empty without contacts."""
+    area). JSON-ready; empty without contacts.
+
+    ``plan`` (the `vsj.engine.plan.Plan` the run ran; a run of `vsj.simulate.simulate`
+    carries it as ``result.plan``) samples the contacts again where the run's samples
+    could miss a contact or its peak (`vsj.simulate.refine.contact_samples`). Without
+    it the figures come from the samples alone. Either way an event is ``resolved``
+    when its samples bound its peak force within `vsj.simulate.refine.REL_TOL`; one
+    that is not (a contact the time-stepper's step is too long for) says so."""
+    plan = getattr(result, "plan", None) if plan is None else plan
     # the elastic elements: the springs with an end stop (the figures are against it)
     springs = [sp for sp in structure.springs if end_stop(sp.law, sp.parameters) is not None
                and f"spring.{sp.name}.deflection" in result.signals]
+    contacts = [(e, element.name) for e, element in enumerate(structure.frictions)
+                if element.contact is not None]
+    if plan is not None and contacts and len(result.time) >= 2:
+        wanted = [name for name in result.signals
+                  if name.startswith("contact.") or name.endswith(".speed")
+                  or (name.startswith("spring.") and name.endswith((".deflection", ".torque")))]
+        time, signals = contact_samples(plan, result.time,
+                                        {name: result[name] for name in wanted})
+        result = Result(time=time, signals=signals, units={}, ledger={}, success=True,
+                        message="", solver={})
     deflection = np.column_stack([result[f"spring.{sp.name}.deflection"] for sp in springs]) \
         if springs else None
     torque = np.column_stack([result[f"spring.{sp.name}.torque"] for sp in springs]) \
         if springs else None
     stops = [end_stop(sp.law, sp.parameters)[0] for sp in springs]
     out = {}
-    for e, element in enumerate(structure.frictions):
-        if element.contact is None:
-            continue
-        name = element.name
-        events = contact_events(result.time, np.maximum(result[f"contact.{name}.force"], 0.0),
-                                penetration=result[f"contact.{name}.penetration"],
+    for e, name in contacts:
+        force = np.maximum(result[f"contact.{name}.force"], 0.0)
+        depth = result[f"contact.{name}.penetration"]
+        events = contact_events(result.time, force, penetration=depth,
                                 body_velocity=_body_velocity(structure, e, result),
                                 deflection=deflection, spring_torque=torque,
                                 end_stop=stops if springs else None, tip=tip)
-        out[name] = [_event(ev, [sp.name for sp in springs]) for ev in events]
+        suspect = suspect_intervals(result.time, force, depth, result[f"contact.{name}.rate"],
+                                    result.signals.get(f"work.{name}")) \
+            if len(result.time) >= 2 else np.zeros(0, dtype=bool)
+        out[name] = [_event(ev, [sp.name for sp in springs],
+                            not suspect[max(ev.first - 1, 0):ev.last + 1].any())
+                     for ev in events]
     return out
 
 
-def _event(ev, springs: list[str]) -> dict:
+def _event(ev, springs: list[str], resolved: bool) -> dict:
     entry = {
         "start": ev.start, "end": ev.end, "duration": ev.duration,
         "cut_at_end": ev.cut_at_end, "peak_force": ev.peak_force,
         "peak_time": ev.peak_time, "impulse": ev.impulse,
         "energy_to_body": ev.energy, "energy_kind": ev.energy_kind,
-        "sample_resolution": ev.resolution,
+        "sample_resolution": ev.resolution, "samples": ev.last - ev.first + 1,
+        "resolved": resolved,
     }
     if ev.peak_pressure is not None:
         entry["peak_pressure"] = ev.peak_pressure
@@ -95,8 +124,11 @@ def summary(figures: dict) -> list[str]:
         verdicts = ", ".join(f"{region(b).title.lower()} "
                              f"{'within' if worst['passed'][b] else 'ABOVE'} the transient limits"
                              for b in REGIONS)
+        unresolved = sum(not ev["resolved"] for ev in events)
         lines.append(f"contact {name}: {len(events)} event(s), peak {worst['peak_force']:.4g} N "
-                     f"at {worst['peak_time']:.4g} s ({verdicts})")
+                     f"at {worst['peak_time']:.4g} s ({verdicts})"
+                     + (f"; {unresolved} event(s) not resolved: the samples (the "
+                        "time-stepper's steps) do not bound their force" if unresolved else ""))
     return lines
 
 

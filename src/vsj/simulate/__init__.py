@@ -26,7 +26,8 @@ Three solvers:
 
 The package is laid out by job: `options` (how to run), `driver` (one run),
 `signals` (naming the samples), `ledger` (the energy balance), `checks`
-(judging a finished run), `batch` (many runs) and `result` (what they return).
+(judging a finished run), `batch` (many runs), `result` (what they return) and
+`refine` (a run's contacts sampled again, finer, for their safety figures).
 """
 
 from .batch import simulate_batch

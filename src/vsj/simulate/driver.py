@@ -226,7 +226,7 @@ def run_plan(plan: Plan, *, ports: bool = True, sink=None) -> Result:
     time, signals, units = sink.end(reached)
     return Result(time=time, signals=signals, units=units, ledger=balance, success=success,
                   message=message, solver=report, transitions=transitions,
-                  warnings=watch.warnings())
+                  warnings=watch.warnings(), plan=plan)
 
 
 def _read_number(path: str) -> float | None:

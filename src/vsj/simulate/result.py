@@ -25,6 +25,13 @@ class Result:
     transitions: dict[str, int] = field(default_factory=dict)
     #: Where the run left what the parameter set describes (it still succeeded).
     warnings: list[str] = field(default_factory=list)
+    #: The plan the run ran (`vsj.engine.plan.Plan`; None for a result read back or made
+    #: by hand): what can run it again, as `vsj.safety.run_report` does to sample its
+    #: contacts finer. Left out of copies made by pickling.
+    plan: object = field(default=None, repr=False, compare=False)
+
+    def __getstate__(self):
+        return {**self.__dict__, "plan": None}
 
     def __getitem__(self, name: str) -> np.ndarray:
         try:
