@@ -199,6 +199,16 @@ def test_verify_checks_a_sweep_and_names_what_is_wrong(reference, tmp_path, caps
     assert [line.strip() for line in capsys.readouterr().err.strip().splitlines()[1:]] == [
         "the sweep is unfinished (3 of 4 chunks done, tables not written): run the sweep's "
         "command again with --resume"]
+    # a manifest that calls the sweep complete with a chunk left out of it: that chunk's
+    # runs would go unchecked (here changed too)
+    spec, out = _copy(reference, tmp_path / "dropped")
+    record = store.read_manifest(out)
+    del record["done"]["2"]
+    (out / store.MANIFEST).write_text(json.dumps(record))
+    zarr.open_group(out / store.ZARR, mode="r+")["metrics"][2:3] = -1.0
+    assert main(["verify", str(out)]) == 1
+    assert "sweep.json calls the sweep complete but records 1 of its 4 chunks as not done " \
+        "(chunk 2)" in capsys.readouterr().err
 
 
 SHORT = """name = "short"
@@ -501,3 +511,33 @@ def test_kill_9_at_random_moments_then_resume_equals_the_uninterrupted_sweep(ref
     left = [p for p in tmp_path.rglob("*") if "vsj-tmp" in p.name or p.name.endswith(".partial")]
     assert left == []
     assert {p: p.read_bytes() for p in inputs} == inputs
+
+
+def test_files_named_as_a_sweeps_but_recorded_by_none_are_refused_untouched(
+        reference, tmp_path, capsys):
+    """A directory that holds a sweep's file names but no sweep.json (another program's
+    sweep.zarr or metrics.csv, or what is left after sweep.json was deleted) is refused
+    with exit 2 and left as it was; a store frame a new sweep was making when it was
+    killed (before it recorded the sweep: vsj's attributes on its group) is taken over."""
+    spec = _inputs(tmp_path)
+    for name, make in (("sweep.zarr/mine.txt", "precious"), ("metrics.csv", "a,b\n1,2\n"),
+                       ("summary.html", "<p>mine</p>")):
+        out = tmp_path / f"out-{name.split('/')[0]}"
+        (out / name).parent.mkdir(parents=True)
+        (out / name).write_text(make)
+        before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+        assert main(["sweep", str(spec), "--out", str(out), *CHUNK]) == 2
+        err = capsys.readouterr().err
+        assert "no sweep records" in err and name.split("/")[0] in err, err
+        assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+    # the reference's own frame, its manifest gone: what a sweep killed before recording
+    # it leaves
+    _, out = _copy(reference, tmp_path)
+    for name in (store.MANIFEST, store.METRICS):
+        (out / name).unlink()
+    for name in os.listdir(out):
+        if name not in (store.ZARR,):
+            shutil.rmtree(out / name) if (out / name).is_dir() else (out / name).unlink()
+    assert main(["sweep", str(spec), "--out", str(out), *CHUNK]) == 0
+    capsys.readouterr()
+    _same(reference[1], out)

@@ -120,6 +120,13 @@ class Directory:
             raise OutputError(f"{shown}: holds files that vsj did not write "
                               f"({', '.join(foreign[:5])}); choose another directory")
         has_sweep = MANIFEST in entries
+        if not has_sweep:  # then the sweep's files are not a sweep's of vsj, or one's left
+            left = [e for e in entries if _OURS.fullmatch(e)
+                    or (e == ZARR and not _started_frame(self.path / ZARR))]
+            if left:
+                raise OutputError(f"{shown}: holds files that no sweep records ({MANIFEST} is "
+                                  f"missing: {', '.join(left[:5])}); vsj did not write them, or "
+                                  "it deleted what recorded them: choose another directory")
         if has_sweep and not self.resume:
             raise OutputError(f"{shown}: holds a sweep already; add --resume to finish it, or "
                               "choose another directory")
@@ -468,6 +475,23 @@ def check_frame(path: Path, recorded: dict) -> list[str]:
     return problems
 
 
+def _started_frame(path: Path) -> bool:
+    """Whether ``path`` is a store frame a new sweep was making when it was stopped, before
+    it recorded the sweep: a directory, empty, or whose group carries the attributes
+    `create` gives it."""
+    if path.is_symlink() or not path.is_dir():
+        return False
+    if not any(path.iterdir()):
+        return True
+    try:
+        meta = json.loads(read_bytes(path / "zarr.json", "store metadata", 1 << 20))
+    except (OSError, InputError, ValueError):
+        return False
+    attributes = meta.get("attributes") if isinstance(meta, dict) else None
+    return isinstance(attributes, dict) and {"vsj_version", "sweep_file", "sweep"} <= set(
+        attributes)
+
+
 def build_frame(directory: Path, make) -> Path:
     """A new frame made by ``make(path)`` (`create`) in a temporary directory beside the
     store (`install_frame` moves it in; a killed process leaves it for `Directory` to
@@ -673,6 +697,12 @@ def verify(directory: str | Path) -> list[str]:
         for index, why in sorted(check_chunks(directory / ZARR, record).items()):
             a, b = record["done"][str(index)]["runs"]
             problems.append(f"{ZARR}: chunk {index} ({runs_text(a, b)}): {why}")
+    missing = [i for i in range(record["chunks"]) if str(i) not in record["done"]]
+    if record["complete"] and missing:
+        shown = ", ".join(map(str, missing[:5])) + (", ..." if len(missing) > 5 else "")
+        problems.append(f"{MANIFEST} calls the sweep complete but records {len(missing)} of its "
+                        f"{record['chunks']} chunks as not done (chunk {shown}): their runs "
+                        "are not checked")
     if not record["complete"]:
         problems.append(f"the sweep is unfinished ({len(record['done'])} of "
                         f"{record['chunks']} chunks done, tables not written): run the "
