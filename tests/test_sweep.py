@@ -233,6 +233,11 @@ def test_an_interrupted_sweep_resumed_equals_the_uninterrupted_one(reference, sp
     (('spread = "max(phi_1) - min(phi_1)"', 'spread = "__import__(\'os\')"'),
      ["metrics.spread.expression", "not allowed"]),
     (('q = { values', 'q = { value'), ["vary.q", "distribution"]),
+    (('every = "20 ms"', 'every = "20 s"'), ["output.every = 20 s", "longer than the run"]),
+    (('scenario = "fig-4.15"', 'scenario = "fig-9.99"'),
+     ["sweep.scenario = 'fig-9.99'", "unknown scenario"]),
+    (('[vary]', '[covariance]\nfile = "nothere.json"\n\n[vary]'),
+     ["covariance.file = ", "nothere.json", "cannot read covariance file"]),
 ])
 def test_bad_sweep_files_exit_2_before_any_run(spec_file, tmp_path, capsys, edit, words):
     bad = tmp_path / "bad.toml"
@@ -269,6 +274,22 @@ def test_sobol_indices_of_the_ishigami_function_match_the_analytic_values():
     for k in range(3):
         assert abs(r["S1"][k] - s1[k]) <= widen * r["S1_conf"][k], (k, r)
         assert abs(r["ST"][k] - st[k]) <= widen * r["ST_conf"][k], (k, r)
+
+
+def test_sobol_indices_of_a_metric_that_does_not_vary_are_nan():
+    """A constant output has no variance for the inputs to share: its indices are
+    undefined, NaN with a note, not SALib's 0 +- 0 (and no warning of a division by zero)."""
+    import warnings
+
+    inputs = tuple(Distribution(f"x{i}", "uniform", {"low": 0.0, "high": 1.0}, 0.0, 1.0)
+                   for i in (1, 2))
+    unit = sampling.unit_design("random", "sobol", 2 ** 6, 2, seed=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r = analysis.sensitivity("sobol", sampling.sensitivity_problem(inputs), unit,
+                                 np.full(len(unit), 1.5), seed=3)
+    assert all(math.isnan(v) for k in ("S1", "S1_conf", "ST", "ST_conf") for v in r[k])
+    assert "same in every run" in r["note"]
 
 
 def test_a_sobol_sweep_reports_indices_and_a_page(tmp_path, capsys):

@@ -541,3 +541,17 @@ def test_files_named_as_a_sweeps_but_recorded_by_none_are_refused_untouched(
     assert main(["sweep", str(spec), "--out", str(out), *CHUNK]) == 0
     capsys.readouterr()
     _same(reference[1], out)
+
+
+def test_a_sweep_whose_every_run_failed_exits_1(tmp_path, capsys):
+    """Runs that fail are recorded and the sweep goes on; when none succeeded, the sweep
+    produced no numbers and exits 1 (each failure still recorded)."""
+    spec = tmp_path / "failing.toml"
+    spec.write_text(SPEC.replace('params = "child.toml"\n', "").replace(
+        '"transmission.viscous" = { distribution = "normal", mean = "3 mN m s", '
+        'sd = "1 mN m s" }', '"elastic_element.lever_length" = { values = ["1 cm", "5 cm"] }'))
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec), "--out", str(out), *CHUNK]) == 1
+    err = capsys.readouterr().err
+    assert "4 run(s) failed" in err and "every run of the sweep failed" in err
+    assert len(store.read_manifest(out)["failed_runs"]) == 4

@@ -11,8 +11,8 @@ from ..errors import InputError
 
 def cmd_sweep(args) -> int:
     """``vsj sweep``: run a sweep file and write its store, metrics and plots. Returns the
-    exit code: 0 (failed runs are reported, not fatal), 1 if the sweep is unfinished, 130
-    if interrupted."""
+    exit code: 0 (failed runs are reported, not fatal), 1 if the sweep is unfinished or
+    every run failed, 130 if interrupted."""
     # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import sweep
     from ..sweep.analysis import header
@@ -29,8 +29,12 @@ def cmd_sweep(args) -> int:
                             plots=not args.no_plot,
                             announce=lambda text: print(f"vsj sweep: {text}", file=sys.stderr))
     except KeyboardInterrupt:
-        print(f"vsj: interrupted; the finished chunks are in {args.out}; run the same command "
-              "with --resume to do the rest", file=sys.stderr)
+        if (Path(args.out) / sweep.store.MANIFEST).exists():
+            print(f"vsj: interrupted; the finished chunks are in {args.out}; run the same "
+                  "command with --resume to do the rest", file=sys.stderr)
+        else:  # stopped before it recorded the sweep: nothing to resume
+            print(f"vsj: interrupted before the sweep was recorded; nothing was kept in "
+                  f"{args.out}: run the same command again", file=sys.stderr)
         return 130
     except sweep.Unfinished as exc:
         print(f"vsj: failed: {exc}", file=sys.stderr)
@@ -46,6 +50,9 @@ def cmd_sweep(args) -> int:
     if outcome.failed:
         print(f"vsj: {outcome.failed} run(s) failed; metrics.csv and sweep.json give each "
               "one's status and message", file=sys.stderr)
+    if outcome.failed and outcome.failed == outcome.runs:
+        print("vsj: failed: every run of the sweep failed", file=sys.stderr)
+        return 1
     return 0
 
 

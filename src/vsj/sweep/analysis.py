@@ -29,13 +29,17 @@ RESAMPLES = 1000
 def sensitivity(method: str, problem: dict, unit: np.ndarray, y: np.ndarray,
                 seed: int) -> dict:
     """Indices of one output ``y`` (one value per run, in design order); NaN outputs
-    (failed runs) make the indices NaN rather than wrong."""
+    (failed runs) make the indices NaN rather than wrong, and so does a Sobol output
+    that does not vary (its indices are shares of a variance of zero)."""
+    nan = [math.nan] * problem["num_vars"]
+    keys = (("S1", "S1_conf", "ST", "ST_conf") if method == "sobol"
+            else ("mu_star", "mu_star_conf", "sigma"))
     if not np.all(np.isfinite(y)):
-        nan = [math.nan] * problem["num_vars"]
-        keys = (("S1", "S1_conf", "ST", "ST_conf") if method == "sobol"
-                else ("mu_star", "mu_star_conf", "sigma"))
         return {"names": list(problem["names"]), **{k: list(nan) for k in keys},
                 "note": "some runs failed: indices need every run"}
+    if method == "sobol" and np.ptp(y) == 0.0:
+        return {"names": list(problem["names"]), **{k: list(nan) for k in keys},
+                "note": "the metric is the same in every run: no variance to share"}
     if method == "sobol":
         from SALib.analyze import sobol  # lazy: SALib is heavy; only sensitivity studies
 

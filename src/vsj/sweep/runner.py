@@ -176,6 +176,10 @@ class Prepared:
         if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
             raise InputError(f"{spec.origin}: output.every = {every:g} s must be a whole "
                              f"multiple of the scenario's output_step ({step:g} s)")
+        if every > self.duration * (1 + 1e-9):
+            raise InputError(f"{spec.origin}: output.every = {every:g} s is longer than the "
+                             f"run ({self.duration:g} s): its metrics would see the first "
+                             "sample only")
         self.stride = round(ratio)
         self.t_out = np.arange(0, n_out, self.stride) * step
         self.t_out.flags.writeable = False  # shared by every run and metric
@@ -566,7 +570,10 @@ class _Columns(dict):
 def job_for(spec: SweepSpec) -> Job:
     """The `Job` of a sweep file: its scenario's text read and its parameter set loaded
     here (the files it ``extends`` read relative to it), so workers read no files."""
-    scen = scenarios.load(spec.scenario)
+    try:
+        scen = scenarios.load(spec.scenario)
+    except InputError as exc:
+        raise InputError(f"{spec.origin}: sweep.scenario = {spec.scenario!r}: {exc}") from None
     text = scen_text(scen, spec.scenario)
     return Job(spec, text, scen.origin, params_module.load(spec.params))
 

@@ -340,9 +340,13 @@ def read_covariance(path: Path, where: str) -> Covariance:
     """A covariance file: ``{"names": [...], "parameters": {name: value}, "covariance":
     [[...]]}`` with SI values (what ``vsj fit wrist --json`` is to report)."""
     try:
-        record = json.loads(read_text(path, "covariance file"))
+        text = read_text(path, "covariance file")
+    except InputError as exc:
+        raise InputError(f"{where} = {str(path)!r}: {exc}") from None
+    try:
+        record = json.loads(text)
     except ValueError as exc:
-        raise InputError(f"{path}: not JSON ({exc})") from None
+        raise InputError(f"{where} = {str(path)!r}: not JSON ({exc})") from None
     if not isinstance(record, Mapping):
         raise InputError(f"{path}: expected an object with names, parameters, covariance")
     names = record.get("names")
