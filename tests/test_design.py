@@ -175,6 +175,10 @@ def test_a_written_design_gives_the_recorded_objectives_in_the_datasheet(range_r
     assert main(["design", str(spec_path), "--out", str(out), "--write-params",
                  str(index)]) == 0
     written = out / f"design-{index}.toml"
+    # the file and the message name the model the objectives are of, and the command
+    command = f"vsj datasheet --params {written} --elastic {spec.elastic}"
+    assert command in capsys.readouterr().out
+    assert f"--elastic {spec.elastic}' gives the same numbers" in written.read_text()
     loaded = params.load(written)
     with xr.open_dataset(out / results.PARETO, engine="scipy") as ds:
         recorded = dict(zip(ds["objective"].values.tolist(), ds["objectives"].values[index]))
@@ -182,7 +186,7 @@ def test_a_written_design_gives_the_recorded_objectives_in_the_datasheet(range_r
             assert loaded[name] == value  # written exactly
     capsys.readouterr()
     assert main(["datasheet", "--params", str(written), "--points", str(spec.q_points),
-                 "--out", str(tmp_path / "sheet")]) == 0
+                 "--elastic", spec.elastic, "--out", str(tmp_path / "sheet")]) == 0
     sheet = json.loads((tmp_path / "sheet" / "datasheet.json").read_text())["ratings"]
     # the same laws on the same grid: equal but for rounding in the sums (1e-9 relative)
     assert sheet["output_stiffness_min"]["value"] == pytest.approx(recorded["min_stiffness"],
@@ -228,6 +232,7 @@ def test_a_written_design_gives_the_recorded_lag_and_impact_force_in_the_study(t
     (('min = "1 cm", max = "2 cm"', 'min = "2 cm", max = "1 cm"'), "rest_length"),
     (("min_stiffness = {}", "min_stifness = {}"), "min_stifness"),
     (("max_stiffness = {}", 'max_stiffness = { sense = "up" }'), "sense"),
+    (("seed = 7", 'seed = 7\nelastic = "exponential"'), "does not read elastic_element.rest_length"),
 ])
 def test_a_bad_design_file_is_refused_naming_the_key(tmp_path, capsys, change, key):
     path = tmp_path / "bad.toml"

@@ -22,7 +22,9 @@ def cmd_design(args) -> int:
     out = Path(args.out)
     if args.write_params is not None:
         path = results.write_params(spec, out, args.write_params)
-        print(f"wrote {path} (extends the design file's base set; load it with --params)")
+        print(f"wrote {path} (extends the design file's base set; load it with --params; its "
+              f"objectives are of the {spec.elastic} elastic model: 'vsj datasheet --params "
+              f"{path} --elastic {spec.elastic}' gives them)")
         return 0
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers {args.workers}: must be a whole number >= 1")

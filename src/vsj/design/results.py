@@ -353,6 +353,8 @@ def params_text(spec: DesignSpec, out: Path, names, values, label: str,
     source = f"vsj design {Path(spec.origin).name}: {label} (seed {spec.seed})"
     lines = ["# written by vsj design: one design of a Pareto set, over its base set",
              f"# objectives: {json.dumps(objectives)}",
+             f"# with the {spec.elastic} elastic model: 'vsj datasheet --params FILE "
+             f"--elastic {spec.elastic}' gives the same numbers",
              f"extends = {json.dumps(parent)}", "",
              "[meta]", f"name = {json.dumps(f'{label}, {Path(spec.origin).name}')}",
              f"description = {json.dumps(source)}"]

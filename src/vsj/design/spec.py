@@ -45,6 +45,7 @@ from pathlib import Path
 
 from ..errors import InputError, read_text
 from ..params import SCHEMA, Spec
+from ..springs import EXPONENTIAL_FIELDS, GEOMETRY_FIELDS
 from ..units import format_quantity, to_si
 from ..wrist import ELASTIC_MODELS
 
@@ -271,6 +272,20 @@ def _goal(name: str, entry, origin: str, section: str, kinds: Mapping[str, Kind]
     return Goal(name, kind, sense, options, where)
 
 
+def _used_by(name: str, elastic: str, origin: str) -> None:
+    """Refuse an elastic element's parameter that ``elastic``, the model the objectives
+    use, does not read (the other model's row): every design would be the same."""
+    section, _, key = name.partition(".")
+    rows = {"exponential": EXPONENTIAL_FIELDS}
+    reads = rows.get(elastic, GEOMETRY_FIELDS)
+    if section == "elastic_element" and key in set(GEOMETRY_FIELDS + EXPONENTIAL_FIELDS) - set(
+            reads):
+        raise InputError(f"{_where(origin, 'parameters', _quoted(name))}: the {elastic!r} "
+                         f"elastic model (design.elastic) does not read {name}: every design "
+                         f"would be the same; it reads {', '.join(reads)} of "
+                         "[elastic_element]")
+
+
 def loads(text: str, origin: str, base: Path | None = None) -> DesignSpec:
     """Parse a design file's text (``base``: the directory relative paths start from)."""
     try:
@@ -305,11 +320,14 @@ def loads(text: str, origin: str, base: Path | None = None) -> DesignSpec:
     if population * generations > MAX_EVALUATIONS:
         raise InputError(f"{where}: population x generations = {population * generations}; "
                          f"at most {MAX_EVALUATIONS} evaluations")
+    elastic = _choice(head, "elastic", where, "geometric", ELASTIC)
+    for variable in variables:
+        _used_by(variable.name, elastic, origin)
     return DesignSpec(origin=origin, text=text, params=params,
                       seed=_int(head, "seed", where, 0, 0, 2 ** 32 - 1),
                       population=population, generations=generations, algorithm=algorithm,
                       q_points=_int(head, "q_points", where, 9, 2, 1000),
-                      elastic=_choice(head, "elastic", where, "geometric", ELASTIC),
+                      elastic=elastic,
                       batch=_int(head, "batch", where, 16, 1, 100_000),
                       variables=variables, objectives=objectives, constraints=constraints)
 
