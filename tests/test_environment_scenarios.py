@@ -343,12 +343,35 @@ def test_a_contact_that_starts_penetrated_is_refused_with_its_key(tmp_path, caps
     the message, and nothing is written."""
     fails(tmp_path, capsys, edit('angle = "0.1 rad"', 'angle = "-0.01 rad"'),
           "environment.walls[0]: contact 'wall' starts penetrated by 0.001 m")
-    # a body too, and in a case: the case's key path
+    # a body too, and in a file of cases: the top-level key path the case reads it from,
+    # and the case; a case's own key path where it sets the body itself
     text = edit(WALL, WALL + BODY.replace('"0.1 rad"', '"-0.02 rad"')) + (
         '[[cases]]\nlabel = "ok"\n[cases.environment.bodies.hand]\nangle = "0.1 rad"\n'
         '[[cases]]\nlabel = "inside"\n')
-    fails(tmp_path, capsys, text, "cases[1].environment.bodies[0]: contact 'hand' starts "
-          "penetrated by 0.002 m")
+    fails(tmp_path, capsys, text, "scenario.toml: environment.bodies[0] (read for cases[1]): "
+          "contact 'hand' starts penetrated by 0.002 m")
+    text = edit(WALL, WALL + BODY) + (
+        '[[cases]]\nlabel = "ok"\n[[cases]]\nlabel = "inside"\n'
+        '[cases.environment.bodies.hand]\nangle = "-0.02 rad"\n')
+    fails(tmp_path, capsys, text, "scenario.toml: cases[1].environment.bodies[0]: contact "
+          "'hand' starts penetrated by 0.002 m")
+
+
+def test_a_top_level_value_is_named_at_its_own_line_in_a_file_of_cases(tmp_path, capsys):
+    """A bad value in the file's top level that a case takes over is named by its top-level
+    key path (the line to change), with the case that read it; a fixed pivot outside the
+    parameter set's pivot range is refused with its key."""
+    cases = '[[cases]]\nlabel = "a"\n[[cases]]\nlabel = "b"\n'
+    fails(tmp_path, capsys, edit('k = "2.98 V/rad"', 'k = "2.98 V/m"') + cases,
+          "scenario.toml: controller.pid[0].k (read for cases[0]) (unit V/rad",
+          "'2.98 V/m' has unit V/m")
+    fails(tmp_path, capsys, edit('fixed_q = "-0.4 cm"', 'fixed_q = "5 cm"'),
+          "scenario.toml: model.fixed_q = 5 cm: outside the pivot range of the parameter set, "
+          "[-2.2, 2] cm")
+    fails(tmp_path, capsys, edit('fixed_q = "-0.4 cm"', 'fixed_q = "-1 m"') + cases,
+          "scenario.toml: model.fixed_q (read for cases[0]) = -100 cm: outside the pivot range")
+    fails(tmp_path, capsys, BASE + '[[cases]]\nlabel = "a"\nmodel = { fixed_q = "-3 cm" }\n',
+          "scenario.toml: cases[0]: model.fixed_q = -3 cm: outside the pivot range")
     # touching at the start is not penetrated
     (r,) = run(edit('angle = "0.1 rad"', 'angle = "0 rad"'), duration=0.01)
     assert r.result.success
@@ -612,3 +635,19 @@ def event_index(ds, t: float) -> int:
     """The sample nearest time ``t`` [s] (an event's start and end lie half a sample
     outside its first and last samples in contact)."""
     return int(np.argmin(np.abs(ds["time"].values - t)))
+
+
+def test_a_failed_case_says_how_far_its_safety_figures_go(tmp_path, capsys):
+    """A case that stops early (its solver's step limit) has contact figures of the part it
+    ran only: the line and meta.json say up to when, not a bare "no contact"."""
+    text = (EXAMPLES / "hand-impact.toml").read_text().replace(
+        '[[cases]]\nlabel = "stiff"\n', '[[cases]]\nlabel = "stiff"\nsolver = { max_steps = 500 }\n')
+    out = tmp_path / "out"
+    assert main(["simulate", str(write(tmp_path, text)), "--out", str(out)]) == 1
+    printed = capsys.readouterr().out
+    stiff, middle = json.loads((out / "meta.json").read_text())["cases"]
+    assert not stiff["success"] and middle["success"] and "safety_until" not in middle
+    until = stiff["safety_until"]
+    assert 0.0 < until < 0.1  # the first strike comes later
+    assert f"[stiff] contact hand: no contact up to t = {until:.6g} s, where the run stopped" \
+        in printed

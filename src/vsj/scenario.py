@@ -155,7 +155,7 @@ import threading
 import tomllib
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Mapping
@@ -252,6 +252,8 @@ class Case:
     controller: Mapping | None = None
     #: the [environment] table read (`vsj.environment.Environment`, in ``build``'s network)
     environment: Environment | None = None
+    #: the keys a [[cases]] entry sets itself (the rest it takes from the file's top level)
+    own: frozenset = frozenset()
 
 
 @dataclass(frozen=True)
@@ -469,12 +471,21 @@ def _network(network: str, model: Mapping, bench: Mapping, where: Where,
             mesh_relation=_choice(model, "mesh_relation", tuple(MESH_RELATIONS), mw, "printed"))
         with _context(mw):
             options.validate()
+        fixed = options.pivot_drive == "fixed"
+
+        def wrist(params: Parameters) -> Network:
+            if fixed and not params["pivot.q_min"] <= options.fixed_q <= params["pivot.q_max"]:
+                raise InputError(f"model.fixed_q = {options.fixed_q * 100:g} cm: outside the "
+                                 f"pivot range of the parameter set, [{params['pivot.q_min'] * 100:g}"
+                                 f", {params['pivot.q_max'] * 100:g}] cm (pivot.q_min, q_max)")
+            return build_wrist(params, options)
+
         if environment is None:
-            return lambda params: build_wrist(params, options)
+            return wrist
         # lazy: only an [environment] needs it, and vsj simulate starts faster without
         from .environment import add_environment
 
-        return lambda params: add_environment(build_wrist(params, options), environment)
+        return lambda params: add_environment(wrist(params), environment)
     if model:
         raise InputError(f"{mw}: the {network} takes a [bench] table instead")
     sensor = _quantity(bench, "sensor_stiffness", "N*m", bw, benches.SENSOR_STIFFNESS,
@@ -1503,9 +1514,30 @@ def loads(text: str, origin: str) -> Scenario:
             merged["environment"] = _merge_named(
                 base.get("environment"), entry["environment"], where.key("environment"),
                 "environment", ENVIRONMENT_ARRAYS, _contact_name)
-        cases.append(_case(merged, label, where))
+        try:
+            cases.append(replace(_case(merged, label, where), own=frozenset(entry)))
+        except InputError as exc:
+            raise _from_base(exc, where, entry) from None
     return Scenario(name=name, description=description, origin=origin, cases=tuple(cases),
                     table=table)
+
+
+def _from_base(exc: InputError, where: Where, entry: Mapping) -> InputError:
+    """``exc``, raised reading case ``where`` merged with the file's top-level tables, with
+    its place in the file: the top-level key path when the key it names comes from there
+    (the case does not set that table or value), so that the message points at the line
+    to change and not at a case that only inherits it."""
+    text = str(exc)
+    prefix = next((f"{where}{sep}" for sep in (".", ": ") if text.startswith(f"{where}{sep}")),
+                  None)
+    if prefix is None:
+        return exc
+    rest = text[len(prefix):]
+    path = re.match(r"[A-Za-z_][\w.\[\]-]*", rest)
+    if path is None or re.match(r"[\w-]+", path.group()).group() in entry:
+        return exc
+    return InputError(f"{where.origin}: {path.group()} (read for {where.path})"
+                      f"{rest[path.end():]}")
 
 
 def _builtin_dir() -> Path:
@@ -1559,6 +1591,14 @@ def prepare_case(scenario: Scenario, case: Case, params: Parameters, *,
     anything is written, with the file and key. ``in_memory`` False: the run's
     samples go to a file (`vsj.output.TrajectoryFile`), so only a block of them
     has to fit in memory."""
+    try:
+        return _prepare_case(scenario, case, params, in_memory)
+    except InputError as exc:
+        raise _from_base(exc, case.where, case.own) if case.where.path else exc from None
+
+
+def _prepare_case(scenario: Scenario, case: Case, params: Parameters,
+                  in_memory: bool) -> Prepared:
     where = case.where
     resolved = scenario.resolved_params(case, params)
     with _context(where):

@@ -82,6 +82,10 @@ def cmd_simulate(args) -> int:
                                 "parameter_overrides": dict(case.case.params)})
                 if any(f.contact is not None for f in case.structure.frictions):
                     records[-1]["safety"] = _safety(trajectory, k, case)
+                    if not result.success:  # the figures of the part it ran
+                        reached = trajectory.reached[k]
+                        records[-1]["safety_until"] = \
+                            float(trajectory.time[reached - 1]) if reached else 0.0
             trajectory.close()
             if args.csv:
                 write_trajectory_csv(results.path("trajectory.csv"), trajectory)
@@ -103,7 +107,7 @@ def cmd_simulate(args) -> int:
         if "safety" in record:
             from ..safety.run_report import summary  # lazy: only runs with contacts
 
-            for line in summary(record["safety"]):
+            for line in summary(record["safety"], record.get("safety_until")):
                 print(prefix + line)
     print(f"wrote {', '.join(str(out / name) for name in results.written)}")
     for label, result in runs:

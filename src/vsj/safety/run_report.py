@@ -113,12 +113,14 @@ def _event(ev, springs: list[str], resolved: bool) -> dict:
     return entry
 
 
-def summary(figures: dict) -> list[str]:
-    """One line per contact: its events and worst peak force with the verdicts."""
+def summary(figures: dict, until: float | None = None) -> list[str]:
+    """One line per contact: its events and worst peak force with the verdicts; ``until``
+    the time a failed run stopped at, which the figures go no further than."""
     lines = []
+    cover = "" if until is None else f" up to t = {until:.6g} s, where the run stopped"
     for name, events in figures.items():
         if not events:
-            lines.append(f"contact {name}: no contact")
+            lines.append(f"contact {name}: no contact{cover}")
             continue
         worst = max(events, key=lambda ev: ev["peak_force"])
         verdicts = ", ".join(f"{region(b).title.lower()} "
@@ -128,7 +130,8 @@ def summary(figures: dict) -> list[str]:
         lines.append(f"contact {name}: {len(events)} event(s), peak {worst['peak_force']:.4g} N "
                      f"at {worst['peak_time']:.4g} s ({verdicts})"
                      + (f"; {unresolved} event(s) not resolved: the samples (the "
-                        "time-stepper's steps) do not bound their force" if unresolved else ""))
+                        "time-stepper's steps) do not bound their force" if unresolved else "")
+                     + cover)
     return lines
 
 
