@@ -7,6 +7,7 @@ same engine, in another build: `same_engine`) and with `vsj.simulate.simulate`
 (both to their error tolerance).
 """
 
+import math
 import os
 import struct
 import shutil
@@ -223,6 +224,16 @@ def _with_code(document, stepper, code) -> bytes:
     (lambda d, s: _sealed(export.program_bytes(d, s)[:-80] + b"\0" * 8), "truncated"),
     (lambda d, s: export.program_bytes({**d, "solver": {**d["solver"], "rtol": -1.0}}, s),
      "solver settings are out of range"),
+    # the tolerances within vsj's ranges (rtol 1e-14..1e-2, atol 1e-20..1e-2), a step
+    # count a period can take
+    (lambda d, s: export.program_bytes({**d, "solver": {**d["solver"], "rtol": 1e-300}}, s),
+     "solver settings are out of range"),
+    (lambda d, s: export.program_bytes({**d, "solver": {**d["solver"], "atol": math.inf}}, s),
+     "solver settings are out of range"),
+    (lambda d, s: export.program_bytes({**d, "solver": {**d["solver"], "max_steps": 0}}, s),
+     "solver settings are out of range"),
+    (lambda d, s: export.program_bytes({**d, "initial_state": [math.nan, *d["initial_state"][1:]]},
+                                       s), "initial state is not finite"),
     (lambda d, s: export.program_bytes({**d, "initial_state": d["initial_state"][:-1],
                                         "outputs": [{**o, "row": o["row"][:-1]}
                                                     for o in d["outputs"]]}, s),
@@ -431,3 +442,26 @@ def test_a_period_after_rows_changed_in_place_reads_the_new_rows(params, tmp_pat
     assert done.returncode == 0, done.stderr
     pairs, equal, moved = (int(v) for v in done.stdout.split())
     assert pairs >= 4 and equal == 1 and moved == 1
+
+
+def test_the_file_carries_the_steps_a_period_may_take(step_wrist, params, tmp_path):
+    """A stepper's bound on a period's steps (max_steps) goes into the file: the C library
+    stops a period at it as the Python stepper does, where before it took up to ten
+    million steps. Two steps cannot take dopri over a 1 ms period of these inputs."""
+    path, document, stepper = export_wrist(tmp_path, params, method="dopri")
+    document = {**document, "solver": {**document["solver"], "max_steps": 2}}
+    path.write_bytes(export.program_bytes(document, stepper))
+    inputs = np.zeros((1, stepper.n_inputs))
+    inputs[0, 0] = 3.0  # motor_1 turning
+    args = [str(step_wrist), str(path), "1", str(tmp_path / "in.csv")]
+    np.savetxt(tmp_path / "in.csv", inputs, delimiter=",", fmt="%.17g")
+    done = subprocess.run(args, capture_output=True, text=True)
+    assert done.returncode != 0 and "maximum number of steps" in done.stderr, done.stderr
+    limited = Stepper.wrist(params, period=1e-3, method="dopri", max_steps=2)
+    with pytest.raises(Exception, match="maximum number of steps"):
+        limited.step(limited.initial_state(InitialState(q=-0.01), inputs[0]), inputs[0])
+    # the exported bound (the stepper's default) lets the same period through
+    assert document["solver"]["max_steps"] == 2 and stepper.max_steps > 2
+    header, data = run_example(step_wrist, export_wrist(tmp_path, params, method="dopri")[0],
+                               1, inputs, tmp_path)
+    assert np.all(np.isfinite(data))

@@ -150,6 +150,26 @@ def test_instantiate_refuses_a_wrong_or_empty_guid(wrist, other):
     right.close()
 
 
+def test_the_map_holds_its_reals_as_bits_that_no_locale_reads_otherwise(wrist):
+    """resources/fmu.txt gives every real number as the 16 hexadecimal digits of its bits
+    (an importer that set a decimal comma, as Qt applications do, cannot misread them),
+    and the FMU's C sources convert no decimal text: no scanf of a real, no strtod."""
+    import re
+    from pathlib import Path
+
+    text = (Path(wrist[1]) / "resources" / "fmu.txt").read_text()
+    assert text.startswith("vsj-fmu 3\n")
+    pivot = next(line for line in text.splitlines() if line.startswith("pivot "))
+    assert re.fullmatch(r"pivot [0-9a-f]{16}", pivot)
+    assert struct.unpack(">d", bytes.fromhex(pivot.split()[1]))[0] == Q0
+    assert not re.search(r"\b\d+\.\d+(e[-+]?\d+)?\b", text.split("\n", 2)[2])  # no decimal
+    root = Path(fmu.__file__).parent
+    for source in [*(root / "fmi").glob("*.c"), *(root / "engine" / "c").glob("*.c")]:
+        code = source.read_text()
+        for pattern in (r'scanf\([^;]*%l?[fge]', r"\bstrto[df]\(", r"\bato[fi]\("):
+            assert not re.search(pattern, code), (source.name, pattern)
+
+
 # -- FMU states --------------------------------------------------------------------------------
 
 def _fnv1a(data: bytes) -> bytes:
@@ -274,6 +294,34 @@ def test_a_state_holding_nan_is_refused(wrist, what):
     s.close()
 
 
+def _history(blob: bytes) -> tuple[int, int]:
+    """Where a serialized state's stick/slip history lies: ``(start, end)`` in ``blob``
+    (the block before the checksum, its length the header's fifth size)."""
+    (size,) = struct.unpack_from("=q", blob, 8 + 64 + 4 * 8)  # magic, format, GUID, sizes
+    end = len(blob) - 8
+    return end - size, end
+
+
+@pytest.mark.parametrize("what", ["an angle", "a count"])
+def test_a_state_whose_stick_slip_history_holds_what_it_cannot_is_refused(wrist, what):
+    """The time-stepper's history in a serialized state (its angles first, its per
+    element counts last) is checked as the state's other values are: a NaN angle, or a
+    count at 2^63 - 1 (one more step would overflow it), is refused with its name even
+    with a right checksum; the untouched state is taken and steps on."""
+    s, blob = _state_after(wrist, 20, tau_x=0.3)
+    start, end = _history(blob)
+    if what == "an angle":
+        patch, at, name = struct.pack("=d", math.nan), start, "time-stepper's x"
+    else:
+        patch, at, name = struct.pack("=q", 2 ** 63 - 1), end - 8, "time-stepper's transitions"
+    body = blob[:at] + patch + blob[at + len(patch):end]
+    assert refused(s.fmu.deSerializeFMUstate, body + _fnv1a(body))
+    assert any(name in text for text in s.messages(ERROR)), s.said
+    s.fmu.setFMUstate(s.fmu.deSerializeFMUstate(blob))
+    assert s.step(tau_x=0.3) == OK
+    s.close()
+
+
 # -- fmi2DoStep --------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("point,h", [(math.nan, H), (math.inf, H), (-math.inf, H),
@@ -283,6 +331,19 @@ def test_do_step_refuses_a_non_finite_point_or_step(wrist, point, h):
     assert refused(s.fmu.doStep, point, h)
     assert s.messages(ERROR)
     assert s.step() == OK  # a refused call leaves the instance as it was
+    s.close()
+
+
+def test_do_step_refuses_a_step_longer_than_one_call_takes_and_goes_on(wrist):
+    """A communication step of more internal steps than one call takes (vsj.h:
+    VSJ_MAX_PERIOD_STEPS, 1e7; the time-stepper's step is 1 ms) is refused with the limit
+    named, before any step is taken: the instance is not in the error state and steps on."""
+    s = Instance(wrist)
+    assert s.step(tau_x=0.3) == OK
+    assert refused(s.fmu.doStep, s.t, 1e5)
+    assert any("more than 10000000 steps" in text and "split it" in text
+               for text in s.messages(ERROR)), s.said
+    assert s.step(tau_x=0.3) == OK
     s.close()
 
 
@@ -357,6 +418,21 @@ def test_each_tunable_parameter_is_refused_where_a_parameter_file_refuses_it(wri
     said = " ".join(s.messages(ERROR))
     assert "planetary.mesh_sharpness" in said and "must be > 0" in said
     assert "pivot.q_min must be below pivot.q_max" in said
+
+
+def test_a_pivot_range_that_leaves_out_where_the_pivot_stands_is_refused_while_stepping(
+        wrist):
+    """During a run the pivot stands where it is (q = Q0, -1 cm): a pivot range that
+    leaves it out is refused with that position named (the next step would fail and put
+    the instance into the error state); one that holds it is taken, and the run goes on."""
+    s = Instance(wrist)
+    assert s.step(tau_x=0.3) == OK
+    assert refused(s.set, **{"pivot.q_min": -0.5e-3})
+    assert any("the pivot stands at q = -0.01 m" in text for text in s.messages(ERROR)), s.said
+    assert s.step(tau_x=0.3) == OK
+    s.set(**{"pivot.q_min": -0.015})
+    assert s.step(tau_x=0.3) == OK
+    s.close()
 
 
 def test_a_refused_parameter_change_leaves_the_instance_as_it_was(wrist):

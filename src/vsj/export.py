@@ -31,7 +31,7 @@ from .wrist import WristOptions
 FORMAT = "vsj-model"
 VERSION = 3
 #: The program file's format version (engine/c/load.c reads this one only).
-PROGRAM_VERSION = 2
+PROGRAM_VERSION = 3
 
 #: The engine arrays, in the order of ``vsj_model`` (c/vsj_layout.h).
 ENGINE_ARRAYS = ARRAYS
@@ -101,8 +101,9 @@ def program_bytes(document: dict, stepper: Stepper) -> bytes:
     state, the output rows, the stepper's model in its binary form, a checksum."""
     solver = document["solver"]
     parts = [b"VSJP", struct.pack("<IQ", PROGRAM_VERSION, 0),
-             struct.pack("<qddddq", SCHEME_CODES[solver["method"]], solver["period"],
-                         solver["rtol"], solver["atol"], solver["step"], solver["substeps"]),
+             struct.pack("<qddddqq", SCHEME_CODES[solver["method"]], solver["period"],
+                         solver["rtol"], solver["atol"], solver["step"], solver["substeps"],
+                         solver["max_steps"]),
              struct.pack("<q", len(document["inputs"]))]
     parts += [_name(i["name"]) for i in document["inputs"]]
     state = np.asarray(document["initial_state"], dtype="<f8")

@@ -51,6 +51,7 @@ import json
 import math
 import os
 import shutil
+import struct
 import subprocess
 import tempfile
 import uuid
@@ -811,6 +812,12 @@ def checks_of(stepper, document: dict, options: SimulationOptions) -> Checks:
     return Checks(springs, limits, options.ledger_tolerance)
 
 
+def _bits(value: float) -> str:
+    """A real number as the map holds it: the 16 hexadecimal digits of its IEEE 754 bits
+    (no locale of the importing host can misread them)."""
+    return struct.pack(">d", float(value)).hex()
+
+
 def map_body(tunables: list[Tunable], params: Parameters, q0: float, checks: Checks) -> str:
     """``fmu.txt`` after its GUID line (the layout: vsj/fmi/fmu_setup.c)."""
     lines = [f"parameters {len(tunables)}"]
@@ -820,8 +827,9 @@ def map_body(tunables: list[Tunable], params: Parameters, q0: float, checks: Che
         flags = (1 if t.strict else 0) | (2 if t.nonzero else 0)
         section, name = t.key.split(".", 1)
         unit = _display(SCHEMA[section][name].unit)
-        lines.append(f"{t.key} {unit} {t.value!r} {low!r} {high!r} {flags} {len(t.entries)}")
-        lines += [f"{array} {index} {slope!r}" for array, index, slope in t.entries]
+        lines.append(f"{t.key} {unit} {_bits(t.value)} {_bits(low)} {_bits(high)} {flags} "
+                     f"{len(t.entries)}")
+        lines += [f"{array} {index} {_bits(slope)}" for array, index, slope in t.entries]
     index = {t.key: k for k, t in enumerate(tunables)}
     lines.append(f"relations {len(RELATIONS)}")
     for relation in RELATIONS:
@@ -829,21 +837,21 @@ def map_body(tunables: list[Tunable], params: Parameters, q0: float, checks: Che
         for key, weight in relation.terms:
             section, name = key.split(".", 1)
             unit = _display(SCHEMA[section][name].unit)
-            lines.append(f"{index[key]} {weight!r} 0.0 {key} {unit}" if key in index else
-                         f"-1 {weight!r} {params[key]!r} {key} {unit}")
-    lines.append(f"pivot {q0!r}")
-    lines.append(f"springs {len(checks.springs)} {INTO_STOP!r} {DIVERGED!r}")
+            lines.append(f"{index[key]} {_bits(weight)} {_bits(0.0)} {key} {unit}" if key in index
+                         else f"-1 {_bits(weight)} {_bits(params[key])} {key} {unit}")
+    lines.append(f"pivot {_bits(q0)}")
+    lines.append(f"springs {len(checks.springs)} {_bits(INTO_STOP)} {_bits(DIVERGED)}")
     lines += [f"{name} {column}" for name, column in checks.springs]
     lines.append(f"limits {len(checks.limits)}")
-    lines += [f"{k} {limit!r} {motor}" for k, limit, motor in checks.limits]
-    lines.append(f"ledger {checks.ledger_tolerance!r}")
+    lines += [f"{k} {_bits(limit)} {motor}" for k, limit, motor in checks.limits]
+    lines.append(f"ledger {_bits(checks.ledger_tolerance)}")
     return "\n".join(lines) + "\n"
 
 
 def map_text(guid: str, body: str) -> str:
     """The FMU's resources/fmu.txt: format version and GUID, then ``body`` (the
     parameter map, `map_body`)."""
-    return f"vsj-fmu 2\nguid {guid}\n{body}"
+    return f"vsj-fmu 3\nguid {guid}\n{body}"
 
 
 __all__ = ["build", "cross_check", "choose_method", "compile_binary", "tunable_map", "model_description", "MODEL_IDENTIFIER", "OUTPUTS"]

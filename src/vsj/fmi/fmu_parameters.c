@@ -119,6 +119,17 @@ int fmu__set_parameters(fmu *f, const fmi2ValueReference vr[], size_t nvr,
         fmu__fail(f, "fmi2SetReal: %s", why);
         return -1;
     }
+    if (f->mode == STEPPING) { /* a run under way: the pivot where it stands stays in range */
+        const double *p = pivot_row(f);
+        double q = vsj_step_pivot_position(&f->model, f->s);
+        if (!(q >= p[3] && q <= p[4])) {
+            snprintf(why, sizeof why, "the pivot stands at q = %g m, outside the range [%g, "
+                     "%g] m these values give it", q, p[3], p[4]);
+            fmu__restore(f, rebuild_before);
+            fmu__fail(f, "fmi2SetReal: %s", why);
+            return -1;
+        }
+    }
     f->rebuild = 1; /* the stepper is prepared before the next step */
     return 1;
 }

@@ -4,7 +4,7 @@
  * The FMU's resources hold the wrist exported by vsj (`model.vsjm`, read by
  * vsj_load_model) and `fmu.txt`, written by vsj.fmu beside modelDescription.xml:
  *
- *     vsj-fmu 2
+ *     vsj-fmu 3
  *     guid G                       the GUID of modelDescription.xml
  *     parameters P
  *     then, per tunable parameter (value reference 100 + its index):
@@ -21,6 +21,10 @@
  *     then, per limited input: input index, limit, name of the motor
  *     ledger tolerance
  *
+ * Every real number is written as the 16 hexadecimal digits of its IEEE 754 bits
+ * (read with %llx, which no locale changes: a host that set a decimal comma would
+ * misread a decimal point).
+ *
  * A tunable parameter changes engine arrays affinely: entry `index` of array
  * `array` (0: the kinetic energy matrix, 1: the element parameters) is its
  * exported value plus slope times the parameter's change (vsj.fmu checks at
@@ -28,6 +32,7 @@
  * The inverse of the mass matrix's free block is recomputed from the result.
  */
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -35,6 +40,14 @@
 #include "fmu_internal.h"
 
 static const char *const ROW_NAMES[5] = {"theta_x", "theta_y", "motor_1", "motor_2", "motor_s"};
+
+/* The real number whose IEEE 754 bits are `bits` (as the map writes them). */
+static double real_of(unsigned long long bits) {
+    uint64_t b = (uint64_t)bits;
+    double x;
+    memcpy(&x, &b, sizeof x);
+    return x;
+}
 
 char *fmu__copy_text(const char *text) {
     size_t size = strlen(text) + 1;
@@ -106,9 +119,12 @@ static int read_parameters(fmu *f, FILE *file, char *why, size_t size) {
         parameter *par = f->parameters + p;
         long long entries;
         entry *grown;
-        if (fscanf(file, "%79s %79s %lf %lf %lf %d %lld", par->key, par->unit, &par->start,
-                   &par->min, &par->max, &par->flags, &entries) != 7
-            || entries < 0 || entries > 1000000 || par->flags < 0 || par->flags > 3) {
+        unsigned long long start, low, high;
+        if (fscanf(file, "%79s %79s %llx %llx %llx %d %lld", par->key, par->unit, &start, &low,
+                   &high, &par->flags, &entries) != 7
+            || entries < 0 || entries > 1000000 || par->flags < 0 || par->flags > 3
+            || !isfinite(par->start = real_of(start)) || !isfinite(par->min = real_of(low))
+            || !isfinite(par->max = real_of(high))) {
             snprintf(why, size, "parameter %lld unreadable", p);
             return 0;
         }
@@ -125,8 +141,9 @@ static int read_parameters(fmu *f, FILE *file, char *why, size_t size) {
         for (k = 0; k < entries; k++) {
             entry *e = f->entries + total + k;
             long long array, index;
-            if (fscanf(file, "%lld %lld %lf", &array, &index, &e->slope) != 3
-                || (array != 0 && array != 1) || index < 0
+            unsigned long long slope;
+            if (fscanf(file, "%lld %lld %llx", &array, &index, &slope) != 3
+                || !isfinite(e->slope = real_of(slope)) || (array != 0 && array != 1) || index < 0
                 || index >= (array == 0 ? f->n_mass : f->n_par_values)) {
                 snprintf(why, size, "parameter %s has a bad entry", par->key);
                 return 0;
@@ -171,10 +188,11 @@ static int read_relations(fmu *f, FILE *file, char *why, size_t size) {
         for (k = 0; k < terms; k++) {
             term *e = f->terms + total + k;
             long long index;
-            if (fscanf(file, "%lld %lf %lf %79s %79s", &index, &e->weight, &e->value, e->key,
+            unsigned long long weight, value;
+            if (fscanf(file, "%lld %llx %llx %79s %79s", &index, &weight, &value, e->key,
                        e->unit) != 5
-                || index < -1 || index >= f->n_parameters || !isfinite(e->weight)
-                || !isfinite(e->value)) {
+                || index < -1 || index >= f->n_parameters
+                || !isfinite(e->weight = real_of(weight)) || !isfinite(e->value = real_of(value))) {
                 snprintf(why, size, "relation %lld has a bad term", r);
                 return 0;
             }
@@ -192,10 +210,13 @@ static int read_relations(fmu *f, FILE *file, char *why, size_t size) {
 static int read_checks(fmu *f, FILE *file, char *why, size_t size) {
     char word[32];
     long long count, k, input;
+    unsigned long long into_stop, diverged, bits;
     double value;
-    if (fscanf(file, "%31s %lld %lf %lf", word, &count, &f->into_stop, &f->diverged) != 4
+    if (fscanf(file, "%31s %lld %llx %llx", word, &count, &into_stop, &diverged) != 4
         || strcmp(word, "springs") != 0 || count != f->model.n_springs
-        || !(f->into_stop > 0.0) || !(f->diverged > f->into_stop) || !isfinite(f->diverged)) {
+        || !((f->into_stop = real_of(into_stop)) > 0.0)
+        || !((f->diverged = real_of(diverged)) > f->into_stop)
+        || !isfinite(f->diverged)) {
         snprintf(why, size, "no springs line for the model's %lld springs",
                  (long long)f->model.n_springs);
         return 0;
@@ -220,16 +241,16 @@ static int read_checks(fmu *f, FILE *file, char *why, size_t size) {
     f->n_limits = count;
     for (k = 0; k < count; k++) {
         limit *lim = f->limits + k;
-        if (fscanf(file, "%lld %lf %79s", &input, &value, lim->motor) != 3 || input < 0
-            || input >= f->ni || !(value > 0.0)) {
+        if (fscanf(file, "%lld %llx %79s", &input, &bits, lim->motor) != 3 || input < 0
+            || input >= f->ni || !((value = real_of(bits)) > 0.0)) {
             snprintf(why, size, "limit %lld unreadable", k);
             return 0;
         }
         lim->input = input;
         lim->limit = value;
     }
-    if (fscanf(file, "%31s %lf", word, &f->ledger_tolerance) != 2 || strcmp(word, "ledger") != 0
-        || !(f->ledger_tolerance > 0.0) || !(f->ledger_tolerance <= 1.0)) {
+    if (fscanf(file, "%31s %llx", word, &bits) != 2 || strcmp(word, "ledger") != 0
+        || !((f->ledger_tolerance = real_of(bits)) > 0.0) || !(f->ledger_tolerance <= 1.0)) {
         snprintf(why, size, "no ledger line");
         return 0;
     }
@@ -239,20 +260,21 @@ static int read_checks(fmu *f, FILE *file, char *why, size_t size) {
 int fmu__read_map(fmu *f, const char *path, char *why, size_t size) {
     FILE *file = fopen(path, "r");
     char word[32], reason[200];
+    unsigned long long q0;
     int version, ok;
     if (!file) {
         snprintf(why, size, "cannot open %s", path);
         return 0;
     }
     ok = fscanf(file, "%31s %d", word, &version) == 2 && strcmp(word, "vsj-fmu") == 0
-         && version == 2 && fscanf(file, "%31s %63s", word, f->guid) == 2
+         && version == 3 && fscanf(file, "%31s %63s", word, f->guid) == 2
          && strcmp(word, "guid") == 0;
     if (!ok)
-        snprintf(reason, sizeof reason, "not a vsj-fmu 2 map");
+        snprintf(reason, sizeof reason, "not a vsj-fmu 3 map");
     ok = ok && read_parameters(f, file, reason, sizeof reason)
          && read_relations(f, file, reason, sizeof reason);
-    if (ok && (fscanf(file, "%31s %lf", word, &f->q0_start) != 2 || strcmp(word, "pivot") != 0
-               || !isfinite(f->q0_start))) {
+    if (ok && (fscanf(file, "%31s %llx", word, &q0) != 2 || strcmp(word, "pivot") != 0
+               || !isfinite(f->q0_start = real_of(q0)))) {
         snprintf(reason, sizeof reason, "no pivot line");
         ok = 0;
     }

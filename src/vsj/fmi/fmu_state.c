@@ -281,6 +281,11 @@ static const char *bad_fields(const fmu *f, const snapshot *st, char *why, size_
         }
     if (fmu__broken_relation(f, st->values) >= 0)
         return "its parameters break a relation between keys";
+    if (f->scheme.method == VSJ_METHOD_TIMESTEP
+        && vsj_ts_history_check(&f->model, st->history, reason, sizeof reason) != VSJ_OK) {
+        snprintf(why, size, "%s", reason);
+        return why;
+    }
     return NULL;
 }
 

@@ -572,6 +572,11 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                  f->stop_time);
         return fmu__fail(f, "fmi2DoStep: a step to %s set by fmi2SetupExperiment", text);
     }
+    if (f->scheme.method == VSJ_METHOD_TIMESTEP && !(h / f->scheme.h <= VSJ_MAX_PERIOD_STEPS)) {
+        snprintf(text, sizeof text, "%g s takes more than %d steps of %g s, the most one step "
+                 "of the FMU takes: split it", h, VSJ_MAX_PERIOD_STEPS, f->scheme.h);
+        return fmu__fail(f, "fmi2DoStep: a communication step of %s", text);
+    }
     if (f->rebuild && fmu__rebuild(f) != fmi2OK)
         return fmi2Error;
     status = vsj_step(&f->model, f->work, &f->scheme, f->s, f->inputs, h, f->ledger);

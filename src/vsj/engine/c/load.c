@@ -2,7 +2,7 @@
  *
  * A program file is little-endian binary, every field 8 bytes:
  *   "VSJP", format version (uint32), 0 (uint64): 16 bytes
- *   method (enum vsj_method), period, rtol, atol, step, substeps
+ *   method (enum vsj_method), period, rtol, atol, step, substeps, max_steps
  *   inputs: count, then per input its name (length, UTF-8 bytes padded to 8)
  *   the initial stepper state: count, values
  *   outputs: count, then per output its name, then the rows (count x state values)
@@ -19,7 +19,7 @@
 
 #include "internal.h"
 
-enum { PROGRAM_VERSION = 2, MAX_NAME = 4096 };
+enum { PROGRAM_VERSION = 3, MAX_NAME = 4096 };
 
 typedef struct reader {
     const unsigned char *data;
@@ -144,7 +144,7 @@ static char **names(reader *r, int64_t n) {
 
 /* The program's fields, then its model. */
 static void read_program(reader *r, vsj_loaded *l) {
-    int64_t method, state, blob, substeps;
+    int64_t method, state, blob, substeps, max_steps, i;
     double rtol, atol, step;
     char inner[256];
     take8(r, &method);
@@ -153,14 +153,17 @@ static void read_program(reader *r, vsj_loaded *l) {
     atol = real(r);
     step = real(r);
     take8(r, &substeps);
+    take8(r, &max_steps);
     if (r->failed)
         return;
-    /* the period always, and the settings of its method */
-    if (!(l->period > 0.0 && l->period < 1e9)
+    /* the period always, and the settings of its method (the tolerances within the
+     * ranges vsj.simulate.RANGES gives them; a step the period can take) */
+    if (!(l->period > 0.0 && l->period < 1e9) || max_steps < 1
         || ((method == VSJ_METHOD_DOPRI || method == VSJ_METHOD_ROSENBROCK)
-            && !(rtol > 0.0 && atol > 0.0 && rtol < 1.0))
+            && !(rtol >= 1e-14 && rtol <= 1e-2 && atol >= 1e-20 && atol <= 1e-2))
         || (method == VSJ_METHOD_RK4 && (substeps < 1 || substeps > VSJ_MAX_PERIOD_STEPS))
-        || (method == VSJ_METHOD_TIMESTEP && !(step > 0.0 && step <= l->period))
+        || (method == VSJ_METHOD_TIMESTEP
+            && !(step > 0.0 && step <= l->period && l->period / step <= VSJ_MAX_PERIOD_STEPS))
         || (method != VSJ_METHOD_DOPRI && method != VSJ_METHOD_RK4
             && method != VSJ_METHOD_TIMESTEP && method != VSJ_METHOD_ROSENBROCK)) {
         rfail(r, "its solver settings are out of range");
@@ -173,11 +176,16 @@ static void read_program(reader *r, vsj_loaded *l) {
     l->scheme.h_max = INFINITY;
     l->scheme.h = step;
     l->scheme.substeps = substeps;
-    l->scheme.max_steps = VSJ_MAX_PERIOD_STEPS; /* dopri: the most steps one period takes */
+    l->scheme.max_steps = max_steps; /* dopri, rosenbrock: the most steps a period takes */
     l->n_inputs = count(r, 1 << 20, "inputs");
     l->input_names = names(r, l->n_inputs);
     state = count(r, 1 << 24, "the state's size");
     l->initial_state = reals(r, state);
+    for (i = 0; i < state && !r->failed; i++)
+        if (!isfinite(l->initial_state[i])) {
+            rfail(r, "its initial state is not finite");
+            return;
+        }
     l->n_outputs = count(r, 1 << 20, "outputs");
     l->output_names = names(r, l->n_outputs);
     if (r->failed || (state > 0 && l->n_outputs > (int64_t)((r->length - r->at) / 8) / state)) {
@@ -185,6 +193,11 @@ static void read_program(reader *r, vsj_loaded *l) {
         return;
     }
     l->output_rows = reals(r, l->n_outputs * state);
+    for (i = 0; i < l->n_outputs * state && !r->failed; i++)
+        if (!isfinite(l->output_rows[i])) {
+            rfail(r, "its output rows are not finite");
+            return;
+        }
     take8(r, &blob);
     if (r->failed)
         return;

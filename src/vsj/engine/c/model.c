@@ -205,8 +205,8 @@ int vsj_check_model(const vsj_model *m, char *message, size_t size) {
         int64_t p0 = m->first[c], cnt = m->count[c], j;
         if (cnt < 1 || p0 < 0 || cnt > m->n_pieces || p0 > m->n_pieces - cnt)
             return vsj__fail(message, size,
-                        "model: channel %lld has pieces %lld..%lld outside 0..%lld",
-                        (long long)c, (long long)p0, (long long)(p0 + cnt - 1),
+                        "model: channel %lld has %lld pieces from piece %lld, outside 0..%lld",
+                        (long long)c, (long long)cnt, (long long)p0,
                         (long long)(m->n_pieces - 1));
         for (j = 0; j < cnt; j++)
             if (!(m->knots[p0 + c + j + 1] > m->knots[p0 + c + j]))

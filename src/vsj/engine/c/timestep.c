@@ -42,6 +42,7 @@
  * step's deflection) and the pivot's motion within the step.
  */
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "internal.h"
@@ -1232,9 +1233,18 @@ int64_t vsj_ts_stuck(const vsj_model *m, const vsj_work *w, unsigned char *stuck
 
 /* ---- the history, as bytes --------------------------------------------------- */
 
+/* What a part of the history holds, for checking bytes from outside (an FMU state):
+ * reals that are finite, reals that may also be NaN (none yet), whole numbers from 0,
+ * flags (-1, 0 or 1), a status (enum vsj_status) and impulse states (-1, 0, 1, 2). */
+enum { REALS, MARKER, COUNTS, FLAG, STATUS, STATES };
+
+#define MAX_SPANS 32 /* the parts of the history (history_spans) */
+
 typedef struct span {
     void *data;
     size_t bytes;
+    int kind;
+    const char *name;
 } span;
 
 /* The parts of the history, in order; with w NULL only their sizes. */
@@ -1242,50 +1252,90 @@ static int64_t history_spans(const vsj_model *m, const vsj_work *w, span *out) {
     const ts_work *t = w ? &w->ts : NULL;
     int64_t n = m->n, f = m->n_frictions, s = m->n_sources, nm = m->n_motors, count = 0;
     int64_t nr = n + 2 * m->n_springs, mu = f + 2 * m->n_springs;
-    size_t d = sizeof(double), l = sizeof(int64_t);
-#define SPAN(ptr, size)                                                                           \
+    size_t d = sizeof(double), l = sizeof(int64_t), i = sizeof(int);
+#define SPAN(ptr, size, what)                                                                     \
     do {                                                                                          \
         out[count].data = t ? (void *)(ptr) : NULL;                                               \
         out[count].bytes = (size);                                                                \
+        out[count].kind = (what);                                                                 \
+        out[count].name = #ptr;                                                                   \
         count++;                                                                                  \
     } while (0)
-    SPAN(t->x, (size_t)n * d);
-    SPAN(t->v, (size_t)n * d);
-    SPAN(t->cur, (size_t)nm * d);
-    SPAN(t->u0, (size_t)s * d);
-    SPAN(t->sg0, (size_t)s * d);
-    SPAN(&t->t, d);
-    SPAN(&t->origin, d);
-    SPAN(&t->k, l);
-    SPAN(&t->q_prev, d);
-    SPAN(&t->angle_prev, d);
-    SPAN(&t->angle_mid, d);
-    SPAN(&t->q_mid, d);
-    SPAN(&t->factored, sizeof(int));
-    SPAN(&w->status, sizeof(int));
-    SPAN(&t->hs_prev, d);
-    SPAN(&t->memo_full, sizeof(int));
-    SPAN(t->H_last, (size_t)(n * n) * d);
-    SPAN(t->Lc, (size_t)(n * n) * d);
-    SPAN(t->YlT, (size_t)(nr * mu) * d);
-    SPAN(t->Gc, (size_t)(nr * nr) * d);
-    SPAN(t->Kc, (size_t)(nr * nr) * d);
-    SPAN(t->p, (size_t)mu * d);
-    SPAN(t->state, (size_t)mu * l);
-    SPAN(t->memo, (size_t)(mu + 1) * d);
-    SPAN(t->slip, (size_t)f * d);
-    SPAN(t->lev, (size_t)f * d);
-    SPAN(t->levs, (size_t)f * d);
-    SPAN(t->share, (size_t)f * d);
-    SPAN(t->level, (size_t)f * d);
-    SPAN(t->hold, (size_t)f * d);
-    SPAN(t->held, (size_t)f * l);
-    SPAN(t->transitions, (size_t)f * l);
+    SPAN(t->x, (size_t)n * d, REALS);
+    SPAN(t->v, (size_t)n * d, REALS);
+    SPAN(t->cur, (size_t)nm * d, REALS);
+    SPAN(t->u0, (size_t)s * d, REALS);
+    SPAN(t->sg0, (size_t)s * d, REALS);
+    SPAN(&t->t, d, REALS);
+    SPAN(&t->origin, d, REALS);
+    SPAN(&t->k, l, COUNTS);
+    SPAN(&t->q_prev, d, MARKER);
+    SPAN(&t->angle_prev, d, MARKER);
+    SPAN(&t->angle_mid, d, MARKER);
+    SPAN(&t->q_mid, d, MARKER);
+    SPAN(&t->factored, i, FLAG);
+    SPAN(&w->status, i, STATUS);
+    SPAN(&t->hs_prev, d, MARKER);
+    SPAN(&t->memo_full, i, FLAG);
+    SPAN(t->H_last, (size_t)(n * n) * d, REALS);
+    SPAN(t->Lc, (size_t)(n * n) * d, REALS);
+    SPAN(t->YlT, (size_t)(nr * mu) * d, REALS);
+    SPAN(t->Gc, (size_t)(nr * nr) * d, REALS);
+    SPAN(t->Kc, (size_t)(nr * nr) * d, REALS);
+    SPAN(t->p, (size_t)mu * d, REALS);
+    SPAN(t->state, (size_t)mu * l, STATES);
+    SPAN(t->memo, (size_t)(mu + 1) * d, REALS);
+    SPAN(t->slip, (size_t)f * d, REALS);
+    SPAN(t->lev, (size_t)f * d, REALS);
+    SPAN(t->levs, (size_t)f * d, REALS);
+    SPAN(t->share, (size_t)f * d, REALS);
+    SPAN(t->level, (size_t)f * d, REALS);
+    SPAN(t->hold, (size_t)f * d, REALS);
+    SPAN(t->held, (size_t)f * l, COUNTS);
+    SPAN(t->transitions, (size_t)f * l, COUNTS);
 #undef SPAN
     return count;
 }
 
-#define MAX_SPANS 32
+/* Whether one value of a part of kind `kind` at `at` is one the stepper can hold. */
+static int plausible(int kind, const unsigned char *at) {
+    double x;
+    int64_t c;
+    int flag;
+    if (kind == REALS || kind == MARKER) {
+        memcpy(&x, at, sizeof x);
+        return isfinite(x) || (kind == MARKER && isnan(x));
+    }
+    if (kind == COUNTS || kind == STATES) {
+        memcpy(&c, at, sizeof c);
+        /* counts stay below 2^53: they count steps, and far from overflowing */
+        return kind == COUNTS ? c >= 0 && c <= ((int64_t)1 << 53) : c >= -1 && c <= 2;
+    }
+    memcpy(&flag, at, sizeof flag);
+    return kind == FLAG ? flag >= -1 && flag <= 1 : flag >= VSJ_OK && flag <= VSJ_NO_MEMORY;
+}
+
+int vsj_ts_history_check(const vsj_model *m, const unsigned char *buffer, char *message,
+                         size_t size) {
+    span spans[MAX_SPANS];
+    int64_t count = history_spans(m, NULL, spans), i;
+    for (i = 0; i < count; i++) {
+        size_t item = spans[i].kind == REALS || spans[i].kind == MARKER ? sizeof(double)
+                      : spans[i].kind == COUNTS || spans[i].kind == STATES ? sizeof(int64_t)
+                                                                          : sizeof(int);
+        size_t k;
+        for (k = 0; k < spans[i].bytes / item; k++)
+            if (!plausible(spans[i].kind, buffer + k * item)) {
+                if (message && size)
+                    snprintf(message, size, "entry %lld of the time-stepper's %s is not a "
+                             "value it can hold", (long long)k, strrchr(spans[i].name, '>') + 1);
+                return VSJ_BAD_ARGUMENT;
+            }
+        buffer += spans[i].bytes;
+    }
+    return VSJ_OK;
+}
+
 
 size_t vsj_ts_history_size(const vsj_model *m) {
     span spans[MAX_SPANS];

@@ -340,6 +340,13 @@ int64_t vsj_ts_stuck(const vsj_model *m, const vsj_work *w, unsigned char *stuck
 size_t vsj_ts_history_size(const vsj_model *m);
 void vsj_ts_save(const vsj_model *m, const vsj_work *w, unsigned char *buffer);
 void vsj_ts_restore(const vsj_model *m, vsj_work *w, const unsigned char *buffer);
+/* Whether saved history bytes (vsj_ts_history_size of them) hold values the
+ * time-stepper can: finite reals (a marker of "none yet" may be NaN), counts from 0,
+ * flags, a status and impulse states in their ranges. VSJ_OK, or VSJ_BAD_ARGUMENT
+ * with the first value that is not in `message` (of `size` bytes; NULL for none).
+ * Bytes from outside (an FMU state) are checked before vsj_ts_restore takes them. */
+int vsj_ts_history_check(const vsj_model *m, const unsigned char *buffer, char *message,
+                         size_t size);
 
 /* A tridiagonal system of order n: sub-diagonal dl (n - 1), diagonal d (n), super-
  * diagonal du (n - 1), right-hand side b (n), solved by Gaussian elimination with
