@@ -651,3 +651,23 @@ def test_a_failed_case_says_how_far_its_safety_figures_go(tmp_path, capsys):
     assert 0.0 < until < 0.1  # the first strike comes later
     assert f"[stiff] contact hand: no contact up to t = {until:.6g} s, where the run stopped" \
         in printed
+
+
+def test_a_wall_is_judged_as_clamping_and_a_body_as_a_strike():
+    """A hand between the tip and a wall cannot recoil: it is clamped, and ISO/TS 15066's
+    quasi-static limits apply (Table A.2: 140 N for the hand, 160 N for the lower arm);
+    a struck body can recoil, the transient ones (twice those)."""
+    from vsj.safety.run_report import report, summary
+
+    (r,) = run(pressing_loop(""))  # into the wall, then into the hand
+    figures = report(r.result, r.result.plan.structure)
+    assert figures["wall"] and figures["hand"]
+    for ev in figures["wall"]:
+        assert ev["contact"] == "quasi-static"
+        assert ev["passed"] == {"hand": ev["peak_force"] <= 140.0,
+                                "lower_arm": ev["peak_force"] <= 160.0}
+    for ev in figures["hand"]:
+        assert ev["contact"] == "transient"
+        assert ev["passed"] == {"hand": ev["peak_force"] <= 280.0,
+                                "lower_arm": ev["peak_force"] <= 320.0}
+    assert "quasi-static limits: clamped against a wall" in summary({"wall": figures["wall"]})[0]

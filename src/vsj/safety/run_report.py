@@ -41,13 +41,21 @@ def _body_velocity(structure: Structure, e: int, result) -> np.ndarray | None:
     return speed
 
 
+def _is_wall(structure: Structure, e: int) -> bool:
+    """Whether contact ``e`` presses against a fixed surface (a wall: its penetration's row
+    weighs no free coordinate negatively, so nothing on the far side can move away)."""
+    return not np.any(structure.friction_rows[e] @ structure.A < 0.0)
+
+
 def report(result, structure: Structure, tip: Tip | None = None, *, plan=None) -> dict:
     """Per contact of ``structure``'s environment: its events (peak force, impulse,
     duration, energy transferred to a body, the joint's peak deflection, spring torque
     and margin to the end stop; the peak pressure with the tip's geometry ``tip``) and
-    each event's verdict for the hand and the lower arm (ISO/TS 15066 Table A.2,
-    transient force, and with ``tip`` the pressure on each region's most sensitive
-    area). JSON-ready; empty without contacts.
+    each event's verdict for the hand and the lower arm (ISO/TS 15066 Table A.2, and
+    with ``tip`` the pressure on each region's most sensitive area). A body part struck
+    by the tip can recoil: the limits of transient contact. One between the tip and a
+    wall cannot, it is clamped: the limits of quasi-static contact, half of those
+    (the event's ``contact`` says which). JSON-ready; empty without contacts.
 
     ``plan`` (the `vsj.engine.plan.Plan` the run ran; a run of `vsj.simulate.simulate`
     carries it as ``result.plan``) samples the contacts again where the run's samples
@@ -85,13 +93,14 @@ def report(result, structure: Structure, tip: Tip | None = None, *, plan=None) -
         suspect = suspect_intervals(result.time, force, depth, result[f"contact.{name}.rate"],
                                     result.signals.get(f"work.{name}")) \
             if len(result.time) >= 2 else np.zeros(0, dtype=bool)
+        kind = "quasi-static" if _is_wall(structure, e) else "transient"
         out[name] = [_event(ev, [sp.name for sp in springs],
-                            not suspect[max(ev.first - 1, 0):ev.last + 1].any())
+                            not suspect[max(ev.first - 1, 0):ev.last + 1].any(), kind)
                      for ev in events]
     return out
 
 
-def _event(ev, springs: list[str], resolved: bool) -> dict:
+def _event(ev, springs: list[str], resolved: bool, contact: str) -> dict:
     entry = {
         "start": ev.start, "end": ev.end, "duration": ev.duration,
         "cut_at_end": ev.cut_at_end, "peak_force": ev.peak_force,
@@ -108,8 +117,9 @@ def _event(ev, springs: list[str], resolved: bool) -> dict:
                    "peak_spring_torque": float(ev.peak_spring_torque[j]),
                    "end_stop_margin": float(ev.end_stop_margin[j])}
             for j, name in enumerate(springs)}
-    entry["iso_ts_15066"] = {body: str(ev.verdict(body)) for body in REGIONS}
-    entry["passed"] = {body: bool(ev.verdict(body).passed) for body in REGIONS}
+    entry["contact"] = contact
+    entry["iso_ts_15066"] = {body: str(ev.verdict(body, contact)) for body in REGIONS}
+    entry["passed"] = {body: bool(ev.verdict(body, contact).passed) for body in REGIONS}
     return entry
 
 
@@ -123,9 +133,12 @@ def summary(figures: dict, until: float | None = None) -> list[str]:
             lines.append(f"contact {name}: no contact{cover}")
             continue
         worst = max(events, key=lambda ev: ev["peak_force"])
+        kind = worst.get("contact", "transient")
         verdicts = ", ".join(f"{region(b).title.lower()} "
-                             f"{'within' if worst['passed'][b] else 'ABOVE'} the transient limits"
+                             f"{'within' if worst['passed'][b] else 'ABOVE'} the {kind} limits"
                              for b in REGIONS)
+        if kind == "quasi-static":
+            verdicts += ": clamped against a wall"
         unresolved = sum(not ev["resolved"] for ev in events)
         lines.append(f"contact {name}: {len(events)} event(s), peak {worst['peak_force']:.4g} N "
                      f"at {worst['peak_time']:.4g} s ({verdicts})"
