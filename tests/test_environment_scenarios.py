@@ -372,6 +372,15 @@ def test_a_top_level_value_is_named_at_its_own_line_in_a_file_of_cases(tmp_path,
           "scenario.toml: model.fixed_q (read for cases[0]) = -100 cm: outside the pivot range")
     fails(tmp_path, capsys, BASE + '[[cases]]\nlabel = "a"\nmodel = { fixed_q = "-3 cm" }\n',
           "scenario.toml: cases[0]: model.fixed_q = -3 cm: outside the pivot range")
+    # a case that sets another key of the same table still inherits the bad one
+    fails(tmp_path, capsys, edit('friction = "stiction"', 'friction = "bogus"')
+          + '[[cases]]\nlabel = "a"\nsolver = { output_step = "2 ms" }\n',
+          "scenario.toml: solver.friction (read for cases[0]): unknown friction law 'bogus'")
+    # the case's own value, and a message that names no key path: as they were
+    fails(tmp_path, capsys, BASE + '[[cases]]\nlabel = "a"\n[cases.controller.pid.u1]\n'
+          'k = "2.98 V/m"\n', "scenario.toml: cases[0].controller.pid[0].k (unit V/rad")
+    fails(tmp_path, capsys, edit('duration = "0.3 s"\n', '') + cases,
+          "scenario.toml: cases[0]: missing 'duration'")
     # touching at the start is not penetrated
     (r,) = run(edit('angle = "0.1 rad"', 'angle = "0 rad"'), duration=0.01)
     assert r.result.success
@@ -671,3 +680,26 @@ def test_a_wall_is_judged_as_clamping_and_a_body_as_a_strike():
         assert ev["passed"] == {"hand": ev["peak_force"] <= 280.0,
                                 "lower_arm": ev["peak_force"] <= 320.0}
     assert "quasi-static limits: clamped against a wall" in summary({"wall": figures["wall"]})[0]
+    # whatever the direction it faces: a wall facing -x where the hand stood is a wall too
+    facing = BODY.replace("[[environment.bodies]]", "[[environment.walls]]").replace(
+        'mass = "0.6 kg"\n', "").replace('support_stiffness = "100 N/m"\n', "").replace(
+        'support_damping = "2 N s/m"\n', "").replace('stiffness = "75 N/mm"', 'stiffness = "2e4 N/m"')
+    (r,) = run(pressing_loop("").replace(BODY, facing))
+    figures = report(r.result, r.result.plan.structure)
+    assert figures["wall"] and figures["hand"]
+    assert {ev["contact"] for ev in figures["wall"] + figures["hand"]} == {"quasi-static"}
+
+
+def test_the_energy_to_a_body_is_the_work_on_it_at_its_own_speed():
+    """The body's speed in the direction the contact pushes it is its own displacement's
+    rate times the link (the hand faces -x: the wrist's coordinates, some of which the
+    contact's row weighs negatively too, are not the body's)."""
+    from vsj.safety import run_report
+
+    (r,) = run(pressing_loop(""))
+    structure = r.result.plan.structure
+    e = [fr.name for fr in structure.frictions].index("hand")
+    speed = run_report._body_velocity(structure, e, r.result)
+    assert np.array_equal(speed, 0.1 * r.result["hand.speed"])  # the link, 10 cm
+    assert run_report._body_velocity(structure, [fr.name for fr in structure.frictions]
+                                     .index("wall"), r.result) is None

@@ -252,8 +252,9 @@ class Case:
     controller: Mapping | None = None
     #: the [environment] table read (`vsj.environment.Environment`, in ``build``'s network)
     environment: Environment | None = None
-    #: the keys a [[cases]] entry sets itself (the rest it takes from the file's top level)
-    own: frozenset = frozenset()
+    #: what a [[cases]] entry sets itself, as written (the rest it takes from the file's
+    #: top level)
+    own: Mapping = field(default_factory=dict, compare=False)
 
 
 @dataclass(frozen=True)
@@ -1515,7 +1516,7 @@ def loads(text: str, origin: str) -> Scenario:
                 base.get("environment"), entry["environment"], where.key("environment"),
                 "environment", ENVIRONMENT_ARRAYS, _contact_name)
         try:
-            cases.append(replace(_case(merged, label, where), own=frozenset(entry)))
+            cases.append(replace(_case(merged, label, where), own=entry))
         except InputError as exc:
             raise _from_base(exc, where, entry) from None
     return Scenario(name=name, description=description, origin=origin, cases=tuple(cases),
@@ -1524,20 +1525,45 @@ def loads(text: str, origin: str) -> Scenario:
 
 def _from_base(exc: InputError, where: Where, entry: Mapping) -> InputError:
     """``exc``, raised reading case ``where`` merged with the file's top-level tables, with
-    its place in the file: the top-level key path when the key it names comes from there
-    (the case does not set that table or value), so that the message points at the line
-    to change and not at a case that only inherits it."""
+    its place in the file: the top-level key path when the value it names comes from
+    there (the case does not set it), so that the message points at the line to change
+    and not at a case that only inherits it. A message that names no key path of a
+    case's tables is left as it is."""
     text = str(exc)
-    prefix = next((f"{where}{sep}" for sep in (".", ": ") if text.startswith(f"{where}{sep}")),
-                  None)
-    if prefix is None:
+    for sep in (".", ": "):
+        if text.startswith(f"{where}{sep}"):
+            break
+    else:
         return exc
-    rest = text[len(prefix):]
-    path = re.match(r"[A-Za-z_][\w.\[\]-]*", rest)
-    if path is None or re.match(r"[\w-]+", path.group()).group() in entry:
+    rest = text[len(f"{where}{sep}"):]
+    path = _KEY_PATH.match(rest)
+    if path is None:
+        return exc
+    keys = path.group().split(".")
+    if sep == ": " and (len(keys) < 2 or keys[0] not in CASE_KEYS):
+        return exc  # words, not a key path
+    if _case_sets(entry, keys):
         return exc
     return InputError(f"{where.origin}: {path.group()} (read for {where.path})"
                       f"{rest[path.end():]}")
+
+
+#: A key path of a scenario's tables: keys joined by dots, each with an array index or not.
+_KEY_PATH = re.compile(r"[A-Za-z_][\w-]*(?:\[\d+\])?(?:\.[A-Za-z_][\w-]*(?:\[\d+\])?)*")
+
+
+def _case_sets(entry: Mapping, keys: list[str]) -> bool:
+    """Whether a [[cases]] entry sets the value at the key path ``keys`` itself, or may (an
+    array on the way: its entries merge with the top level's by name)."""
+    node = entry
+    for key in keys:
+        name = key.split("[", 1)[0]
+        if not isinstance(node, Mapping) or name not in node:
+            return False
+        node = node[name]
+        if name != key or isinstance(node, list):
+            return True
+    return True
 
 
 def _builtin_dir() -> Path:

@@ -125,12 +125,10 @@ def _safety(trajectory, k: int, case) -> dict:
     streamed trajectory (with its environment's tip geometry): its contact, spring and
     speed signals read back from the file, the contacts sampled again from its plan where
     the file's samples could miss them."""
-    from ..safety.run_report import report  # lazy: only runs with contacts need it
+    from ..safety.run_report import reads, report  # lazy: only runs with contacts need it
 
     reached = trajectory.reached[k]
-    wanted = [name for name in trajectory.names(k)
-              if name.startswith("contact.") or name.endswith(".speed")
-              or (name.startswith("spring.") and name.endswith((".deflection", ".torque")))]
+    wanted = [name for name in trajectory.names(k) if reads(case.structure, name)]
     signals = {name: trajectory.read(name, k, 0, reached) for name in wanted}
     run = Result(time=trajectory.time[:reached], signals=signals, units={}, ledger={},
                  success=True, message="", solver={})

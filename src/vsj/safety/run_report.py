@@ -24,27 +24,44 @@ from .events import contact_events
 from .iso_ts_15066 import REGIONS, Tip, region
 
 
+def _body(structure: Structure, e: int) -> tuple[int, float] | None:
+    """The body contact ``e`` pushes (the flange on its ``body`` port, as
+    `vsj.environment` and `vsj.components.Contact` name it): ``(i, c)``, its generalised
+    coordinate and the rate c v_i [m/s] at which the body gives way per unit of it; None
+    for a wall, or a body whose flange is not one coordinate."""
+    element = structure.frictions[e]
+    ports = [p for p in element.speed if p.rsplit(".", 1)[-1] == "body"]
+    if len(ports) != 1:
+        return None
+    row, sources = structure.rows(ports[0])
+    used = np.flatnonzero(row)
+    if len(used) != 1 or np.any(sources):
+        return None
+    i = int(used[0])
+    return i, -element.speed[ports[0]] * float(row[i])
+
+
 def _body_velocity(structure: Structure, e: int, result) -> np.ndarray | None:
-    """The speed [m/s] of the body contact ``e`` pushes, in the direction it pushes it:
-    the coordinates its penetration's row weighs negatively (a free body's; a wall has
-    none), through their speed signals (named as a run names them)."""
-    row = structure.friction_rows[e] @ structure.A
+    """The speed [m/s] of the body contact ``e`` pushes, in the direction it pushes it,
+    from its coordinate's speed signal (named as a run names it); None for a wall."""
+    body = _body(structure, e)
+    if body is None:
+        return None
+    i, rate = body
     names = {sig.flange: sig.name for sig in structure.signals}
-    speed = None
-    for i, coefficient in enumerate(row):
-        if coefficient < 0.0:
-            signal = f"{names.get(structure.free[i], structure.free[i])}.speed"
-            if signal not in result.signals:
-                return None
-            term = -coefficient * result[signal]
-            speed = term if speed is None else speed + term
-    return speed
+    signal = f"{names.get(structure.free[i], structure.free[i])}.speed"
+    return rate * result[signal] if signal in result.signals else None
 
 
-def _is_wall(structure: Structure, e: int) -> bool:
-    """Whether contact ``e`` presses against a fixed surface (a wall: its penetration's row
-    weighs no free coordinate negatively, so nothing on the far side can move away)."""
-    return not np.any(structure.friction_rows[e] @ structure.A < 0.0)
+def reads(structure: Structure, name: str) -> bool:
+    """Whether the figures read signal ``name``: the contacts', the elastic elements'
+    deflections and torques, the bodies' speeds."""
+    names = {sig.flange: sig.name for sig in structure.signals}
+    bodies = {f"{names.get(structure.free[b[0]], structure.free[b[0]])}.speed"
+              for b in (_body(structure, e) for e in range(len(structure.frictions))
+                        if structure.frictions[e].contact is not None) if b is not None}
+    return name.startswith("contact.") or name in bodies \
+        or (name.startswith("spring.") and name.endswith((".deflection", ".torque")))
 
 
 def report(result, structure: Structure, tip: Tip | None = None, *, plan=None) -> dict:
@@ -70,9 +87,7 @@ def report(result, structure: Structure, tip: Tip | None = None, *, plan=None) -
     contacts = [(e, element.name) for e, element in enumerate(structure.frictions)
                 if element.contact is not None]
     if plan is not None and contacts and len(result.time) >= 2:
-        wanted = [name for name in result.signals
-                  if name.startswith("contact.") or name.endswith(".speed")
-                  or (name.startswith("spring.") and name.endswith((".deflection", ".torque")))]
+        wanted = [name for name in result.signals if reads(structure, name)]
         time, signals = contact_samples(plan, result.time,
                                         {name: result[name] for name in wanted})
         result = Result(time=time, signals=signals, units={}, ledger={}, success=True,
@@ -93,7 +108,7 @@ def report(result, structure: Structure, tip: Tip | None = None, *, plan=None) -
         suspect = suspect_intervals(result.time, force, depth, result[f"contact.{name}.rate"],
                                     result.signals.get(f"work.{name}")) \
             if len(result.time) >= 2 else np.zeros(0, dtype=bool)
-        kind = "quasi-static" if _is_wall(structure, e) else "transient"
+        kind = "quasi-static" if _body(structure, e) is None else "transient"
         out[name] = [_event(ev, [sp.name for sp in springs],
                             not suspect[max(ev.first - 1, 0):ev.last + 1].any(), kind)
                      for ev in events]
@@ -148,4 +163,4 @@ def summary(figures: dict, until: float | None = None) -> list[str]:
     return lines
 
 
-__all__ = ["report", "summary"]
+__all__ = ["reads", "report", "summary"]

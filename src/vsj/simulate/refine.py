@@ -21,7 +21,9 @@ pass after pass, each pass splitting a suspect interval between two samples into
 * a sampled force peak whose second difference exceeds ``8 REL_TOL`` of it: a parabola
   through the three samples can rise more than `REL_TOL` above the middle one.
 
-The passes end when no interval is suspect, or at the scheme's resolution: the
+A run whose samples never come within reach of a contact (no force, and no penetration
+that its rate could take to zero between two samples) is not run again. The passes end
+when no interval is suspect, or at the scheme's resolution: the
 time-stepper's step (its state exists at its steps only, so the samples are snapped to
 them) or `FLOOR` for the adaptive schemes. What is still suspect there is a contact the
 scheme resolves in too few steps for its force to be trusted (`vsj.safety.run_report`
@@ -47,7 +49,7 @@ FLOOR = 1e-9
 #: Passes at most (each refines by `SPLIT`: a 1 ms grid reaches about 1 ns in six).
 PASSES = 6
 #: New samples one pass may add; beyond, the refinement stops (what is left stays suspect).
-MAX_NEW = 2_000_000
+MAX_NEW = 500_000
 
 
 def suspect_intervals(t, force, depth, rate, work=None) -> np.ndarray:
@@ -95,10 +97,11 @@ def _new_times(t, split, step) -> np.ndarray:
     return new[~np.isin(new, t)]
 
 
-def _sample(plan: Plan, times: np.ndarray, names: list[str]):
+def _sample(plan: Plan, times: np.ndarray, names: list[str], end: float | None = None):
     """The signals ``names`` of a fresh run of ``plan`` at ``times`` (increasing), block by
     block, and each contact's work so far (its ledger accumulator, ``work.<name>``):
-    ``(times reached, signals)``."""
+    ``(times reached, signals)``. ``end``: where the run ends (its last steps depend on
+    it: that of the run being sampled again; default the last of ``times``)."""
     structure, layout = plan.structure, plan.layout
     table = [s for s in catalogue(structure, ports=False, controller=plan.controller)
              if s.name in names]
@@ -106,7 +109,7 @@ def _sample(plan: Plan, times: np.ndarray, names: list[str]):
     columns = {f"work.{fr.name}": friction + e for e, fr in enumerate(structure.frictions)
                if fr.contact is not None}
     engine = plan.engine()
-    run = plan.start(until=float(times[-1]))
+    run = plan.start(until=float(times[-1]) if end is None else end)
     extra = plan.controller.width if plan.controller is not None else 0
     per_block = block_samples(structure, layout, False, extra)
     parts: dict[str, list] = {name: [] for name in [*names, *columns]}
@@ -157,8 +160,18 @@ def contact_samples(plan: Plan, time, signals) -> tuple[np.ndarray, dict]:
     floor = FLOOR if step is None else step
     if not np.any(np.diff(t) > 1.5 * floor):  # sampled at every step already
         return t, signals
+    near = False  # a contact, or a penetration that could reach zero between samples
+    for name in contacts:
+        force = signals[f"contact.{name}.force"]
+        near |= bool(np.any(force > 0.0) or np.any(suspect_intervals(
+            t, force, signals[f"contact.{name}.penetration"], signals[f"contact.{name}.rate"])))
+    if not near:  # never within reach of a contact: nothing to sample again
+        return t, signals
+    # the run's end as the run had it (`run_plan`: its duration, or its last sample past
+    # it by round-off), so that its steps are the same to the last
+    end = max(plan.duration, float(t[-1]))
     # the contacts' work at the given samples: a second run, sampled as the first
-    reached, work = _sample(plan, t, [])
+    reached, work = _sample(plan, t, [], end)
     t = t[:len(reached)]
     signals = {name: values[:len(t)] for name, values in signals.items()} | work
     for _ in range(PASSES):
@@ -172,7 +185,7 @@ def contact_samples(plan: Plan, time, signals) -> tuple[np.ndarray, dict]:
         new = _new_times(t, suspect & (np.diff(t) > 1.5 * floor), step)
         if not len(new) or len(new) > MAX_NEW:
             break
-        t_new, values = _sample(plan, new, names)
+        t_new, values = _sample(plan, new, names, end)
         t, signals = _merge(t, signals, t_new, values)
     return t, signals
 

@@ -27,7 +27,7 @@ class Result:
     warnings: list[str] = field(default_factory=list)
     #: The plan the run ran (`vsj.engine.plan.Plan`; None for a result read back or made
     #: by hand): what can run it again, as `vsj.safety.run_report` does to sample its
-    #: contacts finer. Left out of copies made by pickling.
+    #: contacts finer. Left out of copies (pickled, or by `copy`).
     plan: object = field(default=None, repr=False, compare=False)
 
     def __getstate__(self):

@@ -1234,7 +1234,8 @@ int64_t vsj_ts_stuck(const vsj_model *m, const vsj_work *w, unsigned char *stuck
 /* ---- the history, as bytes --------------------------------------------------- */
 
 /* What a part of the history holds, for checking bytes from outside (an FMU state):
- * reals that are finite, reals that may also be NaN (none yet), whole numbers from 0,
+ * reals that are finite, reals that may also be NaN (none yet: the last step's length
+ * and pivot angle, as clear_history leaves them), whole numbers from 0,
  * flags (-1, 0 or 1), a status (enum vsj_status) and impulse states (-1, 0, 1, 2). */
 enum { REALS, MARKER, COUNTS, FLAG, STATUS, STATES };
 
@@ -1269,10 +1270,10 @@ static int64_t history_spans(const vsj_model *m, const vsj_work *w, span *out) {
     SPAN(&t->t, d, REALS);
     SPAN(&t->origin, d, REALS);
     SPAN(&t->k, l, COUNTS);
-    SPAN(&t->q_prev, d, MARKER);
+    SPAN(&t->q_prev, d, REALS);
     SPAN(&t->angle_prev, d, MARKER);
-    SPAN(&t->angle_mid, d, MARKER);
-    SPAN(&t->q_mid, d, MARKER);
+    SPAN(&t->angle_mid, d, REALS);
+    SPAN(&t->q_mid, d, REALS);
     SPAN(&t->factored, i, FLAG);
     SPAN(&w->status, i, STATUS);
     SPAN(&t->hs_prev, d, MARKER);

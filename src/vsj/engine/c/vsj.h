@@ -307,7 +307,7 @@ typedef struct vsj_scheme {
     int64_t n_err;           /* dopri, rosenbrock: leading components of y in the error
                               * norm (rosenbrock: at most vsj_n_state) */
     double h;                /* time-stepper: the step [s] */
-    int64_t max_steps;       /* most steps of the whole run */
+    int64_t max_steps;       /* most steps of the whole run (vsj_step: of one period) */
     int ledger;              /* time-stepper: book the energy ledger into y's accumulators
                               * (dopri integrates them when y carries them) */
     int64_t substeps;        /* rk4: steps per held period */
