@@ -216,6 +216,17 @@ def test_excite_refuses_limits_no_design_can_meet(tmp_path, capsys):
     assert "motors" in capsys.readouterr().err and not out.exists()
 
 
+@pytest.mark.parametrize("option, value, problem", [
+    ("--candidates", "0", "--candidates 0: must be a whole number >= 1"),
+    ("--q", "5cm", "--q 5cm: outside the pivot range of the parameter set"),
+])
+def test_excite_refuses_a_bad_option_naming_it(tmp_path, capsys, option, value, problem):
+    out = tmp_path / "exp.toml"
+    assert main(["excite", "--free", "differential.inertia_x", "--duration", "2 s", option,
+                 value, "--out", str(out)]) == 2
+    assert problem in capsys.readouterr().err and not out.exists()
+
+
 def test_experiment_file_round_trip(tmp_path):
     e = experiment()
     path = tmp_path / "exp.toml"
@@ -279,6 +290,11 @@ def _write(path, text):
       "0.003,0,0\n0.004,0,0\n0.005,0,0\n"), "line 4: time does not increase"),
     ("time [s],theta_z [rad]\n0,0\n", "neither an input nor a signal"),
     ("time [s],theta_x [N m]\n0,0\n", "unit"),
+    # a pivot position outside the bundled set's range (-2.2 to 2 cm): a column in cm
+    # labelled mm, or another prototype's log
+    (("time [s],theta_x [rad],q [mm]\n" + "".join(f"{k * 1e-3},0,{-1.0 if k < 5 else -23.0}\n"
+                                                  for k in range(8))),
+     "line 7: the pivot position q = -23 mm is outside the pivot range of the parameter set"),
 ])
 def test_bad_logs_exit_2_naming_file_and_line(tmp_path, capsys, body, problem):
     path = _write(tmp_path / "bad.csv", body)

@@ -451,6 +451,28 @@ def _setup_file(path) -> dict:
     return doc
 
 
+def _check_pivot(log, params) -> None:
+    """Refuse a log whose pivot position leaves the parameter set's pivot range: its
+    median (the position a fixed pivot takes), or a sample by more than 1 % of the range
+    (beyond a sensor's noise: a column in another unit, or another prototype's log)."""
+    if "q" not in log.columns:
+        return
+    q = np.asarray(log["q"], dtype=float)
+    lo, hi = params["pivot.q_min"], params["pivot.q_max"]
+    margin = 0.01 * (hi - lo)
+    outside = np.flatnonzero((q < lo - margin) | (q > hi + margin))
+    median = float(np.median(q))
+    if len(outside) or not lo <= median <= hi:
+        k = int(outside[0]) if len(outside) else None
+        where = (f"line {int(log.lines[k])}: " if k is not None and log.lines is not None
+                 else "")
+        value = q[k] if k is not None else median
+        raise InputError(f"{log.path}: {where}the pivot position q = {value * 1e3:.4g} mm"
+                         f"{'' if k is not None else ' (the median)'} is outside the pivot "
+                         f"range of the parameter set, [{lo * 1e3:.4g}, {hi * 1e3:.4g}] mm "
+                         "(pivot.q_min, q_max); is the q column in the unit its header says?")
+
+
 def cmd_fit_wrist(args) -> int:
     """``vsj fit wrist``: the assembled wrist's free parameters from logs of its signals by
     output error, with standard errors, validation and a report. Returns the exit code: 0
@@ -469,6 +491,8 @@ def cmd_fit_wrist(args) -> int:
     known = all_known_columns()
     logs = [measurements.read_log(f, known) for f in args.logs]
     validate = [measurements.read_log(f, known) for f in (args.validate or [])]
+    for log in (*logs, *validate):
+        _check_pivot(log, params)
     motors = args.motor_model
     if motors is None:
         motors = "dc" if any(c.startswith("voltage_") or c.endswith(".voltage")
@@ -505,6 +529,7 @@ def cmd_fit_wrist(args) -> int:
                      f"  {e.name} = {e.value * 1e3:.4g} ms ({e.status})")
     for c in fit.combinations:
         lines.append(f"  not determined by these data: {c}")
+    lines += [f"  note: {note}" for note in fit.notes]
     if fit.uncertainty:
         lines.append(f"  standard errors: {fit.uncertainty['description']}")
     lines.append(f"  {fit.reached} of {len(fit.starts)} starts reached the best optimum (same "
@@ -568,6 +593,11 @@ def cmd_excite(args) -> int:
     if not max_torque >= 0:
         raise InputError(f"--max-torque {args.max_torque}: must be >= 0 N m")
     q = to_si(args.q, "m", where="--q")
+    if not params["pivot.q_min"] <= q <= params["pivot.q_max"]:
+        raise InputError(f"--q {args.q}: outside the pivot range of the parameter set, "
+                         f"[{params['pivot.q_min'] * 100:g}, {params['pivot.q_max'] * 100:g}] cm")
+    if args.candidates < 1:
+        raise InputError(f"--candidates {args.candidates}: must be a whole number >= 1")
     check_output_file(args.out, "--out", size=SMALL_OUTPUT_BYTES, force=args.force)
     d = wrist_experiment.design(
         params, names, duration, max_speed=max_speed, max_torque=max_torque,
