@@ -612,7 +612,9 @@ def cmd_excite(args) -> int:
              + "; ".join(f"{m} {u['speed']:.4g} rad/s, {u['torque']:.4g} N m, "
                          f"{u['voltage']:.3g} V" for m, u in d.use.items() if m != "worst"),
              f"  log det of the Fisher information (relative units): {d.logdet:.4g}; plain sine "
-             f"{d.reference_logdet:.4g}", "  predicted standard errors (design / plain sine):"]
+             f"{d.reference_logdet:.4g}",
+             "  predicted standard errors from the sensors' noise alone, a lower bound on a "
+             "fit's (a fit also counts the torque inputs' noise; design / plain sine):"]
     for n in names:
         lines.append(f"    {n}: {d.stderr[n]:.3g} / {d.reference_stderr[n]:.3g} (start "
                      f"{params[n]:.4g}, SI)")

@@ -448,7 +448,10 @@ def predicted(experiment: Experiment, params, free, *, threads=None, run=None):
     """Predicted standard errors [SI] of ``free`` from an experiment, and log det of the
     Fisher information in relative parameter units: the batch Jacobian of a noiseless
     synthetic log (true stiction, windows restarted as the fit restarts them) weighted
-    by the sensors' noise. ``run``: `vsj.synth.wrist_run` of the experiment, if at hand."""
+    by the sensors' noise. The noise of the measured torque inputs, which a fit counts
+    too (`vsj.identification.wrist`), is left out: these are lower bounds on a fit's
+    standard errors, and compare designs with each other. ``run``: `vsj.synth.wrist_run`
+    of the experiment, if at hand."""
     # lazy: scipy.optimize; synth wrist loads experiments without it
     from .wrist import FINAL, _Problem
 
