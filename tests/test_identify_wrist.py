@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from vsj import synth
+from vsj.params import load as load_params
 from vsj.cli import main
 from vsj.identification import wrist_experiment as WE
 from vsj.identification.wrist import fit_wrist
@@ -277,6 +278,36 @@ def test_cli_synth_fit_and_write_params(tmp_path, truth, capsys):
     np.testing.assert_allclose(sd, [record["parameters"][n]["stderr"]
                                     for n in spec.covariance.names], rtol=1e-9)
     assert np.all(sd > 0)
+
+
+def test_write_params_names_a_parameter_it_leaves_at_the_sets_value(tmp_path, truth, capsys):
+    """A free parameter that ends at a bound (here the truth lies outside its bounds) is not
+    written: the file keeps the set's value for it, and the message says so, since the
+    values written were fitted with it at the bound."""
+    exp = tmp_path / "exp.toml"
+    exp.write_text(replace(experiment(3.0), step=1e-3).to_toml())
+    truth_file = tmp_path / "truth.toml"
+    truth_file.write_text(truth.to_toml())
+    log = tmp_path / "log.csv"
+    assert main(["synth", "wrist", "--experiment", str(exp), "--params", str(truth_file),
+                 "--out", str(log)]) == 0
+    # the fit starts 20 % above the truth, bounded to 10..30 % above it
+    inertia = truth["differential.inertia_x"]
+    start = tmp_path / "start.toml"
+    start.write_text(truth.with_overrides(
+        {"differential.inertia_x": f"{1.2 * inertia!r} kg m^2"}, origin="start").to_toml())
+    bounds = f"differential.inertia_x={1.1 * inertia!r},{1.3 * inertia!r}"  # kg m^2
+    written = tmp_path / "ident.toml"
+    capsys.readouterr()
+    assert main(["fit", "wrist", str(log), "--params", str(start), "--free", bounds,
+                 "--free", "transmission.stiction", "--starts", "1",
+                 "--write-params", str(written)]) == 0
+    printed = capsys.readouterr().out
+    assert "not written, so it keeps the set's value: differential.inertia_x (at a bound)" \
+        in printed
+    loaded = load_params(written)
+    assert loaded["differential.inertia_x"] == 1.2 * inertia  # the set's, as said
+    assert "identified from" in loaded.sources["transmission.stiction"]
 
 
 def _write(path, text):

@@ -544,7 +544,10 @@ def cmd_fit_wrist(args) -> int:
     if args.write_params:
         overrides = fit.overrides(", ".join(args.logs))
         _write_params(args.write_params, overrides, args.params)
-        lines.append(f"wrote {args.write_params}")
+        left = [f"{e.name} ({e.status})" for e in fit.estimates if e.name not in overrides]
+        lines.append(f"wrote {args.write_params}" + (
+            f"; not written, so it keeps the set's value: {', '.join(left)}; the values "
+            "written were fitted with it at its estimate" if left else ""))
     _say(args, "\n".join(lines))
     return 0
 
