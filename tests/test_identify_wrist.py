@@ -238,14 +238,21 @@ def test_experiment_file_round_trip(tmp_path):
         np.testing.assert_allclose(back.value(ch, t), e.value(ch, t), atol=1e-9)
 
 
-def test_cli_synth_fit_and_write_params(tmp_path, truth, capsys):
+def synth_log(tmp_path, truth, duration: float):
+    """``vsj synth wrist`` of an experiment of ``duration`` seconds at a 1 ms step with
+    ``truth``: ``(truth's parameter file, the log)``."""
     exp = tmp_path / "exp.toml"
-    exp.write_text(replace(experiment(4.0), step=1e-3).to_toml())
+    exp.write_text(replace(experiment(duration), step=1e-3).to_toml())
     truth_file = tmp_path / "truth.toml"
     truth_file.write_text(truth.to_toml())
     log = tmp_path / "log.csv"
     assert main(["synth", "wrist", "--experiment", str(exp), "--params", str(truth_file),
                  "--out", str(log)]) == 0
+    return truth_file, log
+
+
+def test_cli_synth_fit_and_write_params(tmp_path, truth, capsys):
+    truth_file, log = synth_log(tmp_path, truth, 4.0)
     assert "synthetic" in log.read_text().splitlines()[0]
     out, written = tmp_path / "out", tmp_path / "ident.toml"
     capsys.readouterr()
@@ -284,13 +291,7 @@ def test_write_params_names_a_parameter_it_leaves_at_the_sets_value(tmp_path, tr
     """A free parameter that ends at a bound (here the truth lies outside its bounds) is not
     written: the file keeps the set's value for it, and the message says so, since the
     values written were fitted with it at the bound."""
-    exp = tmp_path / "exp.toml"
-    exp.write_text(replace(experiment(3.0), step=1e-3).to_toml())
-    truth_file = tmp_path / "truth.toml"
-    truth_file.write_text(truth.to_toml())
-    log = tmp_path / "log.csv"
-    assert main(["synth", "wrist", "--experiment", str(exp), "--params", str(truth_file),
-                 "--out", str(log)]) == 0
+    _, log = synth_log(tmp_path, truth, 3.0)
     # the fit starts 20 % above the truth, bounded to 10..30 % above it
     inertia = truth["differential.inertia_x"]
     start = tmp_path / "start.toml"
