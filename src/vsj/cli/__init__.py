@@ -128,7 +128,7 @@ def _safety(trajectory, k: int, case) -> dict:
     from ..safety.run_report import reads, report  # lazy: only runs with contacts need it
 
     reached = trajectory.reached[k]
-    wanted = [name for name in trajectory.names(k) if reads(case.structure, name)]
+    wanted = reads(case.structure, trajectory.names(k))
     signals = {name: trajectory.read(name, k, 0, reached) for name in wanted}
     run = Result(time=trajectory.time[:reached], signals=signals, units={}, ledger={},
                  success=True, message="", solver={})

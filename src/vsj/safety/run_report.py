@@ -53,15 +53,15 @@ def _body_velocity(structure: Structure, e: int, result) -> np.ndarray | None:
     return rate * result[signal] if signal in result.signals else None
 
 
-def reads(structure: Structure, name: str) -> bool:
-    """Whether the figures read signal ``name``: the contacts', the elastic elements'
+def reads(structure: Structure, names) -> list[str]:
+    """Those of the signal ``names`` the figures read: the contacts', the elastic elements'
     deflections and torques, the bodies' speeds."""
-    names = {sig.flange: sig.name for sig in structure.signals}
-    bodies = {f"{names.get(structure.free[b[0]], structure.free[b[0]])}.speed"
-              for b in (_body(structure, e) for e in range(len(structure.frictions))
-                        if structure.frictions[e].contact is not None) if b is not None}
-    return name.startswith("contact.") or name in bodies \
-        or (name.startswith("spring.") and name.endswith((".deflection", ".torque")))
+    flanges = {sig.flange: sig.name for sig in structure.signals}
+    bodies = {f"{flanges.get(structure.free[b[0]], structure.free[b[0]])}.speed"
+              for b in (_body(structure, e) for e, fr in enumerate(structure.frictions)
+                        if fr.contact is not None) if b is not None}
+    return [name for name in names if name.startswith("contact.") or name in bodies
+            or (name.startswith("spring.") and name.endswith((".deflection", ".torque")))]
 
 
 def report(result, structure: Structure, tip: Tip | None = None, *, plan=None) -> dict:
@@ -87,7 +87,7 @@ def report(result, structure: Structure, tip: Tip | None = None, *, plan=None) -
     contacts = [(e, element.name) for e, element in enumerate(structure.frictions)
                 if element.contact is not None]
     if plan is not None and contacts and len(result.time) >= 2:
-        wanted = [name for name in result.signals if reads(structure, name)]
+        wanted = reads(structure, result.signals)
         time, signals = contact_samples(plan, result.time,
                                         {name: result[name] for name in wanted})
         result = Result(time=time, signals=signals, units={}, ledger={}, success=True,
