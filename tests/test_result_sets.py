@@ -585,6 +585,7 @@ def test_what_a_killed_run_left_is_cleared_by_the_next(tmp_path, capsys):
     in_place.mkdir()
     (in_place / "trajectory.nc").write_text("partial")
     (out / ".meta.json.vsj-tmp-1234abcd").write_text("partial")
+    (out / ".probe.vsj-tmp-044bc52e").write_text("")  # killed while probing the directory
     assert main(["simulate", str(scenario(tmp_path)), "--out", str(out), "--no-plot"]) == 2
     assert "files that vsj did not write (notes.txt" in capsys.readouterr().err
     assert hidden(tmp_path) == [] and hidden(out) == []

@@ -263,6 +263,20 @@ def test_a_sweep_killed_before_its_tables_gets_them_on_resume(reference, tmp_pat
     assert verify_sweep(out) == []
 
 
+def test_a_probe_file_left_by_a_killed_sweep_is_removed_on_resume(reference, tmp_path, capsys):
+    """vsj names a file for a moment to learn whether the directory takes unnamed ones; a
+    sweep killed then leaves it behind. It is vsj's, so a resume removes it."""
+    spec, out = _copy(reference, tmp_path)
+    _unfinish(out)
+    probe = out / ".probe.vsj-tmp-044bc52e"
+    probe.write_bytes(b"")
+    assert "left by an interrupted vsj sweep" in " ".join(verify_sweep(out))
+    assert main(["sweep", str(spec), "--out", str(out), *CHUNK, "--resume"]) == 0
+    assert not probe.exists()
+    _same(reference[1], out)
+    assert verify_sweep(out) == []
+
+
 # --- item 9: windows and pivot positions refused before any run --------------------
 
 @pytest.mark.parametrize("edit, words", [

@@ -7,8 +7,8 @@
   or streamed block by block (`TrajectoryFile`).
 """
 
-from .files import (MANIFEST, OUTPUTS, SMALL_OUTPUT_BYTES, OutputError, ResultSet, _jsonable,
-                    atomic_write, check_output_file, clear_staging, file_record,
+from .files import (MANIFEST, OUTPUTS, PROBE, SMALL_OUTPUT_BYTES, OutputError, ResultSet,
+                    _jsonable, atomic_write, check_output_file, clear_staging, file_record,
                     read_manifest, recorded_file_problems, regular_file, verify,
                     write_errors, write_meta, written_by_vsj)
 from .trajectory import (PLOT_BYTES, TrajectoryFile, cases_dataset, column_name,
@@ -16,7 +16,7 @@ from .trajectory import (PLOT_BYTES, TrajectoryFile, cases_dataset, column_name,
                          trajectory_table, write_cases, write_dataset, write_trajectory,
                          write_trajectory_csv)
 
-__all__ = ["MANIFEST", "OUTPUTS", "SMALL_OUTPUT_BYTES", "OutputError", "ResultSet",
+__all__ = ["MANIFEST", "OUTPUTS", "PROBE", "SMALL_OUTPUT_BYTES", "OutputError", "ResultSet",
            "atomic_write", "check_output_file", "clear_staging", "file_record",
            "read_manifest", "recorded_file_problems", "regular_file", "verify", "write_errors",
            "write_meta", "written_by_vsj",

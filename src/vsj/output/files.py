@@ -97,9 +97,12 @@ OUTPUTS = {
 
 _ANY_OUTPUT = "|".join(f"(?:{p})" for p in OUTPUTS.values())
 _VSJ_FILE = rf"(?:{_ANY_OUTPUT})|{re.escape(MANIFEST)}"
+#: The name of the files that try whether a directory is writable and takes unnamed files
+#: (`_anonymous_files_work`): removed at once, but left by a process killed meanwhile.
+PROBE = "probe"
 #: What `clear_staging` may delete: vsj's files and `atomic_write`'s temporaries of them.
-_DISPOSABLE = rf"{_VSJ_FILE}|\.(?:{_VSJ_FILE})\.vsj-tmp-\w+"
-_TEMPORARY = re.compile(rf"\.(?:{_VSJ_FILE})\.vsj-tmp-\w+")
+_DISPOSABLE = rf"{_VSJ_FILE}|\.(?:{_VSJ_FILE}|{PROBE})\.vsj-tmp-\w+"
+_TEMPORARY = re.compile(rf"\.(?:{_VSJ_FILE}|{PROBE})\.vsj-tmp-\w+")
 _IN_PLACE_STAGING = re.compile(r"\.vsj-[0-9a-f]{16}")
 
 
@@ -155,7 +158,7 @@ def _anonymous_files_work(directory: Path) -> bool:
         fd = os.open(directory, flag | os.O_WRONLY | os.O_CLOEXEC, 0o600)
     except OSError:
         return False
-    probe = directory / _temp_name("probe")
+    probe = directory / _temp_name(PROBE)
     try:
         _link(fd, probe)
         os.unlink(probe)
@@ -675,7 +678,7 @@ class ResultSet:
         self._exchange = not inside and not _is_mount_point(self.dir) and self._can_exchange()
         if not self._exchange:
             try:
-                fd, named = _temporary_file(self.dir, "probe")
+                fd, named = _temporary_file(self.dir, PROBE)
                 os.close(fd)
                 if named is not None:
                     os.unlink(named)

@@ -45,8 +45,8 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError, read_bytes
-from ..output import (OUTPUTS, PLOT_BYTES, OutputError, atomic_write, file_record,
-                      recorded_file_problems, regular_file)
+from ..output import (OUTPUTS, PLOT_BYTES, PROBE, OutputError, atomic_write,
+                      file_record, recorded_file_problems, regular_file)
 from ..params import SCHEMA
 
 ZARR = "sweep.zarr"
@@ -58,8 +58,9 @@ NOT_RUN = -2
 DATA = ("signals", "metrics", "status", "steps")
 _OURS = re.compile(OUTPUTS["sweep"])
 #: `atomic_write`'s temporary files of the sweep's files (where the file system has no
-#: unnamed ones), and a store frame being rebuilt (`build_frame`).
-_TEMPORARY = re.compile(rf"\.(?:{OUTPUTS['sweep']}|{re.escape(ZARR)})\.vsj-tmp-\w+")
+#: unnamed ones) and its probes of the directory, and a store frame being rebuilt
+#: (`build_frame`).
+_TEMPORARY = re.compile(rf"\.(?:{OUTPUTS['sweep']}|{re.escape(ZARR)}|{PROBE})\.vsj-tmp-\w+")
 #: zarr's temporary file of a chunk or metadata file being written (``KEY.HEX.partial``).
 _PARTIAL = re.compile(r".*\.[0-9a-f]{32}\.partial")
 #: Largest sweep.json read [bytes]: it holds about 250 bytes per chunk and 300 per failed
