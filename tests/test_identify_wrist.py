@@ -350,6 +350,13 @@ def test_free_parameter_that_changes_the_kinematics_is_refused(tmp_path, capsys)
     assert "kinematics" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("free", ["transmision.viscous", "transmision.viscous=1,2"])
+def test_a_misspelt_free_parameter_is_named_with_the_closest_one(capsys, free):
+    assert main(["fit", "wrist", "x.csv", "--free", free]) == 2
+    assert "no such parameter (did you mean 'transmission.viscous'?)" in \
+        capsys.readouterr().err
+
+
 def test_starts_are_spread_over_the_bounds_and_the_count_reaching_the_best_is_honest(truth):
     """The starts are the given point and a Latin hypercube over the bounds (log scale):
     distinct, inside the bounds, one in each third of every parameter's range. Given

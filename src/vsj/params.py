@@ -345,8 +345,9 @@ class _Section:
         return self._params.values[full]
 
 
-def _nearest(name: str, choices) -> str:
-    """`` (did you mean 'x'?)`` for the closest of ``choices``, or nothing."""
+def did_you_mean(name: str, choices) -> str:
+    """`` (did you mean 'x'?)`` for the closest of ``choices`` to the misspelt ``name``
+    (`difflib`), or nothing when none is close: the end of an error message."""
     close = difflib.get_close_matches(name, list(choices), n=1, cutoff=0.6)
     return f" (did you mean {close[0]!r}?)" if close else ""
 
@@ -381,7 +382,7 @@ def _from_table(table: Mapping, origin: str,
             continue
         if section not in SCHEMA:
             problems.append(f"{at(section)}: unknown section [{section}]"
-                            f"{_nearest(section, SCHEMA)}; sections: {', '.join(SCHEMA)}")
+                            f"{did_you_mean(section, SCHEMA)}; sections: {', '.join(SCHEMA)}")
             continue
         if not isinstance(body, Mapping):
             problems.append(f"{at(section)}: [{section}] must be a table")
@@ -392,7 +393,8 @@ def _from_table(table: Mapping, origin: str,
             file = at(key)
             spec = SCHEMA[section].get(name)
             if spec is None:
-                problems.append(f"{file}: {key}: unknown key{_nearest(name, SCHEMA[section])}; "
+                hint = did_you_mean(name, SCHEMA[section])
+                problems.append(f"{file}: {key}: unknown key{hint}; "
                                 f"[{section}] has {', '.join(SCHEMA[section])}")
                 continue
             if not isinstance(entry, Mapping) or "value" not in entry:
@@ -406,7 +408,9 @@ def _from_table(table: Mapping, origin: str,
                                 "allowed: value, source")
             source = entry.get("source")
             if not isinstance(source, str) or not source.strip():
-                problems.append(f"{file}: {key}: missing source (say where the value comes "
+                what = ("missing source" if source is None or isinstance(source, str) else
+                        f"source = {source!r} is not a text")
+                problems.append(f"{file}: {key}: {what} (say where the value comes "
                                 "from, e.g. \"report table 4.1\" or \"estimated: <how>\")")
                 source = ""
             try:
@@ -558,7 +562,7 @@ def _parent(parent, origin: str, base: Path) -> tuple[Path, str]:
     if file.suffix != ".toml" and not os.path.lexists(file):
         raise InputError(f"{origin}: extends = {parent!r}: no such file, and not a bundled "
                          f"parameter set ({', '.join(bundled_names())})"
-                         f"{_nearest(parent, bundled_names())}")
+                         f"{did_you_mean(parent, bundled_names())}")
     return file, str(file)
 
 

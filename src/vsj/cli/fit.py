@@ -424,7 +424,8 @@ def _free(items) -> tuple[tuple[str, ...], dict]:
             section, _, key = name.partition(".")
             spec = SCHEMA.get(section, {}).get(key)
             if spec is None:
-                raise InputError(f"--free {name}: no such parameter")
+                hint = params.did_you_mean(name, [f"{s}.{k}" for s in SCHEMA for k in SCHEMA[s]])
+                raise InputError(f"--free {name}: no such parameter{hint}")
             parts = rest.split(",")
             if len(parts) != 2:
                 raise InputError(f"--free {item}: bounds are written NAME=LOW,HIGH")

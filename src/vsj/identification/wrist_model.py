@@ -283,9 +283,10 @@ def check_free(names: Sequence[str], params: Parameters) -> None:
             raise InputError(f"--free {name}: named twice")
         seen.add(name)
         if name not in params.values:
+            hint = params_module.did_you_mean(name, params.values)
             sections = ", ".join(SCHEMA)
-            raise InputError(f"--free {name}: no such parameter (write section.key as in the "
-                             f"parameter file; sections: {sections})")
+            raise InputError(f"--free {name}: no such parameter{hint} (write section.key as "
+                             f"in the parameter file; sections: {sections})")
         if name in _KINEMATIC:
             raise InputError(f"--free {name}: it changes the kinematics of the network (a "
                              "ratio, the pivot's reach or an end stop), which one batch of "
