@@ -13,7 +13,7 @@ from conftest import override
 from vsj import characteristics as ch
 from vsj import measurements, synth
 from vsj.cli import main
-from vsj.identification.friction import fit_curve
+from vsj.identification.friction import fit_curve, serial_inflation
 from vsj.identification.geometry import calibrate_to_curves
 from vsj.identification.planetary import fit_planetary
 from vsj.identification.stiffness import fit_curve as fit_loop
@@ -71,6 +71,42 @@ def test_confidence_intervals_cover_the_truth():
                                                       seed=500 + seed)))
         hits += [e.ci95[0] <= t <= e.ci95[1] for e, t in zip((fit.c1, fit.c2, fit.c3), true)]
     assert np.all((hits >= 90) & (hits <= 99)), hits
+
+
+def test_a_time_series_without_its_time_column_gets_honest_intervals():
+    """The plateaus of a time series whose time column is missing are taken as averaged
+    points, transients and ripple included: the residuals run in long correlated
+    stretches. The classical intervals were 4-10 standard errors off the truth; widened
+    by the residuals' long-run variance they hold it, and a note names the likely cause."""
+    true = (0.0015, 0.005, 10.0)
+    data = synth.friction(fixed="sun", constants=true, form="segments", seed=2)
+    del data.columns["time"]
+    fit = fit_curve(as_measurement(data))
+    assert fit.form == "points"
+    assert any("correlated from row to row" in n and "give its time column" in n
+               for n in fit.notes), fit.notes
+    for e, t in zip((fit.c1, fit.c2, fit.c3), true):
+        # 3 standard errors: a normal estimate's 99.7 % interval
+        assert abs(e.value - t) <= 3 * e.stderr, (e.name, e.value, e.stderr)
+
+
+def test_the_long_run_variance_of_correlated_residuals_is_found():
+    """An AR(1) series x_t = rho x_(t-1) + noise has long-run variance (1 + rho) / (1 - rho)
+    times its variance. Independent residuals are left alone (factor 1)."""
+    rng = np.random.default_rng(4)
+    rho, n = 0.9, 100_000
+    x = np.zeros(n)
+    shocks = rng.normal(size=n)
+    for t in range(1, n):
+        x[t] = rho * x[t - 1] + shocks[t]
+    factor, seen = serial_inflation(x)
+    assert seen == pytest.approx(rho, abs=4 / np.sqrt(n))  # sd of the lag-1 estimate ~ 1/sqrt(n)
+    # the Bartlett window (width about 240 here) is biased low by 2 rho / ((1 - rho)^2
+    # (width + 1)), about 4 %, and scatters by sqrt(4 width / 3n), about 6 %: 25 % is
+    # four of those standard deviations beyond the bias
+    assert factor == pytest.approx((1 + rho) / (1 - rho), rel=0.25)
+    assert serial_inflation(rng.normal(size=500))[0] == 1.0
+    assert serial_inflation(np.zeros(50)) == (1.0, 0.0)
 
 
 def _curves(proto, seed=11):

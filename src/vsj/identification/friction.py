@@ -15,7 +15,8 @@ plateaus (or of the sweep) is fitted at once with the curve plus a Fourier
 series in the carrier angle, mirrored with the direction of motion as fig 4.6
 shows, so the ripple's own uncertainty enters the constants'. Uncertainties are
 the usual least-squares ones: standard errors from the residual variance and
-the Jacobian, 95 % confidence intervals from Student's t. A constant the data
+the Jacobian, 95 % confidence intervals from Student's t; residuals correlated
+from row to row widen them (`serial_inflation`) and are noted. A constant the data
 cannot determine (all points at one speed, say) or one at a bound has no
 interval, and says so.
 """
@@ -168,6 +169,40 @@ def estimates(result, names, units, dof, scale=1.0) -> list[Estimate]:
     t = stats.t.ppf(0.975, max(dof, 1))
     return [Estimate(n, float(v), u, float(e), (float(v - t * e), float(v + t * e)))
             for n, v, u, e in zip(names, result.x, units, err)]
+
+
+def serial_inflation(residuals: np.ndarray) -> tuple[float, float]:
+    """``(factor, rho)``: how far the correlation of the residuals from row to row (in
+    the data's order) widens the variance of the estimates, and their lag-1
+    autocorrelation.
+
+    Least squares takes the residuals as independent. Neighbouring samples of a time
+    series are not when the model leaves structure out (a transient, a ripple without
+    its angle), and then the classical variance is too small by the ratio of the
+    residuals' long-run variance to their variance. That ratio is estimated with a
+    Bartlett window whose width follows Andrews's AR(1) plug-in rule (Andrews 1991,
+    Econometrica 59: 817), an approximation that holds where the Jacobian's rows change
+    slowly beside the correlation's length, as they do along a sweep or a plateau. The
+    factor is 1 unless the lag-1 autocorrelation exceeds what chance gives independent
+    residuals (2 / sqrt(n), about the one-sided 2.5 % point), so independent points keep
+    their classical intervals."""
+    e = np.asarray(residuals, dtype=float)
+    n = len(e)
+    e = e - e.mean()
+    if n < 8 or not np.any(e):
+        return 1.0, 0.0
+    # autocovariances at every lag, from one zero-padded FFT (not a quadratic sum)
+    spectrum = np.fft.rfft(e, 2 * n)
+    gamma = np.fft.irfft(spectrum * np.conj(spectrum), 2 * n)[:n] / n
+    rho = float(gamma[1] / gamma[0])
+    if rho <= 2.0 / math.sqrt(n):
+        return 1.0, rho
+    r = min(rho, 1.0 - 1e-6)  # a residual that is all trend: the window spans the data
+    alpha = 4.0 * r ** 2 / ((1.0 - r) ** 2 * (1.0 + r) ** 2)
+    width = 1.1447 * (alpha * n) ** (1.0 / 3.0)
+    lags = np.arange(1, min(int(width), n - 1) + 1)
+    long_run = gamma[0] + 2.0 * np.sum((1.0 - lags / (width + 1.0)) * gamma[lags])
+    return max(1.0, float(long_run / gamma[0])), rho
 
 
 def plateaus(time: np.ndarray, velocity: np.ndarray) -> list[slice]:
@@ -332,7 +367,10 @@ def fit_curve(m: Measurement) -> FrictionFit:
     dof = len(result.fun) - len(result.x)
     names = ["c1", "c2", "c3"] + [f"ripple{i}" for i in range(len(result.x) - 3)]
     units = ["N m s/rad", "N m", "s/rad"] + ["N m"] * (len(result.x) - 3)
-    est = estimates(result, names, units, dof)
+    factor, rho = serial_inflation(result.fun)
+    if factor > 1.0:
+        notes.append(_correlated(form, rho, factor, len(result.fun), angle is not None))
+    est = estimates(result, names, units, dof, scale=factor)
     for status, why in (("not determined", "not determined by these data (points at 4 or "
                                             "more different speeds are needed)"),
                         ("at a bound", "at a bound of the fit")):
@@ -343,6 +381,24 @@ def fit_curve(m: Measurement) -> FrictionFit:
                        torque=np.asarray(T), residual_rms=float(np.sqrt(np.mean(result.fun ** 2))),
                        dof=dof, ripple=ripple, raw=raw, source=m.path, synthetic=m.synthetic,
                        notes=notes)
+
+
+def _correlated(form: str, rho: float, factor: float, n: int, has_angle: bool) -> str:
+    """The note of a fit whose residuals are correlated from row to row
+    (`serial_inflation`): what it means and what usually causes it."""
+    if form == "points":
+        cause = (f"{n} rows taken as one averaged speed each: if this is a time series, "
+                 "give its time column, and the plateaus are averaged after their "
+                 "transients")
+    elif not has_angle:
+        cause = ("an angle-dependent ripple (fig 4.6) with no angle column to fit it: give "
+                 "the carrier angle")
+    else:
+        cause = "a transient or a ripple that the model does not describe"
+    return (f"the residuals are correlated from row to row (lag-1 autocorrelation "
+            f"{rho:.2f}), so the data hold structure the curve does not explain ({cause}); "
+            f"the standard errors are widened {math.sqrt(factor):.3g}x for it, but the "
+            "constants themselves may be biased")
 
 
 def _means(segments, velocity, torque, keep, ripple):
