@@ -617,8 +617,8 @@ def cmd_excite(args) -> int:
                          f"{u['voltage']:.3g} V" for m, u in d.use.items() if m != "worst"),
              f"  log det of the Fisher information (relative units): {d.logdet:.4g}; plain sine "
              f"{d.reference_logdet:.4g}",
-             "  predicted standard errors from the sensors' noise alone, a lower bound on a "
-             "fit's (a fit also counts the torque inputs' noise; design / plain sine):"]
+             "  predicted standard errors of a fit (the sensors' and the torque inputs' noise, "
+             "the delays a fit estimates; design / plain sine):"]
     for n in names:
         lines.append(f"    {n}: {d.stderr[n]:.3g} / {d.reference_stderr[n]:.3g} (start "
                      f"{params[n]:.4g}, SI)")

@@ -444,16 +444,24 @@ def within_limits(experiment: Experiment, params, limits: MotorLimits):
     return found
 
 
-def predicted(experiment: Experiment, params, free, *, threads=None, run=None):
+def predicted(experiment: Experiment, params, free, *, threads=None, run=None,
+              input_draws: int = 0):
     """Predicted standard errors [SI] of ``free`` from an experiment, and log det of the
     Fisher information in relative parameter units: the batch Jacobian of a noiseless
     synthetic log (true stiction, windows restarted as the fit restarts them) weighted
-    by the sensors' noise. The noise of the measured torque inputs, which a fit counts
-    too (`vsj.identification.wrist`), is left out: these are lower bounds on a fit's
-    standard errors, and compare designs with each other. ``run``: `vsj.synth.wrist_run`
-    of the experiment, if at hand."""
+    by the sensors' noise. The fit also estimates each compared signal's delay, which
+    takes information from the parameters: the delays are in the Jacobian, and the log
+    det is that of the parameters' information once the delays are known from the
+    same data (Ds-optimality). ``run``: `vsj.synth.wrist_run` of the experiment, if at
+    hand.
+
+    The log det, which ranks designs, counts the compared signals' noise only. With
+    ``input_draws`` the standard errors also count the noise of the measured torque
+    inputs as a fit does (`vsj.identification.wrist`): the design's inputs get that
+    many fresh draws of the sensors' torque noise, and each draw's residual change is
+    taken through one Gauss-Newton step. Without, they are a lower bound on a fit's."""
     # lazy: scipy.optimize; synth wrist loads experiments without it
-    from .wrist import FINAL, _Problem
+    from .wrist import DELAY_UNIT, FINAL, _Problem
 
     quiet = replace(experiment.sensors, encoder_counts=2 ** 40, angle_noise=0.0,
                     current_noise=0.0, current_offset=0.0, torque_noise=0.0, q_noise=0.0,
@@ -461,23 +469,36 @@ def predicted(experiment: Experiment, params, free, *, threads=None, run=None):
     data = synth.wrist(replace(experiment, sensors=quiet), params, seed=0, run=run)
     log = Measurement("<design>", {k: v[0] for k, v in data.columns.items()},
                       {k: v[1] for k, v in data.columns.items()}, data.comments)
-    # no delays: the design's own log has none
-    model = WristModel([log], params, Setup(free=tuple(free), threads=threads, delays=False))
+    model = WristModel([log], params, Setup(free=tuple(free), threads=threads))
     s = experiment.sensors
     angle = math.sqrt(s.angle_noise ** 2 + (2 * math.pi / s.encoder_counts) ** 2 / 12)
     model.set_noise({o.name: (s.current_noise if o.kind == "current" else
                               s.q_noise if o.kind == "q" else angle) or 1e-9
                      for o in model.outputs})
-    scale = np.abs(model.base)
-    J = _Problem(model, scale, FINAL).jac(np.ones(len(scale)))
+    n_par, n_delay = len(model.names), len(model.delay_names)
+    scale = np.concatenate([np.abs(model.base), np.full(n_delay, DELAY_UNIT)])
+    problem = _Problem(model, scale, FINAL)
+    theta = np.concatenate([np.ones(n_par), np.zeros(n_delay)])
+    J = problem.jac(theta)
     F = J.T @ J
     w, V = np.linalg.eigh(F)
     logdet = float(np.sum(np.log(np.maximum(w, 1e-300))))
+    if n_delay:  # the delays are nuisance: the information on the parameters given them
+        logdet -= float(np.sum(np.log(np.maximum(np.linalg.eigvalsh(F[n_par:, n_par:]),
+                                                 1e-300))))
     keep = w > 1e-12 * max(w[-1], 1e-300)
     cov = (V[:, keep] / w[keep]) @ V[:, keep].T
+    noisy = {column: s.torque_noise for channel, (column, _) in model.channels.items()
+             if channel.startswith("tau_")} if s.torque_noise > 0 else {}
+    if input_draws > 1 and noisy:
+        perturbed, ran = model.perturbed_residuals(theta * scale, FINAL, input_draws,
+                                                   noise=noisy)
+        steps = -(perturbed[ran] - problem.fun(theta)[None]) @ J @ cov
+        if len(steps) > 1:  # their spread about their mean, as a fit takes it
+            cov = cov + np.atleast_2d(np.cov(steps, rowvar=False))
     se = np.sqrt(np.clip(np.diag(cov), 0, None)) * scale
     se[np.sum(V[:, ~keep] ** 2, axis=1) > 0.1] = math.inf
-    return dict(zip(model.names, se)), logdet
+    return dict(zip(model.names, se[:n_par])), logdet
 
 
 def plain_sine(duration: float, max_speed: float, *, motors="velocity", q=0.0,
@@ -544,13 +565,15 @@ class Design:
 def design(params, free, duration: float, *, max_speed: float | None = None,
            max_torque: float, max_motor_torque: float | None = None, motors="velocity",
            q=0.0, candidates: int = 6, seed: int = 0, threads=None, elastic="geometric",
-           progress=None) -> Design:
+           progress=None, input_draws: int = Setup.input_draws) -> Design:
     """D-optimal choice among ``candidates`` random designs (`candidate`): the one whose
-    Fisher information has the largest determinant, among those that keep every
+    Fisher information on the free parameters (`predicted`: the delays a fit estimates
+    taken as nuisance) has the largest determinant, among those that keep every
     motor within its speed and torque limits (`MotorLimits`; a candidate beyond them
     is first scaled down, `within_limits`). ``max_torque`` is the height of the
     external torque pulses. The plain sine it is compared with obeys the same
-    limits."""
+    limits. The standard errors predicted for both count the torque inputs' noise
+    with ``input_draws`` draws, as a fit does (`predicted`)."""
     say = progress or (lambda text: None)
     limits = MotorLimits.of(params, max_speed, max_motor_torque)
     rng = np.random.default_rng(seed)
@@ -568,25 +591,28 @@ def design(params, free, duration: float, *, max_speed: float | None = None,
             say(f"candidate {k + 1}/{candidates}: beyond the motors' limits, dropped")
             continue
         e, run, use = fitted
-        se, logdet = predicted(e, params, free, threads=threads, run=run)
+        _, logdet = predicted(e, params, free, threads=threads, run=run)
         say(f"candidate {k + 1}/{candidates}: log det {logdet:.4g} (motors at "
             f"{100 * use['worst']:.3g} % of their limits)")
         if best is None or logdet > best[2]:
-            best = (e, se, logdet, use)
+            best = (e, run, logdet, use)
     if best is None:
         raise InputError(f"every one of the {candidates} candidate excitations needs more than "
                          f"the motors give (speed {limits.max_speed:.4g} rad/s, torque "
                          f"{limits.max_torque:.4g} N m, {limits.voltage:.4g} V), even scaled "
                          f"down: lower the external torque pulses (now {max_torque:.4g} N m) "
                          "or raise the motor torque limit")
-    e, se, logdet, use = best
+    e, run, logdet, use = best
+    say("the chosen design's standard errors, the torque inputs' noise counted")
+    se, _ = predicted(e, params, free, threads=threads, run=run, input_draws=input_draws)
     ref = plain_sine(duration, limits.max_speed, motors=motors, q=q)
     fitted = within_limits(ref, params, limits)
     if fitted is None:
         raise InputError("the plain sine to compare with exceeds the motors' limits even "
                          "scaled down")
     ref, ref_run, ref_use = fitted
-    ref_se, ref_logdet = predicted(ref, params, free, threads=threads, run=ref_run)
+    ref_se, ref_logdet = predicted(ref, params, free, threads=threads, run=ref_run,
+                                   input_draws=input_draws)
     e = replace(e, description=f"D-optimal among {candidates - refused} candidates within the "
                                f"motors' limits (seed {seed}) for {', '.join(free)}: "
                                f"{e.description}")

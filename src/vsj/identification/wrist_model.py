@@ -542,11 +542,14 @@ class WristModel:
                     out[column] = sd
         return out
 
-    def perturbed_residuals(self, values: np.ndarray, law: str, draws: int, seed: int = 0
+    def perturbed_residuals(self, values: np.ndarray, law: str, draws: int, seed: int = 0,
+                            noise: Mapping[str, float] | None = None
                             ) -> tuple[np.ndarray, np.ndarray]:
         """Residuals (draws, compared values) of one parameter set (free parameters,
-        then delays) when each noisy input column (`noisy_inputs`) gets fresh white
-        noise of its own level, smoothed as the column is; and which draws ran.
+        then delays) when each noisy input column gets fresh white noise of its own
+        level, smoothed as the column is; and which draws ran. ``noise``: the levels
+        [SI] by column, where they are known (an experiment's design); by default
+        `noisy_inputs` estimates them from the logs.
 
         What these residuals differ by from `residuals` at the same parameters is what
         the inputs' noise does to the simulated signals: the model, fed a measured
@@ -559,7 +562,7 @@ class WristModel:
 
         values = np.asarray(values, dtype=float).reshape(-1)
         n_phys = len(self.names)
-        noisy = self.noisy_inputs()
+        noisy = self.noisy_inputs() if noise is None else dict(noise)
         rng = np.random.default_rng(seed)
         extras = []
         for _ in range(draws):
