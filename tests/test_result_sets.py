@@ -571,6 +571,27 @@ def test_files_in_a_directory_without_a_manifest_are_never_taken(tmp_path, capsy
         assert (out / name).read_text() == "written by someone else\n"
 
 
+def test_synthetic_curves_at_other_positions_are_kept(tmp_path, capsys):
+    """A second run of synth stiffness into the same directory adds its positions; a
+    position written again replaces its curve only; one position named twice is refused
+    before anything is written."""
+    out = tmp_path / "curves"
+    assert main(["synth", "stiffness", "--q", "1.4", "--q=-0.4", "--out", str(out)]) == 0
+    first = (out / "stiffness_q-0.4cm.csv").read_bytes()
+    replaced = (out / "stiffness_q+1.4cm.csv").read_bytes()
+    assert main(["synth", "stiffness", "--q", "1.4", "--q=-2.2", "--seed", "9",
+                 "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.glob("*.csv")) == [
+        "stiffness_q+1.4cm.csv", "stiffness_q-0.4cm.csv", "stiffness_q-2.2cm.csv"]
+    assert (out / "stiffness_q-0.4cm.csv").read_bytes() == first
+    assert (out / "stiffness_q+1.4cm.csv").read_bytes() != replaced  # another seed
+    assert verify(out) == []
+    capsys.readouterr()
+    assert main(["synth", "stiffness", "--q", "0.5", "--q", "0.52", "--out", str(out)]) == 2
+    assert "two positions give the same curve (stiffness_q+0.5cm.csv" in capsys.readouterr().err
+    assert not (out / "stiffness_q+0.5cm.csv").exists()
+
+
 def test_what_a_killed_run_left_is_cleared_by_the_next(tmp_path, capsys):
     """Leftovers of a run whose watchdog died with it (as a killed process group would):
     the next writer removes vsj's files, and moves anything else back into the directory,

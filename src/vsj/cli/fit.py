@@ -105,8 +105,9 @@ def cmd_synth_friction(args) -> int:
 
 
 def cmd_synth_stiffness(args) -> int:
-    """One curve per pivot position: into a directory as one result set, or, for a single
-    curve, into a ``.csv`` file."""
+    """One curve per pivot position: into a ``.csv`` file for a single curve, or into a
+    directory as one result set of these curves. Curves that earlier runs wrote there at
+    other positions are kept; one at the same position is replaced."""
     # lazy: only this command needs these, and every vsj command imports vsj.cli
     from .. import measurements, synth
     from ..output import SMALL_OUTPUT_BYTES, check_output_file, write_errors
@@ -120,9 +121,15 @@ def cmd_synth_stiffness(args) -> int:
     single = len(qs) == 1 and out.suffix == ".csv"
     if single:
         check_output_file(out, "--out", size=SMALL_OUTPUT_BYTES, force=args.force)
+    names = [f"stiffness_q{q * 100:+.1f}cm.csv" for q in qs]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise InputError(f"--q: two positions give the same curve ({twice[0]}: positions are "
+                         "written to 0.1 cm)")
     written = []
-    with _results(None if single else out, "synth stiffness") as results:
-        for q in qs:
+    with _results(None if single else out, "synth stiffness",
+                  name="synth stiffness " + " ".join(names), files=names) as results:
+        for q, name in zip(qs, names):
             data = synth.stiffness(q=q, params=params, noise=args.noise, play=args.play,
                                    seed=args.seed + int(round(q * 1e4)) % 1000, model=args.model)
             if single:
@@ -130,7 +137,6 @@ def cmd_synth_stiffness(args) -> int:
                     measurements.write(out, data.columns, data.comments)
                 written.append((out, q))
             else:
-                name = f"stiffness_q{q * 100:+.1f}cm.csv"
                 measurements.write(results.path(name), data.columns, data.comments)
                 written.append((out / name, q))
     for path, q in written:
