@@ -202,7 +202,8 @@ def test_other_encodings_are_refused(tmp_path, capsys, encoding):
 @pytest.mark.parametrize("edit,message", [
     (('name = "second prototype"', "name = 5"), "meta.name: expected text"),
     (("# vsj parameter set", "extra = 1\n# vsj parameter set"), "unknown section [extra]"),
-    ((', source = "report table 4.1 (I_R)"', ", source = 5"), "ring_inertia: source = 5 is not a text"),
+    ((', source = "report table 4.1 (I_R)"', ", source = 5"),
+     "ring_inertia: source = 5 is not a text"),
     (('q_max = { value = "2.0 cm"', 'q_max = { value = "-2.4 cm"'), "must be below pivot.q_max"),
 ], ids=["meta not text", "unknown section", "source not text", "pivot range reversed"])
 def test_parameter_file_structure(tmp_path, capsys, edit, message):

@@ -187,8 +187,8 @@ def test_the_design_beats_a_plain_sine(truth):
     got, sine = achieved
     assert np.mean(np.log([got[n] for n in free])) < np.mean(np.log([sine[n] for n in free]))
     # the prediction counts the torque inputs' noise and the delays as the fit does, so it
-    # is near the fit's own standard errors: those come from 14 blocks and 32 draws, each
-    # part scattering by some 20-25 % (sqrt(1 / 2G), sqrt(1 / 2K)), and the prediction
+    # is near the fit's own standard errors: those come from 14 blocks and 32 draws, parts
+    # that scatter by some 19 % and 12 % (sqrt(1 / 2G), sqrt(1 / 2K)), and the prediction
     # leaves out the clock's jitter and the current offset. A factor 2 on the geometric
     # mean is about three such scatters; the sensors' noise alone gave 10x and more below.
     ratio = np.exp(np.mean(np.log([got[n] / d.stderr[n] for n in free])))

@@ -121,7 +121,8 @@ def cmd_synth_stiffness(args) -> int:
     single = len(qs) == 1 and out.suffix == ".csv"
     if single:
         check_output_file(out, "--out", size=SMALL_OUTPUT_BYTES, force=args.force)
-    names = [f"stiffness_q{q * 100:+.1f}cm.csv" for q in qs]
+    # each position to 0.1 cm, a negative zero as zero
+    names = [f"stiffness_q{round(q * 100, 1) + 0.0:+.1f}cm.csv" for q in qs]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
         raise InputError(f"--q: two positions give the same curve ({twice[0]}: positions are "
@@ -578,7 +579,7 @@ def cmd_synth_wrist(args) -> int:
 
 
 def cmd_excite(args) -> int:
-    """``vsj excite``: design a D-optimal excitation for the named parameters within the
+    """``vsj excite``: design a Ds-optimal excitation for the named parameters within the
     motors' limits and write it as an experiment file. Returns the exit code: 0 (bad
     input raises `InputError`, which `main` turns into 2)."""
     # lazy: only this command needs these, and every vsj command imports vsj.cli
@@ -621,8 +622,8 @@ def cmd_excite(args) -> int:
              f"supply {lim.voltage:.4g} V; the design's peaks: "
              + "; ".join(f"{m} {u['speed']:.4g} rad/s, {u['torque']:.4g} N m, "
                          f"{u['voltage']:.3g} V" for m, u in d.use.items() if m != "worst"),
-             f"  log det of the Fisher information (relative units): {d.logdet:.4g}; plain sine "
-             f"{d.reference_logdet:.4g}",
+             f"  log det of the information on the free parameters, delays as nuisance "
+             f"(relative units): {d.logdet:.4g}; plain sine {d.reference_logdet:.4g}",
              "  predicted standard errors of a fit (the sensors' and the torque inputs' noise, "
              "the delays a fit estimates; design / plain sine):"]
     for n in names:
@@ -749,7 +750,7 @@ def register(sub) -> None:
     _force(w)
     w.set_defaults(func=cmd_fit_wrist)
     e = sub.add_parser("excite", help="design an excitation of the wrist that makes the named "
-                                      "parameters identifiable (D-optimal)")
+                                      "parameters identifiable (Ds-optimal)")
     _force(e)
     e.add_argument("--free", action="append", required=True, metavar="NAME")
     e.add_argument("--duration", required=True, help="e.g. '20 s'")

@@ -171,7 +171,8 @@ def estimates(result, names, units, dof, scale=1.0) -> list[Estimate]:
             for n, v, u, e in zip(names, result.x, units, err)]
 
 
-def serial_inflation(residuals: np.ndarray) -> tuple[float, float]:
+def serial_inflation(residuals: np.ndarray, size: float | None = None
+                     ) -> tuple[float, float]:
     """``(factor, rho)``: how far the correlation of the residuals from row to row (in
     the data's order) widens the variance of the estimates, and their lag-1
     autocorrelation.
@@ -180,29 +181,44 @@ def serial_inflation(residuals: np.ndarray) -> tuple[float, float]:
     series are not when the model leaves structure out (a transient, a ripple without
     its angle), and then the classical variance is too small by the ratio of the
     residuals' long-run variance to their variance. That ratio is estimated with a
-    Bartlett window whose width follows Andrews's AR(1) plug-in rule (Andrews 1991,
-    Econometrica 59: 817), an approximation that holds where the Jacobian's rows change
-    slowly beside the correlation's length, as they do along a sweep or a plateau. The
-    factor is 1 unless the lag-1 autocorrelation exceeds what chance gives independent
-    residuals (2 / sqrt(n), about the one-sided 2.5 % point), so independent points keep
-    their classical intervals."""
-    e = np.asarray(residuals, dtype=float)
-    n = len(e)
-    e = e - e.mean()
-    if n < 8 or not np.any(e):
+    Bartlett window, weights ``1 - j / S`` at lag ``j``, whose width ``S`` follows
+    Andrews's AR(1) plug-in rule (`serial_window`), an approximation that holds where
+    the Jacobian's rows change slowly beside the correlation's length, as they do
+    along a sweep or a plateau. The factor is 1 unless the lag-1 autocorrelation
+    exceeds what chance gives independent residuals (2 / sqrt(n), about the one-sided
+    2.5 % point), so independent points keep their classical intervals; and for fewer
+    than 8 residuals, residuals that are not all finite, and residuals without
+    variance: a constant, or rounding, a billionth of ``size`` or less (the data's
+    size, such as the largest measured value; default the residuals' own)."""
+    raw = np.asarray(residuals, dtype=float)
+    n = len(raw)
+    if n < 8 or not np.all(np.isfinite(raw)):
         return 1.0, 0.0
+    e = raw - raw.mean()
     # autocovariances at every lag, from one zero-padded FFT (not a quadratic sum)
     spectrum = np.fft.rfft(e, 2 * n)
     gamma = np.fft.irfft(spectrum * np.conj(spectrum), 2 * n)[:n] / n
+    size = float(np.max(np.abs(raw))) if size is None else abs(float(size))
+    if not gamma[0] > (1e-9 * size) ** 2:
+        return 1.0, 0.0
     rho = float(gamma[1] / gamma[0])
     if rho <= 2.0 / math.sqrt(n):
         return 1.0, rho
+    width = serial_window(rho, n)
+    lags = np.arange(1, min(math.ceil(width), n))
+    long_run = gamma[0] + 2.0 * np.sum((1.0 - lags / width) * gamma[lags])
+    return max(1.0, float(long_run / gamma[0])), rho
+
+
+def serial_window(rho: float, n: int) -> float:
+    """Width ``S`` of the Bartlett window of `serial_inflation` for ``n`` residuals of
+    lag-1 autocorrelation ``rho``: Andrews's plug-in rule for an AR(1) series,
+    ``S = 1.1447 (alpha n)^(1/3)`` with ``alpha = 4 rho^2 / ((1 - rho)^2 (1 + rho)^2)``
+    (Andrews 1991, Econometrica 59: 817, section 6), which balances the window's bias
+    against its variance."""
     r = min(rho, 1.0 - 1e-6)  # a residual that is all trend: the window spans the data
     alpha = 4.0 * r ** 2 / ((1.0 - r) ** 2 * (1.0 + r) ** 2)
-    width = 1.1447 * (alpha * n) ** (1.0 / 3.0)
-    lags = np.arange(1, min(int(width), n - 1) + 1)
-    long_run = gamma[0] + 2.0 * np.sum((1.0 - lags / (width + 1.0)) * gamma[lags])
-    return max(1.0, float(long_run / gamma[0])), rho
+    return 1.1447 * (alpha * n) ** (1.0 / 3.0)
 
 
 def plateaus(time: np.ndarray, velocity: np.ndarray) -> list[slice]:
@@ -367,7 +383,7 @@ def fit_curve(m: Measurement) -> FrictionFit:
     dof = len(result.fun) - len(result.x)
     names = ["c1", "c2", "c3"] + [f"ripple{i}" for i in range(len(result.x) - 3)]
     units = ["N m s/rad", "N m", "s/rad"] + ["N m"] * (len(result.x) - 3)
-    factor, rho = serial_inflation(result.fun)
+    factor, rho = serial_inflation(result.fun, size=float(np.max(np.abs(T))))
     if factor > 1.0:
         notes.append(_correlated(form, rho, factor, len(result.fun), angle is not None))
     est = estimates(result, names, units, dof, scale=factor)

@@ -4,7 +4,7 @@ An experiment file (TOML, written by ``vsj excite``, read by ``vsj synth
 wrist``) says which signals drive the wrist and what sensors record it::
 
     [experiment]
-    description = "D-optimal excitation for 8 parameters"
+    description = "Ds-optimal excitation for 8 parameters"
     duration = "20 s"
     sample_period = "1 ms"
     motors = "velocity"          # velocity sources (speeds) or dc (voltages)
@@ -566,7 +566,7 @@ def design(params, free, duration: float, *, max_speed: float | None = None,
            max_torque: float, max_motor_torque: float | None = None, motors="velocity",
            q=0.0, candidates: int = 6, seed: int = 0, threads=None, elastic="geometric",
            progress=None, input_draws: int = Setup.input_draws) -> Design:
-    """D-optimal choice among ``candidates`` random designs (`candidate`): the one whose
+    """Ds-optimal choice among ``candidates`` random designs (`candidate`): the one whose
     Fisher information on the free parameters (`predicted`: the delays a fit estimates
     taken as nuisance) has the largest determinant, among those that keep every
     motor within its speed and torque limits (`MotorLimits`; a candidate beyond them
@@ -613,7 +613,7 @@ def design(params, free, duration: float, *, max_speed: float | None = None,
     ref, ref_run, ref_use = fitted
     ref_se, ref_logdet = predicted(ref, params, free, threads=threads, run=ref_run,
                                    input_draws=input_draws)
-    e = replace(e, description=f"D-optimal among {candidates - refused} candidates within the "
+    e = replace(e, description=f"Ds-optimal among {candidates - refused} candidates within the "
                                f"motors' limits (seed {seed}) for {', '.join(free)}: "
                                f"{e.description}")
     return Design(e, se, logdet, use, ref, ref_se, ref_logdet, ref_use, limits)
