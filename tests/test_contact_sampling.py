@@ -5,7 +5,9 @@ own trajectory; the time-stepper's events its step cannot resolve are marked so.
 
 from __future__ import annotations
 
+import copy
 import json
+import pickle
 from dataclasses import replace
 
 import numpy as np
@@ -49,6 +51,13 @@ def test_a_stiff_walls_impacts_read_the_same_from_the_default_grid_as_from_a_fin
     alone = report(replace(result, plan=None), prep.structure)["wall"]  # the samples alone
     assert result.plan is prep.plan  # a run carries its plan: report(result) refines too
     assert report(result, prep.structure) == report(result, prep.structure, plan=prep.plan)
+    # copies share the (immutable) plan and refine alike; a pickled result has no plan
+    for copied in (copy.copy(result), copy.deepcopy(result)):
+        assert copied.plan is prep.plan
+        assert report(copied, prep.structure)["wall"] == figures
+    deep = copy.deepcopy(result)
+    assert deep.signals["contact.wall.force"] is not result.signals["contact.wall.force"]
+    assert pickle.loads(pickle.dumps(result)).plan is None
 
     names = ["contact.wall.force", "contact.wall.penetration", "contact.wall.rate"]
     times = np.arange(int(round(0.25 / FINE)) + 1) * FINE

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,11 +28,25 @@ class Result:
     warnings: list[str] = field(default_factory=list)
     #: The plan the run ran (`vsj.engine.plan.Plan`; None for a result read back or made
     #: by hand): what can run it again, as `vsj.safety.run_report` does to sample its
-    #: contacts finer. Left out of copies (pickled, or by `copy`).
+    #: contacts finer. Copies (`copy.copy`, `copy.deepcopy`) share it, as it is
+    #: immutable; a pickled result leaves it out (it holds the compiled model).
     plan: object = field(default=None, repr=False, compare=False)
 
     def __getstate__(self):
         return {**self.__dict__, "plan": None}
+
+    def __copy__(self) -> "Result":
+        new = object.__new__(type(self))
+        new.__dict__.update(self.__dict__)
+        return new
+
+    def __deepcopy__(self, memo) -> "Result":
+        if self.plan is not None:
+            memo[id(self.plan)] = self.plan  # shared, not copied
+        new = object.__new__(type(self))
+        memo[id(self)] = new
+        new.__dict__.update({k: copy.deepcopy(v, memo) for k, v in self.__dict__.items()})
+        return new
 
     def __getitem__(self, name: str) -> np.ndarray:
         try:
