@@ -27,7 +27,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
+from scipy import special
 from scipy.optimize import least_squares
 
 from ..errors import InputError, SimulationError
@@ -166,7 +166,7 @@ def estimates(result, names, units, dof, scale=1.0) -> list[Estimate]:
         cov = (Vt[:rank].T / sv[:rank] ** 2) @ Vt[:rank] * s2 / np.outer(colscale, colscale)
         err[free] = np.where(blind > BLIND_SHARE, math.inf,
                              np.sqrt(np.clip(np.diag(cov), 0.0, None)))
-    t = stats.t.ppf(0.975, max(dof, 1))
+    t = special.stdtrit(max(dof, 1), 0.975)  # Student's t quantile
     return [Estimate(n, float(v), u, float(e), (float(v - t * e), float(v + t * e)))
             for n, v, u, e in zip(names, result.x, units, err)]
 

@@ -49,7 +49,7 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import stats
+from scipy import special
 from scipy.optimize import least_squares, linprog, nnls
 
 from ..benches import planetary_bench
@@ -536,7 +536,7 @@ def fit_structure(sun: FrictionFit, ring: FrictionFit, structure: str, *,
             if name not in undetermined:
                 undetermined.append(name)
     combinations = _combinations(set(blind) | set(same_curves), x)
-    t = stats.t.ppf(0.975, dof)
+    t = special.stdtrit(dof, 0.975)  # Student's t quantile
     units = {**{n: LINEAR[n][1] for n in LINEAR}, "x": "1",
              "k_b1": SCHEMA["planetary"]["mesh_sharpness"].display}
     params = [Estimate(n, float(v), units[n], float(e),
@@ -550,8 +550,8 @@ def fit_structure(sun: FrictionFit, ring: FrictionFit, structure: str, *,
     noise = {"fixed_sun": _noise(sun), "fixed_ring": _noise(ring)}
     scatter = {"fixed_sun": _scatter(sun), "fixed_ring": _scatter(ring)}
     source = {k: "scatter" if scatter[k] >= noise[k] else "model allowance" for k in noise}
-    p_value = float(stats.chi2.sf(chi2, dof))
-    p_below = float(stats.chi2.cdf(chi2, dof))
+    p_value = float(special.chdtrc(dof, chi2))  # chi-square survival function
+    p_below = float(special.chdtr(dof, chi2))
     deviation = np.concatenate([(pred_s - sun.torque) / max(scatter["fixed_sun"], 1e-300),
                                 (pred_r - ring.torque) / max(scatter["fixed_ring"], 1e-300)])
     chi2_scatter = float(deviation @ deviation)
@@ -560,7 +560,7 @@ def fit_structure(sun: FrictionFit, ring: FrictionFit, structure: str, *,
     if free_x:
         # the best chi-square at each tooth ratio of the grid (sharpness refitted): the
         # ratios at which this structure passes the same test
-        limit = float(stats.chi2.isf(significance, dof))
+        limit = float(special.chdtri(dof, significance))  # and its inverse
         best = []
         for xg, j in zip(x_grid, np.argmin(grid, axis=1)):
             r_x = residual(xg, best_sharpness(xg, kb_grid[j]))
@@ -580,7 +580,7 @@ def fit_structure(sun: FrictionFit, ring: FrictionFit, structure: str, *,
         predicted={"fixed_sun": (w_s.copy(), pred_s), "fixed_ring": (w_r.copy(), pred_r)},
         scatter=scatter, noise_source=source, p_below=p_below,
         too_small=p_below < significance, chi2_scatter=chi2_scatter,
-        p_scatter=float(stats.chi2.sf(chi2_scatter, dof)),
+        p_scatter=float(special.chdtrc(dof, chi2_scatter)),
         same_curves=same_curves,
         tooth_ratio_accepted=accepted, profile=profile)
 

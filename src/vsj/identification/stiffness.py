@@ -29,7 +29,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
+from scipy import special
 from scipy.optimize import least_squares
 
 from ..errors import InputError, SimulationError
@@ -249,7 +249,7 @@ def fit_curve(m: Measurement) -> CurveFit:
     if used.sum() < 10:
         raise InputError(f"{m.path}: only {int(used.sum())} samples in the linear regime")
     coef, err, cov, dof, sd = _regression(phi[used], T[used], direction[used], play_detected)
-    t = stats.t.ppf(0.975, dof)
+    t = special.stdtrit(dof, 0.975)  # Student's t quantile
 
     def est(name, value, e, unit):
         return Estimate(name, float(value), unit, float(e), (float(value - t * e),

@@ -70,7 +70,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
+from scipy import special
 from scipy.optimize import least_squares
 
 from ..errors import InputError, SimulationError
@@ -291,7 +291,9 @@ def _design(lo, hi, count: int, seed: int) -> np.ndarray:
     positive)."""
     if count <= 0:
         return np.zeros((0, len(lo)))
-    sample = stats.qmc.LatinHypercube(d=len(lo), seed=seed).random(count)
+    from scipy.stats import qmc  # lazy: scipy.stats takes most of a second to import
+
+    sample = qmc.LatinHypercube(d=len(lo), seed=seed).random(count)
     positive = lo > 0
     out = lo + sample * (hi - lo)
     out[:, positive] = np.exp(np.log(lo[positive]) + sample[:, positive]
@@ -494,7 +496,7 @@ def _same_optimum(runs, best: int) -> np.ndarray:
     J = np.asarray(ref.jac, dtype=float)
     dof = max(len(ref.fun) - len(ref.x), 1)
     s2 = max(2.0 * ref.cost / dof, 1e-300)
-    limit = stats.chi2.ppf(SAME_OPTIMUM, len(ref.x))
+    limit = 2.0 * special.gammaincinv(len(ref.x) / 2.0, SAME_OPTIMUM)  # chi-square quantile
     out = []
     for r in runs:
         step = J @ (r.x - ref.x)
@@ -586,7 +588,7 @@ def _statistics(model: WristModel, result, scale, lo, hi, base,
                   else "determined")
         e = float(sd[i]) if status == "determined" else math.inf if \
             status == "not determined" else math.nan
-        t = stats.t.ppf(0.975, nu[i]) if math.isfinite(nu[i]) and nu[i] > 0 else math.inf
+        t = special.stdtrit(nu[i], 0.975) if math.isfinite(nu[i]) and nu[i] > 0 else math.inf
         ci = (float(values[i] - t * e), float(values[i] + t * e)) if status == "determined" \
             else None
         estimates.append(Estimate(name, float(values[i]),
@@ -737,9 +739,9 @@ def _block_samples(model: WristModel, influence: np.ndarray, n_kept: int) -> int
             terms.append(blocks * rho ** 2)
             series = [x[:len(x) // 2 * 2].reshape(-1, 2).sum(axis=1) for x in series]
         tail = np.cumsum(terms[::-1])[::-1]
-        level = next((j for j in range(len(terms))
-                      if tail[j] < stats.chi2.ppf(BLOCKING_LEVEL, len(terms) - j)),
-                     len(terms) - 1)
+        # the chi-square quantile at BLOCKING_LEVEL, len(terms) - j degrees of freedom
+        level = next((j for j in range(len(terms)) if tail[j] < 2.0 * special.gammaincinv(
+                          (len(terms) - j) / 2.0, BLOCKING_LEVEL)), len(terms) - 1)
         chosen = max(chosen, level)
     return 2 ** chosen
 
