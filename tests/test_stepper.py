@@ -229,6 +229,34 @@ def test_rk4_converges_at_fourth_order(params):
     assert np.all(errors[0] / errors[1] > 2 ** 3.5), errors
 
 
+def test_rk4_substeps_beyond_its_stability_limit_are_refused(params):
+    """A 10 ms period in one or two rk4 substeps puts the wrist's fastest mode at rest
+    (the arctan friction's slope at zero speed, about 830 1/s) outside RK4's stability
+    region: refused, naming the count that is stable. At that count a perturbed rest
+    settles; one substep fewer (the same plan, its substeps changed) grows from it
+    without bound, as the refusal said, and the engine would call the step a success."""
+    period = 0.01
+    for substeps in (1, 2):
+        with pytest.raises(InputError, match=r"beyond RK4's stability limit .* use at least "
+                                             r"3 substeps"):
+            Stepper.wrist(params, period=period, method="rk4", substeps=substeps)
+    with pytest.raises(InputError, match="no count up to 10000000 is: shorten the period"):
+        Stepper.wrist(params, period=1e5, method="rk4")
+    stable = Stepper.wrist(params, period=period, method="rk4", substeps=3)
+    start = np.zeros(stable.n_state)
+    start[stable.state_names.index("vsm_1.ring.momentum")] = 1e-9  # [N m s]
+    y = start.copy()
+    for _ in range(200):
+        stable.step(y, None, out=y)
+    assert np.all(np.abs(y) <= np.abs(start).max())
+    fewer = stable.plan.with_scheme(substeps=2)
+    y = start.copy()
+    work = fewer.engine().work
+    for _ in range(200):
+        assert fewer.hold(work, y, np.zeros(stable.n_inputs)) == 0  # "OK" all the same
+    assert np.abs(y).max() > 1e6 * np.abs(start).max()
+
+
 def test_time_stepper_steps_agree_with_simulate(params):
     """Stiction through the step function: periods of the time-stepper with constant
     inputs against one time-stepping simulation (the same steps; each period

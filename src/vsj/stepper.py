@@ -40,7 +40,8 @@ Runge-Kutta steps of ``dt/substeps``: a fixed cost per call, for hard
 real-time loops; its accuracy is the user's choice of ``substeps`` (stable
 while ``dt/substeps`` times the fastest rate of the model stays below about
 2.8; with the DC motors' armature time constant of 0.1 ms, use at least 8
-substeps per millisecond). Both integrate friction laws that are functions of
+substeps per millisecond). Substeps too long for the fastest modes at rest are
+refused with the count that is not. Both integrate friction laws that are functions of
 speed (the jump of the ``sign`` law makes ``dopri`` take very many tiny
 steps, `benchmarks/friction_laws.py`). ``method="timestep"`` runs the
 simulator's time-stepper with true stiction at the options' ``step``; its
@@ -82,6 +83,11 @@ METHODS = ("dopri", "rosenbrock", "rk4", "timestep")
 #: The most steps one period may take (rk4 substeps, time-stepper steps; vsj.h's
 #: VSJ_MAX_PERIOD_STEPS).
 MAX_PERIOD_STEPS = 10_000_000
+
+#: How much a mode may grow in one rk4 substep before `Stepper` refuses the substeps:
+#: 0.1 %, far above the error of the eigenvalues of `Stepper.jacobian`, far below the
+#: growth of a substep beyond RK4's stability limit.
+RK4_GROWTH = 1e-3
 
 #: Relative step of the central differences in `Stepper.jacobian` (times each
 #: variable's scale); with Richardson extrapolation the truncation error is
@@ -158,6 +164,45 @@ class Stepper:
         self.state_units = tuple(["rad"] * n + ["N m s"] * n + ["A"] * nm + ["rad"] * s)
         self.input_units = tuple(_channel_unit(structure, ch) for ch in self.input_names)
         self._n_state = 2 * n + nm + s
+        if method == "rk4" and "sign" not in friction_laws_for(
+                structure, options.friction, options.friction_overrides):
+            self._check_rk4_substeps()
+
+    def _check_rk4_substeps(self) -> None:
+        """`InputError` when rk4's substeps are too long for the network's fastest modes
+        at rest (the state of zeros, no inputs), naming the substeps that are not.
+
+        A substep of RK4 multiplies a mode ``exp(lambda t)`` by ``R(h lambda)``,
+        ``R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24``. Where a mode that decays or oscillates
+        has ``|R| > 1`` (`RK4_GROWTH`), rounding alone starts it growing without bound,
+        and the steps return a finite but meaningless state. A stiffer setting (the
+        pivot at the stiff end, springs deflected) can need more substeps than rest
+        does; a law with a jump (``sign``) has no rate at rest and is not judged."""
+        try:
+            jx, _ = self.jacobian(np.zeros(self.n_state), np.zeros(self.n_inputs))
+        except SimulationError:
+            return  # the network cannot rest at zeros: nothing to judge there
+        lam = np.linalg.eigvals(jx)
+        # decaying and oscillating modes (a growing one grows in the model too)
+        lam = lam[np.isfinite(lam) & (lam.real <= 1e-6 * np.abs(lam))]
+
+        def growth(substeps: int) -> float:
+            z = self.period / substeps * lam
+            return float(np.max(np.abs(1 + z + z ** 2 / 2 + z ** 3 / 6 + z ** 4 / 24),
+                                initial=1.0))
+
+        if growth(self.substeps) <= 1.0 + RK4_GROWTH:
+            return
+        fastest = float(np.max(np.abs(lam)))
+        need = max(self.substeps + 1, math.ceil(self.period * fastest / 2.8))
+        while growth(need) > 1.0 + RK4_GROWTH and need <= MAX_PERIOD_STEPS:
+            need = math.ceil(need * 1.05) + 1
+        advice = (f"use at least {need} substeps" if need <= MAX_PERIOD_STEPS else
+                  f"no count up to {MAX_PERIOD_STEPS} is: shorten the period")
+        raise InputError(
+            f"stepper: {self.substeps} rk4 substeps of a {self.period:g} s period are beyond "
+            f"RK4's stability limit for this network: its fastest mode at rest "
+            f"({fastest:.4g} 1/s) would grow {growth(self.substeps):.3g}x a substep; {advice}")
 
     def use_model(self, model: EngineModel) -> None:
         """Step with ``model`` from now on: the engine arrays of the same network with
