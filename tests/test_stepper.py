@@ -232,9 +232,9 @@ def test_rk4_converges_at_fourth_order(params):
 def test_rk4_substeps_beyond_its_stability_limit_are_refused(params):
     """A 10 ms period in one or two rk4 substeps puts the wrist's fastest mode at rest
     (the arctan friction's slope at zero speed, about 830 1/s) outside RK4's stability
-    region: refused, naming the count that is stable. At that count a perturbed rest
-    settles; one substep fewer (the same plan, its substeps changed) grows from it
-    without bound, as the refusal said, and the engine would call the step a success."""
+    region: refused, naming the least count that is stable. At that count a perturbed
+    rest settles; one substep fewer (the same plan, its substeps changed) carries it a
+    million times further, and the engine calls every step a success."""
     period = 0.01
     for substeps in (1, 2):
         with pytest.raises(InputError, match=r"beyond RK4's stability limit .* use at least "
@@ -242,6 +242,14 @@ def test_rk4_substeps_beyond_its_stability_limit_are_refused(params):
             Stepper.wrist(params, period=period, method="rk4", substeps=substeps)
     with pytest.raises(InputError, match="no count up to 10000000 is: shorten the period"):
         Stepper.wrist(params, period=1e5, method="rk4")
+    # the count named is the least: one fewer is refused
+    with pytest.raises(InputError, match="use at least 299 substeps"):
+        Stepper.wrist(params, period=1.0, method="rk4", substeps=298)
+    Stepper.wrist(params, period=1.0, method="rk4", substeps=299)
+    # a pivot range without q = 0: judged at rest in the middle of the range
+    narrow = params.with_overrides({"pivot.q_min": "2 mm"}, origin="a narrow range")
+    with pytest.raises(InputError, match="use at least 3 substeps"):
+        Stepper.wrist(narrow, period=period, method="rk4", substeps=1)
     stable = Stepper.wrist(params, period=period, method="rk4", substeps=3)
     start = np.zeros(stable.n_state)
     start[stable.state_names.index("vsm_1.ring.momentum")] = 1e-9  # [N m s]

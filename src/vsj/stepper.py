@@ -85,9 +85,9 @@ METHODS = ("dopri", "rosenbrock", "rk4", "timestep")
 MAX_PERIOD_STEPS = 10_000_000
 
 #: How much a mode may grow in one rk4 substep before `Stepper` refuses the substeps:
-#: 0.1 %, far above the error of the eigenvalues of `Stepper.jacobian`, far below the
-#: growth of a substep beyond RK4's stability limit.
-RK4_GROWTH = 1e-3
+#: above the rounding of ``|R(h lambda)|`` near 1, and small enough that the growth it
+#: lets through stays below 1e-2 over a million substeps.
+RK4_GROWTH = 1e-8
 
 #: Relative step of the central differences in `Stepper.jacobian` (times each
 #: variable's scale); with Richardson extrapolation the truncation error is
@@ -164,45 +164,77 @@ class Stepper:
         self.state_units = tuple(["rad"] * n + ["N m s"] * n + ["A"] * nm + ["rad"] * s)
         self.input_units = tuple(_channel_unit(structure, ch) for ch in self.input_names)
         self._n_state = 2 * n + nm + s
-        if method == "rk4" and "sign" not in friction_laws_for(
-                structure, options.friction, options.friction_overrides):
+        #: whether rk4's substeps are checked against the modes at rest (also when
+        #: `use_model` changes the parameters)
+        self._judge_rk4 = method == "rk4" and "sign" not in friction_laws_for(
+            structure, options.friction, options.friction_overrides)
+        if self._judge_rk4:
             self._check_rk4_substeps()
 
     def _check_rk4_substeps(self) -> None:
-        """`InputError` when rk4's substeps are too long for the network's fastest modes
-        at rest (the state of zeros, no inputs), naming the substeps that are not.
+        """`InputError` when rk4's substeps are too long for the network's modes at rest
+        (no inputs; the state of zeros, or the pivot in the middle of its range where
+        zeros lie outside it), naming the least count that is not.
 
         A substep of RK4 multiplies a mode ``exp(lambda t)`` by ``R(h lambda)``,
         ``R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24``. Where a mode that decays or oscillates
-        has ``|R| > 1`` (`RK4_GROWTH`), rounding alone starts it growing without bound,
-        and the steps return a finite but meaningless state. A stiffer setting (the
-        pivot at the stiff end, springs deflected) can need more substeps than rest
-        does; a law with a jump (``sign``) has no rate at rest and is not judged."""
-        try:
-            jx, _ = self.jacobian(np.zeros(self.n_state), np.zeros(self.n_inputs))
-        except SimulationError:
-            return  # the network cannot rest at zeros: nothing to judge there
-        lam = np.linalg.eigvals(jx)
-        # decaying and oscillating modes (a growing one grows in the model too)
-        lam = lam[np.isfinite(lam) & (lam.real <= 1e-6 * np.abs(lam))]
-
-        def growth(substeps: int) -> float:
-            z = self.period / substeps * lam
-            return float(np.max(np.abs(1 + z + z ** 2 / 2 + z ** 3 / 6 + z ** 4 / 24),
-                                initial=1.0))
-
-        if growth(self.substeps) <= 1.0 + RK4_GROWTH:
+        has ``|R| > 1`` (by more than `RK4_GROWTH`), rounding alone starts it growing,
+        and the steps return a finite state that the model does not have. A stiffer
+        setting (the pivot at the stiff end, springs deflected) can need more substeps
+        than rest does; a law with a jump (``sign``) has no rate at rest and is not
+        judged, nor is a network whose rates at rest are not finite."""
+        lam = self._modes_at_rest()
+        if lam is None or not len(lam):
             return
-        fastest = float(np.max(np.abs(lam)))
-        need = max(self.substeps + 1, math.ceil(self.period * fastest / 2.8))
-        while growth(need) > 1.0 + RK4_GROWTH and need <= MAX_PERIOD_STEPS:
-            need = math.ceil(need * 1.05) + 1
-        advice = (f"use at least {need} substeps" if need <= MAX_PERIOD_STEPS else
+
+        def growth(substeps: int) -> np.ndarray:
+            z = self.period / substeps * lam
+            with np.errstate(over="ignore", invalid="ignore"):
+                r = np.abs(1 + z + z ** 2 / 2 + z ** 3 / 6 + z ** 4 / 24)
+            return np.where(np.isfinite(r), r, np.inf)
+
+        def stable(substeps: int) -> bool:
+            return bool(np.all(growth(substeps) <= 1.0 + RK4_GROWTH))
+
+        if stable(self.substeps):
+            return
+        # the least stable count: each mode's |R| falls as its substeps shorten, so the
+        # counts that are stable are those from one on; found by doubling, then halving
+        low, high = self.substeps, self.substeps
+        while not stable(high) and high <= MAX_PERIOD_STEPS:
+            low, high = high, 2 * high
+        while high - low > 1 and high <= MAX_PERIOD_STEPS:
+            mid = (low + high) // 2
+            low, high = (low, mid) if stable(mid) else (mid, high)
+        worst = int(np.argmax(growth(self.substeps)))
+        advice = (f"use at least {high} substeps" if high <= MAX_PERIOD_STEPS else
                   f"no count up to {MAX_PERIOD_STEPS} is: shorten the period")
         raise InputError(
             f"stepper: {self.substeps} rk4 substeps of a {self.period:g} s period are beyond "
-            f"RK4's stability limit for this network: its fastest mode at rest "
-            f"({fastest:.4g} 1/s) would grow {growth(self.substeps):.3g}x a substep; {advice}")
+            f"RK4's stability limit for this network: a mode at rest of rate "
+            f"{abs(lam[worst]):.4g} 1/s would grow {growth(self.substeps)[worst]:.3g}x a "
+            f"substep; {advice}")
+
+    def _modes_at_rest(self) -> np.ndarray | None:
+        """The decaying and oscillating modes [1/s] of the Jacobian at rest (see
+        `_check_rk4_substeps`), an oscillation's real part within rounding of the
+        Jacobian taken as zero; None where the network has no finite rates at rest."""
+        rests = [lambda: np.zeros(self.n_state)]
+        pivot = self.structure.pivot
+        if pivot.flange is not None and math.isfinite(pivot.q_min + pivot.q_max):
+            middle = InitialState(q=0.5 * (pivot.q_min + pivot.q_max))
+            rests.append(lambda: self.initial_state(middle))
+        for rest in rests:
+            try:
+                jx, _ = self.jacobian(rest(), np.zeros(self.n_inputs))
+            except (SimulationError, InputError):
+                continue  # not a state the network can take: try the next
+            if not np.all(np.isfinite(jx)):
+                return None
+            lam = np.linalg.eigvals(jx)
+            lam = np.where(np.abs(lam.real) <= 1e-6 * np.abs(lam), 1j * lam.imag, lam)
+            return lam[lam.real <= 0.0]  # a growing mode grows in the model too
+        return None
 
     def use_model(self, model: EngineModel) -> None:
         """Step with ``model`` from now on: the engine arrays of the same network with
@@ -213,6 +245,8 @@ class Stepper:
         self._c, self._work = self._engine.c, self._engine.work
         if self.method == "timestep":
             _core.ts_prepare(self._c, self._work)
+        if getattr(self, "_judge_rk4", False):
+            self._check_rk4_substeps()
 
     @classmethod
     def wrist(cls, params, wrist_options=None, period: float = 1e-3, **kwargs) -> "Stepper":
