@@ -286,6 +286,12 @@ def _bounds(model: WristModel, bounds: Mapping[str, tuple[float, float]] | None)
     return np.array(lo), np.array(hi)
 
 
+def _chi2_quantile(p: float, dof: int) -> float:
+    """The chi-square distribution's ``p`` quantile for ``dof`` degrees of freedom
+    (``scipy.stats.chi2.ppf``'s own formula, without importing scipy.stats)."""
+    return 2.0 * float(special.gammaincinv(dof / 2.0, p))
+
+
 def _design(lo, hi, count: int, seed: int) -> np.ndarray:
     """``count`` points of a Latin hypercube over the bounds (log scale where both are
     positive)."""
@@ -496,7 +502,7 @@ def _same_optimum(runs, best: int) -> np.ndarray:
     J = np.asarray(ref.jac, dtype=float)
     dof = max(len(ref.fun) - len(ref.x), 1)
     s2 = max(2.0 * ref.cost / dof, 1e-300)
-    limit = 2.0 * special.gammaincinv(len(ref.x) / 2.0, SAME_OPTIMUM)  # chi-square quantile
+    limit = _chi2_quantile(SAME_OPTIMUM, len(ref.x))
     out = []
     for r in runs:
         step = J @ (r.x - ref.x)
@@ -739,9 +745,9 @@ def _block_samples(model: WristModel, influence: np.ndarray, n_kept: int) -> int
             terms.append(blocks * rho ** 2)
             series = [x[:len(x) // 2 * 2].reshape(-1, 2).sum(axis=1) for x in series]
         tail = np.cumsum(terms[::-1])[::-1]
-        # the chi-square quantile at BLOCKING_LEVEL, len(terms) - j degrees of freedom
-        level = next((j for j in range(len(terms)) if tail[j] < 2.0 * special.gammaincinv(
-                          (len(terms) - j) / 2.0, BLOCKING_LEVEL)), len(terms) - 1)
+        level = next((j for j in range(len(terms))
+                      if tail[j] < _chi2_quantile(BLOCKING_LEVEL, len(terms) - j)),
+                     len(terms) - 1)
         chosen = max(chosen, level)
     return 2 ** chosen
 
