@@ -12,7 +12,7 @@ from vsj import scenario as scenarios
 from vsj import sweep
 from vsj.cli import main
 from vsj.simulate import InitialState, simulate
-from vsj.sweep import analysis, sampling, schedulers, store
+from vsj.sweep import analysis, runner, sampling, schedulers, store
 from vsj.sweep.spec import Distribution
 
 SPEC = """
@@ -133,8 +133,6 @@ def test_chunk_size_and_worker_processes_do_not_change_the_results(reference, sp
 
 
 def test_the_last_chunks_run_as_shorter_tasks_whose_parts_join_to_the_chunk(spec_file):
-    from vsj.sweep import runner
-
     chunk, runs = 63, 1000
     chunks = [(i, a, np.arange(a, min(runs, a + chunk))) for i, a in
               enumerate(range(0, runs, chunk))]
@@ -169,8 +167,6 @@ def test_the_last_chunks_run_as_shorter_tasks_whose_parts_join_to_the_chunk(spec
 
 def test_workers_take_the_pass_through_parameters_found_where_the_sweep_starts(
         spec_file, monkeypatch):
-    from vsj.sweep import runner
-
     job = runner.probed(runner.job_for(sweep.load(spec_file)))
     assert set(job.passthrough) == {"transmission.stiction"}
     assert job.key == runner.job_for(sweep.load(spec_file)).key
@@ -322,8 +318,6 @@ def test_pass_through_parameters_retune_a_shared_model_bit_for_bit(spec_file):
     """Friction levels reach the compiled arrays unchanged, so their runs retune one
     compiled model; the lever length changes the geometry, so its runs are compiled."""
     from vsj.engine.retune import find_passthrough, retune
-    from vsj.sweep import runner
-
     p = runner.prepared(runner.job_for(sweep.load(spec_file)))
     assert set(p.passthrough) == {"transmission.stiction"}
     (slots,) = p.passthrough["transmission.stiction"]
@@ -348,8 +342,6 @@ def test_pass_through_parameters_retune_a_shared_model_bit_for_bit(spec_file):
 
 def test_runs_that_need_only_state_and_sources_skip_observe_with_the_same_bits(spec_file,
                                                                                tmp_path):
-    from vsj.sweep import runner
-
     path = tmp_path / "light.toml"
     path.write_text(spec_file.read_text().replace(
         ', "spring.vsm_1.deflection", "friction.tr_1.friction.power"', "").replace(
@@ -501,8 +493,6 @@ def test_each_metric_of_a_block_of_runs_is_its_run_alone():
 def test_a_chunk_measured_in_groups_of_runs_gives_the_same_numbers(spec_file, monkeypatch):
     """A chunk's signals and metrics are evaluated on groups of its runs that fit
     `BLOCK_BYTES`; groups of one run give the bits of the whole chunk at once."""
-    from vsj.sweep import runner
-
     job = runner.job_for(sweep.load(spec_file))
     values, _ = sampling.design(job.spec)
     whole = runner.run_chunk(job, 0, values, threads=1)
@@ -523,3 +513,18 @@ def test_a_sweep_reports_the_kernel_time_of_the_chunks_it_ran(spec_file, tmp_pat
     again = sweep.run(spec, tmp_path / "out", resume=True, workers=1, plots=False,
                       show_progress=False)
     assert again.ran == 0 and again.kernel == 0.0
+
+
+def test_a_varied_parameter_the_scenarios_model_does_not_read_is_warned_of(spec_file):
+    """fig-4.15 uses the exponential elastic model (eq 4.5), which does not read the lever's
+    length: this spec varies it only to have runs that a parameter relation refuses. The
+    sweep says so before it runs; varying what the model reads gives no warning."""
+    info = runner.describe(runner.job_for(sweep.load(spec_file)))
+    assert len(info["warnings"]) == 1
+    text = info["warnings"][0]
+    assert str(spec_file) in text and 'vary."elastic_element.lever_length"' in text
+    assert "'exponential' elastic model" in text and "fig-4.15" in text
+    read_only = "\n".join(line for line in spec_file.read_text().splitlines()
+                          if not line.startswith('"elastic_element.lever_length"'))
+    info = runner.describe(runner.job_for(sweep.loads(read_only, "read.toml")))
+    assert info["warnings"] == []

@@ -231,6 +231,8 @@ def _bundled(name: str) -> Path:
 
 
 DEFAULT_FILE = "second_prototype.toml"
+#: The ``origin`` of the bundled set as `default` loads it.
+DEFAULT_ORIGIN = f"vsj default ({DEFAULT_FILE})"
 
 
 @dataclass(frozen=True)
@@ -524,7 +526,7 @@ def load(path: str | Path | None = None) -> Parameters:
     """Load and validate a parameter file (the bundled default when ``path`` is None)."""
     if path is None:
         file = _bundled(DEFAULT_FILE)
-        origin = f"vsj default ({DEFAULT_FILE})"
+        origin = DEFAULT_ORIGIN
     else:
         file, origin = Path(path), str(path)
     text = read_text(file, "parameter file", limit=MAX_BYTES)

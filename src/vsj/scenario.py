@@ -187,7 +187,7 @@ from .simulate import (
     simulate,
 )
 from .units import to_si
-from .wrist import DRIVES, ELASTIC_MODELS, WristOptions, build_wrist
+from .wrist import DRIVES, ELASTIC_MODELS, WristOptions, build_wrist, unread_changes
 
 if TYPE_CHECKING:  # imported where an [environment] is read: most scenarios have none
     from .environment import Body, Environment, Wall
@@ -1599,15 +1599,21 @@ class Prepared:
     plan: Plan  # the run of the case, compiled (`vsj.engine.plan.Plan`)
     #: the case's [controller], closing the loop in the plan (`vsj.control.Controller`)
     controller: Controller | None = None
+    #: what the set changes in vain for this network (`vsj.wrist.unread_changes`); each
+    #: run's result carries them first among its warnings
+    warnings: tuple[str, ...] = ()
 
     def run(self, *, duration: float | None = None, ports: bool = True, sink=None) -> Result:
         """Simulate the case (for ``duration`` instead of its own, if given; its samples
         to ``sink``, see `vsj.simulate.simulate`)."""
         if duration is None or duration == self.case.duration:
-            return run_plan(self.plan, ports=ports, sink=sink)
-        return simulate(self.structure, self.inputs, duration, options=self.case.options,
-                        initial=self.case.initial, ports=ports, sink=sink,
-                        controller=self.controller)
+            result = run_plan(self.plan, ports=ports, sink=sink)
+        else:
+            result = simulate(self.structure, self.inputs, duration, options=self.case.options,
+                              initial=self.case.initial, ports=ports, sink=sink,
+                              controller=self.controller)
+        result.warnings[:0] = self.warnings
+        return result
 
 
 def prepare_case(scenario: Scenario, case: Case, params: Parameters, *,
@@ -1646,7 +1652,8 @@ def _prepare_case(scenario: Scenario, case: Case, params: Parameters,
     except InputError as exc:  # a contact that starts penetrated: its key in the file
         raise InputError(f"{_contact_where(case, str(exc)) or where}: {exc}") from None
     return Prepared(case=case, params=resolved, network=net, structure=structure,
-                    inputs=inputs, plan=plan, controller=controller)
+                    inputs=inputs, plan=plan, controller=controller,
+                    warnings=tuple(unread_changes(net, resolved)))
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ sun or of the pivot input, with velocity sources) or ``voltage_1``,
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 from .components import (
@@ -38,7 +39,7 @@ from .components import (
 from .components.planetary import MESH_RELATIONS
 from .errors import InputError
 from .network import Network, Signal
-from .params import Parameters
+from .params import DEFAULT_ORIGIN, Parameters, default
 from .springs import EXPONENTIAL_FIELDS, GEOMETRY_FIELDS
 
 ELASTIC_MODELS = ("geometric", "geometric-report", "exponential", "linear")
@@ -166,3 +167,47 @@ def build_wrist(params: Parameters, options: WristOptions | None = None) -> Netw
     if options.pivot_drive != "fixed":
         net.signal(Signal("motor_s", "pivot.input", "stiffness motor output"))
     return net
+
+
+@functools.cache
+def _bundled_values() -> dict[str, float]:
+    """The bundled set's values, read once (compared with, never handed out)."""
+    return dict(default().values)
+
+
+def elastic_models(net: Network) -> str:
+    """The elastic models of ``net``'s elastic elements and the ``[elastic_element]`` keys
+    each reads, in words ("the 'exponential' elastic model (it reads a1, ...)")."""
+    models = {c.model: c.reads for c in net.components if isinstance(c, ElasticElement)}
+    return " and ".join(f"the {model!r} elastic model (it reads "
+                        f"{', '.join(reads) if reads else 'none of them'})"
+                        for model, reads in models.items())
+
+
+def unread_keys(net: Network) -> list[str]:
+    """The ``[elastic_element]`` keys of the elastic models' rows (`GEOMETRY_FIELDS`,
+    `EXPONENTIAL_FIELDS`) that no elastic element of ``net`` reads, as "section.key"; none
+    for a network without elastic elements."""
+    reads = [c.reads for c in net.components if isinstance(c, ElasticElement)]
+    if not reads:
+        return []
+    read = set().union(*reads)
+    return [f"elastic_element.{k}" for k in dict.fromkeys(GEOMETRY_FIELDS + EXPONENTIAL_FIELDS)
+            if k not in read]
+
+
+def unread_changes(net: Network, params: Parameters) -> list[str]:
+    """A sentence naming the ``[elastic_element]`` values of ``params`` that differ from the
+    bundled set's but that no elastic element of ``net`` reads (a geometric design run with
+    the exponential model of eq 4.5, say, which gives the bundled set's results), or none
+    when ``net`` reads every value the set changes."""
+    if params.origin == DEFAULT_ORIGIN:
+        return []
+    bundled = _bundled_values()
+    unread = [k for k in unread_keys(net) if params[k] != bundled[k]]
+    if not unread:
+        return []
+    return [f"the parameter set ({params.origin}) sets {', '.join(unread)} away from the "
+            f"bundled set, but {elastic_models(net)} does not read "
+            f"{'it' if len(unread) == 1 else 'them'}, so the run is the same as without; a "
+            "scenario's [model] elastic chooses the model"]

@@ -110,14 +110,24 @@ def cmd_simulate(args) -> int:
             for line in summary(record["safety"], record.get("safety_until")):
                 print(prefix + line)
     print(f"wrote {', '.join(str(out / name) for name in results.written)}")
-    for label, result in runs:
-        for text in result.warnings:
-            print(f"vsj: warning: [{label}] {text}", file=sys.stderr)
+    _print_warnings(runs)
     if not ok:
         failed = [f"{label}: {r.message}" for label, r in runs if not r.success]
         print("simulation failed:\n  " + "\n  ".join(failed), file=sys.stderr)
         return 1
     return 0
+
+
+def _print_warnings(runs) -> None:
+    """Each run's warnings on stderr, labelled with its case; a warning every case of
+    several gives (a parameter its model does not read, say) once, for them all."""
+    shared = set.intersection(*(set(r.warnings) for _, r in runs)) if len(runs) > 1 else set()
+    for text in dict.fromkeys(t for _, r in runs for t in r.warnings if t in shared):
+        print(f"vsj: warning: [every case] {text}", file=sys.stderr)
+    for label, result in runs:
+        for text in result.warnings:
+            if text not in shared:
+                print(f"vsj: warning: [{label}] {text}", file=sys.stderr)
 
 
 def _safety(trajectory, k: int, case) -> dict:

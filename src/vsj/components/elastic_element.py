@@ -86,6 +86,15 @@ class ElasticElement(SchemaComponent):
                              f"'geometric' model only, not of {model!r}")
         self.initial_tension = float(initial_tension)
 
+    @property
+    def reads(self) -> tuple[str, ...]:
+        """The ``[elastic_element]`` rows' keys this element's model reads: the geometric
+        models `GEOMETRY_FIELDS`, the exponential one `EXPONENTIAL_FIELDS`, the linear one
+        none (its stiffness is an option of the model, not a parameter)."""
+        if self.law in (GEOMETRIC, GEOMETRIC_REPORT):
+            return GEOMETRY_FIELDS
+        return EXPONENTIAL_FIELDS if self.law == EXPONENTIAL else ()
+
     def torque(self, phi, q: float):
         """Torque [N m] this element applies to the ring at deflections ``phi``
         (coil pretension included)."""

@@ -70,6 +70,8 @@ class Outcome:
     kernel: float = 0.0
     #: what a resumed sweep found damaged and redid (one sentence each)
     notes: list[str] = field(default_factory=list)
+    #: what the sweep varies in vain (a parameter its scenario's model does not read)
+    warnings: list[str] = field(default_factory=list)
 
 
 class Unfinished(RuntimeError):
@@ -85,7 +87,8 @@ def run(spec: SweepSpec, out: str | Path, *, resume: bool = False,
     sweep file, scenario and parameter set allow to be checked is checked before any
     run (`vsj.errors.InputError`), the free space against a bound on the bytes the
     sweep writes included. ``announce(text)``, if given, is told that bound before the
-    runs start, and what a resumed sweep found damaged and runs again. A failure to
+    runs start, the sweep's warnings (`Outcome.warnings`), and what a resumed sweep found
+    damaged and runs again. A failure to
     write the directory raises `Unfinished`."""
     started = time.perf_counter()
     job = job_for(spec)
@@ -98,6 +101,8 @@ def run(spec: SweepSpec, out: str | Path, *, resume: bool = False,
         raise InputError(f"--chunk {chunk}: must be between 1 and the {runs} runs")
     out = Path(out)
     say = announce or (lambda text: None)
+    for text in info["warnings"]:
+        say(f"warning: {text}")
     with store.Directory(out, resume=resume) as directory:
         try:
             record = store.read_manifest(out) if resume else None
@@ -215,7 +220,8 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
         if bar is not None:
             bar.close()
     outcome = Outcome(out, runs, ran, len(record["failed_runs"]), len(bounds), True,
-                      0.0, method=spec.method, storing=storing, kernel=kernel, notes=notes)
+                      0.0, method=spec.method, storing=storing, kernel=kernel, notes=notes,
+                      warnings=list(info["warnings"]))
     _finish(spec, out, directory.zarr, record, unit, outcome, plots)
     written = {name: file_record(out / name) for name in outcome.files
                if name not in (store.ZARR, store.MANIFEST)}

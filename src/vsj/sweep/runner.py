@@ -38,6 +38,7 @@ from ..errors import InputError, read_text
 from ..params import Parameters, _relations
 from ..simulate import InitialState, choose_solver
 from ..simulate.signals import Block, catalogue
+from ..wrist import elastic_models, unread_keys
 from .metrics import Context, Evaluator, Expression, sampled
 from .sampling import to_values
 from .spec import Q, SweepSpec, spec_of
@@ -150,6 +151,12 @@ class Prepared:
         self.case = case
         prepared = scenarios.prepare_case(scen, case, params)
         resolved, structure, inputs = prepared.params, prepared.structure, prepared.inputs
+        unread = set(unread_keys(prepared.network))
+        #: what the sweep varies in vain: parameters its scenario's model does not read
+        self.warnings = [f'{spec.origin}: vary."{name}": {elastic_models(prepared.network)} '
+                         f"of scenario {scen.name} does not read {name}: the runs differ in "
+                         "it only where a value is refused; a scenario's [model] elastic "
+                         "chooses the model" for name in spec.varied if name in unread]
         self.base_params = resolved
         self.structure = structure
         #: the case's controller (its arrays compiled with each run's network)
@@ -591,4 +598,4 @@ def describe(job: Job) -> Mapping:
     p = prepared(job)
     return {"time": p.t_out, "keep": p.keep, "keep_units": [p.units[k] for k in p.keep],
             "metrics": [m.name for m in p.metrics], "metric_units": [m.unit for m in p.metrics],
-            "base_params": p.base_params, "solver": p.solver}
+            "base_params": p.base_params, "solver": p.solver, "warnings": p.warnings}
