@@ -24,7 +24,8 @@ data = synth.friction(fixed="sun", constants=truth, seed=1)
 path = Path(tempfile.mkdtemp()) / "sun.csv"
 measurements.write(path, data.columns, data.comments)
 print(path.read_text().splitlines()[0])
-print("columns:", path.read_text().splitlines()[len(data.comments)])
+print("columns:", next(line for line in path.read_text().splitlines()
+                        if not line.startswith("#")))
 
 # %%
 # The fit

@@ -27,8 +27,11 @@ whose effect on the engine's arrays is affine (inertias, friction levels,
 viscous coefficients, spring and motor constants, ...) is a tunable parameter
 of the FMU: `tunable_map` measures its slope on each array entry and checks
 that the map holds at other values, alone and together with the others. The
-parameters that change the wrist's kinematics (tooth counts, ratios, the
-elastic element's geometry) are constants of an FMU; export another with
+elastic element's springs and geometry are tunable too: they are rows of its
+spring law. The parameters that change the wrist's kinematics (tooth counts,
+ratios, series compliances), those a model option leaves unused, and one of
+each pair that enters the arrays as a product (which no affine map predicts)
+are constants of an FMU; `vsj fmu` lists them. Export another with
 ``--params`` to change them.
 
 What the FMU refuses and reports. It refuses (fmi2Error, with the reason through

@@ -39,9 +39,9 @@ varies with the dynamics. ``method="rk4"`` takes ``substeps`` classical
 Runge-Kutta steps of ``dt/substeps``: a fixed cost per call, for hard
 real-time loops; its accuracy is the user's choice of ``substeps`` (stable
 while ``dt/substeps`` times the fastest rate of the model stays below about
-2.8; with the DC motors' armature time constant of 0.1 ms, use at least 8
-substeps per millisecond). Substeps too long for the fastest modes at rest are
-refused with the count that is not. Both integrate friction laws that are functions of
+2.8; the bundled DC motors' armature time constant, L/R = 0.1 ms, needs at
+least 4 substeps per millisecond). Substeps too long for the fastest modes at
+rest are refused, naming the least count that is stable. Both integrate friction laws that are functions of
 speed (the jump of the ``sign`` law makes ``dopri`` take very many tiny
 steps, `benchmarks/friction_laws.py`). ``method="timestep"`` runs the
 simulator's time-stepper with true stiction at the options' ``step``; its
