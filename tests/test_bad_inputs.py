@@ -27,8 +27,9 @@ from vsj import params as params_module
 from vsj import scenario as scenarios
 from vsj.cli import main
 from vsj.errors import InputError
-from vsj.simulate import SimulationOptions
+from vsj.simulate import SimulationOptions, simulate
 from vsj.units import to_si
+from vsj.wrist import build_wrist
 
 DEFAULT = Path(params_module._bundled(params_module.DEFAULT_FILE)).read_text()
 #: The line of the bundled set that the unit cases rewrite.
@@ -777,3 +778,49 @@ def test_fit_planetary_with_a_bad_base_parameter_file(tmp_path, capsys, friction
     err = capsys.readouterr().err
     assert code == 2 and "base.toml" in err and "planetary.ring_inertia" in err
     assert not written.exists()
+
+
+# ------------------------------------------------------- what a new user trips over
+
+def test_an_output_step_longer_than_the_run_is_refused(tmp_path, capsys, params):
+    """A 3 s output step on a 2 s run kept the start only and called it a success."""
+    path = write(tmp_path / "os.toml", 'duration = "2 s"\n[solver]\noutput_step = "3 s"\n')
+    fails(["simulate", path, "--out", tmp_path / "out"], capsys, "os.toml",
+          "solver.output_step = 3 s", "longer than the duration (2 s)")
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(InputError, match=r"output_step = 3 s is longer than the duration"):
+        simulate(build_wrist(params).assemble(), {}, 2.0,
+                 options=SimulationOptions(output_step=3.0))
+
+
+def test_a_run_too_long_for_the_disk_is_refused_before_its_grid_is_made(tmp_path, capsys):
+    """1e7 s at 1 ms is 1e10 samples: the grid alone (80 GB) was allocated before the free
+    space was checked, which ended in a MemoryError's traceback."""
+    path = write(tmp_path / "long.toml", 'duration = "1e7 s"\n')
+    fails(["simulate", path, "--out", tmp_path / "out"], capsys, "--out", "nothing was written")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_file_of_a_result_set_is_not_replaced_by_a_single_file_command(tmp_path, capsys):
+    """vsj linearize --out DIR/meta.json replaced a set's file, which vsj verify then found
+    changed; the manifest itself is refused too."""
+    out = tmp_path / "res"
+    assert main(["simulate", str(write(tmp_path / "s.toml", SHORT_SCENARIO)), "--out", str(out)]) == 0
+    capsys.readouterr()
+    before = (out / "meta.json").read_bytes()
+    fails(["linearize", "--out", out / "meta.json"], capsys, "result set 'simulate'",
+          "vsj verify")
+    fails(["linearize", "--out", out / "vsj-manifest.json"], capsys, "the manifest")
+    assert (out / "meta.json").read_bytes() == before
+    assert main(["verify", str(out)]) == 0
+
+
+def test_a_closed_pipe_ends_the_command_quietly():
+    """`vsj params | head -1`: the reader goes away; SIGPIPE's exit code, no traceback.
+    The pipe's reading end is closed before the command writes (it is still importing)."""
+    child = subprocess.Popen([sys.executable, "-m", "vsj", "params"], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    child.stdout.close()
+    err = child.stderr.read()
+    assert child.wait(timeout=120) == 141, err
+    assert "Traceback" not in err and "BrokenPipe" not in err

@@ -15,6 +15,7 @@ from pathlib import Path
 from .. import __version__, params
 from ..errors import InputError, SimulationError
 from ..simulate import Result, catalogue, sample_times
+from ..simulate.driver import sample_count
 from ..units import to_si
 from . import control, design, explore, fit, study, sweep
 
@@ -58,14 +59,17 @@ def cmd_simulate(args) -> int:
         raise InputError(f"{scen.origin}: all cases must share duration and output_step so "
                          "that they fit one trajectory file")
     (duration, output_step), = grids
-    time = sample_times(duration, output_step)
     tables = [catalogue(p.structure, ports=True, controller=p.plan.controller)
               for p in prepared]
-    size = trajectory_bytes(len(time), len({s.name for t in tables for s in t}),
-                            len(scen.cases), csv=args.csv, plot=args.plot)
+    # the size from the sample count: a grid too large for the disk is refused before
+    # it is made
+    size = trajectory_bytes(sample_count(duration, output_step),
+                            len({s.name for t in tables for s in t}), len(scen.cases),
+                            csv=args.csv, plot=args.plot)
     out = Path(args.out)
     runs, records = [], []
     with ResultSet(out, "simulate", size=size) as results:
+        time = sample_times(duration, output_step)
         with results.write("trajectory.nc", "w+b") as handle:
             trajectory = TrajectoryFile(handle, [c.label for c in scen.cases], time, tables)
             sinks = [trajectory.case(k) for k in range(len(prepared))]
@@ -177,7 +181,8 @@ def cmd_reproduce(args) -> int:
           f"{time.perf_counter() - start:.0f} s")
     if result.failed:
         for o in result.failed:
-            print(f"vsj: {o.name} failed:\n{o.traceback}", file=sys.stderr)
+            print(f"vsj: {o.name} failed:\n{o.traceback}" if o.traceback else
+                  f"vsj: {o.name} failed: {o.error}", file=sys.stderr)
         return 1
     return 0
 
@@ -323,7 +328,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the ``vsj`` command with ``argv`` (default: the process's arguments). Returns the
-    exit code: 0 success, 1 a simulation or fit failed, 2 bad input, 130 interrupted."""
+    exit code: 0 success, 1 a simulation or fit failed, 2 bad input, 130 interrupted, 141
+    the reader of its output went away (``vsj params | head``: SIGPIPE's code)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -337,6 +343,11 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("vsj: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # what is left for standard output goes nowhere, so that flushing it at exit
+        # raises no second error; whatever the command wrote to files is complete
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":

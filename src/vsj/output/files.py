@@ -336,6 +336,13 @@ def check_output_file(path: str | Path, option: str, *, size: int = 0,
         if not path.is_file():
             raise OutputError(f"{shown}: exists and is not a regular file; vsj replaces only "
                               "files it wrote")
+        in_set = [name for name, entry in read_manifest(path.parent)["sets"].items()
+                  if path.name in entry.get("files", {})] if path.name != MANIFEST else [""]
+        if in_set:
+            what = f"a file of the result set {in_set[0]!r}" if in_set[0] else "the manifest"
+            raise OutputError(f"{shown}: is {what} of that directory ({MANIFEST}), which "
+                              "'vsj verify' checks: replacing it would break the set; choose "
+                              "another name, or give --force to replace it")
         if not written_by_vsj(path):
             raise OutputError(f"{shown}: exists and vsj did not write it; vsj never replaces "
                               "a file it did not write: choose another name, or give --force "

@@ -31,7 +31,7 @@ from pathlib import Path
 
 from .. import __version__, pages
 from ..engine.core import available_cores
-from ..errors import InputError
+from ..errors import InputError, SimulationError
 from ..output import ResultSet, _jsonable, atomic_write
 from ..params import Parameters
 from ..plots import save
@@ -278,7 +278,10 @@ def _made(name: str) -> Outcome:
         if isinstance(exc, OSError) and results.from_writing(exc):
             raise
         outcome.error = f"{type(exc).__name__}: {exc}"
-        outcome.traceback = traceback.format_exc()
+        # a refused input or a failed run says all in its message; anything else is a
+        # defect, whose traceback is for the report of it
+        if not isinstance(exc, (InputError, SimulationError)):
+            outcome.traceback = traceback.format_exc()
     return outcome
 
 

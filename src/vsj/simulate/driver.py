@@ -39,6 +39,11 @@ def check_arguments(structure, inputs, duration, options, initial):
     if not isinstance(options, SimulationOptions):
         raise InputError(f"simulate: options must be a SimulationOptions, got "
                          f"{type(options).__name__}")
+    step = options.output_step
+    if isinstance(step, (int, float)) and math.isfinite(duration) and step > duration > 0.0:
+        raise InputError(f"simulate: options.output_step = {options.output_step:g} s is longer "
+                         f"than the duration ({duration:g} s), so the run would keep its start "
+                         "only; at most the duration")
     initial = InitialState() if initial is None else initial
     if not isinstance(initial, InitialState):
         raise InputError(f"simulate: initial must be an InitialState, got "
@@ -85,10 +90,14 @@ def prepare(structure: Structure, inputs: Mapping[str, Input], duration: float,
 BLOCK_BYTES = 32 * 2 ** 20
 
 
+def sample_count(duration: float, output_step: float) -> int:
+    """How many samples `sample_times` gives, without making them."""
+    return int(math.floor(duration / output_step + 1e-9)) + 1
+
+
 def sample_times(duration: float, output_step: float) -> np.ndarray:
     """The sample grid of a run: every ``output_step`` from 0 to ``duration``."""
-    n_out = int(math.floor(duration / output_step + 1e-9)) + 1
-    return np.arange(n_out) * output_step
+    return np.arange(sample_count(duration, output_step)) * output_step
 
 
 class MemorySink:
