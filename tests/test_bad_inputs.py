@@ -824,3 +824,11 @@ def test_a_closed_pipe_ends_the_command_quietly():
     err = child.stderr.read()
     assert child.wait(timeout=120) == 141, err
     assert "Traceback" not in err and "BrokenPipe" not in err
+
+
+def test_an_unknown_flange_in_the_initial_state_is_named_with_its_key(tmp_path, capsys):
+    path = write(tmp_path / "ang.toml", 'duration = "0.1 s"\n[initial]\n'
+                                        'angles = { theta_x = "0.5 rad" }\n')
+    fails(["simulate", path, "--out", tmp_path / "out"], capsys, "ang.toml",
+          "initial.angles.theta_x", "did you mean 'diff.theta_x'?", "vsm_1.ring")
+    assert not (tmp_path / "out").exists()

@@ -54,6 +54,25 @@ def test_export_runs_to_the_same_result(explorer, tmp_path):
     assert view.impacts["wall"], "the sine reaches the wall"
 
 
+def test_export_replaces_its_own_files_and_never_a_users(explorer, tmp_path, capsys):
+    """A second export replaces the first's files (they carry vsj's mark); a hand-written
+    scenario.toml in the directory is refused before either file is written; an --out
+    that is a file is refused when the command starts."""
+    s = explorer.default()
+    first = explorer.export(s, tmp_path / "files")
+    assert explorer.export(replace(s, q=0.004), tmp_path / "files") == first
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "scenario.toml").write_text("# my own scenario\nduration = \"1 s\"\n")
+    with pytest.raises(InputError, match=r"scenario.toml: exists and vsj did not write it"):
+        explorer.export(s, mine)
+    assert (mine / "scenario.toml").read_text().startswith("# my own scenario")
+    assert not (mine / "params.toml").exists()
+    (tmp_path / "afile").write_text("")
+    assert main(["explore", "--out", str(tmp_path / "afile"), "--no-browser"]) == 2
+    assert "is not a directory" in capsys.readouterr().err
+
+
 def test_lag_grows_as_the_joint_softens(explorer):
     """From the stiffest setting to the softest, theta_x trails the circle more (the
     elastic elements give way under the output side's inertia and friction), and the

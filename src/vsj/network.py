@@ -575,7 +575,8 @@ class Structure:
         try:
             return self.nodes.index(flange)
         except ValueError:
-            raise InputError(f"unknown flange {flange!r} in network {self.name!r}") from None
+            raise InputError(f"unknown flange {flange!r} in network {self.name!r}; its "
+                             f"flanges are {', '.join(self.nodes)}") from None
 
     def mass_matrix(self) -> np.ndarray:
         """The mass matrix ``A^T diag(inertia) A`` [kg m^2] of the free speeds."""

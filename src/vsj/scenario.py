@@ -172,7 +172,7 @@ from .inputs import Constant, Input, Position, Sine, Step, Table, circle
 from .engine.core import available_cores
 from .engine.plan import Plan
 from .network import Network, Structure
-from .params import Parameters, default
+from .params import Parameters, default, did_you_mean
 from .progress import progress as bar
 from .simulate.options import SOLVERS
 from .simulate import (
@@ -1641,6 +1641,12 @@ def _prepare_case(scenario: Scenario, case: Case, params: Parameters,
         net = case.build(resolved)
         structure = net.assemble()
     inputs = parse_inputs(case, structure)  # the network's parts as assembled: not again
+    for key, named in (("angles", case.initial.angles), ("speeds", case.initial.speeds)):
+        for name in named:
+            if name not in structure.nodes:
+                raise InputError(f"{where.key('initial').key(key).key(name)}: no flange "
+                                 f"{name!r} in the {case.network}{did_you_mean(name, structure.nodes)}"
+                                 f"; its flanges are {', '.join(structure.nodes)}")
     pivot = structure.pivot
     if case.initial.q is not None and not pivot.q_min <= case.initial.q <= pivot.q_max:
         raise InputError(f"{where.key('initial').key('q')}: {case.initial.q * 100:g} cm is "

@@ -25,6 +25,9 @@ def cmd_explore(args) -> int:
 
     explorer = Explorer(params.load(args.params))
     out = Path(args.out)
+    if out.exists() and not out.is_dir():  # refused now, not at the first export
+        raise InputError(f"--out {out}: is not a directory; the explorer writes its exports "
+                         "(scenario.toml, params.toml) into a directory")
 
     def ready(port: int) -> None:
         print(f"vsj explore: serving http://localhost:{port}/ (exports go to {out}); "

@@ -32,7 +32,7 @@ from .. import scenario as scenarios
 from ..control import MotorPID, mechanical_stiffness, motor_plants, wrist_kinematics
 from ..errors import InputError
 from ..friction import RUN_LAWS
-from ..output import atomic_write
+from ..output import atomic_write, check_output_file
 from ..params import SCHEMA, Parameters
 from ..safety.run_report import report as safety_report
 from ..springs import end_stop
@@ -380,15 +380,19 @@ class Explorer:
     def export(self, s: Setting, directory: str | Path) -> tuple[Path, Path]:
         """Write the setting as ``scenario.toml`` and ``params.toml`` into ``directory``
         (made if missing); ``vsj simulate scenario.toml --params params.toml`` runs the
-        same run. Returns the two paths."""
+        same run. Returns the two paths. `OutputError` (before anything is written) where
+        either name holds a file that vsj did not write: a user's own is never replaced."""
         directory = Path(directory)
+        paths = directory / "scenario.toml", directory / "params.toml"
+        for path in paths:
+            check_output_file(path, "the export to", forceable=False)
         directory.mkdir(parents=True, exist_ok=True)
         text = self.scenario_text(s)
-        paths = directory / "scenario.toml", directory / "params.toml"
         with atomic_write(paths[0], "w") as handle:
             handle.write(text)
         with atomic_write(paths[1], "w") as handle:
-            handle.write(self.parameters(s).to_toml())
+            handle.write("# written by vsj explore: the parameter set of the exported "
+                         "setting\n" + self.parameters(s).to_toml())
         return paths
 
     def with_params(self, params: Parameters, s: Setting) -> tuple["Explorer", Setting]:

@@ -321,13 +321,17 @@ def written_by_vsj(path: str | Path) -> bool:
 
 
 def check_output_file(path: str | Path, option: str, *, size: int = 0,
-                      force: bool = False) -> Path:
+                      force: bool = False, forceable: bool = True) -> Path:
     """`OutputError` unless a file can be written at ``path`` (checked before the work that
     produces it): not a directory, not an existing file that vsj did not write (unless
-    ``force``: `written_by_vsj`), its directory creatable and writable (tried with a
-    temporary file that leaves nothing behind), and ``size`` bytes free. Writes nothing."""
+    ``force``: `written_by_vsj`) nor a file of a result set in its directory, its
+    directory creatable and writable (tried with a temporary file that leaves nothing
+    behind), and ``size`` bytes free. The messages offer ``--force`` where the command
+    has it (``forceable``). Writes nothing."""
     path = Path(path)
     shown = f"{option} {path}"
+    remedy = "choose another name, or give --force to replace it" if forceable else \
+        "choose another name or directory"
     if path.is_dir():
         raise OutputError(f"{shown}: is a directory; give the name of a file")
     if path.name in ("", ".", ".."):
@@ -341,12 +345,10 @@ def check_output_file(path: str | Path, option: str, *, size: int = 0,
         if in_set:
             what = f"a file of the result set {in_set[0]!r}" if in_set[0] else "the manifest"
             raise OutputError(f"{shown}: is {what} of that directory ({MANIFEST}), which "
-                              "'vsj verify' checks: replacing it would break the set; choose "
-                              "another name, or give --force to replace it")
+                              f"'vsj verify' checks: replacing it would break the set; {remedy}")
         if not written_by_vsj(path):
             raise OutputError(f"{shown}: exists and vsj did not write it; vsj never replaces "
-                              "a file it did not write: choose another name, or give --force "
-                              "to replace it")
+                              f"a file it did not write: {remedy}")
     existing = _nearest_existing(path.parent)
     if not existing.is_dir():
         raise OutputError(f"{shown}: cannot create a file there: {existing} is not a directory")
