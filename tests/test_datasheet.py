@@ -13,6 +13,7 @@ import pytest
 from test_twin import hand_matrices
 
 from vsj import datasheet
+from vsj.cli import main
 from vsj.characteristics import pretension_loss, stiffness
 from vsj.datasheet.compute import END_STOP, PEAK_GEOMETRY, PEAK_SLACK, deflection_limit
 from vsj.cli import control as cli_control
@@ -162,9 +163,16 @@ def test_html_is_self_contained(written):
         assert key.replace("_", " ") in page
 
 
-def test_bad_arguments(params):
+def test_bad_arguments(params, tmp_path, capsys):
     with pytest.raises(InputError, match="q_points"):
         datasheet.compute(params, q_points=1)
+    # a bound on the positions (each is a few linearisations), said with the option's name
+    # before the output directory is made
+    with pytest.raises(InputError, match=r"q_points must be an integer in 2\.\.1001"):
+        datasheet.compute(params, q_points=datasheet.MAX_Q_POINTS + 1)
+    assert main(["datasheet", "--out", str(tmp_path / "ds"), "--points", "100000"]) == 2
+    assert "--points must be an integer in 2..1001, got 100000" in capsys.readouterr().err
+    assert not (tmp_path / "ds").exists()
     with pytest.raises(InputError, match="outside the pivot range"):
         datasheet.compute(params, q_points=2, curve_qs=[0.05])
 

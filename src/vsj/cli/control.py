@@ -138,9 +138,10 @@ def cmd_datasheet(args) -> int:
     from ..output import ResultSet
 
     params = _params(args.params)
+    datasheet.check_q_points(args.points, "--points")  # before the directory is touched
     with ResultSet(Path(args.out), "datasheet", size=datasheet.OUTPUT_BYTES) as results:
         sheet = datasheet.compute(params, q_points=args.points, friction=args.friction,
-                                  elastic=args.elastic)
+                                  elastic=args.elastic, option="--points")
         html_path, json_path = datasheet.write(sheet, results)
     for key, rating in sheet["ratings"].items():
         print(f"{key.replace('_', ' '):<26} {rating['value']:>10.4g} {rating['unit']:<8} "

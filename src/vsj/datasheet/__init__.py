@@ -31,9 +31,9 @@ The package is split by job: `compute` (the numbers, without matplotlib),
 `drawing` (the figures) and `page` (the HTML page and the JSON file).
 """
 
-from .compute import CURVE_POINTS, DEFAULT_FRICTION, Statics, compute
+from .compute import CURVE_POINTS, DEFAULT_FRICTION, MAX_Q_POINTS, Statics, check_q_points, compute
 from .drawing import figures
 from .page import OUTPUT_BYTES, html_page, write
 
-__all__ = ["compute", "Statics", "figures", "html_page", "write", "CURVE_POINTS",
-           "DEFAULT_FRICTION", "OUTPUT_BYTES"]
+__all__ = ["compute", "check_q_points", "Statics", "figures", "html_page", "write",
+           "CURVE_POINTS", "DEFAULT_FRICTION", "MAX_Q_POINTS", "OUTPUT_BYTES"]

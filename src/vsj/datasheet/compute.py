@@ -15,6 +15,7 @@ from ..components import PivotMechanism
 from ..errors import InputError, SimulationError
 from ..inputs import Constant
 from ..network import Network
+from ..progress import progress
 from ..simulate import InitialState, SimulationOptions, simulate
 from ..springs import GEOMETRIC, GEOMETRIC_REPORT, evaluate
 from ..wrist import WristOptions, build_wrist, elastic_element, motor
@@ -24,6 +25,10 @@ CURVE_POINTS = 241
 BODE_OMEGA = np.logspace(-1, 3.5, 300)
 #: Friction treatment of the linear models (see `vsj.linear.FRICTION_TREATMENTS`).
 DEFAULT_FRICTION = "linearised"
+#: Most pivot positions in the tables: a point every 0.03 mm of the prototype's 3 cm
+#: range, finer than its pivot can be set; each takes a few linearisations (a fraction
+#: of a second), so the most takes minutes, with a progress bar.
+MAX_Q_POINTS = 1001
 
 
 def _kinematics(params, elastic: str):
@@ -218,11 +223,22 @@ class Statics:
         return float(slack / np.max(np.abs(self.ring_per_output)))
 
 
+def check_q_points(q_points, option: str = "q_points") -> None:
+    """`InputError` unless ``q_points`` (named ``option``) is an integer in
+    2..`MAX_Q_POINTS`."""
+    if isinstance(q_points, bool) or not (isinstance(q_points, int)
+                                          and 2 <= q_points <= MAX_Q_POINTS):
+        raise InputError(f"datasheet: {option} must be an integer in 2..{MAX_Q_POINTS}, got "
+                         f"{q_points!r}")
+
+
 def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = None,
-            friction: str = DEFAULT_FRICTION, elastic: str = "geometric") -> dict:
-    """Every datasheet quantity as plain data (SI units; see the module docstring)."""
-    if not (isinstance(q_points, int) and q_points >= 2):
-        raise InputError(f"datasheet: q_points must be an integer >= 2, got {q_points!r}")
+            friction: str = DEFAULT_FRICTION, elastic: str = "geometric",
+            option: str = "q_points") -> dict:
+    """Every datasheet quantity as plain data (SI units; see the module docstring), with a
+    progress bar over the pivot positions on a terminal. ``option`` names ``q_points`` in
+    messages (the command's ``--points``)."""
+    check_q_points(q_points, option)
     q_min, q_max = params.pivot.q_min, params.pivot.q_max
     qs = np.linspace(q_max, q_min, q_points)
     curve_qs = list(np.linspace(q_max, q_min, 5) if curve_qs is None else curve_qs)
@@ -239,7 +255,7 @@ def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = Non
 
     per_q = []
     models = {}
-    for q in qs:
+    for q in progress(qs, desc="datasheet", unit="q"):
         static = statics.at(float(q))
         lin = linear_models.linearize(params, float(q), friction=friction,
                                       wrist_options=_options(elastic))
