@@ -832,3 +832,24 @@ def test_an_unknown_flange_in_the_initial_state_is_named_with_its_key(tmp_path, 
     fails(["simulate", path, "--out", tmp_path / "out"], capsys, "ang.toml",
           "initial.angles.theta_x", "did you mean 'diff.theta_x'?", "vsm_1.ring")
     assert not (tmp_path / "out").exists()
+
+
+def test_the_ledger_tolerance_is_a_solver_key_with_its_range(tmp_path, capsys):
+    """SimulationOptions' fields go by the same names in [solver] (the scheme is `method`):
+    ledger_tolerance was refused as an unknown key."""
+    scen = scenarios.loads('duration = "0.1 s"\n[solver]\nledger_tolerance = 1e-2\n', "lt.toml")
+    assert scen.cases[0].options.ledger_tolerance == 1e-2
+    path = write(tmp_path / "lt.toml", 'duration = "0.1 s"\n[solver]\nledger_tolerance = 5\n')
+    fails(["simulate", path, "--out", tmp_path / "out"], capsys, "lt.toml", "solver",
+          "ledger_tolerance must be a number in [1e-15, 1]")
+
+
+def test_options_that_would_be_ignored_are_refused(tmp_path, capsys):
+    """`vsj params FILE --check OTHER` checked OTHER only; --linear-stiffness without the
+    linear elastic model changed nothing."""
+    other = write(tmp_path / "other.toml", DEFAULT)
+    fails(["params", tmp_path / "first.toml", "--check", other], capsys, "give one file",
+          "first.toml", "other.toml")
+    fails(["linearize", "--linear-stiffness", "0.8 N m/rad", "--out", tmp_path / "l.json"],
+          capsys, "--linear-stiffness", "--elastic linear")
+    assert not (tmp_path / "l.json").exists()

@@ -206,7 +206,7 @@ PLANETARY_BENCH = {"fixed": ("sun", "ring"), "drive": ("speed", "torque"),
 ELASTIC_BENCH = {"q": None, "model": tuple(m for m in ELASTIC_MODELS if m != "linear"),
                  "sensor_stiffness": None}
 SOLVER_KEYS = {"friction", "method", "rtol", "atol", "step", "output_step", "slope_width",
-               "max_step", "max_steps", "friction_overrides"}
+               "max_step", "max_steps", "friction_overrides", "ledger_tolerance"}
 INITIAL_KEYS = {"q", "angles", "speeds", "currents"}
 INPUT_KINDS = {
     "constant": {"kind", "value"},
@@ -535,7 +535,9 @@ def _options(solver: Mapping, where: Where) -> SimulationOptions:
         slope_width=_quantity(solver, "slope_width", "rad/s", where, default.slope_width,
                               positive=True),
         max_step=_quantity(solver, "max_step", "s", where, default.max_step, positive=True),
-        max_steps=max_steps)
+        max_steps=max_steps,
+        ledger_tolerance=_quantity(solver, "ledger_tolerance", "1", where,
+                                   default.ledger_tolerance, positive=True))
 
 
 def _quantities(table: Mapping, key: str, unit: str, where: Where) -> dict[str, float]:

@@ -27,6 +27,9 @@ def _params(path: str | None):
 def cmd_params(args) -> int:
     """``vsj params``: print a parameter set (value, unit, description, source per key), or
     with ``--check`` validate a file. Returns the exit code (0)."""
+    if args.check and args.file and args.check != args.file:
+        raise InputError(f"vsj params: give one file, either to print ({args.file}) or to "
+                         f"--check ({args.check}), not both")
     params = _params(args.check or args.file)
     if args.check:
         print(f"{args.check}: ok ({len(params.values)} parameters, hash {params.hash()[:12]})")

@@ -49,6 +49,10 @@ def _names(text: str | None) -> list[str] | None:
 
 def _wrist_options(args):
     """WristOptions from the options `_add_wrist_arguments` adds."""
+    if args.linear_stiffness and args.elastic != "linear":
+        raise InputError(f"--linear-stiffness {args.linear_stiffness}: the stiffness of the "
+                         f"'linear' elastic model, which --elastic {args.elastic} is not; give "
+                         "--elastic linear with it")
     options = WristOptions(elastic=args.elastic, motors=args.motor_model,
                            pivot_drive=getattr(args, "pivot_drive", "velocity"),
                            linear_stiffness=(_quantity(args.linear_stiffness, "N*m",
