@@ -180,6 +180,14 @@ static int attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
         d->rejected_last = 1;
         return 0;
     }
+    if (w->status != VSJ_OK && vsj__locating(h, d->t)) { /* a physical limit crossed inside
+                                                           * the step: halve it */
+        w->status = VSJ_OK;
+        d->h = h * 0.5;
+        d->rejected++;
+        d->rejected_last = 1;
+        return 0;
+    }
     if (w->status != VSJ_OK) { /* a physical limit was crossed at the new point */
         memcpy(y, y1, (size_t)ny * sizeof(double));
         d->t += h;

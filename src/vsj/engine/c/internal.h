@@ -88,6 +88,14 @@ typedef struct dopri_state {
 /* Rows of ny_max values in a work's K: dopri's stages take 7, Rosenbrock's
  * (rosenbrock.c: its stages and the interpolant's derivatives) 14. */
 #define VSJ_K_ROWS 14
+/* How closely the adaptive schemes locate the moment a physical limit is crossed (the
+ * pivot leaving its range): a step that ends past it is halved until it is shorter than
+ * this fraction of the time reached (and 1 ns), so that the run stops there, its samples
+ * kept up to it, rather than at the end of a long step from rest. */
+#define VSJ_LIMIT_RESOLUTION 1e-9
+static inline int vsj__locating(double h, double t) {
+    return h > VSJ_LIMIT_RESOLUTION * (fabs(t) > 1.0 ? fabs(t) : 1.0);
+}
 
 struct vsj_work {
     /* sizes the work was made for */

@@ -348,6 +348,9 @@ int vsj__ros_attempt(const vsj_model *m, vsj_work *w, dopri_state *d) {
     end_status = end_point(m, w, d, end, t_land);
     if (end_status == VSJ_NOT_FINITE)
         return reject(w, d, 0.1);
+    if (end_status != VSJ_OK && vsj__locating(h, d->t)) /* a physical limit crossed inside
+                                                          * the step: halve it */
+        return reject(w, d, 0.5);
     e = dmax(e, middle_error(w, d, h, y1)); /* the interpolant's error, in the same norm */
     if (!isfinite(e))
         return reject(w, d, 0.1);
