@@ -1646,9 +1646,10 @@ def _prepare_case(scenario: Scenario, case: Case, params: Parameters,
     for key, named in (("angles", case.initial.angles), ("speeds", case.initial.speeds)):
         for name in named:
             if name not in structure.nodes:
+                hint = did_you_mean(name, structure.nodes)
                 raise InputError(f"{where.key('initial').key(key).key(name)}: no flange "
-                                 f"{name!r} in the {case.network}{did_you_mean(name, structure.nodes)}"
-                                 f"; its flanges are {', '.join(structure.nodes)}")
+                                 f"{name!r} in the {case.network}{hint}; its flanges are "
+                                 f"{', '.join(structure.nodes)}")
     pivot = structure.pivot
     if case.initial.q is not None and not pivot.q_min <= case.initial.q <= pivot.q_max:
         raise InputError(f"{where.key('initial').key('q')}: {case.initial.q * 100:g} cm is "

@@ -41,9 +41,9 @@ real-time loops; its accuracy is the user's choice of ``substeps`` (stable
 while ``dt/substeps`` times the fastest rate of the model stays below about
 2.8; the bundled DC motors' armature time constant, L/R = 0.1 ms, needs at
 least 4 substeps per millisecond). Substeps too long for the fastest modes at
-rest are refused, naming the least count that is stable. Both integrate friction laws that are functions of
-speed (the jump of the ``sign`` law makes ``dopri`` take very many tiny
-steps, `benchmarks/friction_laws.py`). ``method="timestep"`` runs the
+rest are refused, naming the least count that is stable. Both integrate friction
+laws that are functions of speed (the jump of the ``sign`` law makes ``dopri``
+take very many tiny steps, `benchmarks/friction_laws.py`). ``method="timestep"`` runs the
 simulator's time-stepper with true stiction at the options' ``step``; its
 stick/slip history (which elements hold, the last impulses) is kept from one
 call to the next, so calls must follow one another in time.
