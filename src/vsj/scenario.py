@@ -555,7 +555,7 @@ def _case(table: Mapping, label: str, where: Where) -> Case:
     build = _network(network, _table(table, "model", where), _table(table, "bench", where),
                      where, environment)
     options = _options(_table(table, "solver", where), where.key("solver"))
-    if options.output_step > duration:
+    if "output_step" in _table(table, "solver", where) and options.output_step > duration:
         raise InputError(f"{where.key('solver').key('output_step')} = {options.output_step:g} s: "
                          f"longer than the duration ({duration:g} s), so the run would keep "
                          "its start only; at most the duration")

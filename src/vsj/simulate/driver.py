@@ -39,11 +39,6 @@ def check_arguments(structure, inputs, duration, options, initial):
     if not isinstance(options, SimulationOptions):
         raise InputError(f"simulate: options must be a SimulationOptions, got "
                          f"{type(options).__name__}")
-    step = options.output_step
-    if isinstance(step, (int, float)) and math.isfinite(duration) and step > duration > 0.0:
-        raise InputError(f"simulate: options.output_step = {options.output_step:g} s is longer "
-                         f"than the duration ({duration:g} s), so the run would keep its start "
-                         "only; at most the duration")
     initial = InitialState() if initial is None else initial
     if not isinstance(initial, InitialState):
         raise InputError(f"simulate: initial must be an InitialState, got "
