@@ -86,3 +86,22 @@ def test_the_command_gives_a_warning_every_case_shares_once(params, tmp_path, ca
     err = capsys.readouterr().err
     lines = [line for line in err.splitlines() if "does not read" in line]
     assert len(lines) == 1 and lines[0].startswith("vsj: warning: [every case]"), err
+
+
+def test_the_model_commands_say_what_their_elastic_model_does_not_read(params, tmp_path,
+                                                                       capsys):
+    """vsj linearize (as export-model and fmu, through the same options) and vsj datasheet
+    with a design's springs and the exponential model: the warning names --elastic."""
+    design = tmp_path / "design.toml"
+    design.write_text('extends = "second_prototype"\n[elastic_element]\n'
+                      'spring_stiffness = { value = "150 N/m", source = "a design" }\n')
+    assert main(["linearize", "--params", str(design), "--elastic", "exponential",
+                 "--out", str(tmp_path / "lin.json")]) == 0
+    err = capsys.readouterr().err
+    assert "elastic_element.spring_stiffness" in err and "--elastic chooses" in err
+    assert main(["linearize", "--params", str(design), "--out",
+                 str(tmp_path / "lin2.json")]) == 0
+    assert "does not read" not in capsys.readouterr().err
+    assert main(["datasheet", "--params", str(design), "--elastic", "exponential",
+                 "--points", "2", "--out", str(tmp_path / "ds")]) == 0
+    assert "--elastic chooses" in capsys.readouterr().err

@@ -196,11 +196,13 @@ def unread_keys(net: Network) -> list[str]:
             if k not in read]
 
 
-def unread_changes(net: Network, params: Parameters) -> list[str]:
+def unread_changes(net: Network, params: Parameters, *,
+                   choose: str = "a scenario's [model] elastic") -> list[str]:
     """A sentence naming the ``[elastic_element]`` values of ``params`` that differ from the
     bundled set's but that no elastic element of ``net`` reads (a geometric design run with
     the exponential model of eq 4.5, say, which gives the bundled set's results), or none
-    when ``net`` reads every value the set changes."""
+    when ``net`` reads every value the set changes. ``choose`` names what chooses the
+    model where the sentence is read."""
     if params.origin == DEFAULT_ORIGIN:
         return []
     bundled = _bundled_values()
@@ -209,5 +211,5 @@ def unread_changes(net: Network, params: Parameters) -> list[str]:
         return []
     return [f"the parameter set ({params.origin}) sets {', '.join(unread)} away from the "
             f"bundled set, but {elastic_models(net)} does not read "
-            f"{'it' if len(unread) == 1 else 'them'}, so the run is the same as without; a "
-            "scenario's [model] elastic chooses the model"]
+            f"{'it' if len(unread) == 1 else 'them'}, so the results are the same as "
+            f"without; {choose} chooses the model"]

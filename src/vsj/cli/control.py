@@ -24,7 +24,7 @@ from ..friction import LINEAR_TREATMENTS as FRICTION_TREATMENTS
 from ..simulate import InitialState, SimulationOptions
 from ..stepper import METHODS
 from ..units import to_si
-from ..wrist import DRIVES, ELASTIC_MODELS, WristOptions
+from ..wrist import DRIVES, ELASTIC_MODELS, WristOptions, build_wrist, unread_changes
 
 
 def _params(path: str | None):
@@ -47,8 +47,18 @@ def _names(text: str | None) -> list[str] | None:
     return names
 
 
-def _wrist_options(args):
-    """WristOptions from the options `_add_wrist_arguments` adds."""
+def _warn_unread(parameters, options: WristOptions) -> None:
+    """Say on stderr what ``parameters`` changes that the wrist of ``options`` does not
+    read (`vsj.wrist.unread_changes`: a design's springs with the exponential model)."""
+    if parameters.origin != params.DEFAULT_ORIGIN:
+        for text in unread_changes(build_wrist(parameters, options), parameters,
+                                   choose="--elastic"):
+            print(f"vsj: warning: {text}", file=sys.stderr)
+
+
+def _wrist_options(args, parameters):
+    """WristOptions from the options `_add_wrist_arguments` adds; what ``parameters``
+    changes in vain for them is said on stderr (`_warn_unread`)."""
     if args.linear_stiffness and args.elastic != "linear":
         raise InputError(f"--linear-stiffness {args.linear_stiffness}: the stiffness of the "
                          f"'linear' elastic model, which --elastic {args.elastic} is not; give "
@@ -59,6 +69,7 @@ def _wrist_options(args):
                                                        "--linear-stiffness")
                                              if args.linear_stiffness else None))
     options.validate()
+    _warn_unread(parameters, options)
     return options
 
 
@@ -102,7 +113,8 @@ def cmd_linearize(args) -> int:
         motors=(_quantity(args.motor_1, "rad", "--motor-1"),
                 _quantity(args.motor_2, "rad", "--motor-2")),
         load=(_quantity(args.tau_x, "N*m", "--tau-x"), _quantity(args.tau_y, "N*m", "--tau-y")),
-        wrist_options=_wrist_options(args), friction=args.friction, inputs=_names(args.inputs),
+        wrist_options=_wrist_options(args, params), friction=args.friction,
+        inputs=_names(args.inputs),
         outputs=_names(args.outputs), statespace=False)
     for text in model.info.get("warnings", []):
         print(f"vsj: warning: {text}", file=sys.stderr)
@@ -143,6 +155,7 @@ def cmd_datasheet(args) -> int:
 
     params = _params(args.params)
     datasheet.check_q_points(args.points, "--points")  # before the directory is touched
+    _warn_unread(params, WristOptions(elastic=args.elastic))
     with ResultSet(Path(args.out), "datasheet", size=datasheet.OUTPUT_BYTES) as results:
         sheet = datasheet.compute(params, q_points=args.points, friction=args.friction,
                                   elastic=args.elastic, option="--points")
@@ -169,7 +182,7 @@ def cmd_export_model(args) -> int:
     options = SimulationOptions(friction=args.friction,
                                 step=_quantity(args.step, "s", "--step"),
                                 rtol=args.rtol, atol=args.atol)
-    wrist_options = _wrist_options(args)
+    wrist_options = _wrist_options(args, params)
     stepper = export.wrist_stepper(params, wrist_options, options=options, method=method,
                                    period=_quantity(args.period, "s", "--period"),
                                    substeps=args.substeps)
@@ -210,7 +223,8 @@ def cmd_fmu(args) -> int:
     if win64 and fmu.compiler("win64") is None:
         raise InputError("--win64 yes: the mingw-w64 cross-compiler (x86_64-w64-mingw32-gcc; "
                          "Debian: apt-get install gcc-mingw-w64-x86-64) is not installed")
-    settings = dict(wrist_options=_wrist_options(args), friction=args.friction, step=step,
+    settings = dict(wrist_options=_wrist_options(args, params), friction=args.friction,
+                    step=step,
                     q0=_quantity(args.q, "m", "--q"), win64=win64, method=args.method,
                     rtol=args.rtol, atol=args.atol)
     info = None
