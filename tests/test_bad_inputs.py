@@ -803,7 +803,8 @@ def test_a_file_of_a_result_set_is_not_replaced_by_a_single_file_command(tmp_pat
     """vsj linearize --out DIR/meta.json replaced a set's file, which vsj verify then found
     changed; the manifest itself is refused too."""
     out = tmp_path / "res"
-    assert main(["simulate", str(write(tmp_path / "s.toml", SHORT_SCENARIO)), "--out", str(out)]) == 0
+    scenario = write(tmp_path / "s.toml", SHORT_SCENARIO)
+    assert main(["simulate", str(scenario), "--out", str(out)]) == 0
     capsys.readouterr()
     before = (out / "meta.json").read_bytes()
     fails(["linearize", "--out", out / "meta.json"], capsys, "result set 'simulate'",

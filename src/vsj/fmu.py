@@ -76,7 +76,7 @@ from .params import RELATIONS, SCHEMA, Parameters
 from .params import default as default_params
 from .simulate import DIVERGED, INTO_STOP, InitialState, SimulationOptions
 from .simulate.signals import SignalSpec, catalogue
-from .springs import EXPONENTIAL, EXPONENTIAL_FIELDS, GEOMETRIC, GEOMETRIC_REPORT, GEOMETRY_FIELDS
+from .springs import ROW_FIELDS
 from .stepper import Stepper
 from .wrist import WristOptions
 
@@ -801,8 +801,7 @@ def checks_of(stepper, document: dict, options: SimulationOptions) -> Checks:
     first = len(structure.frictions)
     springs = []
     for k, sp in enumerate(structure.springs):
-        fields = {EXPONENTIAL: EXPONENTIAL_FIELDS, GEOMETRIC: GEOMETRY_FIELDS,
-                  GEOMETRIC_REPORT: GEOMETRY_FIELDS}.get(sp.law)
+        fields = ROW_FIELDS.get(sp.law)
         column = fields.index("end_stop") if fields else -1
         if code[first + k] != sp.law or (column >= 0 and par[first + k, column]
                                          != sp.parameters[column]):

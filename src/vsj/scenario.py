@@ -554,8 +554,9 @@ def _case(table: Mapping, label: str, where: Where) -> Case:
         environment = environment_from_table(table["environment"], where.key("environment"))
     build = _network(network, _table(table, "model", where), _table(table, "bench", where),
                      where, environment)
-    options = _options(_table(table, "solver", where), where.key("solver"))
-    if "output_step" in _table(table, "solver", where) and options.output_step > duration:
+    solver = _table(table, "solver", where)
+    options = _options(solver, where.key("solver"))
+    if "output_step" in solver and options.output_step > duration:
         raise InputError(f"{where.key('solver').key('output_step')} = {options.output_step:g} s: "
                          f"longer than the duration ({duration:g} s), so the run would keep "
                          "its start only; at most the duration")

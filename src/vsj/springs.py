@@ -76,13 +76,17 @@ GEOMETRY_FIELDS = ("ring_radius", "lever_length", "lever_width", "anchor_x", "an
                    "rest_length", "spring_stiffness", "end_stop", "end_stop_stiffness")
 #: EXPONENTIAL: a1, a2, a3, phi_stop, k_stop (N m/rad, 1/m, N m/rad, rad, N m/rad).
 EXPONENTIAL_FIELDS = ("a1", "a2", "a3", "end_stop", "end_stop_stiffness")
+#: The ``[elastic_element]`` keys each law's row is made of; the linear law's row (its
+#: stiffness, an option of the model) reads none of them.
+ROW_FIELDS = {LINEAR: (), EXPONENTIAL: EXPONENTIAL_FIELDS, GEOMETRIC: GEOMETRY_FIELDS,
+              GEOMETRIC_REPORT: GEOMETRY_FIELDS}
+
 
 def end_stop(law: int, parameters) -> tuple[float, float] | None:
     """``(angle [rad], stiffness [N m/rad])`` of a law's end stop (stiffness infinite
     for a rigid stop), or None for a law without one."""
-    fields = {EXPONENTIAL: EXPONENTIAL_FIELDS, GEOMETRIC: GEOMETRY_FIELDS,
-              GEOMETRIC_REPORT: GEOMETRY_FIELDS}.get(law)
-    if fields is None:
+    fields = ROW_FIELDS.get(law)
+    if not fields:  # the linear law and laws without a row of these fields
         return None
     return (float(parameters[fields.index("end_stop")]),
             float(parameters[fields.index("end_stop_stiffness")]))

@@ -19,6 +19,7 @@ from ..springs import (
     GEOMETRY_FIELDS,
     MODELS,
     N_PARAMETERS,
+    ROW_FIELDS,
     coil_pretension,
     evaluate,
 )
@@ -91,9 +92,7 @@ class ElasticElement(SchemaComponent):
         """The ``[elastic_element]`` rows' keys this element's model reads: the geometric
         models `GEOMETRY_FIELDS`, the exponential one `EXPONENTIAL_FIELDS`, the linear one
         none (its stiffness is an option of the model, not a parameter)."""
-        if self.law in (GEOMETRIC, GEOMETRIC_REPORT):
-            return GEOMETRY_FIELDS
-        return EXPONENTIAL_FIELDS if self.law == EXPONENTIAL else ()
+        return ROW_FIELDS[self.law]
 
     def torque(self, phi, q: float):
         """Torque [N m] this element applies to the ring at deflections ``phi``

@@ -45,7 +45,7 @@ from pathlib import Path
 
 from ..errors import InputError, read_text
 from ..params import SCHEMA, Spec
-from ..springs import EXPONENTIAL_FIELDS, GEOMETRY_FIELDS
+from ..springs import EXPONENTIAL_FIELDS, GEOMETRY_FIELDS, MODELS, ROW_FIELDS
 from ..units import format_quantity, to_si
 from ..wrist import ELASTIC_MODELS
 
@@ -276,8 +276,7 @@ def _used_by(name: str, elastic: str, origin: str) -> None:
     """Refuse an elastic element's parameter that ``elastic``, the model the objectives
     use, does not read (the other model's row): every design would be the same."""
     section, _, key = name.partition(".")
-    rows = {"exponential": EXPONENTIAL_FIELDS}
-    reads = rows.get(elastic, GEOMETRY_FIELDS)
+    reads = ROW_FIELDS[MODELS[elastic]]
     if section == "elastic_element" and key in set(GEOMETRY_FIELDS + EXPONENTIAL_FIELDS) - set(
             reads):
         raise InputError(f"{_where(origin, 'parameters', _quoted(name))}: the {elastic!r} "

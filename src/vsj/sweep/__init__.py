@@ -88,8 +88,7 @@ def run(spec: SweepSpec, out: str | Path, *, resume: bool = False,
     run (`vsj.errors.InputError`), the free space against a bound on the bytes the
     sweep writes included. ``announce(text)``, if given, is told that bound before the
     runs start, the sweep's warnings (`Outcome.warnings`), and what a resumed sweep found
-    damaged and runs again. A failure to
-    write the directory raises `Unfinished`."""
+    damaged and runs again. A failure to write the directory raises `Unfinished`."""
     started = time.perf_counter()
     job = job_for(spec)
     info = describe(job)
