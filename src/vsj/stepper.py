@@ -174,7 +174,7 @@ class Stepper:
     def _check_rk4_substeps(self) -> None:
         """`InputError` when rk4's substeps are too long for the network's modes at rest
         (no inputs; the state of zeros, or the pivot in the middle of its range where
-        zeros lie outside it), naming the least count that is not.
+        zeros lie outside it), naming the least count that is stable.
 
         A substep of RK4 multiplies a mode ``exp(lambda t)`` by ``R(h lambda)``,
         ``R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24``. Where a mode that decays or oscillates
