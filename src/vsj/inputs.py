@@ -102,11 +102,41 @@ def engine_pieces(signal: Input, t_end: float) -> tuple[np.ndarray, np.ndarray, 
     repeats them with (0: none): a signal that repeats (`Input.repeats`) within
     ``t_end`` is splined up to the end of its first whole period only."""
     repeats = signal.repeats()
+    period = 0.0
     if repeats is not None and repeats[0] + repeats[1] < t_end:
         knots, coef = signal.pieces(repeats[0] + repeats[1])
-        return np.asarray(knots, dtype=float), np.asarray(coef, dtype=float), repeats[1]
-    knots, coef = signal.pieces(t_end)
-    return np.asarray(knots, dtype=float), np.asarray(coef, dtype=float), 0.0
+        period = repeats[1]
+    else:
+        knots, coef = signal.pieces(t_end)
+    knots, coef = from_zero(np.asarray(knots, dtype=float),
+                            np.asarray(coef, dtype=float).reshape(-1, 4))
+    return knots, coef, period
+
+
+def from_zero(knots: np.ndarray, coef: np.ndarray) -> Pieces:
+    """The same signal on ``[0, knots[-1]]`` as pieces whose first knot is t = 0 (a run's
+    start): the engine integrates a source's speed from the first knot, so a table that
+    starts later gains a piece holding its first value from 0, and one that starts
+    earlier loses what lies before 0 (the piece across 0 re-expanded about it). Pieces
+    that start at 0, and a signal that ends before 0 (held at its last value), keep or
+    become one piece from 0."""
+    if knots[0] == 0.0:
+        return knots, coef
+    if knots[0] > 0.0:  # its first value held from 0
+        first = np.array([[coef[0, 0], 0.0, 0.0, 0.0]])
+        return np.concatenate([[0.0], knots]), np.vstack([first, coef])
+    if knots[-1] <= 0.0:  # over before the run starts: its last value
+        c = coef[-1]
+        tau = knots[-1] - knots[-2]
+        last = c[0] + tau * (c[1] + tau * (c[2] + tau * c[3]))
+        return np.array([0.0, max(knots[-1], 0.0) + 1.0]), np.array([[last, 0.0, 0.0, 0.0]])
+    j = int(np.searchsorted(knots, 0.0, side="right")) - 1  # the piece that holds t = 0
+    c0, c1, c2, c3 = coef[j]
+    tau = -knots[j]  # 0 in the piece's own time
+    shifted = [c0 + tau * (c1 + tau * (c2 + tau * c3)), c1 + tau * (2.0 * c2 + 3.0 * c3 * tau),
+               c2 + 3.0 * c3 * tau, c3]
+    return (np.concatenate([[0.0], knots[j + 1:]]),
+            np.vstack([np.array([shifted]), coef[j + 1:]]))
 
 
 def evaluate_repeating(knots, coef, period: float, t):
