@@ -852,3 +852,43 @@ def test_options_that_would_be_ignored_are_refused(tmp_path, capsys):
     fails(["linearize", "--linear-stiffness", "0.8 N m/rad", "--out", tmp_path / "l.json"],
           capsys, "--linear-stiffness", "--elastic linear")
     assert not (tmp_path / "l.json").exists()
+
+
+@pytest.mark.parametrize("fields, named", [
+    ({"angles": {"diff.theta_x": math.nan}}, r"InitialState.angles\['diff.theta_x'\]"),
+    ({"angles": {"diff.theta_x": math.inf}}, r"InitialState.angles\['diff.theta_x'\]"),
+    ({"speeds": {"diff.theta_x": math.nan}}, r"InitialState.speeds\['diff.theta_x'\]"),
+    ({"speeds": {"diff.theta_x": "x"}}, r"InitialState.speeds\['diff.theta_x'\]"),
+    ({"currents": {"motor_1": True}}, r"InitialState.currents\['motor_1'\]"),
+    ({"q": "1 cm"}, r"InitialState.q"),
+    ({"q": -math.inf}, r"InitialState.q"),
+    ({"angles": [1, 2]}, r"InitialState.angles must be a mapping"),
+    ({"speeds": {3: 1.0}}, r"InitialState.speeds: names are strings"),
+])
+def test_an_initial_state_from_python_names_its_bad_entry(fields, named):
+    """The Python API's initial state refuses what is not a finite number where it is
+    made, naming the field and entry (a NaN angle reached the engine's checks as an
+    internal array's entry; a NaN speed ran and failed at t = 0)."""
+    from vsj.simulate import InitialState
+
+    with pytest.raises(InputError, match=named + ".*finite number|" + named):
+        InitialState(**fields)
+
+
+def test_numpy_scalars_are_the_numbers_they_hold():
+    """np.float32 and np.int64 durations and options give the run their float and int
+    give (they were refused as "not a finite time > 0 s")."""
+    from vsj import build_wrist, simulate
+    from vsj.simulate import InitialState
+
+    wrist = build_wrist(params_module.default()).assemble()
+    plain = simulate(wrist, {"motor_1": 1.0}, 0.125, initial=InitialState(q=0.0025),
+                     options=SimulationOptions(output_step=0.015625, max_steps=100_000))
+    numpy = simulate(wrist, {"motor_1": 1.0}, np.float32(0.125),
+                     initial=InitialState(q=np.float64(0.0025)),
+                     options=SimulationOptions(output_step=np.float32(0.015625),
+                                               max_steps=np.int64(100_000)))
+    assert plain.success and numpy.success
+    assert np.array_equal(plain["theta_x"], numpy["theta_x"])  # 1/8 and 1/64: exact in float32
+    whole = simulate(wrist, {}, np.int64(1), options=SimulationOptions(output_step=0.5))
+    assert whole.success and whole.time[-1] == 1.0

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from vsj import scenario as scenarios
+from vsj.errors import InputError
 from vsj.simulate import InitialState, SimulationOptions, simulate, simulate_batch
 from vsj.simulate.signals import rows
 from vsj.wrist import build_wrist
@@ -137,3 +138,32 @@ def test_rows_give_each_sample_the_same_bits_however_the_samples_are_grouped(den
                 assert np.array_equal(rows(samples[r], matrix[:, c]), whole[r, :, c])
     # 23 products of unit normals: their sum's round-off stays far below 1e-12
     np.testing.assert_allclose(whole, samples @ matrix, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("duration, options, match", [
+    (1e9, SimulationOptions(), "GiB in memory"),
+    (0.1, SimulationOptions(solver="timestep", step=3e-3), "whole multiple of the time step"),
+    (1e-5, SimulationOptions(solver="timestep"), "longer than the duration"),
+    (0.1, SimulationOptions(solver="timestep", max_steps=10), "more than max_steps"),
+], ids=["memory", "grid", "short", "max_steps"])
+def test_a_batch_refuses_what_a_single_run_refuses(params, duration, options, match):
+    """A batch is the same runs as `simulate` makes: what `simulate` refuses before it
+    runs (steps, sample grid, memory), the batch refuses alike, before it allocates."""
+    wrist = build_wrist(params).assemble()
+    with pytest.raises(InputError, match=match):
+        simulate(wrist, {}, duration, options=options)
+    with pytest.raises(InputError, match=match):
+        simulate_batch(wrist, {}, duration, initials=[InitialState()], options=options)
+
+
+def test_a_batch_takes_its_initial_states_from_any_iterable_and_checks_threads(params):
+    wrist = build_wrist(params).assemble()
+    options = SimulationOptions(output_step=0.01)
+    listed = simulate_batch(wrist, {}, 0.1, initials=[InitialState(q=q) for q in (0.0, 0.004)],
+                            options=options)
+    made = simulate_batch(wrist, {}, 0.1, initials=(InitialState(q=q) for q in (0.0, 0.004)),
+                          options=options)
+    assert np.array_equal(listed.states, made.states)
+    for threads in (0, -1, 1.5, True):
+        with pytest.raises(InputError, match="threads must be a whole number >= 1"):
+            simulate_batch(wrist, {}, 0.1, initials=[InitialState()], threads=threads)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import numbers
 import time as _time
+from collections.abc import Iterable
 from typing import Mapping
 
 import numpy as np
@@ -12,7 +14,7 @@ from ..engine.plan import run_batch
 from ..errors import InputError
 from ..inputs import Input
 from ..network import Structure
-from .driver import check_arguments, choose_solver, prepare, sample_times
+from .driver import check_arguments, check_run_size, choose_solver, prepare, sample_times
 from .options import InitialState, SimulationOptions
 from .result import BatchResult
 from .signals import state_names
@@ -62,13 +64,22 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
     ``batch["control.<name>"]`` and ``batch["actuator.<channel>"]``.
     """
     inputs, options, _ = check_arguments(structure, inputs, duration, options, None)
+    duration = float(duration)
+    initials = list(initials) if isinstance(initials, Iterable) else initials
     if not initials or not all(isinstance(i, InitialState) for i in initials):
         raise InputError("simulate_batch needs a list of at least one InitialState")
     if structures is not None and len(structures) != len(initials):
         raise InputError(f"simulate_batch: {len(structures)} structures for {len(initials)} runs")
+    if threads is not None and (isinstance(threads, bool)
+                                or not isinstance(threads, numbers.Integral) or threads < 1):
+        raise InputError(f"simulate_batch: threads must be a whole number >= 1 (or None: every "
+                         f"core), got {threads!r}")
     solver = choose_solver(structure, options)
     plan = prepare(structure, inputs, duration, options, InitialState(), controller)
     base, layout = plan.model, plan.layout
+    # the checks of a single run (steps, sample grid, memory), for the batch's states
+    width = layout.n_state + (plan.controller.width if plan.controller is not None else 0)
+    check_run_size(structure, duration, options, solver, runs=len(initials), width=width)
     engine = plan.engine()
     u0 = engine.source_speeds(0.0)
     plans, src0s = [], np.zeros((len(initials), layout.n_sources))

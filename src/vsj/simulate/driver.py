@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 import time as _time
 from dataclasses import asdict
 from typing import Mapping
@@ -156,6 +157,7 @@ def simulate(structure: Structure, inputs: Mapping[str, Input], duration: float,
     ``actuator.<channel>``).
     """
     inputs, options, initial = check_arguments(structure, inputs, duration, options, initial)
+    duration = float(duration)
     # the size first: a run too large for memory or disk is refused before anything else
     check_run_size(structure, duration, options, choose_solver(structure, options),
                    in_memory=getattr(sink, "keeps_samples", True), ports=ports)
@@ -286,12 +288,14 @@ def available_memory() -> tuple[float, str]:
 
 def check_run_size(structure: Structure, duration: float, options: SimulationOptions,
                    solver: str, *, in_memory: bool = True, ports: bool = True,
-                   extra: int = 0) -> None:
+                   extra: int = 0, runs: int = 1, width: int | None = None) -> None:
     """`InputError` before anything is allocated when a run's steps exceed
     ``max_steps`` or do not land on the samples, or its samples would not fit in the
     memory this process may take (`available_memory`): all of them for a run kept in
-    memory, one block (`BLOCK_BYTES`) for a run streamed to a file."""
-    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0.0):
+    memory, one block (`BLOCK_BYTES`) for a run streamed to a file. A batch of ``runs``
+    keeps ``width`` columns a sample of each (default: a single run's signals)."""
+    if isinstance(duration, bool) or not (isinstance(duration, numbers.Real)
+                                          and math.isfinite(duration) and duration > 0.0):
         raise InputError(f"duration must be a finite time > 0 s, got {duration!r}")
     options.validate()
     if solver == "timestep":
@@ -309,16 +313,21 @@ def check_run_size(structure: Structure, duration: float, options: SimulationOpt
     from ..output import signals_bound  # circle: vsj.output imports vsj.simulate
 
     samples = math.floor(duration / options.output_step + 1e-9) + 1
-    width = signals_bound(structure) + extra  # a controller's signals too
-    need = 3.0 * BLOCK_BYTES + (samples * width * 8.0 if in_memory else 0.0)
+    batch = width is not None
+    if width is None:
+        width = signals_bound(structure) + extra  # a controller's signals too
+    need = 3.0 * BLOCK_BYTES + (runs * samples * width * 8.0 if in_memory else 0.0)
     available, limit = available_memory()
     if need > 0.8 * available:
         if in_memory:
+            each = f" in each of {runs} runs" if runs > 1 else ""
+            instead = ("or run fewer runs at a time" if batch else
+                       "or stream the run to a file (vsj simulate --out does)")
             raise InputError(
                 f"{duration:g} s sampled every {options.output_step:g} s are {samples:.3g} "
-                f"samples of up to {width} signals: {need / 2 ** 30:.3g} GiB in memory, more "
-                f"than {limit} leaves this process ({available / 2 ** 30:.3g} GiB); raise "
-                f"output_step, shorten the duration, or stream the run to a file (vsj "
-                f"simulate --out does)")
+                f"samples{each} of up to {width} signals: {need / 2 ** 30:.3g} GiB in "
+                f"memory, more than {limit} leaves this process "
+                f"({available / 2 ** 30:.3g} GiB); raise output_step, shorten the duration, "
+                f"{instead}")
         raise InputError(f"a block of samples needs {need / 2 ** 20:.3g} MiB, more than "
                          f"{limit} leaves this process ({available / 2 ** 20:.3g} MiB)")

@@ -4,6 +4,7 @@ initial state (`InitialState`)."""
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 from typing import Mapping
 
@@ -50,6 +51,14 @@ class SimulationOptions:
     max_steps: int = 20_000_000
     ledger_tolerance: float = LEDGER_TOLERANCE
 
+    def __post_init__(self):
+        # NumPy's scalars (np.float32(0.01), np.int64(1000)) are the numbers they hold
+        for name in (*RANGES, "max_steps"):
+            value = getattr(self, name)
+            if isinstance(value, numbers.Real) and not isinstance(value, bool):
+                whole = name == "max_steps" and isinstance(value, numbers.Integral)
+                object.__setattr__(self, name, int(value) if whole else float(value))
+
     def validate(self) -> None:
         """`InputError` naming the option, the value and what is allowed if any option is
         out of range."""
@@ -81,3 +90,31 @@ class InitialState:
     speeds: Mapping[str, float] = field(default_factory=dict)
     q: float | None = None
     currents: Mapping[str, float] = field(default_factory=dict)
+
+    def __post_init__(self):
+        """`InputError` naming the field and the entry unless the angles, speeds and
+        currents map names to finite numbers and ``q`` is one (or None); the mappings are
+        kept as copies with float values, so a caller's later change does not reach them."""
+        for name in ("angles", "speeds", "currents"):
+            given = getattr(self, name)
+            if not isinstance(given, Mapping):
+                raise InputError(f"InitialState.{name} must be a mapping of names to numbers "
+                                 f"(a dict), got {type(given).__name__}")
+            checked = {}
+            for key, value in given.items():
+                if not isinstance(key, str):
+                    raise InputError(f"InitialState.{name}: names are strings, got {key!r}")
+                checked[key] = _finite(value, f"InitialState.{name}[{key!r}]")
+            object.__setattr__(self, name, checked)
+        if self.q is not None:
+            object.__setattr__(self, "q", _finite(self.q, "InitialState.q (the pivot "
+                                                          "position in metres)"))
+
+
+def _finite(value, where: str) -> float:
+    """``value`` as a float if it is a finite real number, else `InputError` naming
+    ``where``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) \
+            or not math.isfinite(value):
+        raise InputError(f"{where} must be a finite number (SI units), got {value!r}")
+    return float(value)
