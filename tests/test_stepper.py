@@ -366,3 +366,37 @@ def test_bad_calls(params):
     with pytest.raises(InputError, match="vsm_1.ring.angle must be finite"):
         stepper.step(bad, None)
     assert math.isfinite(stepper.step(state, None)[0])
+
+
+@pytest.mark.parametrize("motors", ["velocity", "dc"])
+def test_a_failed_period_leaves_the_stepper_able_to_step_on(params, motors):
+    """A period that fails (a load torque of 1e306 N m overflows the model) leaves its
+    state unchanged; the periods after it step that state as a new stepper does. The
+    failed period's impulses, the next one's warm start, were not finite and failed every
+    later period of the same work."""
+    wrist = WristOptions(motors="dc", pivot_drive="dc") if motors == "dc" else None
+
+    def stepper():
+        return Stepper.wrist(params, wrist, period=1e-3, method="timestep",
+                             options=SimulationOptions(friction="stiction"))
+
+    used = stepper()
+    u = np.zeros(used.n_inputs)
+    u[list(used.input_names).index("tau_x")] = 0.01
+    x = used.initial_state(InitialState(q=-0.004), u)
+    for _ in range(20):
+        used.step(x, u, out=x)
+    before = x.copy()
+    overflow = u.copy()
+    overflow[list(used.input_names).index("tau_x")] = 1e306
+    with pytest.raises(SimulationError, match="non-finite"):
+        used.step(x, overflow, out=x)
+    assert np.array_equal(x, before)
+    fresh, y = stepper(), x.copy()
+    for _ in range(20):
+        used.step(x, u, out=x)
+        fresh.step(y, u, out=y)
+    assert np.all(np.isfinite(x))
+    # the same steps from the same state: a warm start changes at most the impulse
+    # solver's last rounding, IMPULSE_REL of the impulses
+    assert np.allclose(x, y, rtol=IMPULSE_REL, atol=IMPULSE_REL * np.max(np.abs(y)))

@@ -380,9 +380,12 @@ static void channel_lists(const vsj_model *m, ts_work *t) {
 }
 
 /* No stick/slip history: no impulses, no factor, no counts. */
-static void clear_history(const vsj_model *m, ts_work *t) {
+/* The numbers one call hands the next (the factor, the impulse problem's rows, the last
+ * impulses as its warm start and the memo of its stuck set): forgotten, so that the
+ * next step makes them afresh. The stick counts are kept. */
+static void forget_numbers(const vsj_model *m, ts_work *t) {
     int64_t n = m->n, nk = m->n_springs, nf = m->n_frictions;
-    int64_t nr = n + 2 * nk, mu = nf + 2 * nk, a, e;
+    int64_t nr = n + 2 * nk, mu = nf + 2 * nk, a;
     memset(t->H_last, 0, (size_t)(n * n) * sizeof(double));
     memset(t->YlT, 0, (size_t)(nr * mu) * sizeof(double));
     memset(t->qv, 0, (size_t)mu * sizeof(double));
@@ -395,15 +398,32 @@ static void clear_history(const vsj_model *m, ts_work *t) {
     memset(t->Kc, 0, (size_t)(nr * nr) * sizeof(double));
     for (a = 0; a < mu; a++)
         t->state[a] = 0;
-    for (e = 0; e < nf; e++) {
-        t->held[e] = 0;
-        t->transitions[e] = 0;
-    }
     t->hs_prev = NAN;
     t->rl_h = NAN; /* the armature steps follow the parameters */
     t->angle_prev = NAN; /* the pivot's too */
     t->factored = 0;
     t->memo_full = -1;
+}
+
+/* A fresh history: no numbers from earlier calls, no stick phases counted. */
+static void clear_history(const vsj_model *m, ts_work *t) {
+    int64_t e;
+    forget_numbers(m, t);
+    for (e = 0; e < m->n_frictions; e++) {
+        t->held[e] = 0;
+        t->transitions[e] = 0;
+    }
+}
+
+/* Whether the last impulses, the next step's warm start, are finite: a period whose
+ * inputs overflowed the model (1e306 V) can leave them not, and its state unchanged
+ * (vsj_step), which the next period must step from as a fresh work would. */
+static int impulses_finite(const vsj_model *m, const ts_work *t) {
+    int64_t a, mu = m->n_frictions + 2 * m->n_springs;
+    for (a = 0; a < mu; a++)
+        if (!isfinite(t->p[a]))
+            return 0;
+    return 1;
 }
 
 int vsj_ts_prepare(const vsj_model *m, vsj_work *w) {
@@ -495,6 +515,8 @@ int vsj__ts_begin(const vsj_model *m, vsj_work *w, const double *y, double t0) {
     memcpy(t->x, y, (size_t)n * sizeof(double));
     memcpy(t->v, y + n, (size_t)n * sizeof(double));
     memcpy(t->cur, y + 2 * n, (size_t)nm * sizeof(double));
+    if (!impulses_finite(m, t)) /* a failed call's numbers: not a warm start */
+        forget_numbers(m, t);
     vsj__eval_inputs(m, w, t0);
     for (j = 0; j < m->n_sources; j++) {
         t->u0[j] = w->srcw[SRCW * j + U];

@@ -387,7 +387,8 @@ int64_t vsj_step_state_size(const vsj_model *m);
  * rosenbrock (rtol, atol, max_steps), rk4 (substeps; no rigid end stops, no ledger) or the time-stepper
  * (h; its stick/slip history is kept in the work from one period to the next). If
  * `ledger` is not NULL it receives the energy ledger over the period (vsj_n_acc
- * values, each accumulator's change). s is unchanged on failure. */
+ * values, each accumulator's change). s is unchanged on failure, and the next call
+ * steps it as a fresh work would: a failed period's impulses are no warm start. */
 int vsj_step(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, double *s,
              const double *inputs, double dt, double *ledger);
 /* ds/dt at s for held inputs (the source speeds' derivatives drop out). */
