@@ -21,7 +21,7 @@ from conftest import _once
 from vsj import components as C
 from vsj import export
 from vsj.cli import main
-from vsj.engine.core import IMPULSE_REL
+from vsj.engine.core import IMPULSE_REL, OK, TOO_MANY_STEPS
 from vsj.engine.plan import METHODS
 from vsj.inputs import Constant
 from vsj.network import Network
@@ -223,15 +223,15 @@ def _with_code(document, stepper, code) -> bytes:
                          for k, b in enumerate(export.program_bytes(d, s))]), "damaged"),
     (lambda d, s: _sealed(export.program_bytes(d, s)[:-80] + b"\0" * 8), "truncated"),
     (lambda d, s: export.program_bytes({**d, "solver": {**d["solver"], "rtol": -1.0}}, s),
-     "solver settings are out of range"),
+     "its tolerances are out of range (rtol in [1e-14, 1e-2]"),
     # the tolerances within vsj's ranges (rtol 1e-14..1e-2, atol 1e-20..1e-2), a step
     # count a period can take
     (lambda d, s: export.program_bytes({**d, "solver": {**d["solver"], "rtol": 1e-300}}, s),
-     "solver settings are out of range"),
+     "its tolerances are out of range"),
     (lambda d, s: export.program_bytes({**d, "solver": {**d["solver"], "atol": math.inf}}, s),
-     "solver settings are out of range"),
+     "atol in [1e-20, 1e-2]"),
     (lambda d, s: export.program_bytes({**d, "solver": {**d["solver"], "max_steps": 0}}, s),
-     "solver settings are out of range"),
+     "its max_steps is not a whole number >= 1"),
     (lambda d, s: export.program_bytes({**d, "initial_state": [math.nan, *d["initial_state"][1:]]},
                                        s), "initial state is not finite"),
     (lambda d, s: export.program_bytes({**d, "initial_state": d["initial_state"][:-1],
@@ -465,3 +465,92 @@ def test_the_file_carries_the_steps_a_period_may_take(step_wrist, params, tmp_pa
     header, data = run_example(step_wrist, export_wrist(tmp_path, params, method="dopri")[0],
                                1, inputs, tmp_path)
     assert np.all(np.isfinite(data))
+
+
+def test_a_time_step_longer_than_the_period_loads_and_steps_as_python_steps(step_wrist, params,
+                                                                            tmp_path):
+    """`vsj export-model --step 2ms` with 1 ms periods: each period is one shortened step,
+    in the C library as in the Python stepper (the loader refused the file it wrote)."""
+    options = SimulationOptions(friction="stiction", step=2e-3)
+    path, document, stepper = export_wrist(tmp_path, params, options=options,
+                                           method="timestep")
+    periods = 20
+    inputs = np.zeros((periods, stepper.n_inputs))
+    inputs[:, 0] = 3.0  # motor_1 turning
+    header, data = run_example(step_wrist, path, periods, inputs, tmp_path)
+    state = np.array(document["initial_state"])
+    rows = np.array([o["row"] for o in document["outputs"]])
+    expected = [rows @ state]
+    for u in inputs:
+        stepper.step(state, u, out=state)
+        expected.append(rows @ state)
+    expected = np.array(expected)
+    allowed = same_engine(stepper, periods, np.max(np.abs(expected), axis=0),
+                          np.ptp(expected, axis=0))
+    assert np.all(np.max(np.abs(data[:, 1:-1] - expected), axis=0) <= allowed)
+    assert np.ptp(expected[:, 0]) > 0.0  # it moved
+
+
+CHECKS_C = r"""
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "vsj.h"
+
+/* vsj_step with one setting of the loaded scheme changed: its status */
+static int step_with(vsj_loaded *L, vsj_scheme scheme, double dt) {
+    double s[64], u[16] = {0};
+    vsj_work *w = vsj_work_new(&L->model);
+    int status;
+    memcpy(s, L->initial_state, (size_t)vsj_step_state_size(&L->model) * sizeof(double));
+    status = vsj_step(&L->model, w, &scheme, s, u, dt, NULL);
+    vsj_work_free(w);
+    return status;
+}
+
+int main(int argc, char **argv) {
+    char message[256];
+    vsj_loaded *adaptive = vsj_load_model(argv[1], message, sizeof message);
+    vsj_loaded *stepper = vsj_load_model(argv[2], message, sizeof message);
+    vsj_scheme a, t;
+    (void)argc;
+    if (!adaptive || !stepper)
+        return 2;
+    a = adaptive->scheme;
+    t = stepper->scheme;
+    a.rtol = 1e6;
+    printf("%d ", step_with(adaptive, a, 1e-3));  /* rtol out of range */
+    a = adaptive->scheme;
+    a.atol = 0.0;
+    printf("%d ", step_with(adaptive, a, 1e-3));  /* atol out of range */
+    printf("%d ", step_with(adaptive, adaptive->scheme, INFINITY));  /* no end */
+    t.max_steps = 0;
+    printf("%d ", step_with(stepper, t, 1e-3));  /* no step allowed */
+    t.max_steps = 100;
+    printf("%d ", step_with(stepper, t, 1.0));   /* 1000 steps of 1 ms */
+    printf("%d\n", step_with(stepper, t, 0.1));  /* 100: allowed */
+    vsj_free_loaded(adaptive);
+    vsj_free_loaded(stepper);
+    return 0;
+}
+"""
+
+
+def test_the_step_function_refuses_settings_the_loader_refuses(engine_objects, params,
+                                                                tmp_path):
+    """vsj_step checks the scheme a C caller hands it as the model file's loader checks
+    it: tolerances in vsj's ranges, a finite period, and the time-stepper's max_steps
+    (it ran 1000 steps with max_steps = 100, and a period with max_steps = 0)."""
+    adaptive = export_wrist(tmp_path, params, method="dopri")[0]
+    adaptive = adaptive.rename(tmp_path / "adaptive.vsjm")
+    stepper = export_wrist(tmp_path, params, method="timestep",
+                           options=SimulationOptions(friction="stiction"))[0]
+    source, exe = tmp_path / "checks.c", tmp_path / "checks"
+    source.write_text(CHECKS_C)
+    cc("-o", str(exe), str(source), *engine_objects, "-lm")
+    done = subprocess.run([str(exe), str(adaptive), str(stepper)], capture_output=True,
+                          text=True)
+    assert done.returncode == 0, done.stderr
+    bad = 6  # VSJ_BAD_ARGUMENT (vsj.h); the others are vsj.engine.core's
+    assert [int(v) for v in done.stdout.split()] == [bad, bad, bad, bad, TOO_MANY_STEPS, OK]

@@ -491,6 +491,9 @@ const char *fmu__not_a_wrist(fmu *f) {
     if (f->model.n_springs != 2 || !find_pivot(f))
         return "the model file is not a wrist (two springs and one pivot drive)";
     f->scheme = f->loaded->scheme;
+    /* a communication step takes up to this many internal steps, whatever the step
+     * function's bound in the file (c-api-fmu.md) */
+    f->scheme.max_steps = VSJ_MAX_PERIOD_STEPS;
     if (f->scheme.method != VSJ_METHOD_DOPRI && f->scheme.method != VSJ_METHOD_ROSENBROCK
         && f->scheme.method != VSJ_METHOD_TIMESTEP) {
         return "the model file's solver must be dopri, rosenbrock or the time-stepper";

@@ -580,6 +580,12 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
     if (f->rebuild && fmu__rebuild(f) != fmi2OK)
         return fmi2Error;
     status = vsj_step(&f->model, f->work, &f->scheme, f->s, f->inputs, h, f->ledger);
+    if (status == VSJ_TOO_MANY_STEPS) { /* the state is unchanged: the instance goes on */
+        snprintf(text, sizeof text, "of %g s from t = %.9g s takes more than %d internal "
+                 "steps, the most one step of the FMU takes: split it", h, f->time,
+                 VSJ_MAX_PERIOD_STEPS);
+        return fmu__fail(f, "fmi2DoStep: a communication step %s", text);
+    }
     if (status != VSJ_OK) {
         snprintf(text, sizeof text, "at t = %.9g s: %s", f->time, vsj_status_text(status));
         f->mode = FAILED;

@@ -253,6 +253,12 @@ VSJ_INTERNAL uint64_t vsj__fnv1a(const unsigned char *data, size_t len);
 /* Whether a spring of m has a rigid end stop (only the time-stepper can run it). */
 VSJ_INTERNAL int vsj__rigid_stop(const vsj_model *m);
 
+/* Whether an adaptive scheme's tolerances lie in the ranges vsj.simulate.RANGES gives
+ * them (the loader's and vsj_step's check). */
+static inline int vsj__tolerances_ok(double rtol, double atol) {
+    return rtol >= 1e-14 && rtol <= 1e-2 && atol >= 1e-20 && atol <= 1e-2;
+}
+
 /* The schemes behind vsj_begin/vsj_advance and vsj_step (dopri.c, timestep.c).
  * Dormand-Prince 5(4), resumable: begin sets the initial state (ny values) at t0 and
  * the settings; each advance writes the samples at t_out (increasing, after those of

@@ -157,18 +157,27 @@ static void read_program(reader *r, vsj_loaded *l) {
     if (r->failed)
         return;
     /* the period always, and the settings of its method (the tolerances within the
-     * ranges vsj.simulate.RANGES gives them; a step the period can take) */
-    if (!(l->period > 0.0 && l->period < 1e9) || max_steps < 1
-        || ((method == VSJ_METHOD_DOPRI || method == VSJ_METHOD_ROSENBROCK)
-            && !(rtol >= 1e-14 && rtol <= 1e-2 && atol >= 1e-20 && atol <= 1e-2))
-        || (method == VSJ_METHOD_RK4 && (substeps < 1 || substeps > VSJ_MAX_PERIOD_STEPS))
-        || (method == VSJ_METHOD_TIMESTEP
-            && !(step > 0.0 && step <= l->period && l->period / step <= VSJ_MAX_PERIOD_STEPS))
-        || (method != VSJ_METHOD_DOPRI && method != VSJ_METHOD_RK4
-            && method != VSJ_METHOD_TIMESTEP && method != VSJ_METHOD_ROSENBROCK)) {
-        rfail(r, "its solver settings are out of range");
+     * ranges vsj.simulate.RANGES gives them; steps a period may take: a step longer
+     * than the period is one shortened step, as vsj_step takes it) */
+    if (method != VSJ_METHOD_DOPRI && method != VSJ_METHOD_RK4 && method != VSJ_METHOD_TIMESTEP
+        && method != VSJ_METHOD_ROSENBROCK)
+        rfail(r, "its solver is not one of dopri, rk4, timestep and rosenbrock");
+    else if (!(l->period > 0.0 && l->period < 1e9))
+        rfail(r, "its period is not a time in (0, 1e9) s");
+    else if (max_steps < 1)
+        rfail(r, "its max_steps is not a whole number >= 1");
+    else if ((method == VSJ_METHOD_DOPRI || method == VSJ_METHOD_ROSENBROCK)
+             && !vsj__tolerances_ok(rtol, atol))
+        rfail(r, "its tolerances are out of range (rtol in [1e-14, 1e-2], atol in "
+                 "[1e-20, 1e-2])");
+    else if (method == VSJ_METHOD_RK4 && (substeps < 1 || substeps > VSJ_MAX_PERIOD_STEPS))
+        rfail(r, "its rk4 substeps are not a whole number in [1, VSJ_MAX_PERIOD_STEPS]");
+    else if (method == VSJ_METHOD_TIMESTEP
+             && !(step > 0.0 && l->period / step <= VSJ_MAX_PERIOD_STEPS))
+        rfail(r, "its time step is not > 0 s, or a period takes more than "
+                 "VSJ_MAX_PERIOD_STEPS of them");
+    if (r->failed)
         return;
-    }
     memset(&l->scheme, 0, sizeof l->scheme);
     l->scheme.method = (int)method;
     l->scheme.rtol = rtol;

@@ -244,7 +244,8 @@ static int step_ledger(const vsj_model *m, vsj_work *w, const vsj_scheme *sc, do
 int vsj_step(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, double *s,
              const double *inputs, double dt, double *ledger) {
     int method;
-    if (!scheme || !s || !inputs || !vsj__fits(m, w) || !(dt > 0.0))
+    if (!scheme || !s || !inputs || !vsj__fits(m, w) || !(dt > 0.0) || !isfinite(dt)
+        || scheme->max_steps < 1)
         return VSJ_BAD_ARGUMENT;
     method = scheme->method;
     if (m->n_acts > 0) { /* the controller's samples: a whole number per period (rk4: one),
@@ -261,8 +262,10 @@ int vsj_step(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, double *
             return VSJ_BAD_ARGUMENT;
         if (!vsj__ts_prepared_for(m, w) && vsj_ts_prepare(m, w) != VSJ_OK)
             return VSJ_BAD_ARGUMENT;
+        if (ceil(dt / scheme->h - 1e-9) > (double)scheme->max_steps)
+            return VSJ_TOO_MANY_STEPS;
     } else if (method == VSJ_METHOD_DOPRI || method == VSJ_METHOD_ROSENBROCK) {
-        if (!(scheme->max_steps >= 1))
+        if (!vsj__tolerances_ok(scheme->rtol, scheme->atol))
             return VSJ_BAD_ARGUMENT;
     } else if (method != VSJ_METHOD_RK4 || ledger) { /* rk4 keeps no ledger */
         return VSJ_BAD_ARGUMENT;

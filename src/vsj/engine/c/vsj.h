@@ -383,9 +383,11 @@ int64_t vsj_step_state_size(const vsj_model *m);
  * a whole number of them; rk4: one; the time-stepper's step dividing each), its
  * actuators overriding the inputs they drive, its references the inputs' values; its
  * state lives in the work and goes on from one call to the next (vsj_control_reset).
- * Schemes: dopri or
- * rosenbrock (rtol, atol, max_steps), rk4 (substeps; no rigid end stops, no ledger) or the time-stepper
- * (h; its stick/slip history is kept in the work from one period to the next). If
+ * Schemes: dopri or rosenbrock (rtol in [1e-14, 1e-2], atol in [1e-20, 1e-2],
+ * max_steps), rk4 (substeps; no rigid end stops, no ledger) or the time-stepper (h, a
+ * step longer than dt being one shortened step; max_steps; its stick/slip history is
+ * kept in the work from one period to the next). A finite dt > 0 and max_steps >= 1
+ * always; VSJ_BAD_ARGUMENT otherwise. If
  * `ledger` is not NULL it receives the energy ledger over the period (vsj_n_acc
  * values, each accumulator's change). s is unchanged on failure, and the next call
  * steps it as a fresh work would: a failed period's impulses are no warm start. */
