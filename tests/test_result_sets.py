@@ -590,6 +590,12 @@ def test_synthetic_curves_at_other_positions_are_kept(tmp_path, capsys):
     assert main(["synth", "stiffness", "--q", "0.5", "--q", "0.52", "--out", str(out)]) == 2
     assert "two positions give the same curve (stiffness_q+0.5cm.csv" in capsys.readouterr().err
     assert not (out / "stiffness_q+0.5cm.csv").exists()
+    # another position with the file name of a curve written before (1.44 cm against
+    # 1.4 cm, both stiffness_q+1.4cm.csv): refused, the earlier curve kept
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert main(["synth", "stiffness", "--q", "1.44", "--out", str(out)]) == 2
+    assert "holds the curve at q = 1.4 cm" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
 def test_what_a_killed_run_left_is_cleared_by_the_next(tmp_path, capsys):

@@ -127,6 +127,8 @@ def cmd_synth_stiffness(args) -> int:
     if twice:
         raise InputError(f"--q: two positions give the same curve ({twice[0]}: positions are "
                          "written to 0.1 cm)")
+    if not single:
+        _refuse_other_positions(out, qs, names)
     written = []
     with _results(None if single else out, "synth stiffness",
                   name="synth stiffness " + " ".join(names), files=names) as results:
@@ -143,6 +145,30 @@ def cmd_synth_stiffness(args) -> int:
     for path, q in written:
         print(f"wrote {path} (synthetic, q = {q * 100:g} cm)")
     return 0
+
+
+def _refuse_other_positions(out: Path, qs, names) -> None:
+    """`InputError` if a curve file of ``out`` that this run would replace holds another
+    pivot position than the run's (file names keep 0.1 cm: 1.44 cm would replace 1.4 cm);
+    a file whose position cannot be read is not vsj's curve, and the result set's own
+    check refuses it."""
+    # lazy: only this command needs these, and every vsj command imports vsj.cli
+    from .. import measurements
+    from ..identification.stiffness import pivot_of
+
+    for q, name in zip(qs, names):
+        path = out / name
+        if not path.is_file():
+            continue
+        try:
+            held = pivot_of(measurements.read(path))
+        except InputError:
+            continue
+        if f"{held * 100:g}" != f"{q * 100:g}":
+            raise InputError(f"--q {q * 100:g}: {path} holds the curve at q = {held * 100:g} cm, "
+                             "another position with the same file name (positions are written "
+                             "to 0.1 cm); write this one to another directory, or remove that "
+                             "file first")
 
 
 def _out(args) -> Path | None:
