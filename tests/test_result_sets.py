@@ -678,3 +678,20 @@ def test_verify_command(tmp_path, capsys):
     assert main(["verify", str(out)]) == 1
     assert "trajectory.nc has changed" in capsys.readouterr().err
     assert main(["verify", str(tmp_path / "nothing")]) == 2
+
+
+def test_verify_names_a_file_meta_json_records_and_the_manifest_dropped(tmp_path, capsys):
+    """A data file deleted together with its manifest entry: meta.json, whose own hash
+    the manifest keeps, still records it, and verify names it (it passed)."""
+    out = tmp_path / "out"
+    assert main(["simulate", str(scenario(tmp_path)), "--out", str(out), "--no-plot",
+                 "--csv"]) == 0
+    (out / "trajectory.csv").unlink()
+    manifest = json.loads((out / "vsj-manifest.json").read_text())
+    for entry in manifest["sets"].values():
+        entry["files"].pop("trajectory.csv", None)
+    (out / "vsj-manifest.json").write_text(json.dumps(manifest))
+    capsys.readouterr()
+    assert main(["verify", str(out)]) == 1
+    assert "trajectory.csv: meta.json records it, vsj-manifest.json does not" in \
+        capsys.readouterr().err

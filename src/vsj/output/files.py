@@ -992,7 +992,10 @@ def verify(directory: str | Path) -> list[str]:
                 meta = json.loads(read_bytes(directory / "meta.json", "meta.json",
                                              SMALL_OUTPUT_BYTES))
                 for f, record in meta.get("files", {}).items():
-                    if files.get(f, record) != record:
+                    if f not in files:
+                        problems.append(f"set {name!r}: {f}: meta.json records it, "
+                                        f"{MANIFEST} does not")
+                    elif files[f] != record:
                         problems.append(f"set {name!r}: {f}: meta.json and {MANIFEST} differ")
         problems += recorded_file_problems(directory, files, f"set {name!r}: ")
     for entry in sorted(os.listdir(directory)):
