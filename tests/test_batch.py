@@ -111,9 +111,12 @@ def test_batch_signals_carry_the_names_and_units_of_a_single_run(params):
     ds = batch.to_xarray()
     single = simulate(prep.structure, prep.inputs, 0.5, initial=InitialState(q=qs[1]),
                       options=options, ports=False)
+    alone = single.to_xarray()
     for name in batch.columns():
         assert name in single.signals, name
         assert ds[name].attrs["units"] == single.units[name]
+        # unit and description, as the single run's dataset (and trajectory.nc) give them
+        assert ds[name].attrs == alone[name].attrs and "long_name" in alone[name].attrs
         assert np.array_equal(ds[name].values[1], single[name])
     assert "theta_x.speed" in batch.columns() and list(ds["success"].values) == [1, 1]
     with pytest.raises(KeyError, match="no signal"):
@@ -167,3 +170,25 @@ def test_a_batch_takes_its_initial_states_from_any_iterable_and_checks_threads(p
     for threads in (0, -1, 1.5, True):
         with pytest.raises(InputError, match="threads must be a whole number >= 1"):
             simulate_batch(wrist, {}, 0.1, initials=[InitialState()], threads=threads)
+
+
+def test_a_batch_with_a_controller_gives_its_signals_the_units_of_a_single_run(params):
+    """The controller's bus and actuators carry their units and descriptions in a
+    batch's dataset as in a single run's (they were all "1")."""
+    from vsj.control import PID, Actuator, Controller, Sensor
+    from vsj.inputs import Step
+    from vsj.wrist import WristOptions
+
+    wrist = build_wrist(params, WristOptions(motors="dc", pivot_drive="dc")).assemble()
+    controller = Controller(
+        period=1e-3, references={"m1": Step(0.2), "m2": 0.0, "ms": 0.0},
+        sensors=[Sensor.encoder(f"motor_{i}", 4096) for i in "12s"],
+        blocks=[PID(f"u{i}", f"m{i}", f"motor_{i}", k=100.0, Ti=0.2) for i in "12s"],
+        actuators=[Actuator(f"voltage_{i}", f"u{i}") for i in "12s"])
+    single = simulate(wrist, {}, 0.1, controller=controller, ports=False).to_xarray()
+    batch = simulate_batch(wrist, {}, 0.1, initials=[InitialState()],
+                           controller=controller).to_xarray()
+    assert batch["actuator.voltage_1"].attrs["units"] == "V"
+    for name in batch.data_vars:
+        if name.startswith(("control.", "actuator.")):
+            assert batch[name].attrs == single[name].attrs, name

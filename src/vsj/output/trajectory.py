@@ -103,7 +103,7 @@ def cases_dataset(runs: Sequence[tuple[str, Result]]):
         raise ValueError("no runs to write")
     time = max(runs, key=lambda r: len(r[1].time))[1].time
     names = list(dict.fromkeys(name for _, result in runs for name in result.columns()))
-    units = {}
+    units, texts = {}, {}
     data = {}
     for name in names:
         values = np.full((len(runs), len(time)), np.nan)
@@ -111,7 +111,9 @@ def cases_dataset(runs: Sequence[tuple[str, Result]]):
             if name in result.signals:
                 values[k, :len(result.time)] = result.signals[name]
                 units[name] = result.units[name]
-        data[name] = (("case", "time"), values, {"units": units[name]})
+                texts.setdefault(name, result.descriptions.get(name))
+        data[name] = (("case", "time"), values,
+                      {"units": units[name], **({"long_name": texts[name]} if texts[name] else {})})
     data["success"] = ("case", np.array([int(r.success) for _, r in runs], dtype=np.int32))
     ds = xr.Dataset(data, coords={"case": ("case", [label for label, _ in runs]),
                                   "time": ("time", time, {"units": "s"})})
@@ -155,13 +157,17 @@ def write_cases(path: Path, runs: Sequence[tuple[str, Result]]) -> None:
         for name in names:
             v = f.createVariable(name, "d", ("case", "time"))
             values = v.data
+            text = None
             for k, (_, result) in enumerate(runs):
                 n = len(result.time) if name in result.signals else 0
                 if n:
                     values[k, :n] = result.signals[name]
                     units = result.units[name]
+                    text = text or result.descriptions.get(name)
                 values[k, n:] = math.nan  # a failed run's missing samples, a missing signal
             v.units, v._FillValue = units, math.nan
+            if text:
+                v.long_name = text
         v = f.createVariable("success", "i", ("case",))
         v[:] = np.array([int(r.success) for _, r in runs], dtype=np.int32)
         f.flush()  # not close(): that would close the handle, which atomic_write syncs

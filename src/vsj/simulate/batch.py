@@ -17,7 +17,7 @@ from ..network import Structure
 from .driver import check_arguments, check_run_size, choose_solver, prepare, sample_times
 from .options import InitialState, SimulationOptions
 from .result import BatchResult
-from .signals import state_names
+from .signals import catalogue, state_names
 
 #: Compiled arrays that a batch run may change: the rest are shared by every run.
 _PER_RUN = ("mass", "Minv", "par")
@@ -105,6 +105,8 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
                 f"{STATUS_TEXT[int(s)]} at t = {t_stop[r]:.6g} s" for r, s in enumerate(status)]
     sigma, speeds = engine.source_signals(t_out)
     n_state = layout.n_state
+    table = {spec.name: spec for spec in catalogue(structure, ports=False,
+                                                   controller=plan.controller)}
     return BatchResult(time=t_out, states=outs[:, :, :n_state],
                        control=outs[:, :, n_state:] if plan.controller is not None else None,
                        control_names=control_names(plan.controller),
@@ -113,4 +115,6 @@ def simulate_batch(structure: Structure, inputs: Mapping[str, Input], duration: 
                        steps=steps, transitions=flips, wall_time=wall, solver=solver,
                        structure=structure,
                        source_angles=sigma[None, :, :] + (src0s - base.src_pos0)[:, None, :],
-                       source_speeds=speeds)
+                       source_speeds=speeds,
+                       units={name: spec.unit for name, spec in table.items()},
+                       descriptions={name: spec.description for name, spec in table.items()})

@@ -232,7 +232,9 @@ def run_plan(plan: Plan, *, ports: bool = True, sink=None) -> Result:
     time, signals, units = sink.end(reached)
     return Result(time=time, signals=signals, units=units, ledger=balance, success=success,
                   message=message, solver=report, transitions=transitions,
-                  warnings=watch.warnings(), plan=plan)
+                  warnings=watch.warnings(), plan=plan,
+                  descriptions={spec.name: spec.description for spec in table
+                                if spec.name in signals})
 
 
 def _read_number(path: str) -> float | None:

@@ -26,6 +26,8 @@ class Result:
     transitions: dict[str, int] = field(default_factory=dict)
     #: Where the run left what the parameter set describes (it still succeeded).
     warnings: list[str] = field(default_factory=list)
+    #: Each signal's description (the signal table's, `vsj.simulate.signals.catalogue`)
+    descriptions: dict[str, str] = field(default_factory=dict)
     #: The plan the run ran (`vsj.engine.plan.Plan`; None for a result read back or made
     #: by hand): what can run it again, as `vsj.safety.run_report` does to sample its
     #: contacts finer. Copies (`copy.copy`, `copy.deepcopy`) share it, as it is
@@ -61,13 +63,14 @@ class Result:
 
     def to_xarray(self):
         """The run as an `xarray.Dataset`: one variable per signal over ``time`` [s],
-        each with its unit (``units``, as CF names it); the run's success, message
-        and solver as attributes."""
+        each with its unit (``units``, as CF names it) and description (``long_name``),
+        as ``trajectory.nc`` gives them; the run's success, message and solver as
+        attributes."""
         import xarray as xr  # lazy: xarray is heavy; import vsj needs none
 
         from .. import __version__  # circle: vsj imports vsj.simulate, which imports this
 
-        data = {name: ("time", values, {"units": self.units[name]})
+        data = {name: ("time", values, _attrs(self.units[name], self.descriptions.get(name)))
                 for name, values in self.signals.items()}
         ds = xr.Dataset(data, coords={"time": ("time", self.time, {"units": "s"})})
         ds.attrs.update(success=int(self.success), message=self.message,
@@ -119,6 +122,10 @@ class BatchResult:
     #: a controller's bus and actuators (runs, samples, signals), named by control_names
     control: np.ndarray | None = field(default=None, repr=False)
     control_names: list = field(default_factory=list, repr=False)
+    #: each signal's unit and description, from the signal table a single run's result
+    #: takes them from (`vsj.simulate.signals.catalogue`)
+    units: dict[str, str] = field(default_factory=dict, repr=False)
+    descriptions: dict[str, str] = field(default_factory=dict, repr=False)
 
     def angle(self, flange: str) -> np.ndarray:
         """Angle [rad] of a flange, shape (runs, samples)."""
@@ -167,8 +174,9 @@ class BatchResult:
         from .. import __version__  # circle: vsj imports vsj.simulate, which imports this
 
         data = {name: (("run", "time"), self[name],
-                       {"units": "1" if name in self.control_names else
-                        "rad/s" if name.endswith(".speed") else "rad"})
+                       _attrs(self.units.get(name) or ("rad/s" if name.endswith(".speed")
+                                                       else "rad"),
+                              self.descriptions.get(name)))
                 for name in self.columns()}
         data["success"] = ("run", self.success.astype(np.int8))
         data["message"] = ("run", np.array(self.messages, dtype=str))
@@ -177,3 +185,8 @@ class BatchResult:
                                       "time": ("time", self.time, {"units": "s"})})
         ds.attrs.update(solver=self.solver, vsj_version=__version__)
         return ds
+
+
+def _attrs(unit: str, description: str | None) -> dict:
+    """A signal variable's attributes: its unit and, if known, its description."""
+    return {"units": unit, **({"long_name": description} if description else {})}
