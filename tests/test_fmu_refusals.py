@@ -347,6 +347,38 @@ def test_do_step_refuses_a_step_longer_than_one_call_takes_and_goes_on(wrist):
     s.close()
 
 
+def test_a_communication_step_takes_more_steps_than_the_files_step_function_bound(wrist):
+    """The FMU takes up to VSJ_MAX_PERIOD_STEPS internal steps a communication step
+    (c-api-fmu.md), whatever the exported step function's max_steps (100 000): 200 s of
+    1 ms steps go through in one call."""
+    s = Instance(wrist)
+    assert s.step(h=200.0, tau_x=0.01) == OK
+    assert np.all(np.isfinite(s.get("theta_x", "theta_y")))
+    s.close()
+
+
+def test_the_state_machine_refuses_terminate_out_of_turn_and_values_after_it(wrist):
+    """FMI 2.0's state machine: fmi2Terminate only after initialization, once; no
+    fmi2SetReal once terminated (fmi2Reset starts the instance anew)."""
+    early = Instance(wrist, initialize=False)
+    assert refused(early.fmu.terminate)
+    assert any("fmi2Terminate: only after initialization" in t for t in early.messages(ERROR))
+    early.close()
+    s = Instance(wrist)
+    assert s.step(tau_x=0.01) == OK
+    s.fmu.terminate()
+    assert refused(s.set, tau_x=0.02)
+    assert any("the instance is terminated" in t for t in s.messages(ERROR)), s.said
+    assert refused(s.fmu.terminate)
+    s.fmu.reset()
+    s.fmu.setupExperiment(startTime=0.0)
+    s.fmu.enterInitializationMode()
+    s.fmu.exitInitializationMode()
+    s.t = 0.0
+    assert s.step(tau_x=0.02) == OK
+    s.close()
+
+
 def test_do_step_refuses_to_pass_the_stop_time(wrist):
     """FMI 2.0 (fmi2SetupExperiment): with a stop time defined, a step past it is an error."""
     s = Instance(wrist, stop_time=5 * H)

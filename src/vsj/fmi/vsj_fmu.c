@@ -245,10 +245,11 @@ fmi2Status fmi2Terminate(fmi2Component c) {
     char text[400];
     if (!f)
         return fmi2Error;
-    if (f->mode != STEPPING) {
-        f->mode = f->mode == FAILED ? FAILED : TERMINATED;
+    if (f->mode == INSTANTIATED || f->mode == INITIALIZING || f->mode == TERMINATED)
+        return fmu__fail(f, "fmi2Terminate: only after initialization, once (FMI 2.0's state "
+                            "machine)%s", "");
+    if (f->mode == FAILED) /* a failed step ends the run: nothing to judge */
         return fmi2OK;
-    }
     fmu__run_ledger(f, &residual, &scale);
     relative = fabs(residual) / scale;
     if (!(relative <= f->ledger_tolerance)) {
@@ -375,6 +376,9 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         return fmi2Error;
     if (nvr && (!vr || !value))
         return fmu__fail(f, "fmi2SetReal: null array%s", "");
+    if (f->mode == TERMINATED)
+        return fmu__fail(f, "fmi2SetReal: the instance is terminated (fmi2Reset starts it "
+                            "anew)%s", "");
     for (k = 0; k < nvr; k++) { /* each value checked before any is set */
         fmi2ValueReference r = vr[k];
         double x = value[k];
@@ -389,8 +393,8 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
             if (!isfinite(x))
                 return fmu__fail(f, "fmi2SetReal: pivot_q0: the value is not finite%s", "");
             if (f->mode != INSTANTIATED && f->mode != INITIALIZING)
-                return fmu__fail(f, "fmi2SetReal: the initial pivot position is set before "
-                                    "initialization ends%s", "");
+                return fmu__fail(f, "fmi2SetReal: pivot_q0, the initial pivot position, "
+                                    "can only be set before initialization ends%s", "");
             sets_q0 = 1;
             q0 = x;
         } else if (r >= VR_PARAMETER && r < VR_PARAMETER + (fmi2ValueReference)f->n_parameters) {
