@@ -253,6 +253,27 @@ def test_points_at_one_speed_do_not_determine_the_curve(tmp_path, capsys, noise)
     assert any("not determined by these data" in note for note in record["notes"])
 
 
+@pytest.mark.parametrize("case", ["one speed", "no torque", "torque against the speed"])
+def test_c3_is_not_determined_where_the_arctangent_term_leaves_the_curve(case):
+    """With c2 at its bound 0 the curve does not depend on c3, and at one speed the
+    points cannot fix three constants: no constant is reported with an interval (c3 came
+    back "determined", its interval reaching below its own bound of 1e-6)."""
+    from vsj.identification.friction import fit_curve
+    from vsj.measurements import Measurement
+
+    w = np.linspace(-10.0, 10.0, 21)
+    torque = 1e-3 * w + 5e-3 * np.arctan(3.0 * w)
+    speed, torque = {"one speed": (np.full(21, 2.0), torque),
+                     "no torque": (w, 0.0 * torque),
+                     "torque against the speed": (w, -torque)}[case]
+    fit = fit_curve(Measurement("memory", {"velocity": speed, "torque": torque},
+                                {"velocity": "rad/s", "torque": "N m"}))
+    assert fit.c2.status == "at a bound"
+    for e in (fit.c1, fit.c2, fit.c3):
+        assert e.status in ("not determined", "at a bound"), e
+        assert e.to_json()["ci95"] is None
+
+
 # ---------------------------------------------------------------- elastic element
 
 def test_exponential_constants_fit_back(params):

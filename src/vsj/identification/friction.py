@@ -24,7 +24,7 @@ interval, and says so.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace, field
 
 import numpy as np
 from scipy import special
@@ -169,6 +169,24 @@ def estimates(result, names, units, dof, scale=1.0) -> list[Estimate]:
     t = special.stdtrit(max(dof, 1), 0.975)  # Student's t quantile
     return [Estimate(n, float(v), u, float(e), (float(v - t * e), float(v + t * e)))
             for n, v, u, e in zip(names, result.x, units, err)]
+
+
+def unseen(est: list[Estimate], w: np.ndarray) -> list[Estimate]:
+    """``est`` (c1, c2, c3, ...) with the constants the curve's form keeps the data from
+    determining marked so (an infinite standard error), whatever the Jacobian's round-off
+    says: all three where the points lie at fewer than three speed magnitudes other than
+    zero (the curve is odd and passes through 0, so three constants need three), and c3
+    where c2 rests at its bound 0 (the arctangent term, and with it c3, then leaves the
+    curve)."""
+    speeds = np.unique(np.abs(np.asarray(w, dtype=float)))
+    few = np.count_nonzero(speeds) < 3
+    flat = est[1].status == "at a bound"  # its only bound is 0
+
+    def blind(e: Estimate) -> Estimate:
+        return replace(e, stderr=math.inf, ci95=(-math.inf, math.inf))
+
+    return [blind(e) if e.status != "at a bound" and (few and k < 3 or flat and k == 2)
+            else e for k, e in enumerate(est)]
 
 
 def serial_inflation(residuals: np.ndarray, size: float | None = None
@@ -386,9 +404,10 @@ def fit_curve(m: Measurement) -> FrictionFit:
     factor, rho = serial_inflation(result.fun, size=float(np.max(np.abs(T))))
     if factor > 1.0:
         notes.append(_correlated(form, rho, factor, len(result.fun), angle is not None))
-    est = estimates(result, names, units, dof, scale=factor)
+    est = unseen(estimates(result, names, units, dof, scale=factor), w)
     for status, why in (("not determined", "not determined by these data (points at 4 or "
-                                            "more different speeds are needed)"),
+                                            "more different speeds are needed, and for c3 a "
+                                            "curve with c2 > 0)"),
                         ("at a bound", "at a bound of the fit")):
         which = [e.name for e in est[:3] if e.status == status]
         if which:
