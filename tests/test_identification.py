@@ -14,6 +14,7 @@ from conftest import override
 from vsj import characteristics as ch
 from vsj import measurements, synth
 from vsj.cli import main
+from vsj.errors import InputError
 from vsj.identification.friction import fit_curve, serial_inflation, serial_window
 from vsj.identification.geometry import calibrate_to_curves
 from vsj.identification.planetary import fit_planetary
@@ -360,3 +361,38 @@ def test_stiffness_needs_a_pivot_position(tmp_path, capsys):
                     "".join(f"{i * 0.01},{np.sin(i / 5)},{np.sin(i / 5)}\n" for i in range(50)))
     assert main(["fit", "stiffness", str(path)]) == 2
     assert "no pivot position" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda q, K: (q, np.r_[K[:-1], np.nan]), "must be finite"),
+    (lambda q, K: (q * 100, K), "q is in metres"),
+    (lambda q, K: (q, K[:4]), "of one length"),
+    (lambda q, K: (q, -K), "stiffness is > 0"),
+    (lambda q, K: (q[:, None], K), "must be 1-D"),
+], ids=["nan", "cm", "lengths", "negative", "2-D"])
+def test_the_k_of_q_fit_refuses_arrays_it_cannot_fit(change, message):
+    """fit_exponential takes arrays from Python: NaN, q in cm, unequal lengths or a
+    negative stiffness gave LAPACK's messages, a broadcast error, or a fit of a negative
+    stiffness reported as determined."""
+    from vsj.identification.stiffness import fit_exponential
+
+    q = np.array([-0.02, -0.01, 0.0, 0.01, 0.015])
+    K = 0.2 * np.exp(-145.0 * q) + 0.02
+    assert fit_exponential(q, K).a2.value == pytest.approx(-145.0, rel=1e-6)
+    with pytest.raises(InputError, match=message):
+        fit_exponential(*change(q, K))
+
+
+def test_a_friction_curve_from_python_with_nan_or_unequal_columns_is_refused():
+    """fit_curve takes a Measurement built in Python: a NaN torque gave SciPy's "Residuals
+    are not finite", columns of unequal length a matmul error."""
+    from vsj.measurements import Measurement
+
+    w = np.linspace(-10.0, 10.0, 21)
+    torque = 1e-3 * w + 5e-3 * np.arctan(3.0 * w)
+    units = {"velocity": "rad/s", "torque": "N m"}
+    with pytest.raises(InputError, match="must be finite"):
+        fit_curve(Measurement("nan", {"velocity": w, "torque": np.r_[torque[:-1], np.nan]},
+                              units))
+    with pytest.raises(InputError, match="of one length"):
+        fit_curve(Measurement("short", {"velocity": w, "torque": torque[:5]}, units))

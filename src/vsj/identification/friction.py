@@ -352,7 +352,14 @@ def fit_curve(m: Measurement) -> FrictionFit:
         raise InputError(f"{m.path}: a friction fit needs velocity and torque columns")
     notes: list[str] = []
     angle = m.columns.get("angle")
-    w, T = m["velocity"], m["torque"]
+    w, T = np.asarray(m["velocity"], dtype=float), np.asarray(m["torque"], dtype=float)
+    lengths = {len(np.ravel(v)) for v in m.columns.values()}
+    if w.ndim != 1 or len(lengths) > 1:
+        raise InputError(f"{m.path}: the columns must be 1-D and of one length, got "
+                         f"{', '.join(f'{k} {np.shape(v)}' for k, v in m.columns.items())}")
+    if not (np.all(np.isfinite(w)) and np.all(np.isfinite(T))):
+        raise InputError(f"{m.path}: velocity and torque must be finite (a NaN or inf is in "
+                         "them)")
     raw = (w, T)
     if "time" not in m:
         form, keep = "points", np.arange(len(w))

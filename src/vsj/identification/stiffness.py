@@ -275,8 +275,25 @@ def fit_curve(m: Measurement) -> CurveFit:
 
 
 def fit_exponential(q, K) -> ExponentialFit:
-    """K(q) = a1 exp(a2 q) + a3 (eq 4.5) on relative deviations; q in m."""
-    q, K = np.asarray(q, float), np.asarray(K, float)
+    """K(q) = a1 exp(a2 q) + a3 (eq 4.5) on relative deviations; q in m, K in N m/rad
+    (`InputError` unless both are finite 1-D arrays of one length, q within the pivot
+    positions a bench reaches and K > 0)."""
+    try:
+        q, K = np.asarray(q, float), np.asarray(K, float)
+    except (TypeError, ValueError):
+        raise InputError("the fit of K(q): q and K must be sequences of numbers") from None
+    if q.ndim != 1 or K.ndim != 1 or len(q) != len(K):
+        raise InputError(f"the fit of K(q): q and K must be 1-D and of one length, got shapes "
+                         f"{q.shape} and {K.shape}")
+    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(K))):
+        raise InputError("the fit of K(q): q and K must be finite (a NaN or inf is in them)")
+    limit, why = LIMITS["pivot"]
+    if np.any(np.abs(q) > limit):
+        raise InputError(f"the fit of K(q): q = {q[np.argmax(np.abs(q))]:g} m is beyond "
+                         f"+-{limit * 100:g} cm ({why}); q is in metres")
+    if np.any(K <= 0.0):
+        raise InputError(f"the fit of K(q): K = {K[np.argmin(K)]:g} N m/rad; a spring's "
+                         "stiffness is > 0")
     if len(q) < 4:
         raise InputError(f"the fit of K(q) needs curves at 4 or more pivot positions, got "
                          f"{len(q)}")
