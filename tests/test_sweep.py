@@ -528,3 +528,21 @@ def test_a_varied_parameter_the_scenarios_model_does_not_read_is_warned_of(spec_
                           if not line.startswith('"elastic_element.lever_length"'))
     info = runner.describe(runner.job_for(sweep.loads(read_only, "read.toml")))
     assert info["warnings"] == []
+
+
+def test_a_metric_that_is_not_a_finite_number_is_warned_of(tmp_path):
+    """A metric whose expression divides by zero or takes the log of 0 gave NaN or inf in
+    runs recorded ok, with an empty cell in metrics.csv and no word; the sweep now names
+    the metric, how many runs and the first value."""
+    spec = sweep.loads('[sweep]\nscenario = "fig-4.15"\nduration = "0.2 s"\nseed = 1\n'
+                       '[vary]\nq = { from = "-1 cm", to = "0 cm", count = 2 }\n'
+                       '[metrics]\nfine = "max(phi_1)"\nratio = "max(phi_1) / 0"\n'
+                       'logged = "log(0 * max(phi_1))"\n', "nan.toml")
+    said = []
+    outcome = sweep.run(spec, tmp_path / "out", workers=1, plots=False, show_progress=False,
+                        announce=said.append)
+    assert outcome.failed == 0
+    texts = [t for t in outcome.warnings if "not a finite number" in t]
+    assert [t.split("'")[1] for t in texts] == ["ratio", "logged"]
+    assert all("in 2 of 2 runs that succeeded (run 0:" in t for t in texts)
+    assert [f"warning: {t}" for t in texts] == [s for s in said if "finite" in s]

@@ -222,6 +222,8 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
                       0.0, method=spec.method, storing=storing, kernel=kernel, notes=notes,
                       warnings=list(info["warnings"]))
     _finish(spec, out, directory.zarr, record, unit, outcome, plots)
+    for text in outcome.warnings[len(info["warnings"]):]:  # what the runs' metrics gave
+        say(f"warning: {text}")
     written = {name: file_record(out / name) for name in outcome.files
                if name not in (store.ZARR, store.MANIFEST)}
     for name in record.get("files", {}):
@@ -300,6 +302,21 @@ def _drawn_differ(out: Path, names: list[str], record: dict) -> str:
             f"the sweep there stored, {why}; start a new directory")
 
 
+def _not_finite(metrics: np.ndarray, names: list[str], status: np.ndarray) -> list[str]:
+    """A warning for each metric that came out NaN or infinite in runs that succeeded
+    (a division by zero, a log of 0 in its expression): metrics.csv leaves a NaN cell
+    empty, so a run with status ok would show nothing."""
+    ok = status == 0
+    out = []
+    for j, name in enumerate(names):
+        bad = np.flatnonzero(ok & ~np.isfinite(metrics[:, j]))
+        if bad.size:
+            out.append(f"metric {name!r} is not a finite number in {bad.size} of "
+                       f"{int(np.count_nonzero(ok))} runs that succeeded (run {int(bad[0])}: "
+                       f"{metrics[bad[0], j]!r}); check its expression")
+    return out
+
+
 def _finish(spec: SweepSpec, out: Path, zarr_path: Path, record: dict, unit,
             outcome: Outcome, plots: bool) -> None:
     """The tables, figures and page of a sweep whose chunks are all done."""
@@ -310,6 +327,7 @@ def _finish(spec: SweepSpec, out: Path, zarr_path: Path, record: dict, unit,
     metrics = ds["metrics"].values
     names = ds["metric"].values.tolist()
     units = ds["metric_unit"].values.tolist()
+    outcome.warnings += _not_finite(metrics, names, ds["status"].values)
     inputs = np.column_stack([ds[n].values for n in varied])
     input_units = [ds[n].attrs.get("units", "") for n in varied]
     figures = {}
