@@ -892,3 +892,23 @@ def test_numpy_scalars_are_the_numbers_they_hold():
     assert np.array_equal(plain["theta_x"], numpy["theta_x"])  # 1/8 and 1/64: exact in float32
     whole = simulate(wrist, {}, np.int64(1), options=SimulationOptions(output_step=0.5))
     assert whole.success and whole.time[-1] == 1.0
+
+
+def test_an_initial_angle_that_contradicts_a_position_input_is_refused():
+    """A source driven by an angle (Position) starts where its input does; an initial
+    angle given for its flange as well silently won. The same value is accepted, another
+    refused with both named."""
+    from vsj import build_wrist, simulate
+    from vsj.inputs import Position, Sine
+    from vsj.simulate import InitialState
+
+    wrist = build_wrist(params_module.default()).assemble()
+    driven = {"motor_1": Position(Sine(0.5, 1.0, phase=math.pi / 2))}  # starts at 0.5 rad
+    start = simulate(wrist, driven, 0.01, ports=False)["motor_1"][0]
+    assert start == pytest.approx(0.5, abs=1e-15)
+    same = simulate(wrist, driven, 0.01, ports=False,
+                    initial=InitialState(angles={"motor_1.flange": start}))
+    assert same["motor_1"][0] == start
+    with pytest.raises(InputError, match=r"initial angle of motor_1.flange \(1 rad\) "
+                                         r"contradicts its input 'motor_1'"):
+        simulate(wrist, driven, 0.01, initial=InitialState(angles={"motor_1.flange": 1.0}))

@@ -185,3 +185,18 @@ def test_a_velocity_source_angle_is_its_tables_integral_from_the_start(table):
     # the engine's integral is the pieces' closed form: its rounding, a few ulp of the
     # angle (quad's own error is below 1e-13 at these tolerances)
     assert np.max(np.abs(result["motor_1"][::50] - integral)) <= 1e-12
+
+
+@pytest.mark.parametrize("kind", ["table", "hold"])
+def test_a_signal_keeps_the_samples_it_validated(kind):
+    """Arrays given to a Table or Hold are copied: changing them afterwards (a NaN put in)
+    does not reach the signal, which compares and hashes as a value."""
+    from vsj.inputs import Hold
+
+    make = Table if kind == "table" else Hold
+    times, values = np.array([0.0, 1.0, 2.0]), np.array([1.0, 2.0, 3.0])
+    signal = make(times, values)
+    times[1], values[0] = 5.0, np.nan
+    assert signal.times == (0.0, 1.0, 2.0) and signal.values == (1.0, 2.0, 3.0)
+    assert signal == make([0.0, 1.0, 2.0], [1.0, 2.0, 3.0])
+    assert hash(signal) == hash(make((0.0, 1.0, 2.0), (1.0, 2.0, 3.0)))

@@ -413,6 +413,17 @@ class Step(Input):
         return f"step of {self.height:g} at {self.start:g} s from {self.offset:g}"
 
 
+def _own_series(signal, kind: str, shortest: int) -> None:
+    """Check ``signal``'s times and values (`_check_series`) and keep them as tuples: a
+    list or array the caller changes later must not change the signal it validated (and
+    a signal of tuples compares and hashes as a value)."""
+    _check_series(kind, signal.times, signal.values, shortest)
+    for name in ("times", "values"):
+        given = getattr(signal, name)
+        if not isinstance(given, tuple):
+            object.__setattr__(signal, name, tuple(np.asarray(given, dtype=float).tolist()))
+
+
 def _check_series(kind: str, times, values, shortest: int) -> None:
     """`InputError` unless ``times`` and ``values`` are finite lists of one length (at
     least ``shortest``) with strictly increasing times."""
@@ -441,7 +452,7 @@ class Table(Input):
     interpolation: str = "linear"
 
     def __post_init__(self):
-        _check_series("table", self.times, self.values, 2)
+        _own_series(self, "table", 2)
         if self.interpolation not in ("linear", "cubic"):
             raise InputError(f"table input: interpolation must be 'linear' or 'cubic', got "
                              f"{self.interpolation!r}")
@@ -501,7 +512,7 @@ class Hold(Input):
     KNOT_OFFSET = 1e-9
 
     def __post_init__(self):
-        _check_series("hold", self.times, self.values, 1)
+        _own_series(self, "hold", 1)
 
     def value(self, t):
         """The held value at the times ``t`` [s]: ``values[i]`` over ``(times[i], times[i +

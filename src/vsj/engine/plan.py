@@ -78,7 +78,13 @@ def initial_state(structure: Structure, inputs: Mapping[str, Input], initial,
     for src in structure.sources:
         signal = inputs.get(src.channel)
         if signal is not None and signal.is_position:
-            angles.setdefault(src.flange, signal.initial_angle())
+            start = signal.initial_angle()
+            given = angles.setdefault(src.flange, start)
+            if given != start:
+                raise InputError(f"initial angle of {src.flange} ({given:g} rad) contradicts "
+                                 f"its input {src.channel!r}, an angle that starts at "
+                                 f"{start:g} rad: leave the initial angle out (the input sets "
+                                 "it) or give the same")
     if initial.q is not None:
         if structure.pivot.flange is None:
             if abs(initial.q - structure.pivot.fixed) > 1e-12:
