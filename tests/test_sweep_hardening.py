@@ -569,3 +569,71 @@ def test_a_sweep_whose_every_run_failed_exits_1(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "4 run(s) failed" in err and "every run of the sweep failed" in err
     assert len(store.read_manifest(out)["failed_runs"]) == 4
+
+
+def _descendants(pid: int) -> list[int]:
+    """Every process below ``pid`` (children, their children, ...), from /proc."""
+    children: dict[int, list[int]] = {}
+    for entry in os.listdir("/proc"):
+        try:
+            with open(f"/proc/{entry}/status") as handle:
+                ppid = int(re.search(r"\nPPid:\t(\d+)\n", handle.read()).group(1))
+            children.setdefault(ppid, []).append(int(entry))
+        except (OSError, ValueError, AttributeError):
+            continue
+    found, todo = [], [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            found.append(child)
+            todo.append(child)
+    return found
+
+
+def _alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie, ended but not yet reaped by an init that may never
+    reap it in a container, does not)."""
+    try:
+        with open(f"/proc/{pid}/status") as handle:
+            return "\nState:\tZ" not in handle.read()
+    except OSError:
+        return False
+
+
+def _cmdline(pid: int) -> bytes:
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as handle:
+            return handle.read()
+    except OSError:
+        return b""
+
+
+def test_a_sweep_killed_outright_takes_its_fork_server_and_workers_with_it(tmp_path):
+    """The default scheduler's workers are forked from a fork server. Python's workers
+    wait on a queue whose writing end they hold, and they keep the server alive: a sweep
+    killed with SIGKILL left all three running. They now end with it."""
+    spec = _inputs(tmp_path)
+    spec.write_text(SPEC.replace('duration = "0.3 s"', 'duration = "3 s"')
+                    .replace("samples = 2", "samples = 20"))
+    run = subprocess.Popen([sys.executable, "-m", "vsj", "sweep", str(spec), "--out",
+                            str(tmp_path / "out"), "--chunk", "1", "--workers", "2",
+                            "--no-plot"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60.0
+        server = []
+        while run.poll() is None and time.monotonic() < deadline and not server:
+            below = _descendants(run.pid)
+            server = [p for p in below if b"multiprocessing.forkserver" in _cmdline(p)
+                      and len(_descendants(p)) >= 2]
+            time.sleep(0.02)
+        assert server and run.poll() is None, "no fork server with workers seen"
+        watched = server + _descendants(server[0])
+    finally:
+        run.kill()
+        run.wait()
+    deadline = time.monotonic() + 20.0
+    while time.monotonic() < deadline and any(_alive(p) for p in watched):
+        time.sleep(0.02)
+    left = [p for p in watched if _alive(p)]
+    for p in left:  # not to leave them to the next test
+        os.kill(p, signal.SIGKILL)
+    assert not left, "the fork server or its workers outlived the sweep"

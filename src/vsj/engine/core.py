@@ -23,7 +23,9 @@ Solvers (C, see the sources for their derivations):
 
 from __future__ import annotations
 
+import ctypes
 import os
+import signal
 
 import numpy as np
 
@@ -136,6 +138,21 @@ def available_cores() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
         return os.cpu_count() or 1
+
+
+#: Linux's prctl option that signals a process when the thread that made it ends.
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent() -> None:
+    """Have this process killed when the one that started it ends (Linux's parent-death
+    signal; elsewhere nothing): a worker process whose run was killed outright does not
+    stay behind. Only for a process started by a thread that lives as long as it should
+    (the main thread of the process that made it, or a single-threaded one)."""
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):  # not Linux: no such signal to ask for
+        pass
 
 
 def _floats(a) -> np.ndarray:

@@ -16,21 +16,19 @@ failed or interrupted run leaves the previous reproduction as it was.
 
 from __future__ import annotations
 
-import ctypes
 import html
 import json
 import math
 import multiprocessing
 import os
 import re
-import signal
 import traceback
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import __version__, pages
-from ..engine.core import available_cores
+from ..engine.core import available_cores, die_with_parent
 from ..errors import InputError, SimulationError
 from ..output import ResultSet, _jsonable, atomic_write
 from ..params import Parameters
@@ -294,19 +292,12 @@ def _made_apart(name: str) -> Outcome:
     return outcome
 
 
-#: Linux's prctl option that signals a process when the one that made it ends.
-_PR_SET_PDEATHSIG = 1
-
-
 def _follow(parent: int) -> None:
     """A worker's start: the worker is killed when ``parent``, the run that forked it,
-    ends (Linux's parent-death signal), so that a run killed outright leaves no worker
-    behind holding the output directory's lock and the watchdog's pipe (which would
-    keep the staging directory from being cleared)."""
-    try:
-        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
-    except (OSError, AttributeError):  # not Linux: no such signal to ask for
-        pass
+    ends (`die_with_parent`), so that a run killed outright leaves no worker behind
+    holding the output directory's lock and the watchdog's pipe (which would keep the
+    staging directory from being cleared)."""
+    die_with_parent()
     if os.getppid() != parent:  # the run ended before the signal was asked for
         os._exit(1)
 

@@ -31,6 +31,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from ..engine.core import available_cores
 from ..errors import InputError
+from ._worker import follow_fork_server
 from .runner import ChunkResult, Job, run_chunk
 
 #: Imported once by the fork server the workers are forked from (see the module).
@@ -100,6 +101,16 @@ def execute(job: Job, chunks: list[tuple[int, int, object]], scheduler: str | No
     return running
 
 
+def fork_server_pool(count: int) -> ProcessPoolExecutor:
+    """``count`` worker processes forked from a fork server that imported `PRELOAD` once
+    (no fork of this threaded process, and no worker importing everything anew); the
+    server and its workers end with this process, however it ends."""
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(PRELOAD)
+    return ProcessPoolExecutor(max_workers=count, mp_context=context,
+                               initializer=follow_fork_server)
+
+
 def _nothing():
     yield None
 
@@ -112,16 +123,12 @@ def _local(job, chunks, workers):
             yield index, run_chunk(job, start, values, threads=cores)
         return
 
-    # a fork server imports the runner once and forks each worker from it: no fork of
-    # this (threaded) process, and no worker importing everything anew
-    context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload(PRELOAD)
     processes = min(cores, len(chunks))
     plan = tasks(chunks, processes)
     joiner = _Joiner(plan)
     pending = list(reversed(plan))
     running = {}
-    with ProcessPoolExecutor(max_workers=processes, mp_context=context) as pool:
+    with fork_server_pool(processes) as pool:
         try:
             started = False
             while pending or running:
@@ -225,10 +232,7 @@ class Pool:
         plan = tasks(chunks, self.count)
         if self.scheduler is None:
             if self._processes is None:
-                context = multiprocessing.get_context("forkserver")
-                context.set_forkserver_preload(PRELOAD)
-                self._processes = ProcessPoolExecutor(max_workers=self.count,
-                                                      mp_context=context)
+                self._processes = fork_server_pool(self.count)
             futures = [(index, self._processes.submit(work, job, start, values, 1))
                        for index, start, values in plan]
         else:
