@@ -912,3 +912,46 @@ def test_an_initial_angle_that_contradicts_a_position_input_is_refused():
     with pytest.raises(InputError, match=r"initial angle of motor_1.flange \(1 rad\) "
                                          r"contradicts its input 'motor_1'"):
         simulate(wrist, driven, 0.01, initial=InitialState(angles={"motor_1.flange": 1.0}))
+
+
+def _python_api_calls():
+    """Calls of the Python API with a wrong type or value, and what their refusal says
+    (each gave a raw TypeError, AttributeError or a nonsense result)."""
+    from vsj import build_wrist, linear
+    from vsj.inputs import Constant, Position, Sine, Step
+    from vsj.stepper import Stepper
+
+    network = build_wrist(params_module.default())
+    model = linear.linearize(params_module.default(), 0.0)
+    return [
+        (lambda: Sine("1", 1.0), "sine input: amplitude must be a number"),
+        (lambda: Constant("1"), "constant input: level must be a number"),
+        (lambda: Constant(True), "constant input: level must be a number"),
+        (lambda: Step("a"), "step input: height must be a number"),
+        (lambda: Position(1.0), "position input: its angle must be a vsj.inputs signal"),
+        (lambda: Stepper(network), "stepper: the model must be an assembled network"),
+        (lambda: Stepper(network.assemble(), "1 ms"), "stepper: period must be a number"),
+        (lambda: Stepper(network.assemble(), options={}),
+         "stepper: options must be a SimulationOptions"),
+        (lambda: linear.bandwidth(model, "theta_x", "motor_1", drop_db=3.0),
+         "drop_db must be a negative number of dB"),
+        (lambda: linear.bandwidth(model, "theta_x", "motor_1", drop_db=math.nan),
+         "drop_db must be a negative number of dB"),
+    ]
+
+
+@pytest.mark.parametrize("k", range(10))
+def test_the_python_api_names_a_wrong_argument(k):
+    call, message = _python_api_calls()[k]
+    with pytest.raises(InputError, match=message):
+        call()
+
+
+def test_a_circle_of_negative_radius_is_refused():
+    scen = scenarios.loads(
+        'name = "c"\ndescription = "a circle"\nnetwork = "wrist"\nduration = "1 s"\n'
+        '[model]\nend_effector = "driven"\n[inputs.theta_x]\nkind = "circle"\nradius = "-1.1 rad"\nperiod = "10 s"\n'
+        '[inputs.theta_y]\nkind = "circle"\nradius = "1.1 rad"\nperiod = "10 s"\n'
+        'axis = "sin"\n[[cases]]\nlabel = "a"\n', "circle.toml")
+    with pytest.raises(InputError, match=r"inputs.theta_x.radius .*must be > 0 rad"):
+        scenarios.prepare_case(scen, scen.cases[0], params_module.default())

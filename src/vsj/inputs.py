@@ -19,6 +19,7 @@ counts the knots a duration needs, and more than `MAX_KNOTS` raise `InputError`
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -233,6 +234,7 @@ class Constant(Input):
     level: float = 0.0
 
     def __post_init__(self):
+        _real_fields(self, "constant", ("level",))
         if not math.isfinite(self.level):
             raise InputError(f"constant input: value must be finite, got {self.level!r}")
 
@@ -273,6 +275,8 @@ class Sine(Input):
     stop: float = math.inf
 
     def __post_init__(self):
+        _real_fields(self, "sine", ("amplitude", "frequency", "phase", "offset", "start",
+                                    "fade_in", "stop"))
         for name in ("amplitude", "phase", "offset", "start"):
             if not math.isfinite(getattr(self, name)):
                 raise InputError(f"sine input: {name} must be finite, got "
@@ -383,6 +387,7 @@ class Step(Input):
     offset: float = 0.0
 
     def __post_init__(self):
+        _real_fields(self, "step", ("height", "start", "offset"))
         for name in ("height", "start", "offset"):
             if not math.isfinite(getattr(self, name)):
                 raise InputError(f"step input: {name} must be finite, got "
@@ -411,6 +416,16 @@ class Step(Input):
     def describe(self) -> str:
         """The signal in one line of words."""
         return f"step of {self.height:g} at {self.start:g} s from {self.offset:g}"
+
+
+def _real_fields(signal, kind: str, names) -> None:
+    """`InputError` naming the field unless each of ``names`` of ``signal`` is a real
+    number (a string such as "1 rad", or True, is not: units belong to scenario files)."""
+    for name in names:
+        value = getattr(signal, name)
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            raise InputError(f"{kind} input: {name} must be a number (SI units), got "
+                             f"{value!r}")
 
 
 def _own_series(signal, kind: str, shortest: int) -> None:
@@ -559,6 +574,12 @@ class Position(Input):
 
     angle: Input
     is_position = True
+
+    def __post_init__(self):
+        if not isinstance(self.angle, Input) or self.angle.is_position:
+            raise InputError(f"position input: its angle must be a vsj.inputs signal of the "
+                             f"angle [rad] (Sine, Table, ...; not a Position), got "
+                             f"{self.angle!r}")
 
     def value(self, t):
         """The angle [rad] at the times ``t`` [s] (the wrapped signal's value)."""

@@ -386,7 +386,7 @@ def _signal(kind: str, spec: Mapping, unit: str, where: Where) -> tuple[Callable
                       "offset": _quantity(spec, "offset", unit, where, 0.0)}
     if kind == "circle":
         return circle, {
-            "radius": _quantity(spec, "radius", "rad", where),
+            "radius": _quantity(spec, "radius", "rad", where, positive=True),
             "period": _quantity(spec, "period", "s", where, positive=True),
             "fade_in": _quantity(spec, "fade_in", "s", where, 0.0, nonnegative=True),
             "cos_axis": _choice(spec, "axis", ("cos", "sin"), where, "cos") == "cos"}

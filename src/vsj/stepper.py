@@ -62,6 +62,7 @@ A `Stepper` holds one work: use one `Stepper` per thread.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import replace
 from typing import Mapping, Sequence
 
@@ -114,10 +115,22 @@ class Stepper:
     def __init__(self, structure: Structure, period: float = 1e-3, *,
                  options: SimulationOptions | None = None, method: str = "dopri",
                  substeps: int = 4, max_steps: int = 100_000, controller=None):
-        options = options or SimulationOptions()
+        if not isinstance(structure, Structure):
+            raise InputError(f"stepper: the model must be an assembled network (a Structure: "
+                             f"Network.assemble(), or vsj.build_wrist(params).assemble()), got "
+                             f"{type(structure).__name__}")
+        options = SimulationOptions() if options is None else options
+        if not isinstance(options, SimulationOptions):
+            raise InputError(f"stepper: options must be a SimulationOptions, got "
+                             f"{type(options).__name__}")
         options.validate()
-        if not (math.isfinite(period) and period > 0.0):
-            raise InputError(f"stepper: period must be > 0 s, got {period!r}")
+        if isinstance(period, bool) or not isinstance(period, numbers.Real) \
+                or not (math.isfinite(period) and period > 0.0):
+            raise InputError(f"stepper: period must be a number of seconds > 0, got {period!r}")
+        if isinstance(substeps, numbers.Integral) and not isinstance(substeps, bool):
+            substeps = int(substeps)  # NumPy's integers are the numbers they hold
+        if isinstance(max_steps, numbers.Integral) and not isinstance(max_steps, bool):
+            max_steps = int(max_steps)
         if method not in METHODS:
             raise InputError(f"stepper: method must be one of {', '.join(METHODS)}, got "
                              f"{method!r}")

@@ -6,11 +6,12 @@ gains and stiffness, bandwidth. Each function takes a `LinearData` or a
 from __future__ import annotations
 
 import math
+import numbers
 from typing import Sequence
 
 import numpy as np
 
-from ..errors import SimulationError
+from ..errors import InputError, SimulationError
 from .data import LinearData, select
 
 
@@ -123,6 +124,14 @@ def bandwidth(model: LinearData, output: str, input, *, input_angle: bool = Fals
     low-frequency value; ``inf`` if it never does below ``omega_max``."""
     from scipy.optimize import brentq  # lazy: heavy; only the bandwidth search needs it
 
+    if isinstance(drop_db, bool) or not isinstance(drop_db, numbers.Real) \
+            or not (math.isfinite(drop_db) and drop_db < 0.0):
+        raise InputError(f"bandwidth: drop_db must be a negative number of dB (a fall, -3 "
+                         f"for the usual bandwidth), got {drop_db!r}")
+    if isinstance(omega_max, bool) or not isinstance(omega_max, numbers.Real) \
+            or not omega_max > 1e-3:
+        raise InputError(f"bandwidth: omega_max must be a frequency above 1e-3 rad/s (where "
+                         f"the search starts), got {omega_max!r}")
     if input_angle:
         low = abs(transfer(model, output, input, [1e-6], input_angle=True)[0])
     else:
