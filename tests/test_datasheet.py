@@ -234,3 +234,21 @@ def test_a_torque_peak_at_a_spring_going_slack_is_named_so(params):
         assert abs(theta[index] - peak_at) <= theta[1] - theta[0]
     index, limit = deflection_limit(element, one, q, theta, theta.copy())
     assert (index, limit) == (len(theta) - 1, END_STOP)
+
+
+def test_every_number_of_the_tables_has_its_unit(written):
+    """datasheet.json gives the unit of each number of its tables (per_q and its modes,
+    the curves, the frequency grid): the per-q frequencies are rad/s where the ratings
+    give Hz, a factor 2 pi a reader could not tell from the keys."""
+    sheet, _ = written
+    units = sheet["units"]
+    words = {"modes_viscous", "modes", "max_deflection_limit"}  # tables, or a name
+    keys = set(sheet["per_q"][0]) - words
+    keys |= set(sheet["per_q"][0]["modes"][0]) | {"omega"}
+    keys |= set(sheet["torque_deflection"][0]) - words
+    assert keys <= set(units), sorted(keys - set(units))
+    assert units["natural_frequencies"] == "rad/s"
+    rating = sheet["ratings"]["natural_frequency_min"]
+    assert rating["unit"] == "Hz"
+    lowest = min(r["natural_frequencies"][0] for r in sheet["per_q"])
+    assert rating["value"] == pytest.approx(lowest / (2 * np.pi), rel=1e-12)

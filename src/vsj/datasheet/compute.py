@@ -21,6 +21,16 @@ from ..springs import GEOMETRIC, GEOMETRIC_REPORT, evaluate
 from ..wrist import WristOptions, build_wrist, elastic_element, motor
 
 CURVE_POINTS = 241
+#: The SI unit of each number of the tables (``per_q`` and its ``modes``, the
+#: ``torque_deflection`` curves, the ``frequency_response`` grid), written beside them
+#: as ``units``: frequencies are in rad/s there, the ratings give them in Hz.
+UNITS = {"q": "m", "ring_stiffness": "N m/rad", "output_stiffness": "N m/rad",
+         "output_stiffness_linear_model": "N m/rad", "peak_torque": "N m",
+         "peak_torque_deflection": "rad", "max_deflection": "rad", "max_energy": "J",
+         "pretension_loss_deflection": "rad", "natural_frequencies": "rad/s",
+         "frequency": "rad/s", "damping": "1", "position_bandwidth": "rad/s",
+         "deflection": "rad", "torque": "N m", "stiffness": "N m/rad", "energy": "J",
+         "omega": "rad/s"}
 #: Frequency grid of the Bode plots [rad/s].
 BODE_OMEGA = np.logspace(-1, 3.5, 300)
 #: Friction treatment of the linear models (see `vsj.linear.FRICTION_TREATMENTS`).
@@ -375,6 +385,7 @@ def compute(params, *, q_points: int = 9, curve_qs: Sequence[float] | None = Non
                      "description": linear_models.FRICTION_TREATMENTS[friction]},
         "notes": _notes(params, elastic, friction, per_q, end_stop),
         "ratings": ratings,
+        "units": dict(UNITS),
         "per_q": per_q,
         "torque_deflection": curves,
         "frequency_response": bode,
