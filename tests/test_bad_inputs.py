@@ -930,7 +930,7 @@ def _python_api_calls():
         (lambda: Step("a"), "step input: height must be a number"),
         (lambda: Position(1.0), "position input: its angle must be a vsj.inputs signal"),
         (lambda: Stepper(network), "stepper: the model must be an assembled network"),
-        (lambda: Stepper(network.assemble(), "1 ms"), "stepper: period must be a number"),
+        (lambda: Stepper(network.assemble(), "1 ms"), r"stepper: period must be > 0 s \(a number"),
         (lambda: Stepper(network.assemble(), options={}),
          "stepper: options must be a SimulationOptions"),
         (lambda: linear.bandwidth(model, "theta_x", "motor_1", drop_db=3.0),
@@ -950,7 +950,8 @@ def test_the_python_api_names_a_wrong_argument(k):
 def test_a_circle_of_negative_radius_is_refused():
     scen = scenarios.loads(
         'name = "c"\ndescription = "a circle"\nnetwork = "wrist"\nduration = "1 s"\n'
-        '[model]\nend_effector = "driven"\n[inputs.theta_x]\nkind = "circle"\nradius = "-1.1 rad"\nperiod = "10 s"\n'
+        '[model]\nend_effector = "driven"\n[inputs.theta_x]\nkind = "circle"\n'
+        'radius = "-1.1 rad"\nperiod = "10 s"\n'
         '[inputs.theta_y]\nkind = "circle"\nradius = "1.1 rad"\nperiod = "10 s"\n'
         'axis = "sin"\n[[cases]]\nlabel = "a"\n', "circle.toml")
     with pytest.raises(InputError, match=r"inputs.theta_x.radius .*must be > 0 rad"):

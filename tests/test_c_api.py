@@ -108,6 +108,23 @@ def step_wrist(tmp_path_factory, engine_objects) -> Path:
     return _once(tmp_path_factory, "step-wrist", make)[1] / "step_wrist"
 
 
+def steps_as_python(stepper, document, inputs: np.ndarray, data: np.ndarray) -> np.ndarray:
+    """The outputs the Python stepper gives over ``inputs`` from the file's initial state
+    (a row per period, the start first), asserted within `same_engine` of the C
+    program's ``data``; returned."""
+    state = np.array(document["initial_state"])
+    rows = np.array([o["row"] for o in document["outputs"]])
+    expected = [rows @ state]
+    for u in inputs:
+        stepper.step(state, u, out=state)
+        expected.append(rows @ state)
+    expected = np.array(expected)
+    allowed = same_engine(stepper, len(inputs), np.max(np.abs(expected), axis=0),
+                          np.ptp(expected, axis=0))
+    assert np.all(np.max(np.abs(data[:, 1:-1] - expected), axis=0) <= allowed)
+    return expected
+
+
 def run_example(exe, model: Path, periods: int, inputs: np.ndarray | None, tmp_path):
     args = [str(exe), str(model), str(periods)]
     if inputs is not None:
@@ -145,16 +162,7 @@ def test_the_c_program_steps_the_wrist_as_python_does(step_wrist, params, tmp_pa
     header, data = run_example(step_wrist, path, periods, inputs, tmp_path)
     names = [o["name"] for o in document["outputs"]]
     assert header == ["time [s]"] + [f"{n} [rad]" for n in names] + ["q [m]"]
-    state = np.array(document["initial_state"])
-    rows = np.array([o["row"] for o in document["outputs"]])
-    expected = [rows @ state]
-    for u in inputs:
-        stepper.step(state, u, out=state)
-        expected.append(rows @ state)
-    expected = np.array(expected)
-    allowed = same_engine(stepper, periods, np.max(np.abs(expected), axis=0),
-                          np.ptp(expected, axis=0))
-    assert np.all(np.max(np.abs(data[:, 1:-1] - expected), axis=0) <= allowed)
+    steps_as_python(stepper, document, inputs, data)
     # q: the pivot drive held still; its angle set from q by asin and read back by sin
     assert np.all(np.abs(data[:, -1] + 0.01) <= 4 * EPS * params.pivot.amplitude)
     assert np.ptp(data[:, names.index("theta_x") + 1]) > 1e-3  # the wrist moved
@@ -478,16 +486,7 @@ def test_a_time_step_longer_than_the_period_loads_and_steps_as_python_steps(step
     inputs = np.zeros((periods, stepper.n_inputs))
     inputs[:, 0] = 3.0  # motor_1 turning
     header, data = run_example(step_wrist, path, periods, inputs, tmp_path)
-    state = np.array(document["initial_state"])
-    rows = np.array([o["row"] for o in document["outputs"]])
-    expected = [rows @ state]
-    for u in inputs:
-        stepper.step(state, u, out=state)
-        expected.append(rows @ state)
-    expected = np.array(expected)
-    allowed = same_engine(stepper, periods, np.max(np.abs(expected), axis=0),
-                          np.ptp(expected, axis=0))
-    assert np.all(np.max(np.abs(data[:, 1:-1] - expected), axis=0) <= allowed)
+    expected = steps_as_python(stepper, document, inputs, data)
     assert np.ptp(expected[:, 0]) > 0.0  # it moved
 
 

@@ -126,7 +126,7 @@ class Stepper:
         options.validate()
         if isinstance(period, bool) or not isinstance(period, numbers.Real) \
                 or not (math.isfinite(period) and period > 0.0):
-            raise InputError(f"stepper: period must be a number of seconds > 0, got {period!r}")
+            raise InputError(f"stepper: period must be > 0 s (a number of seconds), got {period!r}")
         if isinstance(substeps, numbers.Integral) and not isinstance(substeps, bool):
             substeps = int(substeps)  # NumPy's integers are the numbers they hold
         if isinstance(max_steps, numbers.Integral) and not isinstance(max_steps, bool):
