@@ -88,7 +88,11 @@ def run(spec: SweepSpec, out: str | Path, *, resume: bool = False,
     run (`vsj.errors.InputError`), the free space against a bound on the bytes the
     sweep writes included. ``announce(text)``, if given, is told that bound before the
     runs start, the sweep's warnings (`Outcome.warnings`), and what a resumed sweep found
-    damaged and runs again. A failure to write the directory raises `Unfinished`."""
+    damaged and runs again. A failure to write the directory raises `Unfinished`.
+
+    The default scheduler's worker processes import the calling script as Python's
+    ``multiprocessing`` does: call this from a script under ``if __name__ ==
+    "__main__":``, or each worker runs the script's top level again."""
     started = time.perf_counter()
     job = job_for(spec)
     info = describe(job)
