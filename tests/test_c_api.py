@@ -108,6 +108,18 @@ def step_wrist(tmp_path_factory, engine_objects) -> Path:
     return _once(tmp_path_factory, "step-wrist", make)[1] / "step_wrist"
 
 
+def random_inputs(stepper, periods: int, seed: int) -> np.ndarray:
+    """Inputs for ``periods`` periods that move every output: random motor speeds and a
+    random load (an output that stays at round-off has no range to scale the engines'
+    parting by, `same_engine`)."""
+    rng = np.random.default_rng(seed)
+    inputs = np.zeros((periods, stepper.n_inputs))
+    inputs[:, 0] = rng.normal(0.0, 0.5, periods)   # motor_1 speed
+    inputs[:, 1] = rng.normal(0.0, 0.5, periods)   # motor_2 speed
+    inputs[:, 3] = rng.normal(0.0, 0.05, periods)  # tau_x
+    return inputs
+
+
 def steps_as_python(stepper, document, inputs: np.ndarray, data: np.ndarray) -> np.ndarray:
     """The outputs the Python stepper gives over ``inputs`` from the file's initial state
     (a row per period, the start first), asserted within `same_engine` of the C
@@ -153,12 +165,8 @@ def export_wrist(tmp_path, params, **kwargs) -> tuple[Path, dict, object]:
 def test_the_c_program_steps_the_wrist_as_python_does(step_wrist, params, tmp_path, method):
     options = SimulationOptions(friction="stiction" if method == "timestep" else "arctan")
     path, document, stepper = export_wrist(tmp_path, params, options=options, method=method)
-    rng = np.random.default_rng(3)
     periods = 60
-    inputs = np.zeros((periods, stepper.n_inputs))
-    inputs[:, 0] = rng.normal(0.0, 0.5, periods)   # motor_1 speed
-    inputs[:, 1] = rng.normal(0.0, 0.5, periods)   # motor_2 speed
-    inputs[:, 3] = rng.normal(0.0, 0.05, periods)  # tau_x
+    inputs = random_inputs(stepper, periods, 3)
     header, data = run_example(step_wrist, path, periods, inputs, tmp_path)
     names = [o["name"] for o in document["outputs"]]
     assert header == ["time [s]"] + [f"{n} [rad]" for n in names] + ["q [m]"]
@@ -482,14 +490,8 @@ def test_a_time_step_longer_than_the_period_loads_and_steps_as_python_steps(step
     options = SimulationOptions(friction="stiction", step=2e-3)
     path, document, stepper = export_wrist(tmp_path, params, options=options,
                                            method="timestep")
-    # inputs that move every output (one that stays at round-off has no range to scale
-    # the engines' parting by)
-    rng = np.random.default_rng(5)
     periods = 20
-    inputs = np.zeros((periods, stepper.n_inputs))
-    inputs[:, 0] = rng.normal(0.0, 0.5, periods)   # motor_1 speed
-    inputs[:, 1] = rng.normal(0.0, 0.5, periods)   # motor_2 speed
-    inputs[:, 3] = rng.normal(0.0, 0.05, periods)  # tau_x
+    inputs = random_inputs(stepper, periods, 5)
     header, data = run_example(step_wrist, path, periods, inputs, tmp_path)
     expected = steps_as_python(stepper, document, inputs, data)
     names = [o["name"] for o in document["outputs"]]
