@@ -209,6 +209,15 @@ def test_verify_checks_a_sweep_and_names_what_is_wrong(reference, tmp_path, caps
     assert main(["verify", str(out)]) == 1
     assert "sweep.json calls the sweep complete but records 1 of its 4 chunks as not done " \
         "(chunk 2)" in capsys.readouterr().err
+    # a manifest edited to call a run failed (or a failed one ok): the chunks' hashes cover
+    # the store, the failures are checked against the store's status
+    spec, out = _copy(reference, tmp_path / "failures")
+    record = store.read_manifest(out)
+    record["failed_runs"]["3"] = "boom"
+    (out / store.MANIFEST).write_text(json.dumps(record))
+    assert main(["verify", str(out)]) == 1
+    assert "chunk 3 (run 3): the failed runs it records (3) are not those whose status in " \
+        "sweep.zarr failed (none)" in capsys.readouterr().err
 
 
 SHORT = """name = "short"
