@@ -496,3 +496,12 @@ def test_an_operating_point_past_the_end_stop_is_warned_about(params):
     assert any("past its 1.4 rad end stop" in w for w in pressed.info["warnings"])
     assert linear.linearize(params, -0.01, load=(0.2, 0.0),
                             statespace=False).info["warnings"] == []
+
+
+def test_the_model_records_the_pivot_position_it_was_held_at(params):
+    """The linear model's record of the wrist's options names the q it was held at (it
+    said fixed_q = 0 whatever the operating point)."""
+    model = linear.linearize(params, -0.004)
+    options = model.info["wrist_options"]
+    assert options["fixed_q"] == -0.004
+    assert options["pivot_drive"].startswith("held at q")

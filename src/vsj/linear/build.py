@@ -302,9 +302,9 @@ def linearize(params, q: float = 0.0, *, motors: tuple[float, float] = (0.0, 0.0
                                 loads=loads, friction=friction, inputs=inputs, outputs=outputs,
                                 statespace=statespace)
     model.info.update({"parameters": {"origin": params.origin, "hash": params.hash()},
-                       "wrist_options": {**dataclasses.asdict(options),
-                                         "pivot_drive": f"held ({options.pivot_drive} drive "
-                                                        "not in the linear model)"},
+                       "wrist_options": {**dataclasses.asdict(options), "fixed_q": float(q),
+                                         "pivot_drive": f"held at q ({options.pivot_drive} "
+                                                        "drive not in the linear model)"},
                        "motors": list(map(float, motors)), "load": list(map(float, load))})
     return model
 
