@@ -546,3 +546,34 @@ def test_a_metric_that_is_not_a_finite_number_is_warned_of(tmp_path):
     assert [t.split("'")[1] for t in texts] == ["ratio", "logged"]
     assert all("in 2 of 2 runs that succeeded (run 0:" in t for t in texts)
     assert [f"warning: {t}" for t in texts] == [s for s in said if "finite" in s]
+
+
+@pytest.mark.parametrize("text, unit", [
+    ("max(phi_1) - min(phi_1)", "rad"),        # a spread keeps the unit
+    ("-mean(theta_x) + 0.1", "rad"),           # a bare number takes the unit beside it
+    ("rms(abs(theta_x - phi_1))", "rad"),
+    ("max(theta_x.speed)", "rad/s"),
+    ("100 * max(phi_1)", ""),                  # a scale: cm or deg? not said
+    ("max(phi_1) / max(phi_2)", ""),           # a ratio
+    ("max(phi_1) - max(theta_x.speed)", ""),   # units that do not add
+    ("log(max(phi_1))", ""),
+    ("max(phi_1) - transmission.viscous", ""),  # a parameter
+])
+def test_an_expression_metric_has_the_unit_its_signals_give_it(text, unit):
+    """metrics.csv heads each metric with its unit; an expression's is inferred only
+    where it follows plainly (sums of one unit, functions that keep it), else left
+    empty rather than guessed."""
+    from vsj.sweep.metrics import expression_unit
+
+    units = {"phi_1": "rad", "phi_2": "rad", "theta_x": "rad", "theta_x.speed": "rad/s"}
+    assert expression_unit(text, units) == unit
+
+
+def test_metrics_csv_heads_an_expression_metric_with_its_unit(tmp_path):
+    spec = sweep.loads('[sweep]\nscenario = "fig-4.15"\nduration = "0.2 s"\nseed = 1\n'
+                       '[vary]\nq = { from = "-1 cm", to = "0 cm", count = 2 }\n'
+                       '[metrics]\nspread = "max(phi_1) - min(phi_1)"\n'
+                       'ratio = "max(phi_1) / max(phi_2)"\n', "units.toml")
+    sweep.run(spec, tmp_path / "out", workers=1, plots=False, show_progress=False)
+    header = (tmp_path / "out" / "metrics.csv").read_text().splitlines()[0]
+    assert header.endswith(",spread [rad],ratio")

@@ -158,6 +158,47 @@ class Expression:
         return self._fn(context)
 
 
+#: Functions whose value has the unit of their arguments (which must share one).
+_SAME_UNIT = {"max", "min", "mean", "std", "rms", "peak", "final", "initial", "abs",
+              "minimum", "maximum"}
+
+
+def expression_unit(text: str, units: Mapping[str, str]) -> str:
+    """The unit of a (checked) expression where it follows plainly from its signals'
+    ``units``: sums and differences of one unit, a sign, and the functions that keep
+    their arguments' unit (max, mean, rms, abs, ...), as ``max(phi_1) - min(phi_1)`` is
+    in rad. Anything else gives "" (unknown): a product or a quotient, a parameter, a
+    scale by a number (100 * q is in cm, not m), a function such as log."""
+    class Unknown(Exception):
+        pass
+
+    def same(parts):
+        known = {u for u in parts if u is not None}
+        if len(known) > 1:
+            raise Unknown
+        return known.pop() if known else None
+
+    def unit(node) -> str | None:  # None: a bare number, which takes the unit beside it
+        if isinstance(node, ast.Constant):
+            return None
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
+            return unit(node.operand)
+        if isinstance(node, ast.BinOp) and isinstance(node.op, (ast.Add, ast.Sub)):
+            return same([unit(node.left), unit(node.right)])
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
+                and node.func.id in _SAME_UNIT:
+            return same([unit(a) for a in node.args])
+        name = dotted(node) if isinstance(node, (ast.Name, ast.Attribute)) else None
+        if name in units and units[name]:
+            return units[name]
+        raise Unknown
+
+    try:
+        return unit(ast.parse(text.strip(), mode="eval").body) or ""
+    except (Unknown, SyntaxError):
+        return ""
+
+
 def sampled(value, shape: tuple) -> np.ndarray:
     """``value`` (an array or a number) as an array of ``shape``: itself if it is one
     already (read, never written), else broadcast (a read-only view)."""
@@ -246,8 +287,9 @@ class Evaluator:
         self._times = None  # (sample times, window, projection) cached for them
         signal = metric.options.get("signal")
         kind = KINDS.get(metric.kind)
-        self.unit = ("" if kind is None else kind.unit if kind.unit is not None
-                     else units.get(signal, ""))
+        self.unit = (expression_unit(metric.options["expression"], units) if kind is None
+                     else kind.unit if kind.unit is not None
+                     else units.get(signal) or expression_unit(signal, units))
 
     def _window(self, time: np.ndarray) -> np.ndarray:
         """The samples inside [start, stop] (every run of a sweep has the same times)."""
