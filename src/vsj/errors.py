@@ -17,6 +17,7 @@ Both are refused before anything is read.
 from __future__ import annotations
 
 import math
+import numbers
 import os
 import stat
 from pathlib import Path
@@ -28,6 +29,12 @@ class InputError(ValueError):
 
 class SimulationError(RuntimeError):
     """A simulation or fit failed; never reported as success."""
+
+
+def is_number(value) -> bool:
+    """Whether ``value`` is a real number as an argument takes one: Python's or NumPy's
+    (np.float32, np.int64), not a bool nor a string such as "1 ms"."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
 #: Largest scenario, sweep, experiment, fit set-up, covariance or linear model file read

@@ -19,14 +19,13 @@ counts the knots a duration needs, and more than `MAX_KNOTS` raise `InputError`
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import _core
-from .errors import InputError
+from .errors import InputError, is_number
 
 #: Coefficient rows are (c0, c1, c2, c3) of c0 + c1 tau + c2 tau^2 + c3 tau^3, tau = t - knot.
 Pieces = tuple[np.ndarray, np.ndarray]
@@ -130,7 +129,7 @@ def from_zero(knots: np.ndarray, coef: np.ndarray) -> Pieces:
         c = coef[-1]
         tau = knots[-1] - knots[-2]
         last = c[0] + tau * (c[1] + tau * (c[2] + tau * c[3]))
-        return np.array([0.0, max(knots[-1], 0.0) + 1.0]), np.array([[last, 0.0, 0.0, 0.0]])
+        return np.array([0.0, 1.0]), np.array([[last, 0.0, 0.0, 0.0]])  # held past 1 s
     j = int(np.searchsorted(knots, 0.0, side="right")) - 1  # the piece that holds t = 0
     c0, c1, c2, c3 = coef[j]
     tau = -knots[j]  # 0 in the piece's own time
@@ -423,7 +422,7 @@ def _real_fields(signal, kind: str, names) -> None:
     number (a string such as "1 rad", or True, is not: units belong to scenario files)."""
     for name in names:
         value = getattr(signal, name)
-        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        if not is_number(value):
             raise InputError(f"{kind} input: {name} must be a number (SI units), got "
                              f"{value!r}")
 

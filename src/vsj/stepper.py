@@ -73,7 +73,7 @@ from .engine import OK, STATUS_TEXT
 from .engine.core import pivot_position
 from .engine.model import EngineModel, friction_laws_for
 from .engine.plan import Plan, Scheme
-from .errors import InputError, SimulationError
+from .errors import InputError, SimulationError, is_number
 from .inputs import Constant
 from .network import Structure
 from .simulate import InitialState, SimulationOptions, prepare
@@ -124,8 +124,7 @@ class Stepper:
             raise InputError(f"stepper: options must be a SimulationOptions, got "
                              f"{type(options).__name__}")
         options.validate()
-        if isinstance(period, bool) or not isinstance(period, numbers.Real) \
-                or not (math.isfinite(period) and period > 0.0):
+        if not is_number(period) or not (math.isfinite(period) and period > 0.0):
             raise InputError(f"stepper: period must be > 0 s (a number of seconds), got {period!r}")
         if isinstance(substeps, numbers.Integral) and not isinstance(substeps, bool):
             substeps = int(substeps)  # NumPy's integers are the numbers they hold

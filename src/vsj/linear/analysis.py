@@ -6,12 +6,11 @@ gains and stiffness, bandwidth. Each function takes a `LinearData` or a
 from __future__ import annotations
 
 import math
-import numbers
 from typing import Sequence
 
 import numpy as np
 
-from ..errors import InputError, SimulationError
+from ..errors import InputError, SimulationError, is_number
 from .data import LinearData, select
 
 
@@ -124,12 +123,10 @@ def bandwidth(model: LinearData, output: str, input, *, input_angle: bool = Fals
     low-frequency value; ``inf`` if it never does below ``omega_max``."""
     from scipy.optimize import brentq  # lazy: heavy; only the bandwidth search needs it
 
-    if isinstance(drop_db, bool) or not isinstance(drop_db, numbers.Real) \
-            or not (math.isfinite(drop_db) and drop_db < 0.0):
+    if not is_number(drop_db) or not (math.isfinite(drop_db) and drop_db < 0.0):
         raise InputError(f"bandwidth: drop_db must be a negative number of dB (a fall, -3 "
                          f"for the usual bandwidth), got {drop_db!r}")
-    if isinstance(omega_max, bool) or not isinstance(omega_max, numbers.Real) \
-            or not omega_max > 1e-3:
+    if not is_number(omega_max) or not omega_max > 1e-3:
         raise InputError(f"bandwidth: omega_max must be a frequency above 1e-3 rad/s (where "
                          f"the search starts), got {omega_max!r}")
     if input_angle:

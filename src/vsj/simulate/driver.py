@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import numbers
 import time as _time
 from dataclasses import asdict
 from typing import Mapping
@@ -13,7 +12,7 @@ import numpy as np
 from ..engine import STATUS_TEXT, core
 from ..engine.model import friction_laws_for
 from ..engine.plan import Plan
-from ..errors import InputError
+from ..errors import InputError, is_number
 from ..inputs import Input, as_inputs
 from ..network import Structure
 from ..springs import end_stop
@@ -32,8 +31,7 @@ def check_arguments(structure, inputs, duration, options, initial):
         raise InputError(f"simulate: the model must be an assembled network (a Structure: "
                          f"Network.assemble(), or vsj.build_wrist(params).assemble()), got "
                          f"{type(structure).__name__}")
-    if isinstance(duration, bool) or not isinstance(duration, (int, float, np.integer,
-                                                                np.floating)):
+    if not is_number(duration):
         raise InputError(f"simulate: duration must be a number of seconds, got "
                          f"{type(duration).__name__}")
     options = SimulationOptions() if options is None else options
@@ -296,8 +294,7 @@ def check_run_size(structure: Structure, duration: float, options: SimulationOpt
     memory this process may take (`available_memory`): all of them for a run kept in
     memory, one block (`BLOCK_BYTES`) for a run streamed to a file. A batch of ``runs``
     keeps ``width`` columns a sample of each (default: a single run's signals)."""
-    if isinstance(duration, bool) or not (isinstance(duration, numbers.Real)
-                                          and math.isfinite(duration) and duration > 0.0):
+    if not (is_number(duration) and math.isfinite(duration) and duration > 0.0):
         raise InputError(f"duration must be a finite time > 0 s, got {duration!r}")
     options.validate()
     if solver == "timestep":
@@ -314,7 +311,7 @@ def check_run_size(structure: Structure, duration: float, options: SimulationOpt
                              f"({options.max_steps})")
     from ..output import signals_bound  # circle: vsj.output imports vsj.simulate
 
-    samples = math.floor(duration / options.output_step + 1e-9) + 1
+    samples = sample_count(duration, options.output_step)
     batch = width is not None
     if width is None:
         width = signals_bound(structure) + extra  # a controller's signals too

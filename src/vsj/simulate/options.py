@@ -10,7 +10,7 @@ from typing import Mapping
 
 from .. import friction as friction_laws
 from ..engine.plan import ATOL, RTOL
-from ..errors import InputError
+from ..errors import InputError, is_number
 
 #: Sane ranges of the numerical settings (SI): outside them a run cannot be trusted
 #: (a relative tolerance of 0.5 gives no accuracy at all) and is refused up front.
@@ -55,7 +55,7 @@ class SimulationOptions:
         # NumPy's scalars (np.float32(0.01), np.int64(1000)) are the numbers they hold
         for name in (*RANGES, "max_steps"):
             value = getattr(self, name)
-            if isinstance(value, numbers.Real) and not isinstance(value, bool):
+            if is_number(value):
                 whole = name == "max_steps" and isinstance(value, numbers.Integral)
                 object.__setattr__(self, name, int(value) if whole else float(value))
 
@@ -114,7 +114,6 @@ class InitialState:
 def _finite(value, where: str) -> float:
     """``value`` as a float if it is a finite real number, else `InputError` naming
     ``where``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) \
-            or not math.isfinite(value):
+    if not is_number(value) or not math.isfinite(value):
         raise InputError(f"{where} must be a finite number (SI units), got {value!r}")
     return float(value)
