@@ -72,3 +72,21 @@ def test_initial_angles_must_respect_the_constraints(params):
     s = build_wrist(params).assemble()
     with pytest.raises(InputError, match="contradict"):
         s.initial_positions({"pg_1.carrier": 0.1, "vsm_1.ring": 0.0, "pg_1.sun": 0.0})
+
+
+def test_initial_angles_are_the_least_norm_solution_each_time(params):
+    """The rows' pseudo-inverse is kept per set of named flanges: each call solves its
+    own angles, the smallest motion that meets them (orthogonal to the rows' null
+    space), and a contradiction is still found after a consistent call."""
+    s = build_wrist(params).assemble()
+    names = ("pg_1.carrier", "vsm_1.ring")
+    rows = np.array([np.concatenate(s.rows(f)) for f in names])
+    null = np.linalg.svd(rows)[2][len(names):]  # the motions that leave both angles
+    for target in ([0.1, 0.0], [-0.3, 0.25], [0.0, 0.0]):
+        x0, sigma0 = s.initial_positions(dict(zip(names, target)))
+        sol = np.concatenate([x0, sigma0])
+        # round-off of a solve with rows of order one: a few ulp of the target
+        assert np.allclose(rows @ sol, target, rtol=0, atol=1e-14)
+        assert np.max(np.abs(null @ sol)) <= 1e-14
+    with pytest.raises(InputError, match="contradict"):
+        s.initial_positions({"pg_1.carrier": 0.1, "vsm_1.ring": 0.0, "pg_1.sun": 0.0})

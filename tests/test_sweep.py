@@ -348,7 +348,11 @@ def test_runs_that_need_only_state_and_sources_skip_observe_with_the_same_bits(s
         'energy = { kind = "energy_dissipated" }\n', ""))
     job = runner.job_for(sweep.load(path))
     p = runner.prepared(job)
-    values = np.array([[-0.01, p.base_params["elastic_element.lever_length"], 0.012]])
+    lever = p.base_params["elastic_element.lever_length"]
+    # the first two runs retune one model from other pivot angles (their sources' inputs
+    # are evaluated once, started from each run's angles); the third has its own model
+    values = np.array([[-0.01, lever, 0.012], [0.004, lever, 0.009],
+                       [0.002, 1.05 * lever, 0.011]])
     assert p.light
     light = runner.run_chunk(job, 0, values, threads=1)
     p.light = False
@@ -356,9 +360,26 @@ def test_runs_that_need_only_state_and_sources_skip_observe_with_the_same_bits(s
         full = runner.run_chunk(job, 0, values, threads=1)
     finally:
         p.light = True
-    assert light.status.tolist() == [0]
+    assert light.status.tolist() == [0, 0, 0]
+    assert not np.array_equal(light.kept[0], light.kept[1])
     assert light.kept.tobytes() == full.kept.tobytes()
     assert light.metrics.tobytes() == full.metrics.tobytes()
+
+    # runs of one model at other pivot positions start motor_s (which drives the pivot)
+    # at other angles: the sources' inputs are evaluated once and each run's starting
+    # angles added, as the engine adds them
+    origin = p.origin(p.structure, p.base_model)
+    plans = [origin.started(InitialState(q=q), p.u0) for q in (-0.01, 0.0, 0.004)]
+    assert len({plan.model.src_pos0.tobytes() for plan in plans}) == 3
+    batch = runner.run_batch(plans, p.t_out)
+    parts = runner._light_columns(p, [runner._Run(p.base_params, plan) for plan in plans],
+                                  batch.states)
+    n_t, still = len(p.t_out), np.zeros((len(p.t_out), p.layout.n_frictions))
+    for i, plan in enumerate(plans):
+        observed = plan.engine().observe(p.t_out, batch.states[i], still)
+        for name in ("x", "v", "current", "sigma", "u"):
+            assert np.array_equal(parts[name][i * n_t:(i + 1) * n_t],
+                                  observed[:, p.columns[name]]), name
 
 
 def test_the_trajectory_file_reads_back_as_the_cases_dataset(tmp_path, params):

@@ -486,6 +486,8 @@ class Structure:
     spring_rows: np.ndarray
     constraint_names: tuple[str, ...]
     constraint_rows: np.ndarray
+    #: least-norm solutions of the initial state's rows, per named flanges (`_least_norm`)
+    _solvers: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @classmethod
     def build(cls, name: str, parts: Parts, connections) -> "Structure":
@@ -628,24 +630,34 @@ class Structure:
         n, s = self.n, len(self.sources)
         if not angles:
             return np.zeros(n), np.zeros(s)
-        names = list(angles)
-        rows = np.array([np.concatenate(self.rows(f)) for f in names])
+        names = tuple(angles)
         target = np.array([angles[f] for f in names], dtype=float)
-        sol = self._least_norm(rows, target, names, "initial angles", "kinematic constraints")
+        sol = self._least_norm(target, names, True, "initial angles", "kinematic constraints")
         return sol[:n], sol[n:]
 
     def initial_speeds(self, speeds: Mapping[str, float], u0: np.ndarray) -> np.ndarray:
         """Generalised speeds ``v0`` for given flange speeds, given source speeds ``u0``."""
         if not speeds:
             return np.zeros(self.n)
-        names = list(speeds)
-        rows = np.array([self.rows(f)[0] for f in names])
+        names = tuple(speeds)
         target = np.array([speeds[f] - self.rows(f)[1] @ u0 for f in names], dtype=float)
-        return self._least_norm(rows, target, names, "initial speeds",
+        return self._least_norm(target, names, False, "initial speeds",
                                 "constraints or the source speeds")
 
-    def _least_norm(self, rows, target, names, what: str, against: str) -> np.ndarray:
-        sol, *_ = np.linalg.lstsq(rows, target, rcond=None)
+    def _least_norm(self, target: np.ndarray, names: tuple[str, ...], angles: bool,
+                    what: str, against: str) -> np.ndarray:
+        """The least-norm solution of the named flanges' rows (their angles over the
+        generalised and the source angles, or their speeds over the generalised speeds)
+        equal to ``target``; `InputError` if no solution meets every row. The rows'
+        pseudo-inverse is kept per set of names: batches and sweeps start many runs of
+        one network from different angles."""
+        key = (angles, names)
+        if key not in self._solvers:
+            rows = np.array([np.concatenate(self.rows(f)) if angles else self.rows(f)[0]
+                             for f in names])
+            self._solvers[key] = (rows, np.linalg.pinv(rows))
+        rows, inverse = self._solvers[key]
+        sol = inverse @ target
         residual = rows @ sol - target
         bad = [names[i] for i in np.flatnonzero(np.abs(residual) > 1e-9 * (1 + np.abs(target)))]
         if bad:

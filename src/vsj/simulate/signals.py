@@ -78,17 +78,23 @@ def state_names(structure: Structure) -> list[str]:
 @dataclass(frozen=True)
 class Block:
     """One block of samples as the engine observed it: ``raw`` (rows of
-    `vsj.engine.observation_layout` columns) and each friction element's stick state."""
+    `vsj.engine.observation_layout` columns) and each friction element's stick state.
+    ``parts``, if given, holds some groups of columns as arrays of their own instead
+    (rows: samples; ``raw`` is then None): the light signals (`LIGHT_COLUMNS`) of runs
+    that were not observed."""
 
-    raw: np.ndarray
+    raw: np.ndarray | None
     stuck: np.ndarray
     columns: dict
     cache: dict
     #: a controller's columns of the samples (its bus, then its actuators), if any
     control: np.ndarray | None = None
+    parts: dict | None = None
 
     def col(self, name: str) -> np.ndarray:
         """The samples of one group of observation columns (rows: samples)."""
+        if self.parts is not None:
+            return self.parts[name]
         return self.raw[:, self.columns[name]]
 
 

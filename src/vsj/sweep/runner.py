@@ -518,22 +518,16 @@ def _measure_group(p: Prepared, runs: list[_Run], states: np.ndarray,
     """`_measure` for one group of runs: their kept signals and metrics into ``kept``
     and ``metrics`` (the group's rows)."""
     n_t, n_state, n_runs = len(p.t_out), p.layout.n_state, len(runs)
-    if p.light:  # the same numbers observe writes in these columns, the rest left NaN
-        cols = p.columns
-        raw = np.empty((n_runs, n_t, cols["u"].stop))
-        raw[:, :, :n_state] = states[:, :, :n_state]
-        raw[:, :, cols["a"]] = np.nan
-        for i, run in enumerate(runs):
-            raw[i, :, cols["sigma"]], raw[i, :, cols["u"]] = \
-                run.plan.engine().source_signals(p.t_out)
+    raw = parts = None
+    if p.light:
+        parts = _light_columns(p, runs, states)
     else:
         no_impulses = np.zeros((n_t, p.layout.n_frictions))
         raw = np.stack([run.plan.engine().observe(p.t_out, states[i], no_impulses)
-                        for i, run in enumerate(runs)])
+                        for i, run in enumerate(runs)]).reshape(n_runs * n_t, -1)
     # batch runs sample no stick states: friction.*.stuck is 0 (dopri) or not offered
-    block = Block(raw=raw.reshape(n_runs * n_t, -1),
-                  stuck=np.zeros((n_runs * n_t, p.layout.n_frictions), dtype=bool),
-                  columns=p.columns, cache={},
+    block = Block(raw=raw, stuck=np.zeros((n_runs * n_t, p.layout.n_frictions), dtype=bool),
+                  columns=p.columns, cache={}, parts=parts,
                   control=(states[:, :, n_state:].reshape(n_runs * n_t, -1)
                            if p.compiled_controller is not None else None))
     shape = (n_runs, n_t)
@@ -559,6 +553,39 @@ def _measure_group(p: Prepared, runs: list[_Run], states: np.ndarray,
                 metrics[:, j] = metric(context)
             except (FloatingPointError, ValueError, np.linalg.LinAlgError):
                 metrics[:, j] = math.nan
+
+
+#: The compiled arrays the sources' speeds, and their angles but for where they start
+#: (``src_pos0``), are computed from (c/internal.h, vsj__eval_inputs).
+SOURCE_ARRAYS = ("src_ch", "knots", "coef", "cum", "first", "count", "period")
+
+
+def _light_columns(p: Prepared, runs: list[_Run], states: np.ndarray) -> dict:
+    """The columns a light signal reads (`vsj.simulate.signals.LIGHT_COLUMNS`) of the
+    runs' samples, stacked run after run: the numbers `Engine.observe` writes there (a
+    zero's sign aside). The state's are views of ``states``. The sources' are evaluated
+    once for the runs whose plans share their input arrays, as runs retuned from one
+    model do: their speeds, and their angles from 0, to which each run's starting
+    angles are added as the engine adds them."""
+    n_runs, n_t = states.shape[:2]
+    stacked = states.reshape(n_runs * n_t, -1)
+    parts = {name: stacked[:, p.columns[name]] for name in ("x", "v", "current")}
+    n_sources = p.columns["u"].stop - p.columns["u"].start
+    sigma, u = np.empty((2, n_runs, n_t, n_sources))
+    alike: dict[tuple, list[int]] = {}
+    for i, run in enumerate(runs):
+        # identities are safe keys: the runs hold their arrays for the whole call
+        alike.setdefault(tuple(id(getattr(run.plan.model, k)) for k in SOURCE_ARRAYS),
+                         []).append(i)
+    for members in alike.values():
+        model = runs[members[0]].plan.model
+        turned, u[members] = Engine(model._replace(src_pos0=np.zeros(n_sources))
+                                    ).source_signals(p.t_out)
+        starts = np.array([runs[i].plan.model.src_pos0 for i in members])
+        sigma[members] = turned + starts[:, None, :]
+    parts["sigma"] = sigma.reshape(n_runs * n_t, n_sources)
+    parts["u"] = u.reshape(n_runs * n_t, n_sources)
+    return parts
 
 
 class _Columns(dict):
