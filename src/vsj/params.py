@@ -40,7 +40,7 @@ import tomllib
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import tomli_w
 
@@ -503,12 +503,13 @@ def _show(key: str, value: float) -> str:
 
 
 def _relations(v: Mapping[str, float], origin: str,
-               where: Mapping[str, str] | None = None) -> list[str]:
-    """Why the values break `RELATIONS`: one message per broken relation, naming the
-    values it involves and the file(s) they came from."""
+               where: Mapping[str, str] | None = None,
+               among: Sequence[Relation] = RELATIONS) -> list[str]:
+    """Why the values break the relations ``among`` (default `RELATIONS`): one message
+    per broken relation, naming the values it involves and the file(s) they came from."""
     return [f"{_files(where, origin, [k for k, _ in r.terms])}: {r.text} "
             f"({', '.join(_show(k, v[k]) for k, _ in r.terms)})"
-            for r in RELATIONS if not r.holds(v)]
+            for r in among if not r.holds(v)]
 
 
 #: Largest parameter file read [bytes]. A parameter file sets the few dozen keys of

@@ -35,7 +35,7 @@ from ..engine.retune import RETUNABLE, Slots, find_passthrough, retune
 from .. import params as params_module
 from .. import scenario as scenarios
 from ..errors import InputError, read_text
-from ..params import Parameters, _relations
+from ..params import RELATIONS, Parameters, _relations
 from ..simulate import InitialState, choose_solver
 from ..simulate.signals import Block, catalogue
 from ..wrist import elastic_models, unread_keys
@@ -168,6 +168,9 @@ class Prepared:
         self.solver = choose_solver(structure, case.options)
         self.varied = spec.varied
         self.parameter_keys = [n for n in self.varied if n != Q]
+        #: the relations a run's values can break (the base set meets all of them)
+        self.relations = [r for r in RELATIONS if any(k in self.parameter_keys
+                                                      for k, _ in r.terms)]
         base, layout = self._compile(structure)
         self.layout = layout
         self.base_model = base
@@ -328,7 +331,7 @@ class Prepared:
             if why:
                 problems.append(f"{name} = {value!r}: {why}")
             new[name] = float(value)
-        problems += _relations(new, "the run's parameters")
+        problems += _relations(new, "the run's parameters", among=self.relations)
         if problems:
             raise InputError("; ".join(problems))
         sources = {**base.sources, **{k: "sweep" for k in self.parameter_keys}}
