@@ -16,7 +16,9 @@ drifts; each way sees every moment alike, and the order rotates from block to bl
 * sweep: `vsj.sweep.run` with the default scheduler (every core), from the sweep
   file to sweep.zarr, metrics.csv and the manifest (models, chunking, the metrics,
   storage and each sweep's start-up of its worker processes included; no figures);
-* dask: the same through a two-worker `LocalCluster` started once beforehand.
+* dask: the same through a two-worker `LocalCluster`, started before the timed sweeps
+  of each block and closed after them (its start is not timed; its idle heartbeats
+  do not run beside the other ways).
 
 The sweeps are chunked as the full study is (256 runs a chunk, fewer where the blocks
 are small). Each block also runs both sweeps on one chunk: a straight line through the
@@ -45,6 +47,8 @@ the client's time to store a chunk, and the Dask scheduler's overhead per task (
 from __future__ import annotations
 
 import argparse
+import contextlib
+import importlib
 import os
 import pickle
 import shutil
@@ -124,6 +128,24 @@ def swept(spec, out: Path, scheduler=None, chunk=None) -> tuple[float, int, floa
     return elapsed, size, outcome.storing, outcome.chunks, outcome.kernel
 
 
+@contextlib.contextmanager
+def cluster(warm: bool = True):
+    """The address of a `LocalCluster` of `DASK_WORKERS` one-thread worker processes
+    as ``vsj sweep --scheduler local`` starts one (`vsj.sweep.schedulers.local_cluster`),
+    running for the ``with`` block only: an idle cluster's heartbeats would take the
+    cores from the other ways' measurements. With ``warm`` its workers have imported
+    the sweep's runner, as the workers of a long study have after its first task."""
+    from dask.distributed import Client
+
+    from vsj.sweep.schedulers import local_cluster
+
+    with local_cluster(DASK_WORKERS) as running:
+        if warm:
+            with Client(running.scheduler_address) as client:
+                client.run(importlib.import_module, "vsj.sweep.runner")
+        yield running.scheduler_address
+
+
 def task_overhead(address: str, tasks: int = 2000) -> float:
     """Seconds per task the Dask scheduler adds (empty tasks, two workers)."""
     from dask.distributed import Client, wait
@@ -154,8 +176,6 @@ def main() -> int:
     parser.add_argument("--blocks", type=int, default=None,
                         help="interleaved blocks (default: 10, fewer for small counts)")
     args = parser.parse_args()
-    from dask.distributed import LocalCluster
-
     from vsj import sweep
     from vsj.engine.core import available_cores
 
@@ -170,14 +190,25 @@ def main() -> int:
     print(f"sweep benchmark: {runs} runs{note} in {blocks} interleaved blocks of "
           f"{per_block}, chunks of {chunk} runs, {cores} cores", flush=True)
     root = Path(tempfile.mkdtemp(prefix="vsj-sweep-bench-"))
-    cluster = LocalCluster(n_workers=DASK_WORKERS, threads_per_worker=1, processes=True,
-                           dashboard_address=None)
     totals = {"kernel": 0.0, "sweep": 0.0, "dask": 0.0}
     small = chunk  # one chunk, which the workers share in parts
     small_totals = {"sweep": 0.0, "dask": 0.0}
     blockwise = {k: [] for k in totals}  # each block's seconds
     inside = {"sweep": 0.0, "dask": 0.0}  # the sweeps' core-seconds in the kernel
     size = storing = chunks = 0
+
+    def both(spec, small_spec, way, address=None):
+        """A sweep of the block's size and one of one chunk, one way (timed: the sweeps)."""
+        nonlocal size, storing, chunks
+        seconds, size, stored, n, kernel = swept(spec, root / way, address, chunk=chunk)
+        inside[way] += kernel
+        if way == "sweep":
+            storing, chunks = storing + stored, chunks + n
+        # the same sweep of one chunk: what a sweep costs whatever its size (start-up,
+        # preparation, files) against what each run adds
+        small_totals[way] += swept(small_spec, root / f"{way}-small", address, chunk=chunk)[0]
+        return seconds
+
     # A process's first sweep of each way also imports what it needs (xarray, zarr and
     # Dask's client; about a second): a cost it pays once, whatever the sweep's size.
     # Left in the first block it would count as a cost per run of that block's sweep,
@@ -187,43 +218,34 @@ def main() -> int:
     try:
         first_path = root / "first.toml"
         first_path.write_text(SPEC.format(seed=blocks, samples=chunk))
-        for way in ("sweep", "dask"):
-            first[way] = swept(sweep.load(first_path), root / f"{way}-first",
-                               None if way == "sweep" else cluster.scheduler_address,
-                               chunk=chunk)[0]
+        first["sweep"] = swept(sweep.load(first_path), root / "sweep-first", chunk=chunk)[0]
+        with cluster(warm=False) as address:
+            first["dask"] = swept(sweep.load(first_path), root / "dask-first", address,
+                                  chunk=chunk)[0]
         for block in range(blocks):
             path = root / f"spec{block}.toml"
             path.write_text(SPEC.format(seed=block, samples=per_block))
             spec = sweep.load(path)
+            small_path = root / f"small{block}.toml"
+            small_path.write_text(SPEC.format(seed=block, samples=small))
+            small_spec = sweep.load(small_path)
             ways = list(totals)
             for way in ways[block % 3:] + ways[:block % 3]:
                 if way == "kernel":
                     seconds = bare_kernel(spec)
+                elif way == "sweep":
+                    seconds = both(spec, small_spec, way)
                 else:
-                    seconds, size, stored, n, kernel = swept(
-                        spec, root / way, None if way == "sweep" else cluster.scheduler_address,
-                        chunk=chunk)
-                    inside[way] += kernel
-                    if way == "sweep":
-                        storing, chunks = storing + stored, chunks + n
+                    with cluster() as address:
+                        seconds = both(spec, small_spec, way, address)
                 totals[way] += seconds
                 blockwise[way].append(seconds)
-            # the same sweeps of one chunk: what a sweep costs whatever its size
-            # (start-up, preparation, files) against what each run adds
-            small_path = root / f"small{block}.toml"
-            small_path.write_text(SPEC.format(seed=block, samples=small))
-            small_spec = sweep.load(small_path)
-            for way in ("sweep", "dask"):
-                seconds = swept(small_spec, root / f"{way}-small",
-                                None if way == "sweep" else cluster.scheduler_address,
-                                chunk=chunk)[0]
-                small_totals[way] += seconds
             print(f"block {block + 1}/{blocks}: " + ", ".join(
                 f"{k} {(block + 1) * per_block / v:.1f} runs/s" for k, v in totals.items()),
                 flush=True)
-        overhead = task_overhead(cluster.scheduler_address)
+        with cluster() as address:
+            overhead = task_overhead(address)
     finally:
-        cluster.close()
         shutil.rmtree(root, ignore_errors=True)
     rates = {k: runs / v for k, v in totals.items()}
     names = {"kernel": "bare batch kernel", "sweep": "vsj sweep, default scheduler",

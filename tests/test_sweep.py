@@ -187,6 +187,22 @@ def test_a_local_dask_cluster_gives_the_same_zarr(reference, spec_file, tmp_path
     _same(reference, out)
 
 
+def test_the_local_cluster_runs_its_workers_with_the_quiet_settings():
+    """The settings reach the worker processes and the scheduler made with them, and
+    this process's own settings are left as they were."""
+    import dask
+    from dask.distributed import Client
+
+    before = {key: dask.config.get(key, None) for key in schedulers.QUIET}
+    with schedulers.local_cluster(1) as cluster, Client(cluster) as client:
+        seen = client.run(lambda: {key: dask.config.get(key) for key in schedulers.QUIET})
+        stealing = client.run_on_scheduler(
+            lambda dask_scheduler: "stealing" in dask_scheduler.extensions)
+    assert list(seen.values()) == [schedulers.QUIET]
+    assert stealing is False
+    assert {key: dask.config.get(key, None) for key in schedulers.QUIET} == before
+
+
 def test_an_interrupted_sweep_resumed_equals_the_uninterrupted_one(reference, spec_file,
                                                                    tmp_path, monkeypatch):
     out = tmp_path / "out"

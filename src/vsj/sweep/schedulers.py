@@ -155,18 +155,43 @@ def client_for(scheduler: str, workers: int | None):
     """A Dask client: of a new ``LocalCluster`` (``"local"``) or of a running scheduler."""
     try:
         # lazy: dask is heavy; only its scheduler
-        from dask.distributed import Client, LocalCluster
+        from dask.distributed import Client
     except ImportError:  # pragma: no cover - a dependency
         raise InputError("--scheduler needs dask.distributed (pip install 'dask[distributed]')")
     if scheduler == "local":
-        cluster = LocalCluster(n_workers=workers or available_cores(), threads_per_worker=1,
-                               processes=True, dashboard_address=None)
+        cluster = local_cluster(workers or available_cores())
         return Client(cluster), cluster
     try:
         return Client(scheduler, timeout="10s"), None
     except (OSError, TimeoutError, ValueError) as exc:
         raise InputError(f"--scheduler {scheduler}: cannot reach a Dask scheduler there "
                          f"({exc})") from None
+
+
+#: Dask settings of the ``LocalCluster`` a sweep starts (`local_cluster`). A task is one
+#: call of the compiled kernel for most of its time, and the cluster shares its
+#: machine's cores with the runs: so no statistical profiler (a look at the task's
+#: stack every 10 ms, which learns nothing of a compiled kernel), and the cluster's
+#: checks of its event loops, processes and memory, and its work stealing (the sweep
+#: hands each worker two tasks at a time) off or at a slower pace, leaving the cores to
+#: the runs.
+QUIET = {"distributed.worker.profile.enabled": False,
+         "distributed.admin.system-monitor.interval": "5s",
+         "distributed.admin.tick.interval": "500ms",
+         "distributed.worker.memory.monitor-interval": "1s",
+         "distributed.scheduler.work-stealing": False,
+         "distributed.deploy.cluster-repr-interval": "5s"}
+
+
+def local_cluster(workers: int):
+    """A Dask ``LocalCluster`` of ``workers`` one-thread worker processes, without a
+    dashboard, with the settings `QUIET`."""
+    import dask  # lazy: dask is heavy; only its scheduler
+    from dask.distributed import LocalCluster
+
+    with dask.config.set(QUIET):
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                            dashboard_address=None)
 
 
 def _dask(job, chunks, scheduler, workers):
