@@ -186,7 +186,8 @@ QUIET = {"distributed.worker.profile.enabled": False,
 def local_cluster(workers: int):
     """A Dask ``LocalCluster`` of ``workers`` one-thread worker processes, without a
     dashboard, with the settings `QUIET`."""
-    import dask  # lazy: dask is heavy; only its scheduler
+    # lazy: dask is heavy; only its scheduler
+    import dask
     from dask.distributed import LocalCluster
 
     with dask.config.set(QUIET):
