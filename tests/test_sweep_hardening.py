@@ -380,16 +380,20 @@ def test_a_damaged_manifest_is_refused_with_its_name(reference, tmp_path, capsys
     assert "FIFO" in capsys.readouterr().err
 
 
-def _sweep_process(spec, out, *extra, limit=None):
+def _sweep_process(spec, out, *extra, limit=None, one_by_one=False):
     """``vsj sweep`` in a process of its own; ``limit``: the largest file it may write
     [bytes] (RLIMIT_FSIZE: a longer write fails as on a full disk; Python ignores the
-    SIGXFSZ that comes with it)."""
+    SIGXFSZ that comes with it); ``one_by_one``: each chunk written as it finishes
+    (`vsj.sweep.WRITE_EVERY` 0), not with the others that finish within seconds."""
     def limited():
         import resource
 
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
-    return subprocess.Popen([sys.executable, "-m", "vsj", "sweep", str(spec), "--out",
+    command = ("import sys, vsj.sweep; from vsj.cli import main; "
+               f"vsj.sweep.WRITE_EVERY = {0.0 if one_by_one else 'vsj.sweep.WRITE_EVERY'}; "
+               "sys.exit(main(sys.argv[1:]))")
+    return subprocess.Popen([sys.executable, "-c", command, "sweep", str(spec), "--out",
                              str(out), *CHUNK, *extra], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True,
                             preexec_fn=limited if limit is not None else None)
@@ -407,15 +411,16 @@ def _manifest_bytes(reference_out, chunks: int) -> int:
 def test_a_write_that_fails_mid_sweep_ends_with_exit_1_and_resume_finishes(reference,
                                                                           tmp_path):
     """A file system that takes no more (here: no file longer than sweep.json with two
-    chunks done, so recording the third fails) ends the sweep with exit 1 and the
-    remedy; ``--resume`` with room again finishes it as if nothing happened."""
+    chunks done, so recording the third fails; the chunks written one by one) ends the
+    sweep with exit 1 and the remedy; ``--resume`` with room again finishes it as if
+    nothing happened."""
     spec = _inputs(tmp_path)
     out = tmp_path / "out"
     two, three = _manifest_bytes(reference[1], 2), _manifest_bytes(reference[1], 3)
     chunk_files = [p.stat().st_size for p in (reference[1] / store.ZARR).rglob("*")
                    if p.is_file()]
     assert max(chunk_files) < two < three
-    process = _sweep_process(spec, out, limit=(two + three) // 2)
+    process = _sweep_process(spec, out, limit=(two + three) // 2, one_by_one=True)
     _, err = process.communicate(timeout=300)
     assert process.returncode == 1, err
     assert "Traceback" not in err

@@ -35,6 +35,12 @@ from .spec import SweepSpec, load, loads, run_count, spec_of, with_method, withi
 #: region, a manifest update) small beside the runs, few enough to lose little when
 #: killed and to keep a cluster's workers busy.
 MAX_CHUNK = 256
+#: Finished chunks are held and written to the store (and entered in its manifest)
+#: together, once this many seconds have passed since the last write: a write of a few
+#: store chunks costs the coordinating process, which shares the cores with the
+#: workers, about what a write of one does. A stopped sweep writes what finished; a
+#: killed one runs the chunks that finished in its last seconds again when resumed.
+WRITE_EVERY = 2.0
 #: Default chunks per sweep at least (while chunks stay below `MAX_CHUNK`): enough to
 #: share the work among this machine's cores and show progress.
 MIN_CHUNKS = 16
@@ -199,25 +205,47 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
             bar = progress(None, desc="sweep", unit="run", total=runs)
             bar.update(runs - sum(len(v) for _, _, v in todo))
         writer = store.Writer(directory.zarr)
-        for index, result in running:
-            began = time.perf_counter()
-            stop = bounds[index][2]
-            writer.write(result, stop)
-            record["done"][str(index)] = {"runs": [result.start, stop],
-                                          "failed": result.failed,
-                                          "sha256": store.digest(result)}
-            for k, message in enumerate(result.messages):
-                if result.status[k] != 0:
-                    record["failed_runs"][str(result.start + k)] = message
+        held: list = []  # finished chunks not written yet
+        writing = False
+
+        def write_held() -> None:
+            """Write the chunks held, then enter them in the manifest."""
+            nonlocal storing, writing
+            writing, began = True, time.perf_counter()
+            writer.write([(result, bounds[index][2]) for index, result in held])
+            for index, result in held:
+                record["done"][str(index)] = {"runs": [result.start, bounds[index][2]],
+                                              "failed": result.failed,
+                                              "sha256": store.digest(result)}
+                for k, message in enumerate(result.messages):
+                    if result.status[k] != 0:
+                        record["failed_runs"][str(result.start + k)] = message
             record["done"] = dict(sorted(record["done"].items(), key=lambda kv: int(kv[0])))
             record["failed_runs"] = dict(sorted(record["failed_runs"].items(),
                                                 key=lambda kv: int(kv[0])))
             store.write_manifest(out, record)
+            held.clear()
+            writing = False
             storing += time.perf_counter() - began
-            kernel += result.kernel_time
-            ran += len(result.status)
-            if bar is not None:
-                bar.update(len(result.status))
+
+        written = time.perf_counter()
+        try:
+            for index, result in running:
+                held.append((index, result))
+                kernel += result.kernel_time
+                ran += len(result.status)
+                if bar is not None:
+                    bar.update(len(result.status))
+                if time.perf_counter() - written >= WRITE_EVERY:
+                    write_held()
+                    written = time.perf_counter()
+            write_held()
+        except BaseException:
+            # stopped (Ctrl-C, a worker's failure): what finished is kept, unless
+            # writing it is what failed
+            if held and not writing:
+                write_held()
+            raise
     finally:
         running.close()
         if bar is not None:

@@ -269,13 +269,23 @@ class Writer:
         group = zarr.open_group(path, mode="r+")
         self.arrays = {name: group[name] for name in ("signals", "metrics", "status", "steps")}
 
-    def write(self, result, stop: int) -> None:
-        """Write one finished chunk (runs ``result.start .. stop``)."""
-        region = slice(result.start, stop)
-        for name, data in (("signals", result.kept), ("metrics", result.metrics),
-                           ("status", result.status), ("steps", result.steps)):
-            if data.size:
-                self.arrays[name][region] = data
+    def write(self, finished) -> None:
+        """Write finished chunks: ``(result, stop)`` pairs, the runs ``result.start ..
+        stop`` each. Chunks that follow one another are written as one region (a write
+        costs the same for one store chunk as for a few)."""
+        regions: list[list] = []
+        for result, stop in sorted(finished, key=lambda pair: pair[0].start):
+            if regions and regions[-1][-1][1] == result.start:
+                regions[-1].append((result, stop))
+            else:
+                regions.append([(result, stop)])
+        for region in regions:
+            where = slice(region[0][0].start, region[-1][1])
+            for name, field in (("signals", "kept"), ("metrics", "metrics"),
+                                ("status", "status"), ("steps", "steps")):
+                data = np.concatenate([getattr(result, field) for result, _ in region])
+                if data.size:
+                    self.arrays[name][where] = data
 
 
 def digest(result) -> str:
