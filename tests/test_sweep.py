@@ -209,9 +209,12 @@ def test_an_interrupted_sweep_resumed_equals_the_uninterrupted_one(reference, sp
     real = schedulers.execute
 
     def killed_after_two(*args, **kwargs):
-        for n, item in enumerate(real(*args, **kwargs)):
-            if n == 2:
-                raise KeyboardInterrupt
+        finished = 0
+        for item in real(*args, **kwargs):  # chunks, and None where they are written
+            if item is not None:
+                if finished == 2:
+                    raise KeyboardInterrupt
+                finished += 1
             yield item
 
     monkeypatch.setattr(schedulers, "execute", killed_after_two)
@@ -232,6 +235,98 @@ def test_an_interrupted_sweep_resumed_equals_the_uninterrupted_one(reference, sp
     assert main([*args, "--resume"]) == 0
     _same(reference, out)
     assert store.read_manifest(out)["done"] == store.read_manifest(reference)["done"]
+
+
+@pytest.mark.parametrize("write_every", [0.0, 1e9])
+def test_the_scheduler_says_when_to_write_what_finished(spec_file, write_every):
+    """Workers' chunks are yielded as they finish, and None where the caller writes what
+    it holds: after each at once with 0, never before the end with a long interval."""
+    job = runner.probed(runner.job_for(sweep.load(spec_file)))
+    values, _ = sampling.design(job.spec)
+    chunks = [(i, 2 * i, values[2 * i:2 * i + 2]) for i in range(3)]
+    items = list(schedulers.execute(job, chunks, None, workers=2, write_every=write_every))
+    assert sorted(item[0] for item in items if item is not None) == [0, 1, 2]
+    written = [item is None for item in items]
+    if write_every == 0.0:  # chunks that finish together are written together
+        assert written[-1] and not written[0]
+        assert not any(a and b for a, b in zip(written, written[1:]))
+    else:
+        assert not any(written)
+
+
+@pytest.mark.parametrize("scheduler", [None, "local"])
+def test_a_finished_chunk_is_written_when_due_not_when_the_next_finishes(spec_file,
+                                                                          tmp_path, scheduler):
+    """A run that is not built (a 1 cm lever) finishes at once, a run of 1000 s of the
+    wrist hundreds of milliseconds later (each one task: a run is not split); the
+    first's write is due 50 ms after it finished, so the scheduler, this machine's
+    worker processes or a Dask cluster's, wakes for it before the second is done."""
+    path = tmp_path / "long.toml"
+    path.write_text(spec_file.read_text().replace('duration = "1 s"', 'duration = "1000 s"'))
+    job = runner.probed(runner.job_for(sweep.load(path)))
+    values, _ = sampling.design(job.spec)
+    lever = job.spec.varied.index("elastic_element.lever_length")
+    short, built = values[values[:, lever] < 0.015][:1], values[values[:, lever] > 0.015][:1]
+    chunks = [(0, 0, short), (1, 1, built)]
+    items = list(schedulers.execute(job, chunks, scheduler, workers=2, write_every=0.05))
+    assert [None if item is None else item[0] for item in items] == [0, None, 1]
+    assert items[0][1].status.tolist() == [runner.SETUP_FAILED]
+
+
+def test_a_stopped_sweep_writes_the_chunks_it_holds(spec_file, tmp_path, monkeypatch):
+    """Chunks held for a later write (here: never due) are written and recorded when the
+    sweep is stopped, and only they: the store and the manifest agree."""
+    monkeypatch.setattr(sweep, "WRITE_EVERY", 1e9)
+    real = schedulers.execute
+
+    def stopped_at_the_third(*args, **kwargs):
+        finished = 0
+        for item in real(*args, **kwargs):
+            assert item is not None  # nothing is due before the stop
+            if finished == 2:
+                raise KeyboardInterrupt
+            finished += 1
+            yield item
+
+    monkeypatch.setattr(schedulers, "execute", stopped_at_the_third)
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec_file), "--out", str(out), "--chunk", "2", "--workers", "2",
+                 "--no-plot"]) == 130
+    done = store.read_manifest(out)["done"]
+    assert len(done) == 2
+    status = store.open_dataset(out / store.ZARR)["status"].values
+    recorded = np.zeros(len(status), dtype=bool)
+    for entry in done.values():
+        recorded[slice(*entry["runs"])] = True
+    assert np.all(status[recorded] != store.NOT_RUN)
+    assert np.all(status[~recorded] == store.NOT_RUN)
+
+
+def test_a_failure_to_write_what_a_stopped_sweep_holds_does_not_hide_what_stopped_it(
+        spec_file, tmp_path, monkeypatch):
+    """A worker's failure ends the sweep with that failure; the chunks it held could not
+    be written (a full disk) is said beside it, and none is recorded."""
+    monkeypatch.setattr(sweep, "WRITE_EVERY", 1e9)
+    real = schedulers.execute
+
+    def failed_at_the_second(*args, **kwargs):
+        for n, item in enumerate(real(*args, **kwargs)):
+            if n == 1:
+                raise RuntimeError("a worker failed")
+            yield item
+
+    def full(self, finished):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(schedulers, "execute", failed_at_the_second)
+    monkeypatch.setattr(store.Writer, "write", full)
+    out = tmp_path / "out"
+    with pytest.raises(RuntimeError, match="a worker failed") as info:
+        sweep.run(sweep.load(spec_file), out, chunk=2, workers=2, plots=False,
+                  show_progress=False)
+    assert any("were not written" in note and "No space left" in note
+               for note in info.value.__notes__)
+    assert store.read_manifest(out)["done"] == {}
 
 
 @pytest.mark.parametrize("edit, words", [

@@ -100,9 +100,12 @@ def _interrupted(spec, out, monkeypatch, after=2):
     real = schedulers.execute
 
     def interrupted(*args, **kwargs):
-        for n, item in enumerate(real(*args, **kwargs)):
-            if n == after:
-                raise KeyboardInterrupt
+        finished = 0
+        for item in real(*args, **kwargs):  # chunks, and None where they are written
+            if item is not None:
+                if finished == after:
+                    raise KeyboardInterrupt
+                finished += 1
             yield item
 
     monkeypatch.setattr(schedulers, "execute", interrupted)

@@ -36,10 +36,11 @@ from .spec import SweepSpec, load, loads, run_count, spec_of, with_method, withi
 #: killed and to keep a cluster's workers busy.
 MAX_CHUNK = 256
 #: Finished chunks are held and written to the store (and entered in its manifest)
-#: together, once this many seconds have passed since the last write: a write of a few
-#: store chunks costs the coordinating process, which shares the cores with the
-#: workers, about what a write of one does. A stopped sweep writes what finished; a
-#: killed one runs the chunks that finished in its last seconds again when resumed.
+#: together, this many seconds after the first of them finished
+#: (`vsj.sweep.schedulers.execute`): a write of a few store chunks costs the
+#: coordinating process, which shares the cores with the workers, about what a write
+#: of one does. A stopped sweep writes what finished; a killed one runs the chunks that
+#: finished in its last seconds again when resumed.
 WRITE_EVERY = 2.0
 #: Default chunks per sweep at least (while chunks stay below `MAX_CHUNK`): enough to
 #: share the work among this machine's cores and show progress.
@@ -191,7 +192,7 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
     storing = kernel = 0.0
     bar = None
     # the workers start on their first chunks while this process makes the store
-    running = schedulers.execute(probed(job), todo, scheduler, workers)
+    running = schedulers.execute(probed(job), todo, scheduler, workers, WRITE_EVERY)
     try:
         if record is None:
             make(directory.zarr)
@@ -211,6 +212,8 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
         def write_held() -> None:
             """Write the chunks held, then enter them in the manifest."""
             nonlocal storing, writing
+            if not held:
+                return
             writing, began = True, time.perf_counter()
             writer.write([(result, bounds[index][2]) for index, result in held])
             for index, result in held:
@@ -228,23 +231,27 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
             writing = False
             storing += time.perf_counter() - began
 
-        written = time.perf_counter()
         try:
-            for index, result in running:
+            for item in running:
+                if item is None:  # the scheduler's moment to write (`schedulers.execute`)
+                    write_held()
+                    continue
+                index, result = item
                 held.append((index, result))
                 kernel += result.kernel_time
                 ran += len(result.status)
                 if bar is not None:
                     bar.update(len(result.status))
-                if time.perf_counter() - written >= WRITE_EVERY:
-                    write_held()
-                    written = time.perf_counter()
             write_held()
-        except BaseException:
+        except BaseException as stopped:
             # stopped (Ctrl-C, a worker's failure): what finished is kept, unless
-            # writing it is what failed
+            # writing it is what failed; a failure to write it then is said beside
+            # what stopped the sweep, which is what ends it
             if held and not writing:
-                write_held()
+                try:
+                    write_held()
+                except OSError as exc:
+                    stopped.add_note(f"the chunks that had finished were not written: {exc}")
             raise
     finally:
         running.close()

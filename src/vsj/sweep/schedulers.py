@@ -12,7 +12,10 @@ text is the address of a running Dask scheduler (``tcp://host:8786``).
 `execute` starts the workers and hands them their first tasks at once (so they
 start up while the caller makes the store), then yields ``(index, ChunkResult)`` as
 chunks finish, keeping at most two tasks per worker in flight, so memory stays
-bounded and an interruption loses only those. Close what it returns to stop.
+bounded and an interruption loses only those. Between the chunks it yields None
+where the caller is to write those it holds: a few seconds after the first of them
+finished (writing a few costs the caller about what writing one does), and before
+this process runs a chunk itself. Close what it returns to stop.
 
 A task is a chunk, or towards the end of a sweep a part of one (`tasks`): handed
 out whole chunks to the last, the workers would not finish together, and all but
@@ -26,6 +29,7 @@ from __future__ import annotations
 
 import math
 import multiprocessing
+import time
 from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
@@ -89,16 +93,45 @@ class _Joiner:
 
 
 def execute(job: Job, chunks: list[tuple[int, int, object]], scheduler: str | None,
-            workers: int | None = None) -> Iterator[tuple[int, ChunkResult]]:
+            workers: int | None = None, write_every: float = 0.0
+            ) -> Iterator[tuple[int, ChunkResult] | None]:
     """Start running ``chunks`` (index, start, values) of ``job``; the generator returned
-    yields the results as they finish (its ``close`` stops the workers)."""
+    yields the results as they finish, and None where the caller is to write the
+    results it holds: ``write_every`` seconds after the first of them was yielded (at
+    once with 0), and before this process runs a chunk itself (it cannot wake the
+    caller during one). Its ``close`` stops the workers."""
     if not chunks:  # every chunk done: a generator still, for the caller to close
         running = _nothing()
     else:
-        running = (_local(job, chunks, workers) if scheduler is None
-                   else _dask(job, chunks, scheduler, workers))
+        due = _Due(write_every)
+        running = (_local(job, chunks, workers, due) if scheduler is None
+                   else _dask(job, chunks, scheduler, workers, due))
     next(running)  # up to the first chunks handed out
     return running
+
+
+class _Due:
+    """When the chunks yielded since the caller last wrote are to be written."""
+
+    def __init__(self, every: float):
+        self.every = every
+        self.at: float | None = None
+
+    def held(self) -> None:
+        """A chunk was yielded: a write is due ``every`` seconds after the first."""
+        if self.at is None:
+            self.at = time.perf_counter() + self.every
+
+    def timeout(self) -> float | None:
+        """Seconds to wait for a chunk before a write is due (None: no write pending)."""
+        return None if self.at is None else max(0.0, self.at - time.perf_counter())
+
+    def now(self) -> bool:
+        """Whether a write is due now (then the next one waits for another chunk)."""
+        if self.at is not None and time.perf_counter() >= self.at:
+            self.at = None
+            return True
+        return False
 
 
 def fork_server_pool(count: int) -> ProcessPoolExecutor:
@@ -115,12 +148,13 @@ def _nothing():
     yield None
 
 
-def _local(job, chunks, workers):
+def _local(job, chunks, workers, due):
     cores = workers or available_cores()
     if cores == 1 or len(chunks) == 1:
         yield None
         for index, start, values in chunks:
             yield index, run_chunk(job, start, values, threads=cores)
+            yield None  # the next chunk runs here: the caller writes this one first
         return
 
     processes = min(cores, len(chunks))
@@ -138,12 +172,15 @@ def _local(job, chunks, workers):
                 if not started:
                     started = True
                     yield None
-                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                done, _ = wait(running, timeout=due.timeout(), return_when=FIRST_COMPLETED)
                 for future in done:
                     index = running.pop(future)
                     whole = joiner.add(index, future.result())
                     if whole is not None:
+                        due.held()
                         yield index, whole
+                if due.now():
+                    yield None
         except BaseException:
             for future in running:
                 future.cancel()
@@ -195,8 +232,8 @@ def local_cluster(workers: int):
                             dashboard_address=None)
 
 
-def _dask(job, chunks, scheduler, workers):
-    from dask.distributed import as_completed  # lazy: dask is heavy; only its scheduler
+def _dask(job, chunks, scheduler, workers, due):
+    from dask.distributed import wait as wait_any  # lazy: dask is heavy; only its scheduler
 
     client, cluster = client_for(scheduler, workers)
     try:
@@ -210,19 +247,27 @@ def _dask(job, chunks, scheduler, workers):
 
         def submit():
             index, start, values = pending.pop()
-            future = client.submit(run_chunk, shared, start, values, 1, pure=False)
-            running[future] = index
-            return future
+            running[client.submit(run_chunk, shared, start, values, 1, pure=False)] = index
 
-        queue = as_completed([submit() for _ in range(min(slots, len(pending)))])
+        for _ in range(min(slots, len(pending))):
+            submit()
         yield None
-        for future in queue:
-            index = running.pop(future)
-            whole = joiner.add(index, future.result())
-            if pending:
-                queue.add(submit())
-            if whole is not None:
-                yield index, whole
+        while running:
+            try:
+                done = wait_any(list(running), timeout=due.timeout(),
+                                return_when="FIRST_COMPLETED").done
+            except TimeoutError:  # no chunk finished: a write is due
+                done = ()
+            for future in done:
+                index = running.pop(future)
+                whole = joiner.add(index, future.result())
+                if pending:
+                    submit()
+                if whole is not None:
+                    due.held()
+                    yield index, whole
+            if due.now():
+                yield None
     finally:
         client.close()
         if cluster is not None:
