@@ -486,7 +486,8 @@ class Structure:
     spring_rows: np.ndarray
     constraint_names: tuple[str, ...]
     constraint_rows: np.ndarray
-    #: least-norm solutions of the initial state's rows, per named flanges (`_least_norm`)
+    #: least-norm solutions of the initial state's rows, per named flanges (`_least_norm`),
+    #: kept as long as the structure: its matrices are not changed once it is built
     _solvers: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @classmethod
@@ -655,7 +656,9 @@ class Structure:
         if key not in self._solvers:
             rows = np.array([np.concatenate(self.rows(f)) if angles else self.rows(f)[0]
                              for f in names])
-            self._solvers[key] = (rows, np.linalg.pinv(rows))
+            # singular values cut off where lstsq's default cuts them (eps x size)
+            cutoff = max(rows.shape) * np.finfo(float).eps
+            self._solvers[key] = (rows, np.linalg.pinv(rows, rcond=cutoff))
         rows, inverse = self._solvers[key]
         sol = inverse @ target
         residual = rows @ sol - target
