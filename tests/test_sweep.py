@@ -302,6 +302,29 @@ def test_a_stopped_sweep_writes_the_chunks_it_holds(spec_file, tmp_path, monkeyp
     assert np.all(status[~recorded] == store.NOT_RUN)
 
 
+def test_chunks_past_the_held_bytes_are_written_at_once(spec_file, tmp_path, monkeypatch):
+    """Held chunks are bounded by bytes as well as by time: past `HOLD_BYTES` (here any
+    chunk) each is written before the next is taken, though no write is due."""
+    monkeypatch.setattr(sweep, "WRITE_EVERY", 1e9)
+    monkeypatch.setattr(sweep, "HOLD_BYTES", 1)
+    real = schedulers.execute
+    out = tmp_path / "out"
+    seen = []
+
+    def counted(*args, **kwargs):
+        for item in real(*args, **kwargs):
+            assert item is not None  # nothing is due
+            if seen:  # the chunks taken before this one are recorded
+                assert len(store.read_manifest(out)["done"]) == len(seen)
+            seen.append(item[0])
+            yield item
+
+    monkeypatch.setattr(schedulers, "execute", counted)
+    assert main(["sweep", str(spec_file), "--out", str(out), "--chunk", "2", "--workers", "2",
+                 "--no-plot"]) == 0
+    assert len(seen) == 4 and len(store.read_manifest(out)["done"]) == 4
+
+
 def test_a_failure_to_write_what_a_stopped_sweep_holds_does_not_hide_what_stopped_it(
         spec_file, tmp_path, monkeypatch):
     """A worker's failure ends the sweep with that failure; the chunks it held could not

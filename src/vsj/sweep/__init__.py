@@ -42,6 +42,9 @@ MAX_CHUNK = 256
 #: of one does. A stopped sweep writes what finished; a killed one runs the chunks that
 #: finished in its last seconds again when resumed.
 WRITE_EVERY = 2.0
+#: Bytes of finished chunks held for a write at most: past them they are written at
+#: once (many workers, or many kept signals, fill them before `WRITE_EVERY` passes).
+HOLD_BYTES = 64 * 2 ** 20
 #: Default chunks per sweep at least (while chunks stay below `MAX_CHUNK`): enough to
 #: share the work among this machine's cores and show progress.
 MIN_CHUNKS = 16
@@ -207,11 +210,12 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
             bar.update(runs - sum(len(v) for _, _, v in todo))
         writer = store.Writer(directory.zarr)
         held: list = []  # finished chunks not written yet
+        held_bytes = 0
         writing = False
 
         def write_held() -> None:
             """Write the chunks held, then enter them in the manifest."""
-            nonlocal storing, writing
+            nonlocal storing, writing, held_bytes
             if not held:
                 return
             writing, began = True, time.perf_counter()
@@ -228,6 +232,7 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
                                                 key=lambda kv: int(kv[0])))
             store.write_manifest(out, record)
             held.clear()
+            held_bytes = 0
             writing = False
             storing += time.perf_counter() - began
 
@@ -238,10 +243,13 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
                     continue
                 index, result = item
                 held.append((index, result))
+                held_bytes += result.kept.nbytes + result.metrics.nbytes
                 kernel += result.kernel_time
                 ran += len(result.status)
                 if bar is not None:
                     bar.update(len(result.status))
+                if held_bytes >= HOLD_BYTES:
+                    write_held()
             write_held()
         except BaseException as stopped:
             # stopped (Ctrl-C, a worker's failure): what finished is kept, unless
