@@ -219,7 +219,7 @@ def _run(spec, job, info, directory, record, expected, size, *, scheduler, worke
             if not held:
                 return
             writing, began = True, time.perf_counter()
-            writer.write([(result, bounds[index][2]) for index, result in held])
+            writer.write([result for _, result in held])
             for index, result in held:
                 record["done"][str(index)] = {"runs": [result.start, bounds[index][2]],
                                               "failed": result.failed,

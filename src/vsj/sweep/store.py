@@ -269,21 +269,21 @@ class Writer:
         group = zarr.open_group(path, mode="r+")
         self.arrays = {name: group[name] for name in ("signals", "metrics", "status", "steps")}
 
-    def write(self, finished) -> None:
-        """Write finished chunks: ``(result, stop)`` pairs, the runs ``result.start ..
-        stop`` each. Chunks that follow one another are written as one region (a write
-        costs the same for one store chunk as for a few)."""
+    def write(self, results) -> None:
+        """Write finished chunks (`vsj.sweep.runner.ChunkResult`); those that follow one
+        another as one region (`ChunkResult.joined`: a write costs the same for one store
+        chunk as for a few)."""
         regions: list[list] = []
-        for result, stop in sorted(finished, key=lambda pair: pair[0].start):
-            if regions and regions[-1][-1][1] == result.start:
-                regions[-1].append((result, stop))
+        for result in sorted(results, key=lambda result: result.start):
+            if regions and regions[-1][-1].start + len(regions[-1][-1].status) == result.start:
+                regions[-1].append(result)
             else:
-                regions.append([(result, stop)])
+                regions.append([result])
         for region in regions:
-            where = slice(region[0][0].start, region[-1][1])
-            for name, field in (("signals", "kept"), ("metrics", "metrics"),
-                                ("status", "status"), ("steps", "steps")):
-                data = np.concatenate([getattr(result, field) for result, _ in region])
+            whole = region[0].joined(region)
+            where = slice(whole.start, whole.start + len(whole.status))
+            for name, data in (("signals", whole.kept), ("metrics", whole.metrics),
+                               ("status", whole.status), ("steps", whole.steps)):
                 if data.size:
                     self.arrays[name][where] = data
 
