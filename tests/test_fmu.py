@@ -333,6 +333,99 @@ def test_a_state_taken_while_stuck_repeats_the_breakaway_bit_for_bit(wrist_fmu, 
     assert np.array_equal(first, again) and np.array_equal(first, thawed)
 
 
+def test_a_state_carries_pivot_q0_and_the_stop_time(wrist_fmu, unzipped):
+    """An FMU state keeps what the experiment it was taken in set: pivot_q0 (the next
+    initialization's pivot position) and the stop time. Taken before initialization at
+    one q0 and given back after another was set, it initializes at its own; taken in an
+    experiment that runs to 1 s and given back in one set up to stop at 0.05 s, it steps
+    past 0.05 s. Both through fmi2SetFMUstate and through its serialized bytes."""
+    path, _ = wrist_fmu
+    s = Slave.__new__(Slave)
+    md = read_model_description(str(path))
+    s.vr = {v.name: v.valueReference for v in md.modelVariables}
+    s.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="q0")
+    s.fmu.instantiate()
+    q_a, q_b = -0.012, 0.004
+    s.fmu.setReal([s.vr["pivot_q0"]], [q_a])
+    before = s.fmu.getFMUstate()  # not initialized yet: q_a is what it starts from
+    frozen = s.fmu.deSerializeFMUstate(s.fmu.serializeFMUstate(before))
+    for state in (before, frozen):
+        s.fmu.setReal([s.vr["pivot_q0"]], [q_b])
+        s.fmu.setFMUstate(state)
+        assert s.get("pivot_q0")[0] == q_a
+        s.fmu.setupExperiment(startTime=0.0, stopTime=1.0)
+        s.start(setup=False)
+        assert abs(s.get("q")[0] - q_a) <= Q_ROUND_TRIP
+        s.fmu.reset()
+    s.fmu.setupExperiment(startTime=0.0, stopTime=1.0)
+    s.start(setup=False)
+    s.step({"tau_x": 0.1}, 20)
+    running = s.fmu.getFMUstate()
+    frozen_running = s.fmu.deSerializeFMUstate(s.fmu.serializeFMUstate(running))
+    for state in (running, frozen_running):
+        s.fmu.reset()
+        s.fmu.setupExperiment(startTime=0.0, stopTime=0.05)
+        s.start(setup=False)
+        with pytest.raises(FMICallException):  # this experiment's stop time holds here
+            s.step({"tau_x": 0.1}, 60)
+        s.fmu.setFMUstate(state)
+        s.t = 20 * H
+        s.step({"tau_x": 0.1}, 60)  # to 0.08 s: the state's experiment runs to 1 s
+        assert s.t > 0.05
+    for state in (before, frozen, running, frozen_running):
+        s.fmu.freeFMUstate(state)
+    s.close()
+
+
+def test_debug_logging_follows_the_categories_asked_for(wrist_fmu, unzipped):
+    """fmi2SetDebugLogging's categories: the model description's three, logAll for
+    every message; an unknown one is refused and changes nothing; an error reaches the
+    logger whatever is asked, information (the ledger's closing at fmi2Terminate) only
+    under logAll."""
+    path, _ = wrist_fmu
+    md = read_model_description(str(path))
+    assert [c.name for c in md.logCategories] == ["logStatusError", "logStatusWarning",
+                                                  "logAll"]
+    vr = refs(path)
+    slave, messages = logged_instance(path, unzipped)
+
+    def run():
+        """Messages of a short run that ends with fmi2Terminate, then a reset."""
+        del messages[:]
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        slave.doStep(0.0, H)
+        slave.terminate()
+        slave.reset()
+        return [text for text in messages if "ledger" in text]
+
+    assert run()  # logging on from fmi2Instantiate: every category
+    slave.setDebugLogging(True, ["logStatusError"])
+    assert run() == []  # information is logAll's
+    del messages[:]
+    with pytest.raises(FMICallException):
+        slave.setDebugLogging(True, ["logEvents"])  # not one of this FMU's
+    assert any("logEvents" in text and "logAll" in text for text in messages)
+    assert run() == []  # the refused call left the categories as they were
+    slave.setDebugLogging(True, ["logStatusWarning", "logAll"])
+    assert run()
+    slave.setDebugLogging(True, [])  # none named: all
+    assert run()
+    slave.setDebugLogging(False, [])
+    assert run() == []
+    del messages[:]
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    with pytest.raises(FMICallException):
+        slave.setReal([vr["transmission.stiction"]], [-1.0])
+    assert any("outside its range" in text for text in messages)  # logging off: errors too
+    slave.exitInitializationMode()
+    slave.terminate()
+    slave.freeInstance()
+
+
 def logged_instance(path, unzipped):
     """An instance of the FMU at ``path`` with logging on: ``(slave, messages)``, the
     messages its logger receives collected in the list."""

@@ -87,7 +87,8 @@ typedef struct {
     char guid[GUID_MAX];
     fmi2CallbackLogger logger;
     fmi2ComponentEnvironment env;
-    int logging;
+    int logging;       /* debug logging on (fmi2Instantiate, fmi2SetDebugLogging) */
+    unsigned log_mask; /* its categories (LOG_* of vsj_fmu.c): errors reach the logger always */
     vsj_loaded *loaded;
     vsj_model model; /* the loaded one with this instance's mass, Minv and par */
     double *mass, *minv, *par;

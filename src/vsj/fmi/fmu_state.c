@@ -12,15 +12,17 @@
 
 #define SNAPSHOT_MAGIC 0x736a7376u /* an fmi2FMUstate of this FMU */
 #define STATE_MAGIC 0x53736a76u    /* "vjsS": a serialized one */
-#define STATE_FORMAT 3u            /* its layout (1: no fingerprint; 2: no tolerances) */
+#define STATE_FORMAT 4u /* its layout (1: no fingerprint; 2: no tolerances; 3: no pivot_q0,
+                          * stop time) */
 
 /* what fmi2GetFMUstate keeps: everything that a later step depends on (the adaptive
- * schemes' tolerances too, which fmi2SetupExperiment may have set) */
+ * schemes' tolerances and the stop time too, which fmi2SetupExperiment may have set, and
+ * pivot_q0, which the next initialization starts from) */
 typedef struct {
     uint32_t magic;
     char guid[GUID_MAX];
-    double time, power_in, power_dissipated, rtol, atol;
-    int mode;
+    double time, power_in, power_dissipated, rtol, atol, q0, stop_time;
+    int mode, stop_defined;
     double *s, *inputs, *values, *record;
     unsigned char *history;
 } snapshot;
@@ -60,6 +62,9 @@ static void take(const fmu *f, snapshot *st) {
     st->power_dissipated = f->power_dissipated;
     st->rtol = f->scheme.rtol;
     st->atol = f->scheme.atol;
+    st->q0 = f->q0;
+    st->stop_time = f->stop_time;
+    st->stop_defined = f->stop_defined;
     st->mode = f->mode;
     memcpy(st->s, f->s, (size_t)f->ns * sizeof(double));
     memcpy(st->inputs, f->inputs, (size_t)f->ni * sizeof(double));
@@ -71,12 +76,20 @@ static void take(const fmu *f, snapshot *st) {
 
 static fmi2Status give(fmu *f, const snapshot *st) {
     int changed = memcmp(st->values, f->values, (size_t)f->n_parameters * sizeof(double)) != 0;
+    char why[200];
     memcpy(f->previous, f->values, (size_t)f->n_parameters * sizeof(double));
     memcpy(f->values, st->values, (size_t)f->n_parameters * sizeof(double));
     if ((changed || f->rebuild) && fmu__rebuild(f) != fmi2OK) {
         fmu__restore(f, 1);
         return fmi2Error;
     }
+    if (fmu__bad_q0(f, st->q0, why, sizeof why)) { /* in the range of its own parameters */
+        fmu__restore(f, 1);
+        return fmu__fail(f, "fmi2SetFMUstate: the state's %s", why);
+    }
+    f->q0 = st->q0;
+    f->stop_time = st->stop_time;
+    f->stop_defined = st->stop_defined;
     f->time = st->time;
     f->power_in = st->power_in;
     f->power_dissipated = st->power_dissipated;
@@ -139,9 +152,10 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
  * 64-bit FNV-1a checksum of everything before it. Native byte order: a state is
  * read back on the platform that wrote it. */
 #define HEADER_SIZE (2 * sizeof(uint32_t) + GUID_MAX + 5 * sizeof(int64_t))
+#define REALS 7 /* time, power_in, power_dissipated, rtol, atol, q0, stop time */
 
 static size_t serialized_size(const fmu *f) {
-    return HEADER_SIZE + 5 * sizeof(double) + sizeof(int32_t)
+    return HEADER_SIZE + REALS * sizeof(double) + 2 * sizeof(int32_t)
            + (size_t)(f->ns + f->ni + f->n_parameters + f->at.size) * sizeof(double)
            + f->history_size + sizeof(uint64_t);
 }
@@ -181,7 +195,7 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate,
     const snapshot *st = (const snapshot *)FMUstate;
     char *at = serializedState;
     uint32_t word[2] = {STATE_MAGIC, STATE_FORMAT};
-    int32_t mode;
+    int32_t flags[2];
     int64_t sizes[5];
     uint64_t sum;
     if (!f || !st || !serializedState)
@@ -191,7 +205,8 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate,
     if (size < serialized_size(f))
         return fmu__fail(f, "fmi2SerializeFMUstate: the buffer is too small%s", "");
     sizes_of(f, sizes);
-    mode = (int32_t)st->mode;
+    flags[0] = (int32_t)st->mode;
+    flags[1] = (int32_t)st->stop_defined;
     PUT(word, sizeof word);
     PUT(f->guid, GUID_MAX);
     PUT(sizes, sizeof sizes);
@@ -200,7 +215,9 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate,
     PUT(&st->power_dissipated, sizeof(double));
     PUT(&st->rtol, sizeof(double));
     PUT(&st->atol, sizeof(double));
-    PUT(&mode, sizeof mode);
+    PUT(&st->q0, sizeof(double));
+    PUT(&st->stop_time, sizeof(double));
+    PUT(flags, sizeof flags);
     PUT(st->s, (size_t)f->ns * sizeof(double));
     PUT(st->inputs, (size_t)f->ni * sizeof(double));
     PUT(st->values, (size_t)f->n_parameters * sizeof(double));
@@ -262,6 +279,9 @@ static const char *bad_fields(const fmu *f, const snapshot *st, char *why, size_
     counts[3] = f->at.size;
     if (!isfinite(st->time) || !isfinite(st->power_in) || !isfinite(st->power_dissipated))
         return "its time or power is not finite";
+    if (!isfinite(st->q0) || !isfinite(st->stop_time)
+        || (st->stop_defined != 0 && st->stop_defined != 1))
+        return "its pivot_q0 or stop time is not one an experiment can have";
     if (!(st->rtol > 0.0 && st->rtol <= 1e-2 && st->atol > 0.0 && st->atol <= 1e-2))
         return "its tolerances are outside vsj's ranges";
     if (st->mode < INSTANTIATED || st->mode > FAILED)
@@ -294,7 +314,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     fmu *f = (fmu *)c;
     const char *at = serializedState, *problem;
     char why[400];
-    int32_t mode;
+    int32_t flags[2];
     snapshot *st;
     if (!f || !serializedState || !FMUstate)
         return f ? fmu__fail(f, "fmi2DeSerializeFMUstate: null argument%s", "") : fmi2Error;
@@ -312,8 +332,11 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     GET(&st->power_dissipated, sizeof(double));
     GET(&st->rtol, sizeof(double));
     GET(&st->atol, sizeof(double));
-    GET(&mode, sizeof mode);
-    st->mode = (int)mode;
+    GET(&st->q0, sizeof(double));
+    GET(&st->stop_time, sizeof(double));
+    GET(flags, sizeof flags);
+    st->mode = (int)flags[0];
+    st->stop_defined = (int)flags[1];
     GET(st->s, (size_t)f->ns * sizeof(double));
     GET(st->inputs, (size_t)f->ni * sizeof(double));
     GET(st->values, (size_t)f->n_parameters * sizeof(double));

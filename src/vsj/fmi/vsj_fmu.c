@@ -29,10 +29,32 @@
 
 #include "fmu_internal.h"
 
+/* The log categories of the model description (fmu.py), as bits of fmu.log_mask:
+ * logAll selects every category, the others their own messages. */
+static const struct {
+    const char *name;
+    unsigned bits;
+} CATEGORIES[] = {{"logStatusError", 1u}, {"logStatusWarning", 2u}, {"logAll", 7u}};
+enum { N_CATEGORIES = sizeof CATEGORIES / sizeof CATEGORIES[0], LOG_INFO = 4u };
+
+/* The bits of category `name` (0: not one of this FMU's). */
+static unsigned category_bits(const char *name) {
+    size_t k;
+    for (k = 0; k < N_CATEGORIES; k++)
+        if (name && strcmp(name, CATEGORIES[k].name) == 0)
+            return CATEGORIES[k].bits;
+    return 0u;
+}
+
+/* A message of `category` goes to the importer's logger when debug logging is on for
+ * that category; an error goes always (it explains a status the importer must act on). A
+ * message in category logAll is information, the other categories' are their own. */
 void fmu__say(const fmu *f, fmi2Status status, const char *category, const char *format, ...) {
     char text[1024];
     va_list args;
-    if (!f || !f->logger || (status == fmi2OK && !f->logging))
+    unsigned bits = strcmp(category, "logAll") == 0 ? LOG_INFO : category_bits(category);
+    if (!f || !f->logger
+        || (status < fmi2Error && !(f->logging && (f->log_mask & bits) != 0u)))
         return;
     char escaped[2 * sizeof text];
     size_t i, j = 0;
@@ -78,6 +100,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     f->logger = functions->logger;
     f->env = functions->componentEnvironment;
     f->logging = loggingOn;
+    f->log_mask = 7u; /* every category, until fmi2SetDebugLogging names some */
     f->name = fmu__copy_text(instanceName && instanceName[0] ? instanceName : "vsj");
     if (!f->name) {
         free(f);
@@ -150,11 +173,25 @@ const char *fmi2GetVersion(void) { return "2.0"; }
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[]) {
     fmu *f = (fmu *)c;
-    (void)nCategories;
-    (void)categories;
+    unsigned mask = nCategories == 0 ? 7u : 0u; /* none named: every category */
+    size_t k;
     if (!f)
         return fmi2Error;
+    if (nCategories > 0 && !categories)
+        return fmu__fail(f, "fmi2SetDebugLogging: %s", "categories is a null pointer");
+    for (k = 0; k < nCategories; k++) {
+        unsigned bits = category_bits(categories[k]);
+        if (!bits) {
+            char why[200];
+            snprintf(why, sizeof why, "no log category \"%.60s\"; this FMU's are "
+                     "logStatusError, logStatusWarning and logAll",
+                     categories[k] ? categories[k] : "(null)");
+            return fmu__fail(f, "fmi2SetDebugLogging: %s", why);
+        }
+        mask |= bits;
+    }
     f->logging = loggingOn;
+    f->log_mask = mask;
     return fmi2OK;
 }
 
