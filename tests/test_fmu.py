@@ -378,6 +378,29 @@ def test_a_state_carries_pivot_q0_and_the_stop_time(wrist_fmu, unzipped):
     s.close()
 
 
+def test_a_state_taken_after_a_failed_step_serializes_and_reads_back(wrist_fmu, unzipped):
+    """A step that overflows the model fails and leaves the state as it was; a state
+    taken then (the instance in its error state) serializes and reads back, and holds
+    the last good step's values. Before, the failed step's non-finite numbers stayed in
+    the time-stepper's history, and the bytes were refused as holding them."""
+    path, _ = wrist_fmu
+    s = Slave(path, unzipped)
+    names = ("theta_x", "theta_y", "deflection_1", "q")
+    s.step({"tau_x": 0.1}, 5)
+    good = s.get(*names)
+    s.fmu.setReal([s.vr["tau_x"]], [1e306])
+    with pytest.raises(FMICallException):
+        s.fmu.doStep(s.t, H)
+    failed = s.fmu.getFMUstate()
+    thawed = s.fmu.deSerializeFMUstate(s.fmu.serializeFMUstate(failed))
+    s.fmu.setFMUstate(thawed)
+    assert np.array_equal(s.get(*names), good)
+    for state in (failed, thawed):
+        s.fmu.freeFMUstate(state)
+    s.fmu.reset()
+    s.fmu.freeInstance()
+
+
 def test_debug_logging_follows_the_categories_asked_for(wrist_fmu, unzipped):
     """fmi2SetDebugLogging's categories: the model description's three, logAll for
     every message; an unknown one is refused and changes nothing; an error reaches the

@@ -1167,6 +1167,8 @@ static int64_t count_steps(const ts_work *t, double t_end, double h, int64_t *wh
     return *whole + (t_end - (t->origin + k_end * h) > 1e-9 * h ? 1 : 0);
 }
 
+static void repair_history(const vsj_model *m, vsj_work *w);
+
 vsj_report vsj__ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_end, double h,
                           int64_t max_steps, int ledger, const vsj_samples *smp) {
     ts_work *t = &w->ts;
@@ -1233,6 +1235,8 @@ vsj_report vsj__ts_advance(const vsj_model *m, vsj_work *w, double *y, double t_
         for (i = n_state; i < n_state + n_acc; i++)
             if (!isfinite(y[i]))
                 status = VSJ_NOT_FINITE;
+    if (status != VSJ_OK)
+        repair_history(m, w);
     rep.status = status;
     rep.t = tnow;
     return rep;
@@ -1318,6 +1322,30 @@ static int64_t history_spans(const vsj_model *m, const vsj_work *w, span *out) {
     SPAN(t->transitions, (size_t)f * l, COUNTS);
 #undef SPAN
     return count;
+}
+
+/* After a failed call: a history that holds numbers no step can start from (the failed
+ * step's non-finite ones) made one vsj_ts_save can save and vsj_ts_restore take back. The
+ * next call sets the positions, speeds, inputs and slips anew from its state, so those
+ * are zeroed; the factor, the impulses and their memo, which it would reuse, are
+ * forgotten. A history of finite numbers is left as it is. */
+static void repair_history(const vsj_model *m, vsj_work *w) {
+    span spans[MAX_SPANS];
+    int64_t count = history_spans(m, w, spans), i;
+    int repaired = 0;
+    size_t k;
+    for (i = 0; i < count; i++) {
+        double *x = (double *)spans[i].data;
+        if (spans[i].kind != REALS && spans[i].kind != MARKER)
+            continue;
+        for (k = 0; k < spans[i].bytes / sizeof(double); k++)
+            if (!isfinite(x[k]) && !(spans[i].kind == MARKER && isnan(x[k]))) {
+                x[k] = 0.0;
+                repaired = 1;
+            }
+    }
+    if (repaired)
+        forget_numbers(m, &w->ts);
 }
 
 /* Whether one value of a part of kind `kind` at `at` is one the stepper can hold. */
