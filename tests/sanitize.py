@@ -306,6 +306,16 @@ for k in range(10):
         break
 else:
     raise AssertionError("the FMU did not stop a diverged run")
+failed = slaves[1].getFMUstate()                  # taken in the error state: its history
+slaves[1].freeFMUstate(slaves[1].deSerializeFMUstate(slaves[1].serializeFMUstate(failed)))
+slaves[1].freeFMUstate(failed)
+slaves[0].setDebugLogging(True, ["logStatusWarning", "logAll"])   # log categories
+try:
+    slaves[0].setDebugLogging(True, ["logEvents"])
+except Exception:
+    pass
+else:
+    raise AssertionError("the FMU accepted an unknown log category")
 slaves[0].freeFMUstate(state)
 slaves[0].freeFMUstate(again)
 slaves[1].reset()
