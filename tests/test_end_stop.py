@@ -52,13 +52,14 @@ def stop_overshoot(result, load: float, inertia: float, speed: float) -> float:
 
 
 def run(params, stiffness, friction, elastic="exponential", load=LOAD, duration=8.0,
-        step=1e-3):
+        step=1e-3, output_step=0.01):
     p = params.with_overrides({"elastic_element.end_stop_stiffness": f"{stiffness} N m/rad"},
                               origin="test")
     structure = build_wrist(p, WristOptions(elastic=elastic)).assemble()
     ramp = Table((0.0, min(4.0, duration / 2), duration), (0.0, load, load))
     return simulate(structure, {"tau_x": ramp}, duration, initial=InitialState(q=Q),
-                    options=SimulationOptions(friction=friction, output_step=0.01, step=step),
+                    options=SimulationOptions(friction=friction, output_step=output_step,
+                                              step=step),
                     ports=False)
 
 
@@ -113,12 +114,17 @@ def friction_band(params, elastic, stiffness, phi):
     ("exponential", 50.0), ("exponential", 1000.0), ("exponential", 1e5), ("exponential", 1e7),
     ("geometric", 50.0), ("geometric", 1000.0), ("geometric", 1e7)])
 def test_stiction_holds_the_end_stop_for_any_stiffness(params, smooth, elastic, stiffness):
-    result = run(params, stiffness, "stiction", elastic)
+    # sampled at every step: the trapezoidal update leaves a stiff stop's fastest mode
+    # undamped, so the ring may end in a period-two oscillation of the steps' states about
+    # where friction holds it; the mean of the last two steps is that rest position
+    result = run(params, stiffness, "stiction", elastic, output_step=1e-3)
     assert result.success, result.message
     phi = result["phi_1"]
     expected = reference(params, smooth, elastic, stiffness)
     band = friction_band(params, elastic, stiffness, expected)
-    assert abs(phi[-1] - expected) <= band
+    rest = 0.5 * (phi[-1] + phi[-2])
+    # plus a few ulps of the angle: the mean's and the reference's Newton iteration's
+    assert abs(rest - expected) <= band + 8 * EPS * abs(expected)
     # no overshoot into the stop: beyond the static band, only as far as the ring's kinetic
     # energy, at the fastest it met the stop, can press it (1/2 M v^2 = 1/2 k x^2)
     past = np.abs(phi) >= STOP
