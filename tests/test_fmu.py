@@ -30,7 +30,8 @@ import numpy as np
 import pytest
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2False,
+                        fmi2True)
 from fmpy.validation import validate_fmu
 
 from vsj import fmu, params, scenario
@@ -347,6 +348,13 @@ def test_a_state_carries_pivot_q0_and_the_stop_time(wrist_fmu, unzipped):
                       modelIdentifier=md.coSimulation.modelIdentifier, instanceName="q0")
     s.fmu.instantiate()
     q_a, q_b = -0.012, 0.004
+    # a state is the instance as it stands, even with q0 outside a pivot range set since
+    # (fmi2ExitInitializationMode checks q0 against the range, where it is used)
+    s.fmu.setReal([s.vr["pivot.q_min"]], [0.0])
+    outside = s.fmu.getFMUstate()
+    s.fmu.setFMUstate(outside)
+    s.fmu.freeFMUstate(outside)
+    s.fmu.reset()
     s.fmu.setReal([s.vr["pivot_q0"]], [q_a])
     before = s.fmu.getFMUstate()  # not initialized yet: q_a is what it starts from
     frozen = s.fmu.deSerializeFMUstate(s.fmu.serializeFMUstate(before))
@@ -378,6 +386,30 @@ def test_a_state_carries_pivot_q0_and_the_stop_time(wrist_fmu, unzipped):
     s.close()
 
 
+def test_a_state_of_an_experiment_without_a_stop_time_reads_back(wrist_fmu, unzipped):
+    """An importer may pass an undefined stop time as infinity or NaN; the state of such
+    an experiment serializes and reads back."""
+    path, _ = wrist_fmu
+    s = Slave.__new__(Slave)
+    md = read_model_description(str(path))
+    s.vr = {v.name: v.valueReference for v in md.modelVariables}
+    s.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="open")
+    s.fmu.instantiate()
+    for undefined in (float("inf"), float("nan")):
+        s.fmu.fmi2SetupExperiment(s.fmu.component, fmi2False, 0.0, 0.0, fmi2False, undefined)
+        s.start(setup=False)
+        s.step({"tau_x": 0.1}, 3)
+        state = s.fmu.getFMUstate()
+        thawed = s.fmu.deSerializeFMUstate(s.fmu.serializeFMUstate(state))
+        s.fmu.setFMUstate(thawed)
+        s.step({"tau_x": 0.1}, 3)  # and steps on, with no stop time
+        for st in (state, thawed):
+            s.fmu.freeFMUstate(st)
+        s.fmu.reset()
+    s.fmu.freeInstance()
+
+
 def test_a_state_taken_after_a_failed_step_serializes_and_reads_back(wrist_fmu, unzipped):
     """A step that overflows the model fails and leaves the state as it was; a state
     taken then (the instance in its error state) serializes and reads back, and holds
@@ -403,9 +435,10 @@ def test_a_state_taken_after_a_failed_step_serializes_and_reads_back(wrist_fmu, 
 
 def test_debug_logging_follows_the_categories_asked_for(wrist_fmu, unzipped):
     """fmi2SetDebugLogging's categories: the model description's three, logAll for
-    every message; an unknown one is refused and changes nothing; an error reaches the
-    logger whatever is asked, information (the ledger's closing at fmi2Terminate) only
-    under logAll."""
+    every message; an unknown one is refused and changes nothing. Information (the
+    ledger's closing at fmi2Terminate) reaches the logger only under logAll; a warning
+    and an error reach it whatever is asked, logging off included (FMI 2.0 has the
+    logger called for the status they explain)."""
     path, _ = wrist_fmu
     md = read_model_description(str(path))
     assert [c.name for c in md.logCategories] == ["logStatusError", "logStatusWarning",
@@ -413,16 +446,19 @@ def test_debug_logging_follows_the_categories_asked_for(wrist_fmu, unzipped):
     vr = refs(path)
     slave, messages = logged_instance(path, unzipped)
 
-    def run():
-        """Messages of a short run that ends with fmi2Terminate, then a reset."""
+    def run(tau_x=0.0, steps=1):
+        """The ledger's and the springs' messages of a short run (``steps`` steps under
+        ``tau_x``) that ends with fmi2Terminate, then a reset."""
         del messages[:]
         slave.setupExperiment(startTime=0.0)
         slave.enterInitializationMode()
         slave.exitInitializationMode()
-        slave.doStep(0.0, H)
+        slave.setReal([vr["tau_x"]], [tau_x])
+        for k in range(steps):
+            slave.fmi2DoStep(slave.component, k * H, H, fmi2True)  # fmi2Warning: no raise
         slave.terminate()
         slave.reset()
-        return [text for text in messages if "ledger" in text]
+        return [text for text in messages if "ledger" in text or "spring" in text]
 
     assert run()  # logging on from fmi2Instantiate: every category
     slave.setDebugLogging(True, ["logStatusError"])
@@ -438,6 +474,8 @@ def test_debug_logging_follows_the_categories_asked_for(wrist_fmu, unzipped):
     assert run()
     slave.setDebugLogging(False, [])
     assert run() == []
+    # 100 N m drives a spring past its end stop within 0.1 s: a warning, said logging off
+    assert any("spring" in text for text in run(tau_x=100.0, steps=100))
     del messages[:]
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()

@@ -76,18 +76,14 @@ static void take(const fmu *f, snapshot *st) {
 
 static fmi2Status give(fmu *f, const snapshot *st) {
     int changed = memcmp(st->values, f->values, (size_t)f->n_parameters * sizeof(double)) != 0;
-    char why[200];
     memcpy(f->previous, f->values, (size_t)f->n_parameters * sizeof(double));
     memcpy(f->values, st->values, (size_t)f->n_parameters * sizeof(double));
     if ((changed || f->rebuild) && fmu__rebuild(f) != fmi2OK) {
         fmu__restore(f, 1);
         return fmi2Error;
     }
-    if (fmu__bad_q0(f, st->q0, why, sizeof why)) { /* in the range of its own parameters */
-        fmu__restore(f, 1);
-        return fmu__fail(f, "fmi2SetFMUstate: the state's %s", why);
-    }
-    f->q0 = st->q0;
+    f->q0 = st->q0; /* checked against the pivot's range where it is used: at
+                     * fmi2ExitInitializationMode */
     f->stop_time = st->stop_time;
     f->stop_defined = st->stop_defined;
     f->time = st->time;
@@ -279,8 +275,8 @@ static const char *bad_fields(const fmu *f, const snapshot *st, char *why, size_
     counts[3] = f->at.size;
     if (!isfinite(st->time) || !isfinite(st->power_in) || !isfinite(st->power_dissipated))
         return "its time or power is not finite";
-    if (!isfinite(st->q0) || !isfinite(st->stop_time)
-        || (st->stop_defined != 0 && st->stop_defined != 1))
+    if (!isfinite(st->q0) || (st->stop_defined != 0 && st->stop_defined != 1)
+        || (st->stop_defined && !isfinite(st->stop_time)))
         return "its pivot_q0 or stop time is not one an experiment can have";
     if (!(st->rtol > 0.0 && st->rtol <= 1e-2 && st->atol > 0.0 && st->atol <= 1e-2))
         return "its tolerances are outside vsj's ranges";

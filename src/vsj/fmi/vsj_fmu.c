@@ -46,15 +46,16 @@ static unsigned category_bits(const char *name) {
     return 0u;
 }
 
-/* A message of `category` goes to the importer's logger when debug logging is on for
- * that category; an error goes always (it explains a status the importer must act on). A
- * message in category logAll is information, the other categories' are their own. */
+/* A warning or an error goes to the importer's logger always: FMI 2.0 (section 2.1.3)
+ * has the logger called for the status it explains. Information (category logAll) goes
+ * when debug logging is on for it. */
 void fmu__say(const fmu *f, fmi2Status status, const char *category, const char *format, ...) {
     char text[1024];
     va_list args;
-    unsigned bits = strcmp(category, "logAll") == 0 ? LOG_INFO : category_bits(category);
     if (!f || !f->logger
-        || (status < fmi2Error && !(f->logging && (f->log_mask & bits) != 0u)))
+        || (status < fmi2Warning
+            && !(f->logging && (f->log_mask & (strcmp(category, "logAll") == 0
+                                               ? LOG_INFO : category_bits(category))) != 0u)))
         return;
     char escaped[2 * sizeof text];
     size_t i, j = 0;
@@ -237,7 +238,7 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
                             "1e-14 to 1e-2, as vsj's rtol%s", "");
     f->time = startTime;
     f->stop_defined = stopTimeDefined != fmi2False;
-    f->stop_time = stopTime;
+    f->stop_time = f->stop_defined ? stopTime : 0.0; /* (an undefined one may be inf, NaN) */
     use_tolerance(f, defined, tolerance);
     return fmi2OK;
 }
