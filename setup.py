@@ -15,6 +15,12 @@ SOURCES = ["src/vsj/_core.c"] + sorted(str(p) for p in (ENGINE / "c").glob("*.c"
 #: VSJ_WERROR=1 makes them errors. tests/test_c_source.py reads this line and builds the
 #: binding with it, warnings as errors.
 WARNINGS = ["-Wall", "-Wextra"] + (["-Werror"] if os.environ.get("VSJ_WERROR") == "1" else [])
+#: ISO C99, the language of the engine: gcc then fuses no multiply and add unless told to
+#: (-ffp-contract=fast), so that a build for a CPU with fused multiply-add (-march=native,
+#: or any arm64) rounds as the FMU's binary and the C example do, and the time-stepper's
+#: energy ledger books each step to round-off there too (in GNU C, gcc fuses them across
+#: statements, and the step's sums and the ledger's then round apart).
+STANDARD = ["-std=c99"]
 
 
 class BuildOnEveryCore(build_ext):
@@ -24,7 +30,7 @@ class BuildOnEveryCore(build_ext):
 
     def build_extension(self, ext):
         if self.compiler.compiler_type == "unix":
-            ext.extra_compile_args = WARNINGS + list(ext.extra_compile_args or [])
+            ext.extra_compile_args = STANDARD + WARNINGS + list(ext.extra_compile_args or [])
         compile_all = self.compiler.compile
 
         def compile_each(sources, *args, **kwargs):

@@ -25,9 +25,9 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "environment"
 #: is booked exactly over a step (linear or exponential springs, contacts): each step
 #: adds about thirty booked terms (the elements' works and losses, the contacts' and
 #: springs' stored parts), each rounded to an ulp (2.2e-16) of an accumulator that may be
-#: up to four times the energy in play, and compilers order (and fuse) the sums
-#: differently: 30 x 4 ulps a step.
-LEDGER_ROUNDOFF_PER_STEP = 30 * 4 * 2.2e-16
+#: a few times the energy in play, and compilers order (and fuse) the sums differently:
+#: 64 ulps a step.
+LEDGER_ROUNDOFF_PER_STEP = 64 * 2.2e-16
 
 #: A short closed loop against a wall: PDs on the output motors' rotor angles drive
 #: theta_x from 0 towards 0.2 rad; the wall is at 0.1 rad; the pivot is fixed.
