@@ -37,8 +37,9 @@ EPS = np.finfo(float).eps
 
 def same_engine(stepper, periods: int, size: np.ndarray, span: np.ndarray) -> np.ndarray:
     """How far the example (built here with -std=c99 -O2, which does not contract
-    multiply-adds) and vsj's extension (setuptools' flags; a GNU C build on arm64
-    contracts them) may part after ``periods`` periods [each output's unit], per output
+    multiply-adds) and vsj's extension (setuptools' flags with -std=c99, and whatever
+    $CFLAGS adds: make portable's fma configuration contracts them) may part after
+    ``periods`` periods [each output's unit], per output
     of size ``size`` and range ``span``. Two builds round differently; then dopri's
     step control may accept other steps, and each run is only as good as its
     tolerance, restarted every period: periods x 2 (rtol |y| + atol) (so is
