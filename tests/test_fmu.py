@@ -94,14 +94,17 @@ def held_inputs(tau_x, duration):
 class Slave:
     """One FMPy instance of the FMU, stepped by hand."""
 
-    def __init__(self, path, unzipped, name="wrist", start=None, tolerance=None):
+    def __init__(self, path, unzipped, name="wrist", start=None, tolerance=None,
+                 initialize=True):
+        """Instantiated and, with ``initialize``, initialised (`start`)."""
         md = read_model_description(str(path))
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
                              modelIdentifier=md.coSimulation.modelIdentifier,
                              instanceName=name)
         self.fmu.instantiate()
-        self.start(start, tolerance)
+        if initialize:
+            self.start(start, tolerance)
 
     def start(self, start=None, tolerance=None, setup=True):
         """Set up the experiment (with the importer's ``tolerance``, if given; not with
@@ -341,12 +344,7 @@ def test_a_state_carries_pivot_q0_and_the_stop_time(wrist_fmu, unzipped):
     experiment that runs to 1 s and given back in one set up to stop at 0.05 s, it steps
     past 0.05 s. Both through fmi2SetFMUstate and through its serialized bytes."""
     path, _ = wrist_fmu
-    s = Slave.__new__(Slave)
-    md = read_model_description(str(path))
-    s.vr = {v.name: v.valueReference for v in md.modelVariables}
-    s.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
-                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="q0")
-    s.fmu.instantiate()
+    s = Slave(path, unzipped, name="q0", initialize=False)
     q_a, q_b = -0.012, 0.004
     # a state is the instance as it stands, even with q0 outside a pivot range set since
     # (fmi2ExitInitializationMode checks q0 against the range, where it is used)
@@ -390,12 +388,7 @@ def test_a_state_of_an_experiment_without_a_stop_time_reads_back(wrist_fmu, unzi
     """An importer may pass an undefined stop time as infinity or NaN; the state of such
     an experiment serializes and reads back."""
     path, _ = wrist_fmu
-    s = Slave.__new__(Slave)
-    md = read_model_description(str(path))
-    s.vr = {v.name: v.valueReference for v in md.modelVariables}
-    s.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
-                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="open")
-    s.fmu.instantiate()
+    s = Slave(path, unzipped, name="open", initialize=False)
     for undefined in (float("inf"), float("nan")):
         s.fmu.fmi2SetupExperiment(s.fmu.component, fmi2False, 0.0, 0.0, fmi2False, undefined)
         s.start(setup=False)
