@@ -88,7 +88,7 @@ typedef struct {
     fmi2CallbackLogger logger;
     fmi2ComponentEnvironment env;
     int logging;       /* debug logging on (fmi2Instantiate, fmi2SetDebugLogging) */
-    unsigned log_mask; /* its categories, as bits (vsj_fmu.c): warnings, errors go always */
+    int log_info;      /* information (category logAll) wanted (vsj_fmu.c, fmu__say) */
     vsj_loaded *loaded;
     vsj_model model; /* the loaded one with this instance's mass, Minv and par */
     double *mass, *minv, *par;

@@ -29,33 +29,16 @@
 
 #include "fmu_internal.h"
 
-/* The log categories of the model description (fmu.py), as bits of fmu.log_mask:
- * logAll selects every category, the others their own messages. */
-static const struct {
-    const char *name;
-    unsigned bits;
-} CATEGORIES[] = {{"logStatusError", 1u}, {"logStatusWarning", 2u}, {"logAll", 7u}};
-enum { N_CATEGORIES = sizeof CATEGORIES / sizeof CATEGORIES[0], LOG_INFO = 4u };
+/* The log categories of the model description (fmu.py). Warnings and errors go to the
+ * importer's logger always: FMI 2.0 (section 2.1.3) has the logger called for the status
+ * they explain. The other messages are information, in category logAll, and go when
+ * debug logging is on for it (fmu.log_info). */
+static const char *const CATEGORIES[] = {"logStatusError", "logStatusWarning", "logAll"};
 
-/* The bits of category `name` (0: not one of this FMU's). */
-static unsigned category_bits(const char *name) {
-    size_t k;
-    for (k = 0; k < N_CATEGORIES; k++)
-        if (name && strcmp(name, CATEGORIES[k].name) == 0)
-            return CATEGORIES[k].bits;
-    return 0u;
-}
-
-/* A warning or an error goes to the importer's logger always: FMI 2.0 (section 2.1.3)
- * has the logger called for the status it explains. Information (category logAll) goes
- * when debug logging is on for it. */
 void fmu__say(const fmu *f, fmi2Status status, const char *category, const char *format, ...) {
     char text[1024];
     va_list args;
-    if (!f || !f->logger
-        || (status < fmi2Warning
-            && !(f->logging && (f->log_mask & (strcmp(category, "logAll") == 0
-                                               ? LOG_INFO : category_bits(category))) != 0u)))
+    if (!f || !f->logger || (status < fmi2Warning && !(f->logging && f->log_info)))
         return;
     char escaped[2 * sizeof text];
     size_t i, j = 0;
@@ -101,7 +84,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     f->logger = functions->logger;
     f->env = functions->componentEnvironment;
     f->logging = loggingOn;
-    f->log_mask = 7u; /* every category, until fmi2SetDebugLogging names some */
+    f->log_info = 1; /* every category, until fmi2SetDebugLogging names some */
     f->name = fmu__copy_text(instanceName && instanceName[0] ? instanceName : "vsj");
     if (!f->name) {
         free(f);
@@ -174,25 +157,27 @@ const char *fmi2GetVersion(void) { return "2.0"; }
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[]) {
     fmu *f = (fmu *)c;
-    unsigned mask = nCategories == 0 ? 7u : 0u; /* none named: every category */
-    size_t k;
+    int info = nCategories == 0; /* none named: every category */
+    size_t k, j;
     if (!f)
         return fmi2Error;
     if (nCategories > 0 && !categories)
         return fmu__fail(f, "fmi2SetDebugLogging: %s", "categories is a null pointer");
     for (k = 0; k < nCategories; k++) {
-        unsigned bits = category_bits(categories[k]);
-        if (!bits) {
+        for (j = 0; j < sizeof CATEGORIES / sizeof CATEGORIES[0]; j++)
+            if (categories[k] && strcmp(categories[k], CATEGORIES[j]) == 0)
+                break;
+        if (j == sizeof CATEGORIES / sizeof CATEGORIES[0]) {
             char why[200];
             snprintf(why, sizeof why, "no log category \"%.60s\"; this FMU's are "
                      "logStatusError, logStatusWarning and logAll",
                      categories[k] ? categories[k] : "(null)");
             return fmu__fail(f, "fmi2SetDebugLogging: %s", why);
         }
-        mask |= bits;
+        info = info || strcmp(categories[k], "logAll") == 0;
     }
     f->logging = loggingOn;
-    f->log_mask = mask;
+    f->log_info = info;
     return fmi2OK;
 }
 
