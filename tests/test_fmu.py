@@ -298,6 +298,30 @@ def test_get_set_and_serialized_state_repeat_a_step_bit_for_bit(wrist_fmu, unzip
     assert first[3] > 0.0  # friction dissipates while the motors drive
 
 
+def test_a_state_carries_the_power_outputs_of_its_last_step(wrist_fmu, unzipped):
+    """The power outputs are worked out from the last step's ledger when they are read;
+    a state taken before they were ever read carries them all the same, and so does its
+    serialized form, and a restored instance reports them until it steps again."""
+    path, _ = wrist_fmu
+    s = Slave(path, unzipped)
+    u = {"motor_1": 2.0, "motor_2": -1.0, "tau_y": 0.1}
+    s.step(u, 200)
+    saved = s.fmu.getFMUstate()  # the powers not read yet
+    blob = s.fmu.serializeFMUstate(saved)
+    expected = s.get("power_in", "power_dissipated")
+    s.step({"motor_1": -3.0}, 20)
+    moved_on = s.get("power_in", "power_dissipated")
+    s.fmu.setFMUstate(saved)
+    restored = s.get("power_in", "power_dissipated")
+    s.fmu.setFMUstate(s.fmu.deSerializeFMUstate(blob))
+    thawed = s.get("power_in", "power_dissipated")
+    s.fmu.freeFMUstate(saved)
+    s.close()
+    assert expected[1] > 0.0  # friction dissipates while the motors drive
+    assert not np.array_equal(moved_on, expected)  # the later steps' powers differ
+    assert np.array_equal(restored, expected) and np.array_equal(thawed, expected)
+
+
 def test_a_state_taken_while_stuck_repeats_the_breakaway_bit_for_bit(wrist_fmu, unzipped):
     """The state round trip across a stick-to-slip transition: saved while true
     stiction holds the wrist, restored after it broke away; the steps that follow

@@ -109,7 +109,11 @@ typedef struct {
     double into_stop, diverged, ledger_tolerance;
     vsj_work *work;
     int64_t ns, ni, nacc;
-    double *s, *inputs, *ledger;
+    double *s, *inputs;
+    double *ledger; /* scratch: the ledger of the step being taken (vsj_step's) */
+    double *booked; /* the ledger of the last step taken, and its length booked_h (> 0:
+                     * its power outputs not yet worked out: fmu__powers) */
+    double booked_h;
     double *speeds; /* scratch: n generalised speeds */
     double *schur;  /* n_sources^2: M_ss - M_sf Minv M_fs, the sources' own inertia */
     double *energy; /* scratch: two sets of stored energies (3 + n_springs each) */
@@ -166,6 +170,7 @@ FMU_INTERNAL void fmu__start_run(fmu *f);
 FMU_INTERNAL double fmu__source_jumps(const fmu *f);
 FMU_INTERNAL void fmu__shift_start(fmu *f, const double *before, const double *after);
 FMU_INTERNAL void fmu__run_ledger(fmu *f, double *residual, double *scale);
-FMU_INTERNAL void fmu__account(fmu *f, double h);
+FMU_INTERNAL void fmu__book(fmu *f, double h);
+FMU_INTERNAL void fmu__powers(fmu *f);
 
 #endif

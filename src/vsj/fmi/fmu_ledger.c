@@ -143,32 +143,41 @@ void fmu__run_ledger(fmu *f, double *residual, double *scale) {
     *scale = fmax(fmax(fmax(in_size, lost_size), fmax(fabs(change), held)), 1e-300);
 }
 
-/* The step's power outputs, and its ledger added to the run's (one pass). */
-void fmu__account(fmu *f, double h) {
+/* A step of length h taken: its ledger (in f->ledger) becomes the booked one and is
+ * added to the run's. Its power outputs wait for fmu__powers: an importer that reads
+ * them at every step pays for their sums then, one that does not never does. */
+void fmu__book(fmu *f, double h) {
+    double *step = f->ledger, *total = f->record + f->at.totals;
+    int64_t i;
+    f->ledger = f->booked;
+    f->booked = step;
+    f->booked_h = h;
+    for (i = 0; i < f->nacc; i++)
+        total[i] += step[i];
+}
+
+/* The power outputs of the booked step, if not yet worked out: the work put in
+ * (sources, loads, motor supplies, a moving pivot's on the springs) and the work lost
+ * (friction, armature resistance, end stops), each over the step's length. */
+void fmu__powers(fmu *f) {
     const vsj_model *m = &f->model;
-    const double *step = f->ledger;
-    double work_in = 0.0, lost = 0.0, *total = f->record + f->at.totals;
+    const double *step = f->booked;
+    double work_in = 0.0, lost = 0.0;
     int64_t i = 0, nk = m->n_springs, end;
     int moving = pivot_row(f)[2] > 0.0;
-    for (end = m->n_sources + m->n_loads + m->n_motors; i < end; i++) {
-        total[i] += step[i]; /* sources, loads, motor supplies */
+    if (!(f->booked_h > 0.0))
+        return;
+    for (end = m->n_sources + m->n_loads + m->n_motors; i < end; i++)
         work_in += step[i];
-    }
-    for (end += m->n_frictions + m->n_motors; i < end; i++) {
-        total[i] += step[i]; /* friction, then armature resistance */
+    for (end += m->n_frictions + m->n_motors; i < end; i++)
         lost += step[i];
-    }
-    for (end += nk; i < end; i++)
-        total[i] += step[i]; /* the springs' own work */
-    for (end += nk; i < end; i++) {
-        total[i] += step[i]; /* the pivot's on them: work in if it moves */
+    i += nk; /* the springs' own work: stored, neither in nor lost */
+    for (end = i + nk; i < end; i++)
         if (moving)
             work_in += step[i];
-    }
-    for (end += nk; i < end; i++) {
-        total[i] += step[i]; /* their end stops' */
+    for (end = i + nk; i < end; i++)
         lost += step[i];
-    }
-    f->power_in = work_in / h;
-    f->power_dissipated = lost / h;
+    f->power_in = work_in / f->booked_h;
+    f->power_dissipated = lost / f->booked_h;
+    f->booked_h = 0.0;
 }

@@ -327,6 +327,7 @@ void fmu__free(fmu *f) {
     free(f->s);
     free(f->inputs);
     free(f->ledger);
+    free(f->booked);
     free(f->speeds);
     free(f->schur);
     free(f->energy);
@@ -446,6 +447,7 @@ void fmu__initial_state(fmu *f) {
     f->time = 0.0;
     f->power_in = 0.0;
     f->power_dissipated = 0.0;
+    f->booked_h = 0.0;
 }
 
 /* The parts of an instance that need the model and the map. */
@@ -464,6 +466,7 @@ int fmu__allocate(fmu *f) {
     f->s = (double *)calloc((size_t)f->ns + 1, sizeof(double));
     f->inputs = (double *)calloc((size_t)f->ni + 1, sizeof(double));
     f->ledger = (double *)calloc((size_t)f->nacc + 1, sizeof(double));
+    f->booked = (double *)calloc((size_t)f->nacc + 1, sizeof(double));
     f->speeds = (double *)calloc((size_t)f->model.n + 1, sizeof(double));
     f->schur = (double *)calloc((size_t)(f->model.n_sources * f->model.n_sources + 1),
                                 sizeof(double));
@@ -471,8 +474,8 @@ int fmu__allocate(fmu *f) {
     f->record = (double *)calloc((size_t)f->at.size, sizeof(double));
     f->stuck = (unsigned char *)calloc((size_t)f->model.n_frictions + 1, 1);
     f->work = vsj_work_new(&f->model);
-    return f->mass && f->minv && f->par && f->s && f->inputs && f->ledger && f->speeds
-           && f->schur && f->energy && f->record && f->stuck && f->work;
+    return f->mass && f->minv && f->par && f->s && f->inputs && f->ledger && f->booked
+           && f->speeds && f->schur && f->energy && f->record && f->stuck && f->work;
 }
 
 /* Why the loaded model is not a wrist this FMU can run (NULL: it is one). */

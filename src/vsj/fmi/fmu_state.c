@@ -89,6 +89,7 @@ static fmi2Status give(fmu *f, const snapshot *st) {
     f->time = st->time;
     f->power_in = st->power_in;
     f->power_dissipated = st->power_dissipated;
+    f->booked_h = 0.0; /* the state's power outputs are worked out */
     f->scheme.rtol = st->rtol;
     f->scheme.atol = st->atol;
     f->mode = st->mode;
@@ -115,6 +116,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     st = *FMUstate ? (snapshot *)*FMUstate : new_snapshot(f);
     if (!st)
         return fmu__fail(f, "fmi2GetFMUstate: out of memory%s", "");
+    fmu__powers(f);
     take(f, st);
     *FMUstate = st;
     return fmi2OK;

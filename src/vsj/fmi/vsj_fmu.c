@@ -355,8 +355,8 @@ static double output(fmu *f, int which) {
     case MOTOR_1_ANGLE: return row_value(f, f->rows[2], NULL);
     case MOTOR_2_ANGLE: return row_value(f, f->rows[3], NULL);
     case MOTOR_S_ANGLE: return row_value(f, f->rows[4], NULL);
-    case POWER_IN: return f->power_in;
-    case POWER_DISSIPATED: return f->power_dissipated;
+    case POWER_IN: fmu__powers(f); return f->power_in;
+    case POWER_DISSIPATED: fmu__powers(f); return f->power_dissipated;
     default: return NAN;
     }
 }
@@ -619,7 +619,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
         return fmu__fail(f, "fmi2DoStep: the step failed %s", text);
     }
     memcpy(f->record + f->at.applied, f->inputs, (size_t)f->ni * sizeof(double));
-    fmu__account(f, h);
+    fmu__book(f, h);
     f->time += h;
     return judge_step(f, point);
 }
