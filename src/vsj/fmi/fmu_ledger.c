@@ -100,47 +100,58 @@ void fmu__shift_start(fmu *f, const double *before, const double *after) {
         f->record[f->at.springs + k] += after[3 + k] - before[3 + k];
 }
 
+/* The work put in and the work lost in ledger values v (a step's or the run's), and
+ * the sums of their terms' sizes: sums = {in, lost, |in|, |lost|}. In: the sources, loads
+ * and motor supplies, and a moving pivot's work on the springs; lost: friction, armature
+ * resistance and the end stops. The springs' own work is stored, neither. */
+static void in_and_lost(const fmu *f, const double *v, double sums[4]) {
+    const vsj_model *m = &f->model;
+    int64_t nk = m->n_springs, i, at = m->n_sources + m->n_loads + m->n_motors;
+    double pivot = 0.0;
+    sums[0] = sums[1] = sums[2] = sums[3] = 0.0;
+    for (i = 0; i < at; i++) {
+        sums[0] += v[i];
+        sums[2] += fabs(v[i]);
+    }
+    for (; i < at + m->n_frictions + m->n_motors; i++) {
+        sums[1] += v[i];
+        sums[3] += fabs(v[i]);
+    }
+    at = i + nk; /* past the springs' own work: the pivot's on them, then their stops' */
+    for (i = 0; i < nk; i++)
+        pivot += v[at + i];
+    if (pivot_row(f)[2] > 0.0) {
+        sums[0] += pivot;
+        sums[2] += fabs(pivot);
+    }
+    for (i = 0; i < nk; i++) {
+        sums[1] += v[at + nk + i];
+        sums[3] += fabs(v[at + nk + i]);
+    }
+}
+
 /* The energy ledger of the run so far, as vsj.simulate.ledger keeps a run's:
  * the residual of work in = stored change + dissipated, and the energy in play. */
 void fmu__run_ledger(fmu *f, double *residual, double *scale) {
     const vsj_model *m = &f->model;
-    int64_t s_n = m->n_sources, nl = m->n_loads, nm = m->n_motors, nf = m->n_frictions;
-    int64_t nk = m->n_springs, i, at;
+    int64_t nf = m->n_frictions, nk = m->n_springs, i;
+    int64_t at = m->n_sources + m->n_loads + m->n_motors + nf + m->n_motors;
     const double *total = f->record + f->at.totals, *start = f->record + f->at.start;
     const double *start_springs = f->record + f->at.springs;
-    double *now = f->energy, *springs = f->energy + 3, change, held, kinetic0;
-    double in = 0.0, in_size = 0.0, lost = 0.0, lost_size = 0.0, pivot = 0.0;
+    double *now = f->energy, *springs = f->energy + 3, change, held, kinetic0, sums[4];
     fmu__stored(f, f->record + f->at.applied, now, springs);
-    for (i = 0; i < s_n + nl + nm; i++) { /* sources, loads, motor supplies */
-        in += total[i];
-        in_size += fabs(total[i]);
-    }
-    at = s_n + nl + nm;
-    for (i = 0; i < nf + nm; i++) { /* friction, then armature resistance */
-        lost += total[at + i];
-        lost_size += fabs(total[at + i]);
-    }
-    at += nf + nm; /* the springs' work, the pivot's on them, their stops' */
+    in_and_lost(f, total, sums);
+    /* eq 3.8 is not a potential force: what its spring does not store is lost */
     for (i = 0; i < nk; i++)
-        pivot += total[at + nk + i];
-    if (pivot_row(f)[2] > 0.0) { /* a moving pivot does work on the springs */
-        in += pivot;
-        in_size += fabs(pivot);
-    }
-    for (i = 0; i < nk; i++) {
-        double stops = total[at + 2 * nk + i];
-        lost += stops;
-        lost_size += fabs(stops);
-        /* eq 3.8 is not a potential force: what its spring does not store is lost */
         if (m->code[nf + i] == VSJ_GEOMETRIC_REPORT)
-            lost += total[at + nk + i] - total[at + i] - (springs[i] - start_springs[i]) - stops;
-    }
+            sums[1] += total[at + nk + i] - total[at + i] - (springs[i] - start_springs[i])
+                       - total[at + 2 * nk + i];
     kinetic0 = start[0] + fmu__source_jumps(f);
     change = (now[0] - kinetic0) + (now[1] - start[1]) + (now[2] - start[2]);
     held = fmax(fabs(kinetic0) + fabs(start[1]) + fabs(start[2]),
                 fabs(now[0]) + fabs(now[1]) + fabs(now[2]));
-    *residual = in - change - lost;
-    *scale = fmax(fmax(fmax(in_size, lost_size), fmax(fabs(change), held)), 1e-300);
+    *residual = sums[0] - change - sums[1];
+    *scale = fmax(fmax(fmax(sums[2], sums[3]), fmax(fabs(change), held)), 1e-300);
 }
 
 /* A step of length h taken: its ledger (in f->ledger) becomes the booked one and is
@@ -160,24 +171,11 @@ void fmu__book(fmu *f, double h) {
  * (sources, loads, motor supplies, a moving pivot's on the springs) and the work lost
  * (friction, armature resistance, end stops), each over the step's length. */
 void fmu__powers(fmu *f) {
-    const vsj_model *m = &f->model;
-    const double *step = f->booked;
-    double work_in = 0.0, lost = 0.0;
-    int64_t i = 0, nk = m->n_springs, end;
-    int moving = pivot_row(f)[2] > 0.0;
+    double sums[4];
     if (!(f->booked_h > 0.0))
         return;
-    for (end = m->n_sources + m->n_loads + m->n_motors; i < end; i++)
-        work_in += step[i];
-    for (end += m->n_frictions + m->n_motors; i < end; i++)
-        lost += step[i];
-    i += nk; /* the springs' own work: stored, neither in nor lost */
-    for (end = i + nk; i < end; i++)
-        if (moving)
-            work_in += step[i];
-    for (end = i + nk; i < end; i++)
-        lost += step[i];
-    f->power_in = work_in / f->booked_h;
-    f->power_dissipated = lost / f->booked_h;
+    in_and_lost(f, f->booked, sums);
+    f->power_in = sums[0] / f->booked_h;
+    f->power_dissipated = sums[1] / f->booked_h;
     f->booked_h = 0.0;
 }
