@@ -27,7 +27,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -661,9 +661,9 @@ class Structure:
             self._solvers[key] = (rows, np.linalg.pinv(rows, rcond=cutoff))
         rows, inverse = self._solvers[key]
         sol = inverse @ target
-        residual = rows @ sol - target
-        bad = [names[i] for i in np.flatnonzero(np.abs(residual) > 1e-9 * (1 + np.abs(target)))]
-        if bad:
+        off = np.abs(rows @ sol - target) > 1e-9 * (1 + np.abs(target))
+        if off.any():
+            bad = [names[i] for i in np.flatnonzero(off)]
             raise InputError(f"{what} of {', '.join(bad)} contradict the {against} of network "
                              f"{self.name!r}")
         return sol

@@ -64,7 +64,7 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import replace
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 

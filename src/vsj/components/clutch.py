@@ -20,7 +20,7 @@ and sliding at the kinetic level; a smooth law scales its level by ``f`` and
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 from ..friction import DEFAULT_SHARPNESS
 from ..network import Component, Friction, Parts

@@ -22,7 +22,7 @@ it is compressed, the rest dissipated).
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 from ..network import Component, Friction, Parts
 

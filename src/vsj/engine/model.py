@@ -20,7 +20,7 @@ import fnmatch
 import math
 from dataclasses import dataclass
 from collections import namedtuple
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

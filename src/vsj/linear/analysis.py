@@ -6,7 +6,7 @@ gains and stiffness, bandwidth. Each function takes a `LinearData` or a
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

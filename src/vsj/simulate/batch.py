@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numbers
 import time as _time
-from collections.abc import Iterable
-from typing import Mapping
+from collections.abc import Iterable, Mapping
 
 import numpy as np
 

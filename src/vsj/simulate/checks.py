@@ -4,7 +4,7 @@ parameter set describes (`warnings_of`)."""
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

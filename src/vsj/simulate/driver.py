@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import time as _time
 from dataclasses import asdict
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass, field
-from typing import Mapping
+from collections.abc import Mapping
 
 from .. import friction as friction_laws
 from ..engine.plan import ATOL, RTOL

@@ -10,7 +10,7 @@ declared in one place. `collect` evaluates the table on one block.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

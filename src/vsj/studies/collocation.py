@@ -19,7 +19,7 @@ size before the optimiser sees it; the result is unscaled.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from scipy.optimize import minimize
