@@ -115,10 +115,17 @@ static int same_row(const vsj_model *m, int64_t a, int64_t b) {
     return 1;
 }
 
+/* Whether element e's torque is the plain arctangent law b s + k atan(kb s): a
+ * constant level, no extra torque. */
+static int plain_arctan(const vsj_model *m, const vsj_work *w, int64_t e) {
+    return m->code[e] == VSJ_ARCTAN && !w->ev_vary[e];
+}
+
 void vsj__eval_prepare(const vsj_model *m, vsj_work *w) {
-    int64_t e, j, c, f = m->n_frictions;
+    int64_t e, j, c, pass, f = m->n_frictions;
     w->ev_nd = 0;
     for (e = 0; e < f; e++) {
+        int64_t first;
         if (m->xp[e + 1] > m->xp[e])
             w->ev_list[w->ev_nd++] = e;
         w->ev_same[e] = -1;
@@ -126,6 +133,22 @@ void vsj__eval_prepare(const vsj_model *m, vsj_work *w) {
             if (w->ev_same[j] < 0 && same_row(m, e, j))
                 w->ev_same[e] = j;
         w->ev_vary[e] = (unsigned char)vsj__varying(m, e);
+        first = w->ev_same[e];
+        w->ev_share[e] = plain_arctan(m, w, e) && first >= 0 && m->code[first] == VSJ_ARCTAN
+                                 && vsj__row(m, first)[2] == vsj__row(m, e)[2]
+                             ? first
+                             : -1;
+    }
+    for (pass = 0; pass < 2; pass++) {
+        int64_t i, count = pass ? f : w->ev_nd;
+        w->ev_narc[pass] = w->ev_noth[pass] = 0;
+        for (i = 0; i < count; i++) {
+            e = pass ? i : w->ev_list[i];
+            if (plain_arctan(m, w, e))
+                w->ev_arc[pass][w->ev_narc[pass]++] = e;
+            else
+                w->ev_oth[pass][w->ev_noth[pass]++] = e;
+        }
     }
     for (c = 0; c < m->n_channels; c++) {
         const double *cf = m->coef + 4 * m->first[c];
@@ -135,12 +158,60 @@ void vsj__eval_prepare(const vsj_model *m, vsj_work *w) {
     w->ev_model = m;
 }
 
+/* The friction elements' slips and torques at y, into frw (SLIP, TORQUE), for pass
+ * `full` (vsj__eval_prepare: 0 the elements the dynamics feel, 1 all). A row's later
+ * elements take its first's slip and, for the same arctangent, its arctangent: the
+ * elements that do not share theirs come first, the plain arctangents last, in a loop
+ * of their own. */
+static void eval_frictions(const vsj_model *m, vsj_work *w, const double *y, int full) {
+    int64_t n = m->n, i, e, first;
+    int64_t count = full ? m->n_frictions : w->ev_nd, narc = w->ev_narc[full];
+    const int64_t *arc = w->ev_arc[full], *oth = w->ev_oth[full];
+    double *frw = w->frw;
+    for (i = 0; i < count; i++) {
+        e = full ? i : w->ev_list[i];
+        first = w->ev_same[e];
+        frw[w->f * SLIP + e] = first >= 0 ? frw[w->f * SLIP + first]
+                                          : vsj__xdot(m, e, y + n) + vsj__udot(m, e, w->srcw, U);
+    }
+    for (i = 0; i < w->ev_noth[full]; i++) {
+        const double *p;
+        double slip, torque, level;
+        e = oth[i];
+        p = vsj__row(m, e);
+        slip = frw[w->f * SLIP + e];
+        level = w->ev_vary[e] ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1];
+        if (m->code[e] == VSJ_ARCTAN) { /* vsj__friction's arctan law */
+            w->ev_atan[e] = vsj__atan(p[2] * slip);
+            torque = p[0] * slip + level * w->ev_atan[e];
+        } else if (m->code[e] == VSJ_CONTACT)
+            torque = vsj__contact(p, vsj__penetration(m, w, e, y), slip,
+                                  &frw[w->f * DSLIP + e], &frw[w->f * DPOS + e]);
+        else
+            torque = vsj__friction(m->code[e], p[0], level, p[2], p[3], slip, NULL);
+        if (m->code[e] == VSJ_STICTION)
+            torque += frw[w->f * EXTRA + e];
+        frw[w->f * TORQUE + e] = torque;
+    }
+    for (i = 0; i < narc; i++) { /* vsj__friction's arctan law, at its constant level */
+        const double *p;
+        double slip, atan_;
+        e = arc[i];
+        p = vsj__row(m, e);
+        slip = frw[w->f * SLIP + e];
+        first = w->ev_share[e];
+        atan_ = first >= 0 ? w->ev_atan[first] : vsj__atan(p[2] * slip);
+        w->ev_atan[e] = atan_;
+        frw[w->f * TORQUE + e] = p[0] * slip + p[1] * atan_;
+    }
+}
+
 /* All element torques at y, as generalised forces in w->gen and, with `full`,
  * as source forces in srcw[:, SRCF]. Without `full`, elements that only the
  * sources feel are skipped (the dynamics do not need them). */
 static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int full) {
     int64_t n = m->n, s = m->n_sources, f = m->n_frictions, k = m->n_springs;
-    int64_t nl = m->n_loads, i, j, kk, e, ld, mo, count, first;
+    int64_t nl = m->n_loads, i, j, kk, e, ld, mo, count;
     for (i = 0; i < n; i++)
         w->gen[i] = 0.0;
     for (j = 0; j < s; j++)
@@ -153,40 +224,15 @@ static void eval_forces(const vsj_model *m, vsj_work *w, const double *y, int fu
         if (full)
             vsj__uadd(m, r, w->srcw, SRCF, tau);
     }
+    eval_frictions(m, w, y, full);
     count = full ? f : w->ev_nd;
-    for (i = 0; i < count; i++) {
-        const double *p;
-        double slip, torque, level;
-        e = full ? i : w->ev_list[i];
-        p = vsj__row(m, e);
-        first = w->ev_same[e];
-        slip = first >= 0 ? w->frw[FRW * first + SLIP]
-                           : vsj__xdot(m, e, y + n) + vsj__udot(m, e, w->srcw, U);
-        level = w->ev_vary[e] ? p[1] * vsj__normal(m, w, e, slip, 0) : p[1];
-        if (m->code[e] == VSJ_ARCTAN) { /* vsj__friction's arctan law; elements on one shaft
-                                         * with the same sharpness share the arctangent */
-            w->ev_atan[e] = first >= 0 && m->code[first] == VSJ_ARCTAN
-                                    && vsj__row(m, first)[2] == p[2]
-                                ? w->ev_atan[first]
-                                : vsj__atan(p[2] * slip);
-            torque = p[0] * slip + level * w->ev_atan[e];
-        } else if (m->code[e] == VSJ_CONTACT)
-            torque = vsj__contact(p, vsj__penetration(m, w, e, y), slip,
-                                  &w->frw[FRW * e + DSLIP], &w->frw[FRW * e + DPOS]);
-        else
-            torque = vsj__friction(m->code[e], p[0], level, p[2], p[3], slip, NULL);
-        if (m->code[e] == VSJ_STICTION)
-            torque += w->frw[FRW * e + EXTRA];
-        w->frw[FRW * e + SLIP] = slip;
-        w->frw[FRW * e + TORQUE] = torque;
-    }
     /* the torques' sums apart from the laws: each sum is one chain of additions
      * through memory, which the laws' evaluations would otherwise wait on */
     for (i = 0; i < count; i++) {
         e = full ? i : w->ev_list[i];
-        vsj__xadd(m, e, w->gen, -w->frw[FRW * e + TORQUE]);
+        vsj__xadd(m, e, w->gen, -w->frw[w->f * TORQUE + e]);
         if (full)
-            vsj__uadd(m, e, w->srcw, SRCF, -w->frw[FRW * e + TORQUE]);
+            vsj__uadd(m, e, w->srcw, SRCF, -w->frw[w->f * TORQUE + e]);
     }
     for (ld = 0; ld < nl; ld++) {
         int64_t r = f + k + ld;
@@ -253,7 +299,7 @@ void vsj__eval_derivatives(const vsj_model *m, vsj_work *w, double t, const doub
         for (mo = 0; mo < nm; mo++)
             dy[p++] = w->mow[2 * mo + 1] * y[2 * n + mo];
         for (e = 0; e < m->n_frictions; e++)
-            dy[p++] = w->frw[FRW * e + TORQUE] * w->frw[FRW * e + SLIP];
+            dy[p++] = w->frw[w->f * TORQUE + e] * w->frw[w->f * SLIP + e];
         for (mo = 0; mo < nm; mo++)
             dy[p++] = vsj__row(m, base_m + mo)[0] * y[2 * n + mo] * y[2 * n + mo];
         for (kk = 0; kk < m->n_springs; kk++)
@@ -367,7 +413,7 @@ int vsj_observe(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_
         if (m->n_acts > 0) /* the actuators' values that held at the sample */
             vsj__control_hold(m, w, y + ny - m->n_acts);
         for (e = 0; e < f; e++)
-            w->frw[FRW * e + EXTRA] = coulomb ? coulomb[f * i + e] : 0.0;
+            w->frw[w->f * EXTRA + e] = coulomb ? coulomb[f * i + e] : 0.0;
         /* evaluated at full length (source torques and every element), which
          * reads the state part of y only */
         w->status = VSJ_OK;
@@ -385,7 +431,7 @@ int vsj_observe(const vsj_model *m, vsj_work *w, const double *t_out, int64_t n_
         row[p++] = w->qdot;
         for (c = 0; c < 2; c++)
             for (e = 0; e < f; e++)
-                row[p++] = w->frw[FRW * e + (c == 0 ? SLIP : TORQUE)];
+                row[p++] = w->frw[w->f * (c == 0 ? SLIP : TORQUE) + e];
         for (c = 0; c < 5; c++)
             for (kk = 0; kk < k; kk++)
                 row[p++] = w->spw[SPW * kk + spring_cols[c]];
@@ -473,7 +519,7 @@ static double friction_slope(const vsj_model *m, const vsj_work *w, int64_t e, d
     double slope, kshape, force = 1.0, coefficient = 1.0, dforce = 0.0, dcoefficient = 0.0;
     *rate = 0.0;
     if (m->code[e] == VSJ_CONTACT)
-        return w->frw[FRW * e + DSLIP];
+        return w->frw[w->f * DSLIP + e];
     if (!w->ev_vary[e])
         return vsj__friction_slope(m->code[e], p[0], p[1], p[2], p[3], slip);
     if (fp[VSJ_F_CHANNEL] >= 0.0) { /* clipped to [0, 1]: no rate where clipped */
@@ -517,7 +563,7 @@ static void force_derivatives(const vsj_model *m, vsj_work *w, double *jg) {
         }
     }
     for (e = 0; e < f; e++) { /* torque -f(s), s = X v + U u; a contact's, f(s, d) */
-        double slip = w->frw[FRW * e + SLIP], slope, rate;
+        double slip = w->frw[w->f * SLIP + e], slope, rate;
         if (m->xp[e + 1] == m->xp[e])
             continue;
         slope = friction_slope(m, w, e, slip, &rate);
@@ -528,7 +574,7 @@ static void force_derivatives(const vsj_model *m, vsj_work *w, double *jg) {
                 jg[cols * m->xc[i] + ns] -= rate * m->xv[i];
         }
         if (m->code[e] == VSJ_CONTACT) { /* and its position: d = X x + U sigma - gap */
-            double dpos = w->frw[FRW * e + DPOS];
+            double dpos = w->frw[w->f * DPOS + e];
             add_outer(m, e, jg, cols, 0, -dpos);
             for (i = m->xp[e]; i < m->xp[e + 1]; i++)
                 jg[cols * m->xc[i] + ns] -= dpos * vsj__udot(m, e, w->srcw, U) * m->xv[i];
@@ -600,7 +646,7 @@ static void source_force_derivatives(const vsj_model *m, const vsj_work *w, doub
         }
     }
     for (e = 0; e < f; e++) { /* - tau, tau = f(slip) */
-        double slip = w->frw[FRW * e + SLIP], slope, rate;
+        double slip = w->frw[w->f * SLIP + e], slope, rate;
         if (m->up[e + 1] == m->up[e])
             continue;
         slope = friction_slope(m, w, e, slip, &rate);
@@ -611,7 +657,7 @@ static void source_force_derivatives(const vsj_model *m, const vsj_work *w, doub
             if (rate != 0.0)
                 row[ns] -= rate * m->uv[c];
             if (m->code[e] == VSJ_CONTACT) {
-                double dpos = w->frw[FRW * e + DPOS];
+                double dpos = w->frw[w->f * DPOS + e];
                 add_x(m, e, row, 0, -dpos * m->uv[c]);
                 row[ns] -= dpos * vsj__udot(m, e, w->srcw, U) * m->uv[c];
             }
@@ -685,15 +731,15 @@ void vsj__eval_ledger_rows(const vsj_model *m, vsj_work *w, const double *y, con
         row[ns] = w->chan[3 * m->code[base_m + mo] + 1] * y[2 * n + mo];
     }
     for (e = 0; e < f; e++, row += cols) { /* tau slip */
-        double slip = w->frw[FRW * e + SLIP], slope, dp, rate;
+        double slip = w->frw[w->f * SLIP + e], slope, dp, rate;
         slope = friction_slope(m, w, e, slip, &rate);
-        dp = slope * slip + w->frw[FRW * e + TORQUE];
+        dp = slope * slip + w->frw[w->f * TORQUE + e];
         add_x(m, e, row, n, dp);
         row[ns] = dp * vsj__udot(m, e, w->srcw, UD);
         if (rate != 0.0)
             row[ns] += rate * slip;
         if (m->code[e] == VSJ_CONTACT) { /* the force's position: slip dF/dd */
-            double dpos = w->frw[FRW * e + DPOS];
+            double dpos = w->frw[w->f * DPOS + e];
             add_x(m, e, row, 0, slip * dpos);
             row[ns] += slip * dpos * vsj__udot(m, e, w->srcw, U);
         }

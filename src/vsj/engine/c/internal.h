@@ -112,15 +112,20 @@ struct vsj_work {
     double in_t;
     int in_left;
     double *srcw;          /* s x SRCW */
-    double *frw;           /* f x FRW */
+    double *frw;           /* FRW x f: each field (SLIP, TORQUE, ...) of every element */
     /* model ev_model analysed for evaluations (vsj__eval_prepare; NULL: none): the
      * friction elements the dynamics feel (ev_nd of them, in order, in ev_list); for each
-     * element, the first element with the same slip row (-1: it is the first) and
-     * whether its level varies (vsj__varying); each input channel that is one constant
-     * piece (ev_const); and each element's arctangent in the last evaluation (an arctan
-     * law), which later elements of its row share */
+     * element, the first element with the same slip row (-1: it is the first), whether
+     * its level varies (vsj__varying) and, for a plain arctangent law, the earlier arctan
+     * element of its row and sharpness whose arctangent it shares (ev_share, -1: none);
+     * each input channel that is one constant piece (ev_const); and each element's
+     * arctangent in the last evaluation (an arctan law). The elements of each pass over
+     * the laws (index: 0 the dynamics' elements, 1 every element) are split by law, in
+     * element order: the plain arctangents, a constant level and no extra torque (ev_arc,
+     * ev_narc of them), and the others (ev_oth, ev_noth). */
     const vsj_model *ev_model;
-    int64_t ev_nd, *ev_list, *ev_same;
+    int64_t ev_nd, *ev_list, *ev_same, *ev_share;
+    int64_t ev_narc[2], ev_noth[2], *ev_arc[2], *ev_oth[2];
     unsigned char *ev_vary, *ev_const;
     double *ev_atan;
     double *spw;           /* k x SPW */

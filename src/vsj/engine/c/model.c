@@ -266,6 +266,11 @@ static void layout(vsj_work *w, carver *cv) {
     w->frw = DOUBLES(FRW * f);
     w->ev_list = INTS(f);
     w->ev_same = INTS(f);
+    w->ev_share = INTS(f);
+    w->ev_arc[0] = INTS(f);
+    w->ev_arc[1] = INTS(f);
+    w->ev_oth[0] = INTS(f);
+    w->ev_oth[1] = INTS(f);
     w->ev_vary = BYTES(f);
     w->ev_const = BYTES(nch);
     w->ev_atan = DOUBLES(f);
