@@ -34,6 +34,7 @@
  * they explain. The other messages are information, in category logAll, and go when
  * debug logging is on for it (fmu.log_info). */
 static const char *const CATEGORIES[] = {"logStatusError", "logStatusWarning", "logAll"};
+#define N_CATEGORIES (sizeof CATEGORIES / sizeof CATEGORIES[0])
 
 void fmu__say(const fmu *f, fmi2Status status, const char *category, const char *format, ...) {
     char text[1024];
@@ -164,10 +165,10 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
     if (nCategories > 0 && !categories)
         return fmu__fail(f, "fmi2SetDebugLogging: %s", "categories is a null pointer");
     for (k = 0; k < nCategories; k++) {
-        for (j = 0; j < sizeof CATEGORIES / sizeof CATEGORIES[0]; j++)
+        for (j = 0; j < N_CATEGORIES; j++)
             if (categories[k] && strcmp(categories[k], CATEGORIES[j]) == 0)
                 break;
-        if (j == sizeof CATEGORIES / sizeof CATEGORIES[0]) {
+        if (j == N_CATEGORIES) {
             char why[200];
             snprintf(why, sizeof why, "no log category \"%.60s\"; this FMU's are "
                      "logStatusError, logStatusWarning and logAll",

@@ -280,7 +280,7 @@ class Writer:
             else:
                 regions.append([result])
         for region in regions:
-            whole = region[0].joined(region)
+            whole = type(region[0]).joined(region)
             where = slice(whole.start, whole.start + len(whole.status))
             for name, data in (("signals", whole.kept), ("metrics", whole.metrics),
                                ("status", whole.status), ("steps", whole.steps)):
