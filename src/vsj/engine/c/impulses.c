@@ -131,9 +131,9 @@ VSJ_ALWAYS_INLINE void stuck_impulses(impulses *im, const double *slip, int64_t 
         trace += im->G[n * i + i];
     for (i = 0; i < n; i++)
         im->G[n * i + i] += 1e-13 * trace;
-    vsj__cholesky(im->G, im->Lg, n, n, 1);
-    vsj__solve(im->Lg, im->t, im->c, n);
-    vsj__solve(im->Lg, im->c, im->t, n);
+    vsj__ldl(im->G, im->Lg, n);
+    vsj__ldl_solve(im->Lg, im->t, im->c, n);
+    vsj__ldl_solve(im->Lg, im->c, im->t, n);
     for (e = 0; e < m; e++)
         im->d[e] = 0.0;
     for (i = 0; i < n; i++) {
@@ -144,38 +144,33 @@ VSJ_ALWAYS_INLINE void stuck_impulses(impulses *im, const double *slip, int64_t 
     }
 }
 
-/* Gc = Y_F Y_F^T and K = (Gc + ridge I)^-2 for the stuck set in mask: K Y_F s_F
- * are the coefficients of the minimum-norm impulses that cancel the stuck
- * unknowns' slips s_F. The explicit K loses accuracy when stuck rows are
- * nearly parallel; the fast path may use it because its result is checked,
- * while the active set's final polish solves with the factor. */
+/* Gc = Y_F Y_F^T and Lk, the factor of Gc + ridge I (vsj__ldl), for the stuck set in
+ * mask: (Gc + ridge I)^-2 Y_F s_F are the coefficients of the minimum-norm impulses
+ * that cancel the stuck unknowns' slips s_F (stuck_coefficients). */
 VSJ_ALWAYS_INLINE void stuck_map(impulses *im, int64_t n) {
-    int64_t i, j;
+    int64_t i;
     double trace = 0.0;
     gram(im, NULL, im->Gc, NULL, 0.0, n);
     for (i = 0; i < n; i++)
         trace += im->Gc[n * i + i];
-    for (i = 0; i < n; i++) {
-        for (j = 0; j < n; j++)
-            im->K[n * i + j] = im->Gc[n * i + j];
-        im->K[n * i + i] += 1e-13 * trace;
-    }
-    vsj__cholesky(im->K, im->Lg, n, n, 1);
-    for (j = 0; j < n; j++) {
-        for (i = 0; i < n; i++)
-            im->t[i] = i == j ? 1.0 : 0.0;
-        vsj__solve(im->Lg, im->t, im->c, n);
-        vsj__solve(im->Lg, im->c, im->t, n);
-        for (i = 0; i < n; i++)
-            im->K[n * i + j] = im->t[i];
-    }
+    memcpy(im->G, im->Gc, (size_t)(n * n) * sizeof(double));
+    for (i = 0; i < n; i++)
+        im->G[n * i + i] += 1e-13 * trace;
+    vsj__ldl(im->G, im->Lk, n);
+}
+
+/* c = (Gc + ridge I)^-2 t with stuck_map's factor (c may be t). */
+VSJ_ALWAYS_INLINE void stuck_coefficients(const impulses *im, const double *t, double *c,
+                                          int64_t n) {
+    vsj__ldl_solve(im->Lk, t, c, n);
+    vsj__ldl_solve(im->Lk, c, c, n);
 }
 
 /* Fast path: does last step's stick/slip pattern still hold? Bound impulses at
  * their caps, the stuck unknowns' impulses the minimum-norm ones that make
  * their slips exactly zero; returns 1 if every condition holds (p is then the
  * solution). With z_B = Y_B p_B the stuck impulses are Y_F^T c with
- * c = K (Y_F q_F - Gc z_B), and they add Gc c to z. Gc and K change only with
+ * c = (Gc + ridge I)^-2 (Y_F q_F - Gc z_B). Gc and its factor Lk change only with
  * the stuck set or YT and are kept between calls (memo). */
 VSJ_ALWAYS_INLINE int same_pattern(impulses *im, const double *q, const double *lo,
                                    const double *hi, double *p, int64_t *state,
@@ -207,12 +202,7 @@ VSJ_ALWAYS_INLINE int same_pattern(impulses *im, const double *q, const double *
                 acc -= im->Gc[n * i + j] * im->z[j];
             im->t[i] = acc; /* Y_F s_F, s the slips under the bound impulses alone */
         }
-        for (i = 0; i < n; i++) {
-            double acc = 0.0;
-            for (j = 0; j < n; j++)
-                acc += im->K[n * i + j] * im->t[j];
-            im->c[i] = acc;
-        }
+        stuck_coefficients(im, im->t, im->c, n);
         for (e = 0; e < m; e++)
             im->d[e] = 0.0;
         for (i = 0; i < n; i++) {
@@ -228,12 +218,10 @@ VSJ_ALWAYS_INLINE int same_pattern(impulses *im, const double *q, const double *
             }
         if (!fits)
             return 0;
-        for (i = 0; i < n; i++) {
-            double acc = im->z[i];
-            for (j = 0; j < n; j++)
-                acc += im->Gc[n * i + j] * im->c[j];
-            im->z[i] = acc;
-        }
+        /* z = Y^T p from the impulses themselves: the slips checked below are then
+         * those that p gives (z_B + Gc c rounds apart from them where the stuck rows
+         * are nearly parallel and c is large) */
+        project(im, p, im->z, n);
     }
     slips(im, q, im->z, im->g, n);
     for (e = 0; e < m; e++) {
@@ -269,8 +257,8 @@ VSJ_ALWAYS_INLINE int newton_step(impulses *im, const double *lo, const double *
     int64_t e, m = im->m, block = -1;
     double alpha = 1.0;
     gram(im, im->g, im->G, im->t, eps, n);
-    vsj__cholesky(im->G, im->Lg, n, n, 1);
-    vsj__solve(im->Lg, im->t, im->c, n);
+    vsj__ldl(im->G, im->Lg, n);
+    vsj__ldl_solve(im->Lg, im->t, im->c, n);
     slips(im, im->g, im->c, im->d, n); /* d = g - Y c, scaled below */
     for (e = 0; e < m; e++) {
         double de, a;
@@ -432,8 +420,8 @@ int vsj_solve_impulses(int64_t n, int64_t m, const double *YT, int64_t count, co
     im.G = block;
     im.Lg = im.G + n * n;
     im.Gc = im.Lg + n * n;
-    im.K = im.Gc + n * n;
-    im.t = im.K + n * n;
+    im.Lk = im.Gc + n * n;
+    im.t = im.Lk + n * n;
     im.c = im.t + n;
     im.z = im.c + n;
     im.mask = im.z + n;

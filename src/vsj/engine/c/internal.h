@@ -35,8 +35,8 @@ typedef struct ts_work {
     double q_prev;         /* pivot position at t */
     double angle_prev;     /* pivot mechanism's angle at t */
     double angle_mid, q_mid;
-    /* n x n; G, Lg, Gc, Kc: (n + 2 k)^2, the impulse problem's rows */
-    double *H, *H_last, *Lc, *Bx, *G, *Lg, *Gc, *Kc;
+    /* n x n; G, Lg, Gc, Lk: (n + 2 k)^2, the impulse problem's rows */
+    double *H, *H_last, *Lc, *Bx, *G, *Lg, *Gc, *Lk;
     /* n; tv, cv, z: n + 2 k */
     double *x, *v, *r, *vfree, *v1, *x1, *col, *drow, *tv, *cv, *z;
     double *Bu;            /* n x s */
@@ -330,11 +330,11 @@ VSJ_INTERNAL void vsj__lu_solve(const double *LU, const int64_t *piv, const doub
 
 /* The joint Coulomb impulse problem (impulses.c): YT is n x m, one column L^-1 d_e
  * per unknown, so that the Delassus matrix is W = Y Y^T; the other arrays are its
- * scratch (mask, d, g: m; memo: m + 1; t, c, z: n; G, Lg, Gc, K: n x n). */
+ * scratch (mask, d, g: m; memo: m + 1; t, c, z: n; G, Lg, Gc, Lk: n x n). */
 typedef struct impulses {
     const double *YT; /* row i of the n x m problem starts at YT + ld * i (ld >= m) */
     int64_t n, m, ld;
-    double *mask, *G, *Lg, *t, *c, *d, *g, *z, *Gc, *K, *memo;
+    double *mask, *G, *Lg, *t, *c, *d, *g, *z, *Gc, *Lk, *memo;
 } impulses;
 
 /* Exact impulses for slips s = q - W p, lo <= p <= hi: p at hi where s > 0, at lo

@@ -1,7 +1,9 @@
 /* Small dense linear algebra for the time-stepper and its impulse solver: the
  * Cholesky factor of a symmetric positive definite matrix and the triangular
- * solves with it. Each works on the leading k x k block of a row-major n x n
- * array, so that one allocation serves problems of every size up to n.
+ * solves with it, and the square-root-free L D L^T factor for matrices that are only
+ * solved with. Each works on the leading k x k block of a row-major n x n array (the
+ * L D L^T factor: the whole n x n), so that one allocation serves problems of every
+ * size up to n.
  *
  * They are inline (VSJ_ALWAYS_INLINE): their sizes are the coordinates' count, two
  * on the wrist, and a caller compiled for a constant size (timestep.c, impulses.c)
@@ -37,7 +39,7 @@ VSJ_ALWAYS_INLINE int vsj__cholesky(const double *H, double *L, int64_t k, int64
     return 1;
 }
 
-/* L out = b */
+/* L out = b (out may be b) */
 VSJ_ALWAYS_INLINE void vsj__forward(const double *L, const double *b, double *out, int64_t k,
                                     int64_t n) {
     int64_t i, r;
@@ -79,6 +81,44 @@ VSJ_ALWAYS_INLINE void vsj__backward(const double *L, const double *b, double *o
         for (r = i + 1; r < k; r++)
             acc -= L[n * r + i] * out[r];
         out[i] = acc / L[n * i + i];
+    }
+}
+
+/* H = L D L^T, for the systems that are only solved (vsj__ldl_solve): no square roots
+ * on the way, where Cholesky's would lengthen the chain of dependent operations. F
+ * holds L's strict lower triangle, the reciprocals of D on its diagonal, and in its
+ * strict upper triangle the products L D that the factorisation works with. A pivot at
+ * or below zero becomes a tiny positive one (vsj__cholesky's `floor`). */
+VSJ_ALWAYS_INLINE void vsj__ldl(const double *H, double *F, int64_t n) {
+    int64_t i, j, r;
+    for (i = 0; i < n; i++) {
+        double d = H[n * i + i];
+        for (j = 0; j < i; j++) {
+            double u = H[n * i + j];
+            for (r = 0; r < j; r++)
+                u -= F[n * r + i] * F[n * j + r]; /* (L D)_ir L_jr */
+            F[n * j + i] = u;                     /* (L D)_ij */
+            F[n * i + j] = u * F[n * j + j];      /* L_ij */
+            d -= u * F[n * i + j];
+        }
+        F[n * i + i] = 1.0 / (d <= 0.0 ? 1e-300 : d);
+    }
+}
+
+/* H out = b with vsj__ldl's factor F of H (out may be b) */
+VSJ_ALWAYS_INLINE void vsj__ldl_solve(const double *F, const double *b, double *out, int64_t n) {
+    int64_t i, r;
+    for (i = 0; i < n; i++) {
+        double acc = b[i];
+        for (r = 0; r < i; r++)
+            acc -= F[n * i + r] * out[r];
+        out[i] = acc;
+    }
+    for (i = n - 1; i >= 0; i--) {
+        double acc = out[i] * F[n * i + i];
+        for (r = i + 1; r < n; r++)
+            acc -= F[n * r + i] * out[r];
+        out[i] = acc;
     }
 }
 

@@ -310,7 +310,7 @@ static void layout(vsj_work *w, carver *cv) {
     t->G = DOUBLES(nr * nr);
     t->Lg = DOUBLES(nr * nr);
     t->Gc = DOUBLES(nr * nr);
-    t->Kc = DOUBLES(nr * nr);
+    t->Lk = DOUBLES(nr * nr);
     t->x = DOUBLES(n);
     t->v = DOUBLES(n);
     t->r = DOUBLES(n);

@@ -115,7 +115,7 @@ static impulses impulses_of(vsj_work *w, int full) {
     im.g = t->g;
     im.z = t->z;
     im.Gc = t->Gc;
-    im.K = t->Kc;
+    im.Lk = t->Lk;
     im.memo = t->memo;
     return im;
 }
@@ -395,7 +395,7 @@ static void forget_numbers(const vsj_model *m, ts_work *t) {
     memset(t->mask, 0, (size_t)mu * sizeof(double));
     memset(t->memo, 0, (size_t)(mu + 1) * sizeof(double));
     memset(t->Gc, 0, (size_t)(nr * nr) * sizeof(double));
-    memset(t->Kc, 0, (size_t)(nr * nr) * sizeof(double));
+    memset(t->Lk, 0, (size_t)(nr * nr) * sizeof(double));
     for (a = 0; a < mu; a++)
         t->state[a] = 0;
     t->hs_prev = NAN;
@@ -660,8 +660,8 @@ static double spring_gradient(const vsj_model *m, vsj_work *w, int64_t k, double
                               &dvq, w->spcache + 4 * k, !w->ts.has_stop[k]);
     /* the slope of the mean gradient in its end: (2 V''(d1) + V''(d0)) / 6, exact for
      * a cubic energy */
-    *kap = 2.0 * (2.0 * kap1 + kap0) / 6.0;
-    return 0.5 * (tau0 + tau1) + span * (kap1 - kap0) / 12.0;
+    *kap = (2.0 * kap1 + kap0) * (1.0 / 3.0);
+    return 0.5 * (tau0 + tau1) + span * (kap1 - kap0) * (1.0 / 12.0);
 }
 
 /* The end speeds that keep spring k within its stop, for its two end-stop unknowns
@@ -1308,7 +1308,7 @@ static int64_t history_spans(const vsj_model *m, const vsj_work *w, span *out) {
     SPAN(t->Lc, (size_t)(n * n) * d, REALS);
     SPAN(t->YlT, (size_t)(nr * mu) * d, REALS);
     SPAN(t->Gc, (size_t)(nr * nr) * d, REALS);
-    SPAN(t->Kc, (size_t)(nr * nr) * d, REALS);
+    SPAN(t->Lk, (size_t)(nr * nr) * d, REALS);
     SPAN(t->p, (size_t)mu * d, REALS);
     SPAN(t->state, (size_t)mu * l, STATES);
     SPAN(t->memo, (size_t)(mu + 1) * d, REALS);
