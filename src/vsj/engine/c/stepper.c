@@ -169,14 +169,12 @@ static int step_rk4(const vsj_model *m, vsj_work *w, double *s, const double *in
     return status;
 }
 
+/* One period of the time-stepper: `steps` steps of h (the last shortened to end at dt),
+ * as vsj_step has counted and checked them. */
 static int step_timestep(const vsj_model *m, vsj_work *w, double *s, const double *inputs,
-                         double dt, double h) {
-    int64_t steps;
+                         double dt, double h, int64_t steps) {
     vsj_report rep;
     int status;
-    if (!(dt > 0.0) || !(h > 0.0) || !(dt / h <= VSJ_MAX_PERIOD_STEPS)) /* w fits m: vsj_step */
-        return VSJ_BAD_ARGUMENT;
-    steps = (int64_t)ceil(dt / h - 1e-9);
     begin_period(m, w, s, inputs, dt, w->sy);
     status = vsj__ts_begin(m, w, w->sy, 0.0);
     rep = vsj__ts_advance(m, w, w->sy, dt, h, steps, 0, NULL);
@@ -244,6 +242,7 @@ static int step_ledger(const vsj_model *m, vsj_work *w, const vsj_scheme *sc, do
 int vsj_step(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, double *s,
              const double *inputs, double dt, double *ledger) {
     int method;
+    double steps = 1.0; /* the time-stepper's steps in the period */
     if (!scheme || !s || !inputs || !vsj__fits(m, w) || !(dt > 0.0) || !isfinite(dt)
         || scheme->max_steps < 1)
         return VSJ_BAD_ARGUMENT;
@@ -258,11 +257,13 @@ int vsj_step(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, double *
             return VSJ_BAD_ARGUMENT;
     }
     if (method == VSJ_METHOD_TIMESTEP) {
-        if (!(scheme->h > 0.0) || !(dt / scheme->h <= VSJ_MAX_PERIOD_STEPS))
+        double per_step = dt / scheme->h;
+        if (!(scheme->h > 0.0) || !(per_step <= VSJ_MAX_PERIOD_STEPS))
             return VSJ_BAD_ARGUMENT;
         if (!vsj__ts_prepared_for(m, w) && vsj_ts_prepare(m, w) != VSJ_OK)
             return VSJ_BAD_ARGUMENT;
-        if (ceil(dt / scheme->h - 1e-9) > (double)scheme->max_steps)
+        steps = ceil(per_step - 1e-9);
+        if (steps > (double)scheme->max_steps)
             return VSJ_TOO_MANY_STEPS;
     } else if (method == VSJ_METHOD_DOPRI || method == VSJ_METHOD_ROSENBROCK) {
         if (!vsj__tolerances_ok(scheme->rtol, scheme->atol))
@@ -276,5 +277,5 @@ int vsj_step(const vsj_model *m, vsj_work *w, const vsj_scheme *scheme, double *
         return step_adaptive(m, w, scheme, s, inputs, dt);
     if (method == VSJ_METHOD_RK4)
         return step_rk4(m, w, s, inputs, dt, scheme->substeps);
-    return step_timestep(m, w, s, inputs, dt, scheme->h);
+    return step_timestep(m, w, s, inputs, dt, scheme->h, (int64_t)steps);
 }
