@@ -21,6 +21,10 @@ WARNINGS = ["-Wall", "-Wextra"] + (["-Werror"] if os.environ.get("VSJ_WERROR") =
 #: energy ledger books each step to round-off there too (in GNU C, gcc fuses them across
 #: statements, and the step's sums and the ledger's then round apart).
 STANDARD = ["-std=c99"]
+#: The engine reads no errno after a math function, so none need be set: gcc and clang
+#: then compile sqrt to the processor's instruction alone, not with a branch to the
+#: library for a negative argument. The same bits, and a shorter step.
+MATH = ["-fno-math-errno"]
 
 
 class BuildOnEveryCore(build_ext):
@@ -30,7 +34,7 @@ class BuildOnEveryCore(build_ext):
 
     def build_extension(self, ext):
         if self.compiler.compiler_type == "unix":
-            ext.extra_compile_args = STANDARD + WARNINGS + list(ext.extra_compile_args or [])
+            ext.extra_compile_args = STANDARD + MATH + WARNINGS + list(ext.extra_compile_args or [])
         compile_all = self.compiler.compile
 
         def compile_each(sources, *args, **kwargs):

@@ -271,8 +271,8 @@ def main() -> int:
         cc = (sysconfig.get_config_var("CC") or "cc").split()[0]
         cc = cc if shutil.which(cc) else fmu.compiler("linux64")
         exe = root / "driver"
-        subprocess.run([cc, "-std=c99", "-O2", "-D_POSIX_C_SOURCE=200809L", "-I", str(engine),
-                        "-I", str(fmi), "-o", str(exe), str(source),
+        subprocess.run([cc, "-std=c99", "-O2", "-fno-math-errno", "-D_POSIX_C_SOURCE=200809L",
+                        "-I", str(engine), "-I", str(fmi), "-o", str(exe), str(source),
                         *sorted(str(p) for p in engine.glob("*.c")), "-ldl", "-lm"],
                        check=True)
         done = subprocess.run([str(exe), str(unzipped / "binaries" / "linux64" / "vsj_wrist.so"),

@@ -77,11 +77,12 @@ def inputs_for(stepper):
 
 
 def build_loop(scratch: Path) -> Path:
-    """step_loop.c with the engine's sources, at the flags of Python's extensions."""
+    """step_loop.c with the engine's sources, at the flags of Python's extensions and
+    setup.py's for the engine."""
     exe = scratch / "step_loop"
     flags = (sysconfig.get_config_var("CFLAGS") or "-O3").split()
     cc = (sysconfig.get_config_var("CC") or "cc").split()[0]
-    subprocess.run([cc, *flags, "-std=c99", "-I", str(ENGINE), "-o", str(exe),
+    subprocess.run([cc, *flags, "-std=c99", "-fno-math-errno", "-I", str(ENGINE), "-o", str(exe),
                     str(Path(__file__).with_name("step_loop.c")),
                     *map(str, sorted(ENGINE.glob("*.c"))), "-lm"], check=True)
     return exe

@@ -492,8 +492,9 @@ def compile_binary(kind: str, out: Path) -> str:
         raise InputError(f"vsj fmu: no C compiler for {kind}")
     paths = _source_paths()
     sources = [str(p) for p in paths if p.suffix == ".c"]
-    flags = ["-std=c99", "-O2", "-Wall", "-Wextra", "-I", str(_engine_dir()),
-             "-I", str(_fmi_dir())]
+    # -fno-math-errno as setup.py builds the engine (it reads no errno)
+    flags = ["-std=c99", "-O2", "-fno-math-errno", "-Wall", "-Wextra",
+             "-I", str(_engine_dir()), "-I", str(_fmi_dir())]
     link = ["-shared"]
     if kind == "linux64":
         flags += ["-fPIC", "-fvisibility=hidden"]
