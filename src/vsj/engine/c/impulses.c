@@ -175,61 +175,64 @@ VSJ_ALWAYS_INLINE void stuck_coefficients(const impulses *im, const double *t, d
 VSJ_ALWAYS_INLINE int same_pattern(impulses *im, const double *q, const double *lo,
                                    const double *hi, double *p, int64_t *state,
                                    const unsigned char *active, int64_t n) {
-    int64_t e, i, j, m = im->m, n_free;
+    int64_t e, i, j, m = im->m, ld = im->ld, n_free;
+    const double *YT = im->YT, *mask = im->mask;
     double scale, tol;
     int holds = 1;
     n_free = snap(im, q, lo, hi, p, state, active, &scale);
     tol = IMPULSE_ABS + IMPULSE_REL * scale;
-    for (e = 0; e < m; e++)
-        im->d[e] = p[e] * (1.0 - im->mask[e]);
-    project(im, im->d, im->z, n); /* z_B */
     if (n_free > 0) {
         int known = im->memo[m] > 0.0, fits = 1;
         for (e = 0; e < m; e++)
-            known = known && im->memo[e] == im->mask[e];
+            known = known && im->memo[e] == mask[e];
         if (!known) {
             stuck_map(im, n);
             for (e = 0; e < m; e++)
-                im->memo[e] = im->mask[e];
+                im->memo[e] = mask[e];
             im->memo[m] = 1.0;
         }
-        for (e = 0; e < m; e++)
-            im->d[e] = q[e] * im->mask[e];
-        project(im, im->d, im->t, n);
+        /* z_B, and Y_F s_F with s the slips under the bound impulses alone */
+        for (i = 0; i < n; i++) {
+            double zb = 0.0, yq = 0.0;
+            const double *row = YT + ld * i;
+            for (e = 0; e < m; e++) {
+                zb += row[e] * (p[e] * (1.0 - mask[e]));
+                yq += row[e] * (q[e] * mask[e]);
+            }
+            im->z[i] = zb;
+            im->t[i] = yq;
+        }
         for (i = 0; i < n; i++) {
             double acc = im->t[i];
             for (j = 0; j < n; j++)
                 acc -= im->Gc[n * i + j] * im->z[j];
-            im->t[i] = acc; /* Y_F s_F, s the slips under the bound impulses alone */
+            im->t[i] = acc;
         }
         stuck_coefficients(im, im->t, im->c, n);
         for (e = 0; e < m; e++)
-            im->d[e] = 0.0;
-        for (i = 0; i < n; i++) {
-            double ci = im->c[i];
-            const double *row = im->YT + im->ld * i;
-            for (e = 0; e < m; e++)
-                im->d[e] += row[e] * ci;
-        }
-        for (e = 0; e < m; e++)
-            if (im->mask[e] > 0.0) {
-                fits = fits && im->d[e] >= lo[e] && im->d[e] <= hi[e];
-                p[e] = im->d[e];
+            if (mask[e] > 0.0) {
+                double pe = 0.0;
+                for (i = 0; i < n; i++)
+                    pe += YT[ld * i + e] * im->c[i];
+                fits = fits && pe >= lo[e] && pe <= hi[e];
+                p[e] = pe;
             }
         if (!fits)
             return 0;
-        /* z = Y^T p from the impulses themselves: the slips checked below are then
-         * those that p gives (z_B + Gc c rounds apart from them where the stuck rows
-         * are nearly parallel and c is large) */
-        project(im, p, im->z, n);
     }
-    slips(im, q, im->z, im->g, n);
+    /* z = Y^T p from the impulses themselves, so that the slips checked are those
+     * that p gives (z_B + Gc c would round apart from them where the stuck rows are
+     * nearly parallel and c is large) */
+    project(im, p, im->z, n);
     for (e = 0; e < m; e++) {
         int64_t st = state[e];
+        double slip = q[e];
+        for (i = 0; i < n; i++)
+            slip -= YT[ld * i + e] * im->z[i];
         if (st == 0)
-            holds = holds && fabs(im->g[e]) <= tol;
+            holds = holds && fabs(slip) <= tol;
         else if (st != 2)
-            holds = holds && im->g[e] * (double)st >= -tol;
+            holds = holds && slip * (double)st >= -tol;
     }
     return holds;
 }
