@@ -118,10 +118,12 @@ _LIBRARIES: dict = {}
 
 def _library(name: str, libraries=()):
     """benchmarks/``name``.c, compiled once per process with the flags of Python's own
-    extensions (and linked with ``libraries``)."""
+    extensions and those setup.py adds for vsj's engine (-std=c99 -fno-math-errno), so
+    that the baselines are built as the engine is (and linked with ``libraries``)."""
     if name not in _LIBRARIES:
         out = Path(tempfile.mkdtemp(prefix="vsj-bench-")) / f"{name}.so"
-        flags = (sysconfig.get_config_var("CFLAGS") or "-O3").split()
+        flags = (sysconfig.get_config_var("CFLAGS") or "-O3").split() + ["-std=c99",
+                                                                      "-fno-math-errno"]
         cc = (sysconfig.get_config_var("CC") or "cc").split()[0]
         subprocess.run([cc, *flags, "-shared", "-fPIC", "-o", str(out),
                         str(Path(__file__).with_name(f"{name}.c")),
