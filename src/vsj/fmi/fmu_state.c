@@ -12,8 +12,9 @@
 
 #define SNAPSHOT_MAGIC 0x736a7376u /* an fmi2FMUstate of this FMU */
 #define STATE_MAGIC 0x53736a76u    /* "vjsS": a serialized one */
-#define STATE_FORMAT 4u /* its layout (1: no fingerprint; 2: no tolerances; 3: no pivot_q0,
-                          * stop time) */
+#define STATE_FORMAT 5u /* its layout (1: no fingerprint; 2: no tolerances; 3: no pivot_q0,
+                          * stop time; 4: the time-stepper's impulse memo held the stuck
+                          * set's inverse squared, not its factor) */
 
 /* what fmi2GetFMUstate keeps: everything that a later step depends on (the adaptive
  * schemes' tolerances and the stop time too, which fmi2SetupExperiment may have set, and
